@@ -1,0 +1,308 @@
+"""The physical model of one microbolometer camera unit, and rendering raw frames from it.
+
+Per pixel p and frame k (DESIGN.md, the papers' models made into one)::
+
+    I_p[k] = G_p(t_fpa) · L(T_scene,p)                 scene flux through the pixel's responsivity
+           + O_p(t_fpa)                                offset drifting with the FPA temperature
+           + H_p · (L(t_housing) − L(t_fpa))           housing/lens self-radiation, radial pattern
+           + C_p · d t_fpa / dt                        transient term (Lin, Westfeld, Maas)
+           + temporal noise → round → clip to 0 … 2**bit_depth − 1
+
+``G_p`` and ``O_p`` are cubic polynomials in ``t_fpa − t_ref`` (Oz et al. eq. 13, Nugent et al.);
+the column fixed-pattern noise (Oz et al. eq. 19 and an additive column term) is folded into them
+when a unit is made (:mod:`thermocal.camera.presets`). ``L`` is band radiance, W·m⁻²·sr⁻¹.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from thermocal._validate import as_float_array, as_temperature_c
+from thermocal.errors import InvalidInputError, ResolutionMismatchError
+from thermocal.radiometry import TAU2, BandRadiance
+
+POLY_ORDER = 3
+
+
+@dataclass(frozen=True, eq=False)
+class CameraModel:
+    """Per-pixel coefficients of one camera unit (all maps ``(H, W)``, float32).
+
+    Parameters
+    ----------
+    gain : (4, H, W) array
+        Coefficients of ``G_p(t) = Σ_i gain[i] · (t − t_ref_c)^i``, counts per W·m⁻²·sr⁻¹.
+    offset : (4, H, W) array
+        Coefficients of ``O_p(t)``, counts.
+    housing : (H, W) array
+        Self-radiation responsivity ``H_p``, counts per W·m⁻²·sr⁻¹ of ``L(t_housing) − L(t_fpa)``.
+    transient : (H, W) array
+        ``C_p``, counts per °C/min of FPA temperature change.
+    defects : (H, W) bool
+        Dead or hot pixels; they output ``defect_counts`` whatever the scene.
+    defect_counts : (H, W) uint16
+        The stuck output of each defective pixel (0 elsewhere).
+    noise_sigma : float
+        Standard deviation of the temporal noise, counts (σ² ≈ 5 counts² for the Tau2).
+    t_ref_c : float
+        FPA temperature (°C) around which the polynomials are expanded.
+    band : BandRadiance
+        The spectral band of the camera.
+    bit_depth : int
+        Output bits; counts are clipped to ``0 … 2**bit_depth − 1``.
+    info : dict
+        Where the unit came from (preset, unit number, drawn parameters).
+    """
+
+    gain: np.ndarray
+    offset: np.ndarray
+    housing: np.ndarray
+    transient: np.ndarray
+    defects: np.ndarray
+    defect_counts: np.ndarray
+    noise_sigma: float = float(np.sqrt(5.0))
+    t_ref_c: float = 25.0
+    band: BandRadiance = TAU2
+    bit_depth: int = 14
+    info: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        shape = self.housing.shape
+        for name in ("gain", "offset"):
+            arr = getattr(self, name)
+            if arr.shape != (POLY_ORDER + 1, *shape):
+                raise InvalidInputError(
+                    f"CameraModel.{name}: expected shape {(POLY_ORDER + 1, *shape)}, "
+                    f"got {arr.shape}"
+                )
+        for name in ("transient", "defects", "defect_counts"):
+            if getattr(self, name).shape != shape:
+                raise InvalidInputError(f"CameraModel.{name}: expected shape {shape}")
+        if self.noise_sigma < 0:
+            raise InvalidInputError("CameraModel.noise_sigma must be >= 0")
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Frame shape ``(H, W)``."""
+        return self.housing.shape  # type: ignore[return-value]
+
+    @property
+    def max_counts(self) -> int:
+        """Largest output count, ``2**bit_depth − 1``."""
+        return 2**self.bit_depth - 1
+
+    def gain_at(self, fpa_c: float) -> np.ndarray:
+        """``G_p(t_fpa)``, counts per W·m⁻²·sr⁻¹, ``(H, W)`` float32."""
+        return _horner(self.gain, fpa_c - self.t_ref_c)
+
+    def offset_at(self, fpa_c: float) -> np.ndarray:
+        """``O_p(t_fpa)``, counts, ``(H, W)`` float32."""
+        return _horner(self.offset, fpa_c - self.t_ref_c)
+
+    def without_transient(self) -> CameraModel:
+        """The same unit with ``C_p = 0``: what a method that ignores the transient term assumes."""
+        return replace(self, transient=np.zeros_like(self.transient))
+
+    def crop(self, top: int, left: int, height: int, width: int) -> CameraModel:
+        """The model of a sub-window of the sensor (same physics, smaller frames)."""
+        h, w = self.shape
+        if not (0 <= top and 0 <= left and top + height <= h and left + width <= w):
+            raise InvalidInputError(f"crop {height}x{width} at ({top}, {left}) leaves {h}x{w}")
+        rows, cols = slice(top, top + height), slice(left, left + width)
+        return replace(
+            self,
+            gain=self.gain[:, rows, cols].copy(),
+            offset=self.offset[:, rows, cols].copy(),
+            housing=self.housing[rows, cols].copy(),
+            transient=self.transient[rows, cols].copy(),
+            defects=self.defects[rows, cols].copy(),
+            defect_counts=self.defect_counts[rows, cols].copy(),
+        )
+
+
+def _horner(coeffs: np.ndarray, x: float) -> np.ndarray:
+    """Evaluate ``Σ_i coeffs[i] · x^i`` at a scalar ``x``; ``coeffs`` is ``(order+1, H, W)``."""
+    x = np.float32(x)
+    out = coeffs[-1] * x
+    for c in coeffs[-2:0:-1]:
+        out += c
+        out *= x
+    out += coeffs[0]
+    return out
+
+
+def _per_frame(values: Any, n: int, name: str) -> np.ndarray:
+    """Broadcast a scalar or an ``(N,)`` series to ``(N,)`` float64."""
+    arr = as_float_array(values, name, ndim=(0, 1))
+    if arr.ndim == 0:
+        return np.full(n, float(arr))
+    if arr.shape != (n,):
+        raise InvalidInputError(f"{name}: expected {n} values (one per frame), got {arr.shape}")
+    return arr.astype(np.float64)
+
+
+def _scene_radiance(
+    model: CameraModel, scene_c: Any, emissivity: float, reflected_c: float | None
+) -> np.ndarray:
+    """Band radiance reaching the camera from the scene, W·m⁻²·sr⁻¹, float32, ``(N, H, W)``-able."""
+    if not 0.0 < emissivity <= 1.0:
+        raise InvalidInputError(f"emissivity must be in (0, 1], got {emissivity}")
+    scene = as_temperature_c(scene_c, "scene_c")
+    if scene.ndim == 0:
+        scene = scene.reshape(1, 1, 1)
+    elif scene.ndim == 2:
+        scene = scene[None]
+    elif scene.ndim == 1:
+        scene = scene[:, None, None]
+    elif scene.ndim != 3:
+        raise InvalidInputError(
+            f"scene_c: expected a scalar, (N,), (H, W) or (N, H, W), got {scene.shape}"
+        )
+    if scene.shape[1:] != (1, 1) and scene.shape[1:] != model.shape:
+        raise ResolutionMismatchError(
+            f"scene is {scene.shape[2]}x{scene.shape[1]} but the camera is "
+            f"{model.shape[1]}x{model.shape[0]}"
+        )
+    radiance = model.band.radiance((scene + 273.15).astype(np.float32))
+    if emissivity < 1.0:
+        if reflected_c is None:
+            raise InvalidInputError("reflected_c is required when emissivity < 1")
+        reflected = float(model.band.radiance(np.float32(reflected_c + 273.15)))
+        radiance = emissivity * radiance + np.float32((1.0 - emissivity) * reflected)
+    return radiance.astype(np.float32, copy=False)
+
+
+def expected_counts(
+    model: CameraModel,
+    scene_c: Any,
+    fpa_c: Any,
+    *,
+    housing_c: Any = None,
+    fpa_rate_c_per_min: Any = 0.0,
+    emissivity: float = 1.0,
+    reflected_c: float | None = None,
+) -> np.ndarray:
+    """Noise-free, unquantised output of the camera, counts, ``(N, H, W)`` float32.
+
+    Parameters
+    ----------
+    model : CameraModel
+    scene_c : array
+        Scene temperature in °C: ``(H, W)``, ``(N, H, W)``, or ``(N,)`` for uniform scenes
+        (a blackbody filling the view).
+    fpa_c : float or (N,) array
+        True FPA temperature of each frame, °C.
+    housing_c : float or (N,) array, optional
+        Housing temperature, °C; defaults to the FPA temperature (no self-radiation term).
+    fpa_rate_c_per_min : float or (N,) array
+        ``d t_fpa / dt`` in °C/min (the transient term).
+    emissivity, reflected_c
+        Emissivity of the scene and the temperature (°C) of what it reflects.
+    """
+    radiance = _scene_radiance(model, scene_c, emissivity, reflected_c)
+    fpa = as_temperature_c(fpa_c, "fpa_c", ndim=(0, 1))
+    n = max(radiance.shape[0], fpa.size)
+    if radiance.shape[0] not in (1, n):
+        raise InvalidInputError(f"{radiance.shape[0]} scene frames but {fpa.size} FPA temperatures")
+    radiance = np.broadcast_to(radiance, (n, *radiance.shape[1:]))
+    fpa = _per_frame(fpa, n, "fpa_c")
+    housing = fpa if housing_c is None else _per_frame(housing_c, n, "housing_c")
+    as_temperature_c(housing, "housing_c")
+    rate = _per_frame(fpa_rate_c_per_min, n, "fpa_rate_c_per_min")
+    self_radiance = model.band.radiance(housing + 273.15) - model.band.radiance(fpa + 273.15)
+
+    out = np.empty((n, *model.shape), dtype=np.float32)
+    for k in range(n):
+        frame = out[k]
+        np.multiply(model.gain_at(fpa[k]), radiance[k], out=frame)
+        frame += model.offset_at(fpa[k])
+        if self_radiance[k] != 0.0:
+            frame += np.float32(self_radiance[k]) * model.housing
+        if rate[k] != 0.0:
+            frame += np.float32(rate[k]) * model.transient
+    return out
+
+
+def render(
+    model: CameraModel,
+    scene_c: Any,
+    fpa_c: Any,
+    *,
+    housing_c: Any = None,
+    fpa_rate_c_per_min: Any = 0.0,
+    emissivity: float = 1.0,
+    reflected_c: float | None = None,
+    rng: np.random.Generator | None = None,
+    noise: bool = True,
+) -> np.ndarray:
+    """Raw frames the camera would give: :func:`expected_counts` + noise, rounded, clipped.
+
+    Returns ``(N, H, W)`` uint16 counts in ``0 … 2**bit_depth − 1``; defective pixels output their
+    stuck value. ``rng`` is required when ``noise`` is True (seeded results only).
+    """
+    counts = expected_counts(
+        model,
+        scene_c,
+        fpa_c,
+        housing_c=housing_c,
+        fpa_rate_c_per_min=fpa_rate_c_per_min,
+        emissivity=emissivity,
+        reflected_c=reflected_c,
+    )
+    if noise and model.noise_sigma > 0:
+        if rng is None:
+            raise InvalidInputError("render: pass rng=np.random.default_rng(seed) for noise")
+        for frame in counts:  # frame by frame: bounded temporary memory
+            frame += rng.standard_normal(frame.shape, dtype=np.float32) * np.float32(
+                model.noise_sigma
+            )
+    np.rint(counts, out=counts)
+    np.clip(counts, 0, model.max_counts, out=counts)
+    frames = counts.astype(np.uint16)
+    if model.defects.any():
+        frames[:, model.defects] = model.defect_counts[model.defects]
+    return frames
+
+
+def invert(
+    model: CameraModel,
+    counts: Any,
+    fpa_c: Any,
+    *,
+    housing_c: Any = None,
+    fpa_rate_c_per_min: Any = 0.0,
+) -> np.ndarray:
+    """Scene temperature (°C) from counts by inverting the model exactly (an oracle calibration).
+
+    The counterpart of :func:`expected_counts` with ``emissivity = 1``: used to measure what is
+    lost when a term of the model is ignored (e.g. ``model.without_transient()``). Returns
+    ``(N, H, W)`` float32. Defective pixels give whatever their stuck counts imply.
+    """
+    frames = np.asarray(counts, dtype=np.float32)
+    if frames.ndim == 2:
+        frames = frames[None]
+    if frames.shape[1:] != model.shape:
+        raise ResolutionMismatchError(
+            f"frames are {frames.shape[2]}x{frames.shape[1]} but the camera is "
+            f"{model.shape[1]}x{model.shape[0]}"
+        )
+    n = frames.shape[0]
+    zero_scene = expected_counts(
+        model,
+        np.zeros(1),
+        _per_frame(fpa_c, n, "fpa_c"),
+        housing_c=housing_c,
+        fpa_rate_c_per_min=fpa_rate_c_per_min,
+    )
+    zero_radiance = float(model.band.radiance(np.float32(273.15)))
+    fpa = _per_frame(fpa_c, n, "fpa_c")
+    out = np.empty_like(frames)
+    for k in range(n):
+        gain = model.gain_at(fpa[k])
+        radiance = (frames[k] - zero_scene[k]) / gain + np.float32(zero_radiance)
+        lo, hi = model.band.radiance_range
+        out[k] = model.band.temperature(np.clip(radiance, lo, hi)) - np.float32(273.15)
+    return out

@@ -1,0 +1,233 @@
+"""The ``thermocal`` command line (the contract of DESIGN.md).
+
+Bad input ends with a one-line message on stderr and exit status 2, never a traceback.
+"""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from thermocal import __version__
+from thermocal.errors import InvalidInputError, ThermocalError
+
+
+def parse_range(text: str, name: str, *, parts: int) -> tuple[float, ...]:
+    """Parse ``A:B`` or ``A:B:STEP`` (°C); ``A < B`` and ``STEP > 0`` for three parts."""
+    try:
+        values = tuple(float(v) for v in text.split(":"))
+    except ValueError:
+        values = ()
+    want = "A:B" if parts == 2 else "A:B:STEP"
+    if len(values) != parts:
+        raise InvalidInputError(f"{name} {text!r}: expected {want} in °C")
+    if parts == 3:
+        start, stop, step = values
+        if step <= 0 or stop < start:
+            raise InvalidInputError(
+                f"{name} {text!r}: expected {want} with A <= B and STEP > 0 (e.g. 10:70:10)"
+            )
+    return values
+
+
+def setpoints_from_range(start: float, stop: float, step: float) -> tuple[float, ...]:
+    """Set points ``start, start + step, …`` up to and including ``stop`` (°C)."""
+    n = int(round((stop - start) / step)) + 1
+    if n > 1000:
+        raise InvalidInputError(f"{n} blackbody set points is too many (at most 1000)")
+    points = (start + step * k for k in range(n))
+    return tuple(float(p) for p in points if p <= stop + 1e-9)
+
+
+def _progress():
+    """A rich progress bar with frames per second, on stderr."""
+    from rich.console import Console
+    from rich.progress import (
+        BarColumn,
+        MofNCompleteColumn,
+        Progress,
+        ProgressColumn,
+        TextColumn,
+        TimeRemainingColumn,
+    )
+    from rich.text import Text
+
+    class FramesPerSecond(ProgressColumn):
+        def render(self, task):  # noqa: D102 - rich's column protocol
+            speed = task.finished_speed or task.speed
+            return Text(f"{speed:.0f} frames/s" if speed else "")
+
+    return Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        FramesPerSecond(),
+        TimeRemainingColumn(),
+        console=Console(stderr=True),
+        transient=True,
+    )
+
+
+@click.group(context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(__version__, prog_name="thermocal")
+def cli() -> None:
+    """Radiometric temperature from uncooled thermal cameras (FLIR Tau2 class)."""
+
+
+@cli.group()
+def simulate() -> None:
+    """Simulate a camera unit: chamber sessions and flights with ground truth."""
+
+
+@simulate.command("chamber")
+@click.argument("out", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of noise and schedule.")
+@click.option("--unit", type=int, default=0, show_default=True, help="Camera unit of the preset.")
+@click.option("--preset", default="tau2", show_default=True, help="Camera preset.")
+@click.option("--size", default="336x256", show_default=True, help="Frame size WxH.")
+@click.option(
+    "--blackbody-c", default="10:70:10", show_default=True, help="Set points A:B:STEP, °C."
+)
+@click.option(
+    "--order",
+    type=click.Choice(["sweep", "sawtooth", "random"]),
+    default="sweep",
+    show_default=True,
+    help="Order in which the blackbody visits its set points.",
+)
+@click.option(
+    "--ambient-profile",
+    type=click.Choice(["constant", "steps", "ramp", "sawtooth"]),
+    default="sawtooth",
+    show_default=True,
+)
+@click.option("--ambient-c", default="10:40", show_default=True, help="Ambient range A:B, °C.")
+@click.option("--rate-c-per-min", type=float, default=0.5, show_default=True)
+@click.option("--frames-per-point", type=int, default=3, show_default=True)
+@click.option("--interval-s", type=float, default=10.0, show_default=True, help="Frame spacing.")
+@click.option("--duration-min", type=float, default=None, help="Length (default: one cycle).")
+@click.option("--emissivity", type=float, default=0.98, show_default=True, help="Blackbody ε.")
+def simulate_chamber_cmd(
+    out: Path, seed: int, unit: int, preset: str, size: str, blackbody_c: str, order: str,
+    ambient_profile: str, ambient_c: str, rate_c_per_min: float, frames_per_point: int,
+    interval_s: float, duration_min: float | None, emissivity: float,
+) -> None:
+    """Simulate an environmental-chamber session into OUT (HDF5 chamber file)."""
+    from thermocal._validate import parse_size
+    from thermocal.camera.presets import make_camera
+    from thermocal.simulate.chamber import ChamberPlan, write_simulated_chamber
+
+    start, stop, step = parse_range(blackbody_c, "--blackbody-c", parts=3)
+    amb_low, amb_high = parse_range(ambient_c, "--ambient-c", parts=2)
+    _check_output_file(out)
+    plan = ChamberPlan(
+        setpoints_c=setpoints_from_range(start, stop, step),
+        frames_per_point=frames_per_point,
+        order=order,
+        profile=ambient_profile,
+        ambient_c=(amb_low, amb_high),
+        rate_c_per_min=rate_c_per_min,
+        interval_s=interval_s,
+        duration_s=None if duration_min is None else 60.0 * duration_min,
+        emissivity=emissivity,
+    )
+    camera = make_camera(preset, unit=unit, size=parse_size(size))
+    with _progress() as bar:
+        task = bar.add_task("chamber", total=plan.n_frames)
+        n = write_simulated_chamber(
+            out, camera, plan, seed=seed, progress=lambda k: bar.advance(task, k)
+        )
+    click.echo(f"wrote {n} frames of {camera.shape[1]}x{camera.shape[0]} to {out}")
+
+
+@simulate.command("flight")
+@click.argument("out_dir", type=click.Path(path_type=Path))
+@click.option(
+    "--scene", default="procedural", show_default=True, help="Scene file or 'procedural'."
+)
+@click.option("--frames", "n_frames", type=int, default=7, show_default=True)
+@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--unit", type=int, default=0, show_default=True)
+@click.option("--preset", default="tau2", show_default=True)
+@click.option("--size", default="336x256", show_default=True, help="Frame size WxH.")
+@click.option("--fpa-c", type=float, default=30.0, show_default=True, help="FPA temperature, °C.")
+@click.option(
+    "--motion", type=click.Choice(["walk", "hover", "uav"]), default="walk", show_default=True
+)
+@click.option("--fps", type=float, default=30.0, show_default=True, help="Frame rate, Hz.")
+def simulate_flight_cmd(
+    out_dir: Path, scene: str, n_frames: int, seed: int, unit: int, preset: str, size: str,
+    fpa_c: float, motion: str, fps: float,
+) -> None:
+    """Simulate a flight over a scene into OUT_DIR (frames.tiff/json, truth.tiff, homographies)."""
+    from thermocal._validate import parse_size
+    from thermocal.camera.presets import make_camera
+    from thermocal.io.atomic import ensure_output_dir
+    from thermocal.simulate.flight import simulate_flight, write_flight
+
+    ensure_output_dir(out_dir)
+    camera = make_camera(preset, unit=unit, size=parse_size(size))
+    scene_c, scene_name = load_scene_or_procedural(scene, seed=seed)
+    flight = simulate_flight(
+        scene_c, camera, n_frames=n_frames, motion=motion, fpa_c=fpa_c, fps=fps, seed=seed
+    )
+    extra = {"scene": scene_name, "unit": unit, "preset": preset, "seed": seed, "motion": motion}
+    write_flight(out_dir, flight, extra=extra)
+    click.echo(f"wrote {n_frames} frames ({motion}, scene {scene_name}) to {out_dir}")
+
+
+def load_scene_or_procedural(scene: str, *, seed: int):
+    """A °C map from a scene file, or a procedural one for ``'procedural'``; with its name."""
+    import numpy as np
+
+    if scene == "procedural":
+        from thermocal.scenes.procedural import procedural_scene
+
+        return procedural_scene((512, 512), rng=np.random.default_rng(seed), kind="mixed"), scene
+    from thermocal.scenes.real import load_scene
+
+    return load_scene(scene), Path(scene).name
+
+
+def _check_output_file(path: Path) -> None:
+    if path.is_dir():
+        raise InvalidInputError(f"{path}: is a directory, expected a file name")
+    if not path.parent.exists():
+        raise InvalidInputError(f"{path.parent}: output folder does not exist")
+
+
+@cli.command()
+@click.option(
+    "--out", "out_dir", type=click.Path(path_type=Path), default=Path("demo-out"),
+    show_default=True, help="Report folder.",
+)
+def demo(out_dir: Path) -> None:
+    """Simulate, calibrate and measure on built-in data; print a table and write a figure."""
+    from thermocal.demo import run_demo
+
+    run_demo(out_dir)
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Entry point: run the CLI, turning thermocal errors into one line and exit status 2."""
+    try:
+        cli.main(args=argv, prog_name="thermocal", standalone_mode=False)
+    except click.exceptions.Abort:
+        click.echo("thermocal: aborted", err=True)
+        sys.exit(130)
+    except click.exceptions.ClickException as exc:
+        # one line, like every other bad input (click's own form prints the usage too)
+        click.echo(f"thermocal: error: {exc.format_message()}", err=True)
+        sys.exit(exc.exit_code)
+    except ThermocalError as exc:
+        click.echo(f"thermocal: error: {exc}", err=True)
+        sys.exit(2)
+    except KeyboardInterrupt:
+        click.echo("thermocal: interrupted", err=True)
+        sys.exit(130)
+
+
+if __name__ == "__main__":  # pragma: no cover
+    main()

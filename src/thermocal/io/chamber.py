@@ -1,0 +1,890 @@
+"""Chamber sessions: HDF5 files of blackbody frames with their temperatures, and imports.
+
+A **chamber file** (DESIGN.md, "The contract: command line and files") is HDF5 with
+
+============== ======================= =======================================================
+name           type, shape             meaning
+============== ======================= =======================================================
+``frames``     uint16 ``(M, H, W)``    raw counts, chunked one frame per chunk
+``blackbody_c`` float ``(M,)``         blackbody temperature for each frame, °C
+``fpa_c``      float ``(M,)``          FPA temperature reported by the camera, °C
+``time_s``     float ``(M,)``          time stamp of each frame, s
+``housing_c``  float ``(M,)``          optional: housing temperature, °C
+``ambient_c``  float ``(M,)``          optional: chamber (ambient) temperature, °C
+============== ======================= =======================================================
+
+and the file attributes ``format = "thermocal-chamber"``, ``version = 1``, ``bit_depth = 14``,
+plus free metadata attributes (``unit``, ``preset``, ``seed``, ...). Series are written as
+float64; any float dtype is accepted on reading.
+
+Writers are atomic (a temporary file renamed into place on success); :class:`ChamberWriter`
+streams frames to disk so that sessions larger than memory can be written.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import zipfile
+from collections.abc import Iterator, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import h5py
+import numpy as np
+
+from thermocal._validate import ABSOLUTE_ZERO_C, as_float_array, as_temperature_c, check_length
+from thermocal.errors import FileFormatError, InvalidInputError, ResolutionMismatchError
+from thermocal.io.atomic import atomic_path
+from thermocal.io.recording import _check_bit_depth, _counts_as_uint16, _series_or_none
+
+__all__ = [
+    "CHAMBER_FORMAT",
+    "CHAMBER_VERSION",
+    "ChamberSession",
+    "ChamberWriter",
+    "LazyFrames",
+    "chamber_problems",
+    "import_envchamberctrl_npz",
+    "iter_chamber_frames",
+    "read_chamber",
+    "validate_chamber",
+    "write_chamber",
+]
+
+CHAMBER_FORMAT = "thermocal-chamber"
+CHAMBER_VERSION = 1
+REQUIRED_SERIES: tuple[str, ...] = ("blackbody_c", "fpa_c", "time_s")
+OPTIONAL_SERIES: tuple[str, ...] = ("housing_c", "ambient_c")
+ALL_SERIES = REQUIRED_SERIES + OPTIONAL_SERIES
+_SERIES_CHUNK = 4096  # values per HDF5 chunk of a per-frame series
+_COPY_CHUNK = 256  # frames per block when copying frames into a file
+
+
+# --------------------------------------------------------------------------------------------
+# attributes
+# --------------------------------------------------------------------------------------------
+
+
+def _check_attr(key: Any, value: Any) -> Any:
+    """Return ``value`` in a form HDF5 can store as an attribute, or raise InvalidInputError."""
+    if not isinstance(key, str) or not key:
+        raise InvalidInputError(f"attrs: attribute names must be non-empty strings, got {key!r}")
+    if isinstance(value, str | bool | np.bool_):
+        return value
+    if isinstance(value, int | np.integer):
+        if not -(2**63) <= int(value) < 2**63:
+            raise InvalidInputError(f"attrs[{key!r}]: integer {value} does not fit in 64 bits")
+        return value
+    if isinstance(value, float | np.floating):
+        return value
+    if isinstance(value, list | tuple | np.ndarray):
+        arr = np.asarray(value)
+        if arr.dtype.kind in "biuf":
+            return arr
+        if arr.ndim == 1 and all(isinstance(v, str) for v in arr.tolist()):
+            return [str(v) for v in arr.tolist()]  # a list of strings
+    raise InvalidInputError(
+        f"attrs[{key!r}]: cannot store {type(value).__name__} as an HDF5 attribute; "
+        "use a string, a number, a bool, an array of numbers or a list of strings "
+        "(json.dumps for nested data)"
+    )
+
+
+def _normalise_attrs(attrs: Mapping[str, Any] | None) -> dict[str, Any]:
+    """Validate free attributes; check and drop ``format``/``version``; fill ``bit_depth``."""
+    if attrs is None:
+        attrs = {}
+    if not isinstance(attrs, Mapping):
+        raise InvalidInputError(f"attrs: expected a dict, got {type(attrs).__name__}")
+    out = {key: _check_attr(key, value) for key, value in attrs.items()}
+    if "format" in out and out.pop("format") != CHAMBER_FORMAT:
+        raise InvalidInputError(f"attrs['format']: must be {CHAMBER_FORMAT!r} if given")
+    if "version" in out and out.pop("version") != CHAMBER_VERSION:
+        raise InvalidInputError(f"attrs['version']: must be {CHAMBER_VERSION} if given")
+    out["bit_depth"] = _check_bit_depth(out.get("bit_depth", 14), "attrs['bit_depth']")
+    return out
+
+
+def _to_h5_attr(value: Any) -> Any:
+    """A checked attribute value in the form h5py writes (lists of str: variable-length UTF-8)."""
+    if isinstance(value, list):
+        return np.array(value, dtype=h5py.string_dtype())
+    return value
+
+
+def _attr_to_python(value: Any) -> Any:
+    """Turn an attribute as h5py returns it into a plain Python value (arrays stay arrays)."""
+    if isinstance(value, bytes):
+        return value.decode("utf-8", errors="replace")
+    if isinstance(value, np.generic):
+        return value.item()
+    if isinstance(value, np.ndarray) and value.dtype.kind == "O":
+        return [_attr_to_python(v) for v in value.tolist()]
+    return value
+
+
+# --------------------------------------------------------------------------------------------
+# lazy frames
+# --------------------------------------------------------------------------------------------
+
+
+class LazyFrames:
+    """The frames of a chamber file, read only when indexed: a stand-in for an ``(M, H, W)`` array.
+
+    Returned as ``ChamberSession.frames`` by ``read_chamber(path, frames=False)``. It holds the
+    path and the shape only, no open file (no h5py object): every access opens the file, reads
+    what is asked for and closes it again.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The chamber file.
+    shape : tuple of int
+        ``(M, H, W)``.
+
+    Notes
+    -----
+    Indexing accepts an int, a slice, a tuple of ints/slices, or a 1-D integer or boolean index
+    array along the frame axis; it returns a fresh uint16 numpy array. ``np.asarray(lazy)``
+    reads all frames.
+    """
+
+    dtype = np.dtype(np.uint16)
+    ndim = 3
+
+    def __init__(self, path: str | os.PathLike[str], shape: tuple[int, int, int]) -> None:
+        self.path = Path(path)
+        self.shape = tuple(int(s) for s in shape)
+        if len(self.shape) != 3:
+            raise InvalidInputError(f"LazyFrames: expected an (M, H, W) shape, got {shape}")
+
+    def __len__(self) -> int:
+        return self.shape[0]
+
+    def __repr__(self) -> str:
+        return f"LazyFrames({str(self.path)!r}, shape={self.shape})"
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes the frames take once read."""
+        return int(np.prod(self.shape, dtype=np.int64)) * 2
+
+    def __getitem__(self, key: Any) -> np.ndarray:
+        with _open_chamber(self.path) as f:
+            dset = f["frames"]
+            if isinstance(key, list | np.ndarray):
+                idx = np.asarray(key)
+                if idx.dtype == bool:
+                    if idx.shape != (self.shape[0],):
+                        raise IndexError(f"boolean index of shape {idx.shape} for {self.shape}")
+                    idx = np.flatnonzero(idx)
+                if idx.ndim != 1 or idx.dtype.kind not in "iu":
+                    raise IndexError("only 1-D integer or boolean index arrays are supported")
+                idx = np.where(idx < 0, idx + self.shape[0], idx).astype(np.intp)
+                if idx.size and (idx.min() < 0 or idx.max() >= self.shape[0]):
+                    raise IndexError(f"frame index out of range 0..{self.shape[0] - 1}")
+                uniq, inverse = np.unique(idx, return_inverse=True)
+                return dset[uniq][inverse]  # h5py needs increasing indices
+            return np.asarray(dset[key])
+
+    def __array__(self, dtype: Any = None, copy: Any = None) -> np.ndarray:
+        arr = self[()]
+        return arr if dtype is None else arr.astype(dtype)
+
+    def iter_chunks(self, chunk: int = _COPY_CHUNK) -> Iterator[tuple[slice, np.ndarray]]:
+        """Yield ``(slice, frames)`` blocks of at most ``chunk`` frames, in order."""
+        with _open_chamber(self.path) as f:
+            dset = f["frames"]
+            for start in range(0, self.shape[0], chunk):
+                sl = slice(start, min(start + chunk, self.shape[0]))
+                yield sl, dset[sl]
+
+
+# --------------------------------------------------------------------------------------------
+# ChamberSession
+# --------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class ChamberSession:
+    """A chamber session: blackbody frames and, for each frame, its temperatures and time.
+
+    Parameters
+    ----------
+    frames : numpy.ndarray, shape (M, H, W), or LazyFrames
+        Raw counts, an integer dtype within ``0 .. 2**bit_depth - 1``; stored as uint16 (a 2-D
+        frame becomes M = 1). A :class:`LazyFrames` (from ``read_chamber(..., frames=False)``)
+        is kept as it is; its counts are not checked.
+    blackbody_c : numpy.ndarray, shape (M,)
+        Blackbody temperature, °C.
+    fpa_c : numpy.ndarray, shape (M,)
+        FPA temperature reported by the camera, °C.
+    time_s : numpy.ndarray, shape (M,)
+        Time of each frame, s.
+    housing_c, ambient_c : numpy.ndarray or None, shape (M,)
+        Optional housing and chamber (ambient) temperatures, °C.
+    attrs : dict, optional
+        Free metadata (``unit``, ``preset``, ``seed``, ...): strings, numbers, bools, numeric
+        arrays or lists of strings (read back as lists). ``bit_depth`` (default 14) lives
+        here; ``format``/``version`` belong to the file and are dropped (they must match if
+        given).
+
+    Raises
+    ------
+    InvalidInputError
+        On counts outside the bit depth, series that are not finite, not 1-D or not of length M,
+        temperatures at or below absolute zero, or attributes HDF5 cannot store.
+
+    Notes
+    -----
+    Arrays are kept as read-only views (no copy when already uint16/float64). Series are
+    float64.
+    """
+
+    frames: np.ndarray | LazyFrames
+    blackbody_c: np.ndarray
+    fpa_c: np.ndarray
+    time_s: np.ndarray
+    housing_c: np.ndarray | None = None
+    ambient_c: np.ndarray | None = None
+    attrs: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        attrs = _normalise_attrs(self.attrs)
+        object.__setattr__(self, "attrs", attrs)
+        if isinstance(self.frames, LazyFrames):
+            n = len(self.frames)
+        else:
+            frames = _counts_as_uint16(self.frames, attrs["bit_depth"])
+            frames = frames.view()
+            frames.flags.writeable = False
+            object.__setattr__(self, "frames", frames)
+            n = frames.shape[0]
+        for key in ALL_SERIES:
+            value = getattr(self, key)
+            if value is None and key in REQUIRED_SERIES:
+                raise InvalidInputError(f"{key}: required, one value per frame")
+            object.__setattr__(self, key, _series_or_none(value, n, key))
+
+    @property
+    def n_frames(self) -> int:
+        """Number of frames M."""
+        return int(self.frames.shape[0])
+
+    @property
+    def frame_shape(self) -> tuple[int, int]:
+        """Frame size ``(H, W)`` in pixels."""
+        return int(self.frames.shape[1]), int(self.frames.shape[2])
+
+    @property
+    def bit_depth(self) -> int:
+        """Bits of the raw counts."""
+        return int(self.attrs["bit_depth"])
+
+
+# --------------------------------------------------------------------------------------------
+# writing
+# --------------------------------------------------------------------------------------------
+
+
+def _chunk_series(values: Any, k: int, name: str) -> np.ndarray:
+    """A per-frame series for ``k`` new frames; a scalar is repeated ``k`` times."""
+    arr = np.asarray(values)
+    if arr.ndim == 0 and arr.dtype.kind in "biuf":
+        arr = np.full(k, arr, dtype=np.float64)
+    check = as_temperature_c if name.endswith("_c") else as_float_array
+    arr = check(arr, name, ndim=1)
+    check_length(arr, k, name)
+    return arr.astype(np.float64, copy=False)
+
+
+class ChamberWriter:
+    """Stream a chamber session to an HDF5 file, frames appended in blocks.
+
+    The data go into resizable datasets of a temporary file beside ``path``; the file is renamed
+    onto ``path`` only when the ``with`` block ends without an error (and at least one frame was
+    appended). On error the temporary file is removed and an existing ``path`` is untouched.
+    Memory use is bounded by the block passed to :meth:`append`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The output chamber file (``.h5``); its directory must exist.
+    frame_shape : tuple of int
+        ``(H, W)`` of every frame, pixels.
+    attrs : dict, optional
+        Free metadata attributes (see :class:`ChamberSession`); ``bit_depth`` defaults to 14.
+    compression : {None, "gzip", "lzf"}, optional
+        HDF5 compression of the frames (default None: fastest).
+
+    Examples
+    --------
+    >>> with ChamberWriter("chamber.h5", (256, 336), attrs={"seed": 1}) as w:  # doctest: +SKIP
+    ...     for block, bb, fpa, t in blocks:
+    ...         w.append(block, blackbody_c=bb, fpa_c=fpa, time_s=t)
+    """
+
+    def __init__(
+        self,
+        path: str | os.PathLike[str],
+        frame_shape: tuple[int, int],
+        *,
+        attrs: Mapping[str, Any] | None = None,
+        compression: str | None = None,
+    ) -> None:
+        try:
+            h, w = (int(s) for s in frame_shape)
+        except (TypeError, ValueError):
+            raise InvalidInputError(f"frame_shape: expected (H, W), got {frame_shape!r}") from None
+        if h < 1 or w < 1:
+            raise InvalidInputError(f"frame_shape: must be positive, got {(h, w)}")
+        if compression not in (None, "gzip", "lzf"):
+            raise InvalidInputError(
+                f"compression: expected None, 'gzip' or 'lzf', not {compression!r}"
+            )
+        self.path = Path(path)
+        self.frame_shape = (h, w)
+        self.attrs = _normalise_attrs(attrs)
+        self._compression = compression
+        self._stack: contextlib.ExitStack | None = None
+        self._file: h5py.File | None = None
+        self._n = 0
+        self._optional: dict[str, bool] = {}
+
+    @property
+    def n_frames(self) -> int:
+        """Frames appended so far."""
+        return self._n
+
+    def __enter__(self) -> ChamberWriter:
+        if self._stack is not None:
+            raise RuntimeError("ChamberWriter: already open")
+        stack = contextlib.ExitStack()
+        try:
+            tmp = stack.enter_context(atomic_path(self.path))
+            f = h5py.File(tmp, "w")
+            stack.callback(f.close)  # closes before atomic_path renames or removes the file
+            h, w = self.frame_shape
+            f.create_dataset(
+                "frames",
+                shape=(0, h, w),
+                maxshape=(None, h, w),
+                dtype=np.uint16,
+                chunks=(1, h, w),
+                compression=self._compression,
+            )
+            for key in REQUIRED_SERIES:
+                self._create_series(f, key)
+            f.attrs["format"] = CHAMBER_FORMAT
+            f.attrs["version"] = np.int64(CHAMBER_VERSION)
+            for key, value in self.attrs.items():
+                f.attrs[key] = _to_h5_attr(value)
+        except BaseException:
+            stack.close()
+            raise
+        self._stack, self._file = stack, f
+        return self
+
+    @staticmethod
+    def _create_series(f: h5py.File, key: str) -> None:
+        f.create_dataset(
+            key, shape=(0,), maxshape=(None,), dtype=np.float64, chunks=(_SERIES_CHUNK,)
+        )
+
+    def append(
+        self,
+        frames: Any,
+        blackbody_c: Any,
+        fpa_c: Any,
+        time_s: Any,
+        housing_c: Any = None,
+        ambient_c: Any = None,
+    ) -> None:
+        """Append ``k`` frames and their per-frame values.
+
+        Parameters
+        ----------
+        frames : array_like, shape (k, H, W) or (H, W)
+            Raw counts (integers within the bit depth).
+        blackbody_c, fpa_c : array_like, shape (k,) or scalar
+            Blackbody and FPA temperatures, °C; a scalar applies to all k frames.
+        time_s : array_like, shape (k,) or scalar
+            Time of each frame, s.
+        housing_c, ambient_c : array_like or None, shape (k,) or scalar
+            Optional temperatures, °C. Whether each is given must be the same in every call.
+
+        Raises
+        ------
+        InvalidInputError
+            On bad counts or series, or an optional series given in some calls but not others.
+            Nothing is appended then.
+        ResolutionMismatchError
+            If the frames are not ``frame_shape``.
+        """
+        if self._file is None:
+            raise RuntimeError("ChamberWriter.append: use the writer in a `with` block")
+        block = _counts_as_uint16(frames, self.attrs["bit_depth"])
+        if block.shape[1:] != self.frame_shape:
+            h, w = self.frame_shape
+            raise ResolutionMismatchError(
+                f"frames are {block.shape[2]}x{block.shape[1]} but this chamber file is {w}x{h}"
+            )
+        k = block.shape[0]
+        given = {
+            "blackbody_c": blackbody_c,
+            "fpa_c": fpa_c,
+            "time_s": time_s,
+            "housing_c": housing_c,
+            "ambient_c": ambient_c,
+        }
+        series: dict[str, np.ndarray] = {}
+        for key in ALL_SERIES:
+            value = given[key]
+            if key in OPTIONAL_SERIES:
+                present = value is not None
+                if self._optional.setdefault(key, present) != present:
+                    raise InvalidInputError(
+                        f"{key}: given in some append() calls but not in others; "
+                        "give it for every frame or never"
+                    )
+                if not present:
+                    continue
+            series[key] = _chunk_series(value, k, key)
+        f = self._file
+        n0, n1 = self._n, self._n + k
+        for key, values in series.items():
+            if key not in f:
+                self._create_series(f, key)
+            f[key].resize((n1,))
+            f[key][n0:n1] = values
+        dset = f["frames"]
+        dset.resize((n1, *self.frame_shape))
+        dset[n0:n1] = block
+        self._n = n1
+
+    def __exit__(self, exc_type: Any, exc: Any, tb: Any) -> bool:
+        stack, self._stack, self._file = self._stack, None, None
+        if stack is None:
+            return False
+        if exc_type is None and self._n == 0:
+            try:
+                raise InvalidInputError(f"{self.path}: no frames were appended; nothing written")
+            except InvalidInputError as err:
+                stack.__exit__(type(err), err, err.__traceback__)
+                raise
+        return bool(stack.__exit__(exc_type, exc, tb))
+
+
+def write_chamber(
+    path: str | os.PathLike[str], session: ChamberSession, *, compression: str | None = None
+) -> Path:
+    """Write a chamber session to an HDF5 chamber file, atomically.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The output file; its directory must exist. It may be the file ``session`` was lazily
+        read from: the new file replaces it only once complete.
+    session : ChamberSession
+        The session; lazy frames are copied block by block.
+    compression : {None, "gzip", "lzf"}, optional
+        HDF5 compression of the frames.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path`` as a Path.
+    """
+    if not isinstance(session, ChamberSession):
+        raise InvalidInputError(f"session: expected a ChamberSession, got {type(session).__name__}")
+    with ChamberWriter(
+        path, session.frame_shape, attrs=session.attrs, compression=compression
+    ) as writer:
+        if isinstance(session.frames, LazyFrames):
+            blocks: Iterator[tuple[slice, np.ndarray]] = session.frames.iter_chunks(_COPY_CHUNK)
+        else:
+            frames = session.frames
+            blocks = (
+                (slice(s, s + _COPY_CHUNK), frames[s : s + _COPY_CHUNK])
+                for s in range(0, session.n_frames, _COPY_CHUNK)
+            )
+        for sl, block in blocks:
+            writer.append(
+                block,
+                blackbody_c=session.blackbody_c[sl],
+                fpa_c=session.fpa_c[sl],
+                time_s=session.time_s[sl],
+                housing_c=None if session.housing_c is None else session.housing_c[sl],
+                ambient_c=None if session.ambient_c is None else session.ambient_c[sl],
+            )
+    return Path(path)
+
+
+# --------------------------------------------------------------------------------------------
+# reading and validation
+# --------------------------------------------------------------------------------------------
+
+
+@contextlib.contextmanager
+def _open_chamber(path: Path) -> Iterator[h5py.File]:
+    """Open an HDF5 file for reading, turning failures into FileFormatError."""
+    if not path.is_file():
+        raise FileFormatError(f"{path}: no such file")
+    try:
+        f = h5py.File(path, "r")
+    except OSError as exc:
+        raise FileFormatError(f"{path}: {_open_problem(exc)}") from None
+    try:
+        yield f
+    finally:
+        f.close()
+
+
+def _open_problem(exc: BaseException) -> str:
+    text = str(exc)
+    if "truncated" in text:
+        return "the HDF5 file is truncated; write it again"
+    return f"not a readable HDF5 file ({text[:120]})"
+
+
+def chamber_problems(path: str | os.PathLike[str]) -> list[str]:
+    """List every problem that keeps ``path`` from being a valid chamber file.
+
+    Checks the attributes (``format``, ``version``, ``bit_depth``), the presence, dtype and shape
+    of every dataset, that the series have one value per frame, and that they are finite (and,
+    for temperatures, above absolute zero). The counts in ``frames`` are not read.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The file.
+
+    Returns
+    -------
+    list of str
+        One line per problem; empty for a valid file.
+    """
+    p = Path(path)
+    if not p.is_file():
+        return ["no such file"]
+    try:
+        f = h5py.File(p, "r")
+    except OSError as exc:
+        return [_open_problem(exc)]
+    problems: list[str] = []
+    with f:
+        attrs = f.attrs
+        if "format" not in attrs:
+            problems.append("attribute 'format' is missing (not a thermocal chamber file?)")
+        elif _attr_to_python(attrs["format"]) != CHAMBER_FORMAT:
+            problems.append(
+                f"attribute 'format' is {_attr_to_python(attrs['format'])!r}, "
+                f"expected {CHAMBER_FORMAT!r}"
+            )
+        if "version" not in attrs:
+            problems.append("attribute 'version' is missing")
+        elif _attr_to_python(attrs["version"]) != CHAMBER_VERSION:
+            problems.append(
+                f"unsupported version {_attr_to_python(attrs['version'])!r} "
+                f"(this thermocal reads version {CHAMBER_VERSION})"
+            )
+        if "bit_depth" not in attrs:
+            problems.append("attribute 'bit_depth' is missing")
+        else:
+            try:
+                _check_bit_depth(_attr_to_python(attrs["bit_depth"]))
+            except InvalidInputError as exc:
+                problems.append(f"attribute {exc}")
+        n_frames = _frames_problems(f, problems)
+        for key in ALL_SERIES:
+            _series_problems(f, key, n_frames, problems)
+    return problems
+
+
+def _frames_problems(f: h5py.File, problems: list[str]) -> int | None:
+    """Check the ``frames`` dataset; return M, or None if there is no usable frame axis."""
+    if "frames" not in f:
+        problems.append("dataset 'frames' is missing")
+        return None
+    dset = f["frames"]
+    if not isinstance(dset, h5py.Dataset):
+        problems.append("'frames' is not a dataset")
+        return None
+    if dset.dtype != np.uint16:
+        problems.append(f"dataset 'frames' has dtype {dset.dtype}, expected uint16")
+    if dset.ndim != 3:
+        problems.append(f"dataset 'frames' has shape {dset.shape}, expected (M, H, W)")
+        return None
+    if 0 in dset.shape:
+        problems.append(f"dataset 'frames' is empty (shape {dset.shape})")
+    return int(dset.shape[0])
+
+
+def _series_problems(f: h5py.File, key: str, n_frames: int | None, problems: list[str]) -> None:
+    if key not in f:
+        if key in REQUIRED_SERIES:
+            problems.append(f"dataset {key!r} is missing")
+        return
+    dset = f[key]
+    if not isinstance(dset, h5py.Dataset):
+        problems.append(f"{key!r} is not a dataset")
+        return
+    if dset.dtype.kind != "f":
+        problems.append(f"dataset {key!r} has dtype {dset.dtype}, expected float")
+    if dset.ndim != 1:
+        problems.append(f"dataset {key!r} has shape {dset.shape}, expected (M,)")
+        return
+    if n_frames is not None and dset.shape[0] != n_frames:
+        problems.append(
+            f"dataset {key!r} has {dset.shape[0]} values but 'frames' has {n_frames} frames"
+        )
+    if dset.dtype.kind not in "biuf":
+        return
+    try:
+        values = np.asarray(dset[()], dtype=np.float64)
+    except OSError as exc:
+        problems.append(f"dataset {key!r} cannot be read ({str(exc)[:80]})")
+        return
+    n_bad = int(np.count_nonzero(~np.isfinite(values)))
+    if n_bad:
+        problems.append(f"dataset {key!r} holds {n_bad} NaN or infinite value(s)")
+    elif key.endswith("_c") and values.size and float(values.min()) <= ABSOLUTE_ZERO_C:
+        problems.append(f"dataset {key!r} holds temperatures at or below absolute zero")
+
+
+def validate_chamber(path: str | os.PathLike[str]) -> None:
+    """Raise :class:`FileFormatError` unless ``path`` is a valid chamber file.
+
+    The one-line message names the first problem and counts the others; the full list is on
+    the exception's ``problems`` attribute (see :func:`chamber_problems`).
+
+    Raises
+    ------
+    FileFormatError
+        If the file is missing, not HDF5, truncated, or breaks the chamber format.
+    """
+    problems = chamber_problems(path)
+    if problems:
+        more = len(problems) - 1
+        tail = f" (and {more} other problem{'s' if more > 1 else ''})" if more else ""
+        err = FileFormatError(f"{Path(path)}: {problems[0]}{tail}")
+        err.problems = problems  # type: ignore[attr-defined]
+        raise err
+
+
+def read_chamber(path: str | os.PathLike[str], *, frames: bool = True) -> ChamberSession:
+    """Read a chamber file.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The chamber file.
+    frames : bool, optional
+        True (default): read all frames into memory (and check their counts against the bit
+        depth). False: ``session.frames`` is a :class:`LazyFrames` that reads frames from the
+        file on demand and holds no open file, for sessions larger than memory.
+
+    Returns
+    -------
+    ChamberSession
+        Frames ``(M, H, W)`` uint16, series float64 ``(M,)``; every file attribute other than
+        ``format`` and ``version`` in ``attrs``.
+
+    Raises
+    ------
+    FileFormatError
+        If the file is not a valid chamber file (see :func:`validate_chamber`) or, with
+        ``frames=True``, holds counts above the bit depth.
+    """
+    p = Path(path)
+    validate_chamber(p)
+    with _open_chamber(p) as f:
+        attrs = {
+            key: _attr_to_python(value)
+            for key, value in f.attrs.items()
+            if key not in ("format", "version")
+        }
+        series = {key: np.asarray(f[key][()], dtype=np.float64) for key in ALL_SERIES if key in f}
+        dset = f["frames"]
+        data: np.ndarray | LazyFrames = dset[()] if frames else LazyFrames(p, dset.shape)
+    try:
+        return ChamberSession(data, attrs=attrs, **series)
+    except InvalidInputError as exc:
+        raise FileFormatError(f"{p}: {exc}") from None
+
+
+def iter_chamber_frames(
+    path: str | os.PathLike[str], *, chunk: int = 256
+) -> Iterator[tuple[slice, np.ndarray]]:
+    """Iterate over a chamber file's frames in blocks without loading them all.
+
+    The file is validated when this function is called; the blocks are read lazily.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The chamber file.
+    chunk : int, optional
+        Frames per block (default 256); the last block may be shorter.
+
+    Yields
+    ------
+    frames_slice : slice
+        The frames of the block (index it into the series, e.g. ``session.fpa_c[frames_slice]``).
+    frames : numpy.ndarray, shape (k, H, W), uint16
+
+    Raises
+    ------
+    InvalidInputError
+        If ``chunk`` is not a positive integer.
+    FileFormatError
+        If the file is not a valid chamber file; counts above the bit depth are found while
+        iterating.
+    """
+    if isinstance(chunk, bool) or not isinstance(chunk, int | np.integer) or chunk < 1:
+        raise InvalidInputError(f"chunk: expected a positive number of frames, got {chunk!r}")
+    p = Path(path)
+    validate_chamber(p)
+    with _open_chamber(p) as f:
+        shape = f["frames"].shape
+        bit_depth = int(_attr_to_python(f.attrs["bit_depth"]))
+    return _iter_frames(p, shape, int(chunk), bit_depth)
+
+
+def _iter_frames(
+    path: Path, shape: tuple[int, ...], chunk: int, bit_depth: int
+) -> Iterator[tuple[slice, np.ndarray]]:
+    max_count = 2**bit_depth - 1
+    for sl, block in LazyFrames(path, shape).iter_chunks(chunk):  # type: ignore[arg-type]
+        if block.size and int(block.max()) > max_count:
+            raise FileFormatError(
+                f"{path}: frames {sl.start}..{sl.stop - 1} hold counts above the "
+                f"{bit_depth}-bit maximum {max_count}"
+            )
+        yield sl, block
+
+
+# --------------------------------------------------------------------------------------------
+# EnvChamberCtrl import
+# --------------------------------------------------------------------------------------------
+
+#: Plausible FPA/housing temperatures, °C: outside, the 1/100 °C unit is probably wrong.
+_CAMERA_RANGE_C = (-60.0, 150.0)
+
+
+def _centi_c(values: Any, key: str, path: Path) -> np.ndarray:
+    """Convert an EnvChamberCtrl temperature in 1/100 °C to °C (float64)."""
+    arr = np.asarray(values)
+    if arr.dtype.kind not in "iuf" or arr.ndim != 1:
+        raise FileFormatError(
+            f"{path}: {key!r} must be a 1-D array of temperatures in 1/100 °C, "
+            f"got {arr.dtype} {arr.shape}"
+        )
+    if arr.dtype == np.uint16 and arr.size and int(arr.max()) > 32767:
+        # EnvChamberCtrl saves with astype('uint16'): negative temperatures wrap around
+        arr = arr.view(np.int16)
+    return arr.astype(np.float64) / 100.0
+
+
+def import_envchamberctrl_npz(
+    path: str | os.PathLike[str], *, frame_rate_hz: float | None = None
+) -> ChamberSession:
+    """Import a chamber session saved by EnvChamberCtrl (``np.savez``) as a ChamberSession.
+
+    The ``.npz`` holds ``frames`` (uint16 ``(M, H, W)``), ``fpa``, ``housing`` and ``blackbody``
+    (temperatures in 1/100 °C, so 2534 means 25.34 °C) and ``time_ns`` (time stamps in ns, e.g.
+    from :func:`time.time_ns`). ``housing`` is optional.
+
+    Conversions: temperatures ``°C = value / 100`` (uint16 values above 32767 are read as the
+    negative int16 they wrapped from); ``time_s = (time_ns - time_ns[0]) / 1e9``, computed in
+    integers so that epoch time stamps keep their precision, with ``time_ns[0]`` kept in
+    ``attrs["time_origin_ns"]``. The session has no ambient series.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``.npz`` file.
+    frame_rate_hz : float or None, optional
+        Frame rate, Hz, used to make ``time_s = arange(M) / frame_rate_hz`` for files saved
+        without ``time_ns`` (older EnvChamberCtrl scripts). Ignored when ``time_ns`` exists.
+
+    Returns
+    -------
+    ChamberSession
+        With ``attrs`` ``source="EnvChamberCtrl"``, ``source_file`` and ``bit_depth=14``.
+
+    Raises
+    ------
+    FileFormatError
+        If the file is not an ``.npz``, lacks a required array, has arrays of different lengths,
+        counts above 14 bits, or FPA/housing temperatures outside −60…150 °C after conversion
+        (a sign the unit is not 1/100 °C).
+    InvalidInputError
+        If ``frame_rate_hz`` is not positive and finite.
+    """
+    p = Path(path)
+    if not p.is_file():
+        raise FileFormatError(f"{p}: no such file")
+    if frame_rate_hz is not None:
+        rate = float(frame_rate_hz)
+        if not np.isfinite(rate) or rate <= 0:
+            raise InvalidInputError(f"frame_rate_hz: must be positive, got {frame_rate_hz!r}")
+    try:
+        npz = np.load(p, allow_pickle=False)
+    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+        raise FileFormatError(f"{p}: not a readable .npz file ({str(exc)[:120]})") from None
+    if not isinstance(npz, np.lib.npyio.NpzFile):
+        raise FileFormatError(f"{p}: a single .npy array, expected an EnvChamberCtrl .npz")
+    with npz:
+        missing = [k for k in ("frames", "fpa", "blackbody") if k not in npz.files]
+        if "time_ns" not in npz.files and frame_rate_hz is None:
+            missing.append("time_ns")
+        if missing:
+            raise FileFormatError(
+                f"{p}: missing array(s) {missing} (has {sorted(npz.files)}); "
+                + (
+                    "pass frame_rate_hz for files without time_ns"
+                    if missing == ["time_ns"]
+                    else "not an EnvChamberCtrl session?"
+                )
+            )
+        try:
+            frames = npz["frames"]
+            fpa_c = _centi_c(npz["fpa"], "fpa", p)
+            blackbody_c = _centi_c(npz["blackbody"], "blackbody", p)
+            housing_c = _centi_c(npz["housing"], "housing", p) if "housing" in npz.files else None
+            time_ns = npz["time_ns"] if "time_ns" in npz.files else None
+        except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
+            raise FileFormatError(f"{p}: an array cannot be read ({str(exc)[:120]})") from None
+    m = len(frames) if frames.ndim == 3 else 1
+    attrs: dict[str, Any] = {"source": "EnvChamberCtrl", "source_file": p.name, "bit_depth": 14}
+    if time_ns is not None:
+        t = np.asarray(time_ns)
+        if t.ndim != 1 or t.dtype.kind not in "iu" or t.size == 0:
+            raise FileFormatError(f"{p}: 'time_ns' must be 1-D integers, got {t.dtype} {t.shape}")
+        t = t.astype(np.int64)
+        attrs["time_origin_ns"] = int(t[0])
+        time_s = (t - t[0]).astype(np.float64) / 1e9
+    else:
+        time_s = np.arange(m, dtype=np.float64) / float(frame_rate_hz)  # type: ignore[arg-type]
+        attrs["frame_rate_hz"] = float(frame_rate_hz)  # type: ignore[arg-type]
+    lo, hi = _CAMERA_RANGE_C
+    for key, values in (("fpa", fpa_c), ("housing", housing_c)):
+        if values is not None and values.size and (values.min() < lo or values.max() > hi):
+            raise FileFormatError(
+                f"{p}: {key!r} gives {values.min():.2f}..{values.max():.2f} °C after dividing "
+                "by 100; expected 1/100 °C values of a camera (-60..150 °C)"
+            )
+    try:
+        return ChamberSession(
+            frames,
+            blackbody_c=blackbody_c,
+            fpa_c=fpa_c,
+            time_s=time_s,
+            housing_c=housing_c,
+            attrs=attrs,
+        )
+    except InvalidInputError as exc:
+        raise FileFormatError(f"{p}: {exc}") from None

@@ -1,0 +1,456 @@
+"""Image-quality and radiometric-accuracy metrics.
+
+Accuracy against ground truth: :func:`mae`, :func:`rmse`, :func:`error_cdf` (Oz et al., Fig. 12),
+:func:`fraction_within`; similarity for non-radiometric corrections: :func:`cosine_similarity`
+(Wolf et al. 2016, eq. 14), :func:`ssim`, :func:`psnr`, :func:`best_affine_fit`; no-reference
+nonuniformity: :func:`roughness` (Wolf et al. 2016, eq. 13); sensor noise: :func:`netd`,
+:func:`netd_map`.
+
+Conventions: ``estimate`` and ``truth`` have the same shape, ``(H, W)`` or ``(N, H, W)``
+(a shape mismatch raises :class:`~thermocal.errors.ResolutionMismatchError`); an optional
+``valid`` mask is boolean, True = valid, of the same shape or ``(H, W)`` (broadcast over frames).
+NaN or infinity anywhere raises :class:`~thermocal.errors.InvalidInputError`. Inputs are never
+modified; the work is done in float64.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+from skimage.metrics import peak_signal_noise_ratio, structural_similarity
+
+from thermocal._validate import as_float_array
+from thermocal.errors import InvalidInputError, ResolutionMismatchError
+
+__all__ = [
+    "best_affine_fit",
+    "cosine_similarity",
+    "error_cdf",
+    "fraction_within",
+    "mae",
+    "netd",
+    "netd_map",
+    "psnr",
+    "rmse",
+    "roughness",
+    "ssim",
+]
+
+
+# --------------------------------------------------------------------------------------------
+# input checks
+# --------------------------------------------------------------------------------------------
+
+
+def _pair(estimate: Any, truth: Any, *, ndim: tuple[int, ...] = (2, 3)) -> tuple[np.ndarray, ...]:
+    """Both inputs as finite float64 arrays of the same shape."""
+    est = as_float_array(estimate, "estimate", ndim=ndim).astype(np.float64, copy=False)
+    tru = as_float_array(truth, "truth", ndim=ndim).astype(np.float64, copy=False)
+    if est.shape != tru.shape:
+        raise ResolutionMismatchError(
+            f"estimate has shape {est.shape} but truth has shape {tru.shape}; they must match"
+        )
+    if est.size == 0:
+        raise InvalidInputError(f"estimate: empty image (shape {est.shape})")
+    return est, tru
+
+
+def _mask(valid: Any, shape: tuple[int, ...]) -> np.ndarray | None:
+    """A boolean mask broadcast to ``shape``, or None; at least one pixel must be valid."""
+    if valid is None:
+        return None
+    mask = np.asarray(valid)
+    if mask.dtype != bool:
+        raise InvalidInputError(f"valid: expected a boolean mask (True = valid), got {mask.dtype}")
+    if mask.shape != shape and mask.shape != shape[-2:]:
+        raise ResolutionMismatchError(
+            f"valid has shape {mask.shape}; expected {shape} or {shape[-2:]}"
+        )
+    mask = np.broadcast_to(mask, shape)
+    if not mask.any():
+        raise InvalidInputError("valid: no pixel is valid; nothing to compare")
+    return mask
+
+
+def _abs_errors(estimate: Any, truth: Any, valid: Any) -> np.ndarray:
+    """Absolute errors of the valid pixels, flattened."""
+    est, tru = _pair(estimate, truth)
+    err = np.abs(est - tru)
+    mask = _mask(valid, err.shape)
+    return err.ravel() if mask is None else err[mask]
+
+
+# --------------------------------------------------------------------------------------------
+# accuracy
+# --------------------------------------------------------------------------------------------
+
+
+def mae(estimate: Any, truth: Any, *, valid: Any = None) -> float:
+    """Mean absolute error, in the unit of the inputs (K for temperatures).
+
+    Parameters
+    ----------
+    estimate, truth : array_like, shape (H, W) or (N, H, W)
+        Estimated and true values, same shape.
+    valid : array_like of bool, optional
+        Pixels to include (True = valid), shape of the inputs or ``(H, W)``.
+
+    Returns
+    -------
+    float
+        ``mean(|estimate - truth|)`` over the valid pixels.
+    """
+    return float(np.mean(_abs_errors(estimate, truth, valid)))
+
+
+def rmse(estimate: Any, truth: Any, *, valid: Any = None) -> float:
+    """Root-mean-square error, in the unit of the inputs (K for temperatures).
+
+    Parameters
+    ----------
+    estimate, truth : array_like, shape (H, W) or (N, H, W)
+        Estimated and true values, same shape.
+    valid : array_like of bool, optional
+        Pixels to include (True = valid), shape of the inputs or ``(H, W)``.
+
+    Returns
+    -------
+    float
+        ``sqrt(mean((estimate - truth)**2))`` over the valid pixels.
+    """
+    err = _abs_errors(estimate, truth, valid)
+    return float(np.sqrt(np.mean(err * err)))
+
+
+def error_cdf(
+    estimate: Any,
+    truth: Any,
+    *,
+    valid: Any = None,
+    max_error: float | None = None,
+    num: int = 201,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Cumulative distribution of the absolute error (Oz et al., Fig. 12).
+
+    Parameters
+    ----------
+    estimate, truth : array_like, shape (H, W) or (N, H, W)
+        Estimated and true temperatures, same shape, °C (or K).
+    valid : array_like of bool, optional
+        Pixels to include (True = valid).
+    max_error : float, optional
+        Largest threshold, K; default the largest absolute error.
+    num : int, optional
+        Number of thresholds (default 201), evenly spaced from 0 to ``max_error``.
+
+    Returns
+    -------
+    thresholds : numpy.ndarray, shape (num,)
+        Absolute-error thresholds, K.
+    fraction : numpy.ndarray, shape (num,)
+        Fraction of valid pixels whose absolute error is ≤ each threshold, in [0, 1],
+        non-decreasing.
+    """
+    if isinstance(num, bool) or not isinstance(num, int | np.integer) or num < 2:
+        raise InvalidInputError(f"num: expected an integer ≥ 2, got {num!r}")
+    err = np.sort(_abs_errors(estimate, truth, valid))
+    if max_error is None:
+        top = float(err[-1])
+    else:
+        top = float(max_error)
+        if not math.isfinite(top) or top <= 0:
+            raise InvalidInputError(f"max_error: must be positive, got {max_error!r}")
+    thresholds = np.linspace(0.0, top, int(num))
+    fraction = np.searchsorted(err, thresholds, side="right") / err.size
+    return thresholds, fraction
+
+
+def fraction_within(estimate: Any, truth: Any, tol: float = 0.5, *, valid: Any = None) -> float:
+    """Fraction of valid pixels whose absolute error is at most ``tol``.
+
+    Parameters
+    ----------
+    estimate, truth : array_like, shape (H, W) or (N, H, W)
+        Estimated and true temperatures, same shape.
+    tol : float, optional
+        Tolerance, K (default 0.5).
+    valid : array_like of bool, optional
+        Pixels to include (True = valid).
+
+    Returns
+    -------
+    float
+        In [0, 1].
+    """
+    tol_f = float(tol)
+    if not math.isfinite(tol_f) or tol_f < 0:
+        raise InvalidInputError(f"tol: must be a finite value ≥ 0, got {tol!r}")
+    err = _abs_errors(estimate, truth, valid)
+    return float(np.count_nonzero(err <= tol_f) / err.size)
+
+
+# --------------------------------------------------------------------------------------------
+# image similarity
+# --------------------------------------------------------------------------------------------
+
+
+def roughness(image: Any, *, norm: int = 2, circular: bool = True) -> float | np.ndarray:
+    """Roughness index ρ of an image (Wolf, Pezoa, Figueroa 2016, eq. 13).
+
+    ``ρ(X) = (‖h ⊗ X‖ + ‖hᵀ ⊗ X‖) / ‖X‖`` with ``h = [-1, 1]``: the relative size of the
+    horizontal and vertical first differences. It is 0 for a uniform image and grows with
+    pixel-to-pixel nonuniformity; it needs no reference image.
+
+    Parameters
+    ----------
+    image : array_like, shape (H, W) or (N, H, W)
+        One image, or N images each given its own ρ.
+    norm : {2, 1}, optional
+        2 (default): the Euclidean norm, as printed in Wolf et al. 2016 eq. 13. 1: the ℓ1 norm
+        of the original roughness index (Hayat et al. 1999), also common in the NUC literature.
+    circular : bool, optional
+        True (default): circular convolution as in Wolf et al. (the last column/row is compared
+        with the first). False: only differences inside the image (``np.diff``).
+
+    Returns
+    -------
+    float or numpy.ndarray of shape (N,)
+        ρ, dimensionless.
+
+    Raises
+    ------
+    InvalidInputError
+        If an image is all zeros (ρ undefined), holds NaN, or is smaller than 2×2.
+
+    Examples
+    --------
+    A 0/1 checkerboard: every difference is ±1, so with the ℓ1 norm ρ = (HW + HW) / (HW/2) = 4,
+    and with the ℓ2 norm ρ = 2·sqrt(HW) / sqrt(HW/2) = 2·sqrt(2).
+
+    >>> board = np.indices((4, 4)).sum(axis=0) % 2
+    >>> float(roughness(board, norm=1))
+    4.0
+    """
+    x = as_float_array(image, "image", ndim=(2, 3)).astype(np.float64, copy=False)
+    if norm not in (1, 2):
+        raise InvalidInputError(f"norm: expected 1 or 2, got {norm!r}")
+    if x.shape[-1] < 2 or x.shape[-2] < 2:
+        raise InvalidInputError(f"image: must be at least 2x2 pixels, got shape {x.shape}")
+    frames = x if x.ndim == 3 else x[None]
+    if circular:
+        dx = frames - np.roll(frames, 1, axis=2)
+        dy = frames - np.roll(frames, 1, axis=1)
+    else:
+        dx = np.diff(frames, axis=2)
+        dy = np.diff(frames, axis=1)
+
+    def _norm(a: np.ndarray) -> np.ndarray:
+        flat = a.reshape(a.shape[0], -1)
+        if norm == 1:
+            return np.abs(flat).sum(axis=1)
+        return np.sqrt(np.einsum("ij,ij->i", flat, flat))
+
+    denom = _norm(frames)
+    if np.any(denom == 0):
+        raise InvalidInputError("image: all pixels are zero; the roughness index is undefined")
+    rho = (_norm(dx) + _norm(dy)) / denom
+    return float(rho[0]) if x.ndim == 2 else rho
+
+
+def cosine_similarity(a: Any, b: Any, *, valid: Any = None) -> float:
+    """Cosine similarity of two images (Wolf, Pezoa, Figueroa 2016, eq. 14).
+
+    ``C_s = Σ a·b / (sqrt(Σ a²) · sqrt(Σ b²))`` over all (valid) pixels of the flattened images:
+    1 when one image is a positive multiple of the other, independent of global gain, which suits
+    scene-based NUC outputs that are not radiometric.
+
+    Parameters
+    ----------
+    a, b : array_like, shape (H, W) or (N, H, W)
+        Reference and corrected images, same shape. For a per-frame value call it per frame.
+    valid : array_like of bool, optional
+        Pixels to include (True = valid).
+
+    Returns
+    -------
+    float
+        In [-1, 1].
+
+    Raises
+    ------
+    InvalidInputError
+        If either image is all zeros (the similarity is undefined).
+    """
+    x, y = _pair(a, b)
+    mask = _mask(valid, x.shape)
+    if mask is not None:
+        x, y = x[mask], y[mask]
+    x, y = x.ravel(), y.ravel()
+    nx, ny = float(np.sqrt(np.dot(x, x))), float(np.sqrt(np.dot(y, y)))
+    if nx == 0 or ny == 0:
+        raise InvalidInputError("cosine_similarity: an image is all zeros; undefined")
+    return float(np.clip(np.dot(x, y) / (nx * ny), -1.0, 1.0))
+
+
+def _check_data_range(data_range: Any) -> float:
+    value = float(data_range)
+    if not math.isfinite(value) or value <= 0:
+        raise InvalidInputError(f"data_range: must be positive and finite, got {data_range!r}")
+    return value
+
+
+def ssim(estimate: Any, truth: Any, *, data_range: float) -> float:
+    """Structural similarity index (SSIM), scikit-image ``structural_similarity`` defaults.
+
+    A uniform 7×7 window, ``K1 = 0.01``, ``K2 = 0.03``.
+
+    Parameters
+    ----------
+    estimate, truth : array_like, shape (H, W) or (N, H, W)
+        Images, same shape; H and W at least 7. For ``(N, H, W)`` the mean of the per-frame
+        SSIMs is returned.
+    data_range : float
+        Range of the values (max − min possible), in the unit of the inputs, e.g. the span of
+        the true temperatures in K.
+
+    Returns
+    -------
+    float
+        SSIM, at most 1.
+    """
+    est, tru = _pair(estimate, truth)
+    dr = _check_data_range(data_range)
+    if min(est.shape[-2:]) < 7:
+        raise InvalidInputError(f"ssim: images must be at least 7x7 pixels, got {est.shape}")
+    frames_e = est if est.ndim == 3 else est[None]
+    frames_t = tru if tru.ndim == 3 else tru[None]
+    values = [
+        structural_similarity(t, e, data_range=dr) for e, t in zip(frames_e, frames_t, strict=True)
+    ]
+    return float(np.mean(values))
+
+
+def psnr(estimate: Any, truth: Any, *, data_range: float) -> float:
+    """Peak signal-to-noise ratio, dB (scikit-image ``peak_signal_noise_ratio``).
+
+    Parameters
+    ----------
+    estimate, truth : array_like, shape (H, W) or (N, H, W)
+        Images, same shape.
+    data_range : float
+        Range of the values, in the unit of the inputs.
+
+    Returns
+    -------
+    float
+        ``10·log10(data_range² / MSE)``, dB; ``inf`` for identical images.
+    """
+    est, tru = _pair(estimate, truth)
+    dr = _check_data_range(data_range)
+    if np.array_equal(est, tru):
+        return math.inf
+    return float(peak_signal_noise_ratio(tru, est, data_range=dr))
+
+
+def best_affine_fit(estimate: Any, truth: Any, valid: Any = None) -> np.ndarray:
+    """The estimate mapped by the least-squares affine map ``a·x + b`` onto the truth.
+
+    Scene-based NUC outputs are not radiometric; mapping them by the best gain and offset before
+    :func:`mae`/:func:`rmse` compares their spatial structure only.
+
+    Parameters
+    ----------
+    estimate, truth : array_like, shape (H, W) or (N, H, W)
+        Same shape.
+    valid : array_like of bool, optional
+        Pixels used for the fit (True = valid); the map is applied to every pixel.
+
+    Returns
+    -------
+    numpy.ndarray, float64, shape of ``estimate``
+        ``a·estimate + b`` with ``a, b`` minimising ``Σ (a·x + b − y)²`` over the valid pixels.
+        A constant estimate maps to the mean of the truth (``a = 0``).
+    """
+    est, tru = _pair(estimate, truth)
+    mask = _mask(valid, est.shape)
+    x = est.ravel() if mask is None else est[mask]
+    y = tru.ravel() if mask is None else tru[mask]
+    mx, my = float(x.mean()), float(y.mean())
+    dx = x - mx
+    var = float(np.dot(dx, dx))
+    gain = float(np.dot(dx, y - my)) / var if var > 0 else 0.0
+    return gain * (est - mx) + my
+
+
+# --------------------------------------------------------------------------------------------
+# NETD
+# --------------------------------------------------------------------------------------------
+
+
+def netd_map(flat_low: Any, flat_high: Any, t_low_c: float, t_high_c: float) -> np.ndarray:
+    """Per-pixel noise-equivalent temperature difference from flat fields at two temperatures.
+
+    Responsivity ``R = (mean_high − mean_low) / (t_high − t_low)`` (counts/K) from the temporal
+    means of the two stacks; temporal noise ``σ = sqrt((σ_low² + σ_high²) / 2)`` from the
+    per-pixel standard deviations over frames (``ddof=1``) of each stack; ``NETD = σ / |R|``.
+
+    Parameters
+    ----------
+    flat_low, flat_high : array_like, shape (N, H, W)
+        Frames of a uniform blackbody at ``t_low_c`` and at ``t_high_c`` (raw counts or any
+        signal linear in the counts), N ≥ 2 each (the two N may differ).
+    t_low_c, t_high_c : float
+        Blackbody temperatures, °C; they must differ.
+
+    Returns
+    -------
+    numpy.ndarray, float64, shape (H, W)
+        NETD per pixel, K. Pixels with zero responsivity (dead) get ``inf``.
+    """
+    low = as_float_array(flat_low, "flat_low", ndim=3).astype(np.float64, copy=False)
+    high = as_float_array(flat_high, "flat_high", ndim=3).astype(np.float64, copy=False)
+    if low.shape[1:] != high.shape[1:]:
+        raise ResolutionMismatchError(
+            f"flat_low frames are {low.shape[2]}x{low.shape[1]} but flat_high frames are "
+            f"{high.shape[2]}x{high.shape[1]}"
+        )
+    if low.shape[0] < 2 or high.shape[0] < 2:
+        raise InvalidInputError("netd: each stack needs at least 2 frames for a temporal σ")
+    if 0 in low.shape[1:]:
+        raise InvalidInputError(f"flat_low: empty frames (shape {low.shape})")
+    t_low, t_high = float(t_low_c), float(t_high_c)
+    if not (math.isfinite(t_low) and math.isfinite(t_high)) or t_low == t_high:
+        raise InvalidInputError(
+            f"netd: the two blackbody temperatures must be finite and differ, got "
+            f"{t_low_c!r} and {t_high_c!r}"
+        )
+    responsivity = (high.mean(axis=0) - low.mean(axis=0)) / (t_high - t_low)
+    sigma = np.sqrt(0.5 * (low.var(axis=0, ddof=1) + high.var(axis=0, ddof=1)))
+    out = np.full(responsivity.shape, np.inf)
+    live = responsivity != 0
+    out[live] = sigma[live] / np.abs(responsivity[live])
+    return out
+
+
+def netd(flat_low: Any, flat_high: Any, t_low_c: float, t_high_c: float) -> float:
+    """Median NETD over the pixels, K (see :func:`netd_map` for the method and parameters).
+
+    Returns
+    -------
+    float
+        Median per-pixel NETD, K (e.g. 0.03–0.08 for a Tau2-class core).
+
+    Raises
+    ------
+    InvalidInputError
+        If the median is not finite (most pixels show no response between the two stacks).
+    """
+    value = float(np.median(netd_map(flat_low, flat_high, t_low_c, t_high_c)))
+    if not math.isfinite(value):
+        raise InvalidInputError(
+            "netd: most pixels show no response between the two stacks; "
+            "are they at different blackbody temperatures?"
+        )
+    return value

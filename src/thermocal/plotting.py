@@ -1,0 +1,71 @@
+"""Figures for reports (matplotlib, headless)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+
+def _pyplot():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def save_figure(fig, path: str | Path, *, dpi: int = 110) -> None:
+    """Save ``fig`` to ``path`` atomically and close it."""
+    from thermocal.io.atomic import atomic_path
+
+    plt = _pyplot()
+    try:
+        with atomic_path(path) as tmp:
+            fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format=Path(path).suffix.lstrip("."))
+    finally:
+        plt.close(fig)
+
+
+def burst_report_figure(
+    raw: np.ndarray,
+    truth_c: np.ndarray,
+    estimates_c: dict[str, np.ndarray],
+    *,
+    title: str = "",
+    error_range_c: float = 3.0,
+    valid: np.ndarray | None = None,
+):
+    """Raw frame, truth and, per method, the estimate and its error map (°C). Returns the figure.
+
+    All images ``(H, W)``; estimates share the truth's colour scale; errors use a diverging map
+    clipped at ``±error_range_c``; the MAE in each title is over ``valid`` pixels (all if None).
+    """
+    plt = _pyplot()
+    n = len(estimates_c)
+    fig, axes = plt.subplots(2, n + 1, figsize=(3.6 * (n + 1), 5.8), squeeze=False)
+    lo, hi = np.percentile(truth_c, [1, 99])
+    raw_lo, raw_hi = np.percentile(raw, [1, 99])
+    im = axes[0, 0].imshow(raw, cmap="gray", vmin=raw_lo, vmax=raw_hi)
+    axes[0, 0].set_title("raw frame (counts)")
+    fig.colorbar(im, ax=axes[0, 0], fraction=0.046)
+    im = axes[1, 0].imshow(truth_c, cmap="inferno", vmin=lo, vmax=hi)
+    axes[1, 0].set_title("truth (°C)")
+    fig.colorbar(im, ax=axes[1, 0], fraction=0.046)
+    for j, (name, est) in enumerate(estimates_c.items(), start=1):
+        im = axes[0, j].imshow(est, cmap="inferno", vmin=lo, vmax=hi)
+        axes[0, j].set_title(f"{name} (°C)")
+        fig.colorbar(im, ax=axes[0, j], fraction=0.046)
+        err = est - truth_c
+        im = axes[1, j].imshow(err, cmap="RdBu_r", vmin=-error_range_c, vmax=error_range_c)
+        mae = np.mean(np.abs(err if valid is None else err[valid]))
+        axes[1, j].set_title(f"{name} error, MAE {mae:.2f} °C")
+        fig.colorbar(im, ax=axes[1, j], fraction=0.046)
+    for ax in axes.flat:
+        ax.set_xticks([])
+        ax.set_yticks([])
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return fig

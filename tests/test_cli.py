@@ -1,0 +1,110 @@
+"""The command line: the contract of DESIGN.md, help, version, and bad input → exit 2."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import tifffile
+
+from thermocal.cli import main
+from thermocal.io.chamber import read_chamber
+
+
+def run(args: list[str], capsys) -> tuple[int, str, str]:
+    try:
+        main(args)
+        code = 0
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else 1
+    out = capsys.readouterr()
+    return code, out.out, out.err
+
+
+def test_version_and_help(capsys):
+    code, out, _ = run(["--version"], capsys)
+    assert code == 0 and "thermocal" in out
+    for cmd in (["--help"], ["simulate", "--help"], ["simulate", "chamber", "--help"],
+                ["simulate", "flight", "--help"], ["demo", "--help"]):
+        code, out, _ = run(cmd, capsys)
+        assert code == 0 and "Usage" in out
+
+
+def test_simulate_chamber_writes_a_valid_file(tmp_path, capsys):
+    out = tmp_path / "c.h5"
+    code, _, err = run(["simulate", "chamber", str(out), "--size", "32x24", "--seed", "3",
+                        "--unit", "2", "--blackbody-c", "10:40:15", "--ambient-profile", "ramp",
+                        "--ambient-c", "15:25", "--rate-c-per-min", "1", "--frames-per-point",
+                        "2", "--duration-min", "5"], capsys)
+    assert code == 0, err
+    session = read_chamber(out)
+    assert session.frames.shape == (30, 24, 32)
+    assert set(np.unique(session.blackbody_c)) == {10.0, 25.0, 40.0}
+    assert session.attrs["unit"] == 2
+
+
+def test_simulate_flight_writes_the_contract(tmp_path, capsys):
+    out = tmp_path / "flight"
+    code, _, err = run(["simulate", "flight", str(out), "--frames", "5", "--size", "64x48",
+                        "--motion", "hover", "--fpa-c", "35", "--seed", "1"], capsys)
+    assert code == 0, err
+    frames = tifffile.imread(out / "frames.tiff")
+    truth = tifffile.imread(out / "truth.tiff")
+    meta = json.loads((out / "frames.json").read_text())
+    homographies = np.load(out / "homographies.npy")
+    assert frames.shape == (5, 48, 64) and frames.dtype == np.uint16
+    assert truth.shape == (5, 48, 64) and truth.dtype == np.float32
+    assert homographies.shape == (5, 3, 3)
+    assert meta["pivot"] == 2 and len(meta["fpa_c"]) == 5 and meta["bit_depth"] == 14
+    assert abs(np.mean(meta["fpa_c"]) - 35.0) < 0.1
+    np.testing.assert_allclose(homographies[2], np.eye(3), atol=1e-9)
+
+
+def test_simulate_flight_over_a_real_scene(tmp_path, capsys, shared_data):
+    out = tmp_path / "flight"
+    scene = shared_data / "scenes" / "10_ir_fussbodenheizung.jpg"
+    code, _, err = run(["simulate", "flight", str(out), "--scene", str(scene), "--frames", "3",
+                        "--size", "64x48", "--motion", "uav"], capsys)
+    assert code == 0, err
+    truth = tifffile.imread(out / "truth.tiff")
+    assert 16.0 < truth.min() and truth.max() < 35.0
+
+
+@pytest.mark.parametrize(
+    "args, message",
+    [
+        (["simulate", "chamber", "{tmp}/c.h5", "--blackbody-c", "70:10:5"], "A <= B"),
+        (["simulate", "chamber", "{tmp}/c.h5", "--blackbody-c", "10:x"], "A:B:STEP"),
+        (["simulate", "chamber", "{tmp}/c.h5", "--ambient-c", "10"], "A:B"),
+        (["simulate", "chamber", "{tmp}/c.h5", "--size", "0x10"], "between 8 and 8192"),
+        (["simulate", "chamber", "{tmp}/c.h5", "--blackbody-c", "-300:10:10"], "absolute zero"),
+        (["simulate", "chamber", "{tmp}/missing/c.h5"], "does not exist"),
+        (["simulate", "chamber", "{tmp}"], "is a directory"),
+        (["simulate", "flight", "{tmp}/file.txt"], "file"),
+        (["simulate", "flight", "{tmp}/f", "--scene", "{tmp}/file.txt"], "file.txt"),
+        (["simulate", "flight", "{tmp}/f", "--size", "99999x5"], "between 8 and 8192"),
+        (["simulate", "flight", "{tmp}/f", "--frames", "0"], "at least 1 frame"),
+        (["simulate", "flight", "{tmp}/f", "--fpa-c", "-400"], "absolute zero"),
+        (["demo", "--out", "{tmp}/file.txt"], "file"),
+    ],
+)
+def test_bad_input_exits_2_with_one_line(tmp_path, capsys, args, message):
+    (tmp_path / "file.txt").write_text("not a scene")
+    args = [a.replace("{tmp}", str(tmp_path)) for a in args]
+    code, _, err = run(args, capsys)
+    assert code == 2
+    lines = err.strip().splitlines()
+    assert len(lines) == 1, err
+    assert message in lines[0]
+    assert "Traceback" not in err
+    assert not (tmp_path / "c.h5").exists()
+    assert not (tmp_path / "f").exists() or not any((tmp_path / "f").iterdir())
+
+
+def test_console_script_entry_point_runs():
+    proc = subprocess.run([sys.executable, "-m", "thermocal.cli", "--version"],
+                          capture_output=True, text=True, check=False)
+    assert proc.returncode == 0 and "thermocal" in proc.stdout
