@@ -12,6 +12,7 @@ import click
 
 from thermocal import __version__
 from thermocal.errors import InvalidInputError, ThermocalError
+from thermocal.progress import progress_bar
 
 
 def parse_range(text: str, name: str, *, parts: int) -> tuple[float, ...]:
@@ -39,35 +40,6 @@ def setpoints_from_range(start: float, stop: float, step: float) -> tuple[float,
         raise InvalidInputError(f"{n} blackbody set points is too many (at most 1000)")
     points = (start + step * k for k in range(n))
     return tuple(float(p) for p in points if p <= stop + 1e-9)
-
-
-def _progress():
-    """A rich progress bar with frames per second, on stderr."""
-    from rich.console import Console
-    from rich.progress import (
-        BarColumn,
-        MofNCompleteColumn,
-        Progress,
-        ProgressColumn,
-        TextColumn,
-        TimeRemainingColumn,
-    )
-    from rich.text import Text
-
-    class FramesPerSecond(ProgressColumn):
-        def render(self, task):  # noqa: D102 - rich's column protocol
-            speed = task.finished_speed or task.speed
-            return Text(f"{speed:.0f} frames/s" if speed else "")
-
-    return Progress(
-        TextColumn("{task.description}"),
-        BarColumn(),
-        MofNCompleteColumn(),
-        FramesPerSecond(),
-        TimeRemainingColumn(),
-        console=Console(stderr=True),
-        transient=True,
-    )
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -134,7 +106,7 @@ def simulate_chamber_cmd(
         emissivity=emissivity,
     )
     camera = make_camera(preset, unit=unit, size=parse_size(size))
-    with _progress() as bar:
+    with progress_bar() as bar:
         task = bar.add_task("chamber", total=plan.n_frames)
         n = write_simulated_chamber(
             out, camera, plan, seed=seed, progress=lambda k: bar.advance(task, k)
@@ -208,6 +180,31 @@ def demo(out_dir: Path) -> None:
     from thermocal.demo import run_demo
 
     run_demo(out_dir)
+
+
+def _register_commands() -> None:
+    """Add the commands that live beside their capability (each module imports lazily)."""
+    import importlib
+
+    for module, name in COMMANDS:
+        try:
+            cmd = getattr(importlib.import_module(module), name)
+        except ModuleNotFoundError as exc:  # a capability not built yet
+            if not (exc.name and module.startswith(exc.name)):
+                raise
+            continue
+        cli.add_command(cmd)
+
+
+# (module, click command) pairs; each module keeps heavy imports (torch, cv2) inside functions.
+COMMANDS: list[tuple[str, str]] = [
+    ("thermocal.calibration.commands", "calibrate"),
+    ("thermocal.calibration.commands", "correct"),
+    ("thermocal.nuc.commands", "nuc"),
+    ("thermocal.nn.commands", "estimate"),
+    ("thermocal.nn.commands", "train"),
+]
+_register_commands()
 
 
 def main(argv: list[str] | None = None) -> None:
