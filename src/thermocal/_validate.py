@@ -94,6 +94,16 @@ def check_length(values: np.ndarray, n: int, name: str) -> None:
         raise InvalidInputError(f"{name}: expected {n} values (one per frame), got {values.shape}")
 
 
+def check_rng(rng: Any) -> np.random.Generator:
+    """Return ``rng`` if it is a :class:`numpy.random.Generator`, else raise InvalidInputError."""
+    if not isinstance(rng, np.random.Generator):
+        raise InvalidInputError(
+            f"rng: expected a numpy.random.Generator (np.random.default_rng(seed)), got "
+            f"{type(rng).__name__}"
+        )
+    return rng
+
+
 def parse_size(text: str) -> tuple[int, int]:
     """Parse ``"WxH"`` into ``(width, height)``; both must be between 8 and 8192 pixels."""
     parts = text.lower().split("x")

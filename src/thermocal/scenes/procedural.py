@@ -34,6 +34,7 @@ import cv2
 import numpy as np
 from scipy.fft import next_fast_len
 
+from thermocal._validate import check_rng
 from thermocal.errors import InvalidInputError
 
 __all__ = ["KINDS", "OPTICS_BLUR_SIGMA_PX", "fractal_noise", "procedural_scene"]
@@ -51,15 +52,6 @@ _ONE = 1 << _SHIFT
 # --------------------------------------------------------------------------------------------
 # checks and noise
 # --------------------------------------------------------------------------------------------
-
-
-def _check_rng(rng: Any) -> np.random.Generator:
-    if not isinstance(rng, np.random.Generator):
-        raise InvalidInputError(
-            f"rng: expected a numpy.random.Generator (np.random.default_rng(seed)), got "
-            f"{type(rng).__name__}"
-        )
-    return rng
 
 
 def _check_shape(shape: Any) -> tuple[int, int]:
@@ -96,7 +88,7 @@ def fractal_noise(shape: tuple[int, int], *, beta: float, rng: np.random.Generat
     numpy.ndarray, shape (H, W), float32
         Zero mean, unit standard deviation (all zeros for a single pixel).
     """
-    rng = _check_rng(rng)
+    rng = check_rng(rng)
     h, w = _check_shape(shape)
     try:
         b = float(beta)
@@ -859,7 +851,7 @@ def procedural_scene(
     InvalidInputError
         A bad shape, kind, scale or rng.
     """
-    rng = _check_rng(rng)
+    rng = check_rng(rng)
     h, w = _check_shape(shape)
     if kind not in KINDS:
         raise InvalidInputError(f"kind {kind!r}: choose from {', '.join(KINDS)}")

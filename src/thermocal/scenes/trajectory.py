@@ -25,6 +25,7 @@ from typing import Any
 
 import numpy as np
 
+from thermocal._validate import check_rng
 from thermocal.errors import InvalidInputError
 from thermocal.registration.warp import (
     _check_frame_size,
@@ -56,15 +57,6 @@ _MAX_TRIES = 200
 # --------------------------------------------------------------------------------------------
 # small helpers
 # --------------------------------------------------------------------------------------------
-
-
-def _check_rng(rng: Any) -> np.random.Generator:
-    if not isinstance(rng, np.random.Generator):
-        raise InvalidInputError(
-            f"rng: expected a numpy.random.Generator (np.random.default_rng(seed)), got "
-            f"{type(rng).__name__}"
-        )
-    return rng
 
 
 def _check_n(n: Any) -> int:
@@ -402,7 +394,7 @@ def walk_homographies(
     InvalidInputError
         Bad arguments, or a map too small for the frames or for the walk.
     """
-    rng = _check_rng(rng)
+    rng = check_rng(rng)
     n = _check_n(n)
     fs = _check_frame_size(frame_size)
     ms = _check_frame_size(map_size, "map_size")
@@ -499,7 +491,7 @@ def hover_homographies(
     numpy.ndarray, shape (n, 3, 3), float64
         Frame → map homographies.
     """
-    rng = _check_rng(rng)
+    rng = check_rng(rng)
     n = _check_n(n)
     fs = _check_frame_size(frame_size)
     ms = _check_frame_size(map_size, "map_size")
@@ -650,7 +642,7 @@ def uav_homographies(
     InvalidInputError
         Bad arguments, or a map too small for the pass.
     """
-    rng = _check_rng(rng)
+    rng = check_rng(rng)
     n = _check_n(n)
     fs = _check_frame_size(frame_size)
     ms = _check_frame_size(map_size, "map_size")
@@ -758,7 +750,7 @@ def perturb_homographies(
     numpy.ndarray, shape like ``h``, float64
         Perturbed homographies (h33 = 1); the input is not modified.
     """
-    rng = _check_rng(rng)
+    rng = check_rng(rng)
     hs = _normalise(as_homographies(h, "h"))
     w, hh = _check_frame_size(frame_size)
     t = _check_nonneg(translation_px, "translation_px")
