@@ -23,8 +23,6 @@ from thermocal.camera.model import CameraModel
 from thermocal.errors import InvalidInputError
 from thermocal.radiometry import BandRadiance
 
-SIZES = {"336x256": (336, 256), "640x512": (640, 512)}
-
 
 @dataclass(frozen=True)
 class CameraPreset:

@@ -64,6 +64,8 @@ _RATIO = 0.8
 # Largest change of scale / perspective accepted between two frames of one burst.
 _MAX_SCALE = 2.0
 _MAX_PERSPECTIVE_PX = 0.25  # largest |h31|, |h32| times the frame diagonal
+# Matches that move less than this are taken as fixed-pattern matches, pixels.
+_STILL_PX = 1.0
 # ECC: largest move of a corner away from the feature estimate that is still believed, pixels.
 _ECC_MAX_SHIFT_PX = 3.0
 
@@ -200,7 +202,7 @@ def detect_features(frame: Any, *, detector: str | None = "sift") -> FrameFeatur
     FrameFeatures
     """
     x = _highpass(_as_frame(frame, "frame"))
-    image = _stretch(x, 1.0)
+    image = _stretch(x, 2.0)
     tex = _texture(x)
     if detector is None:
         return FrameFeatures(image, np.zeros((0, 2), np.float32), None, "none", tex)
@@ -292,6 +294,12 @@ def _overlap_ok(h: np.ndarray, frame_size: tuple[int, int]) -> bool:
 # --------------------------------------------------------------------------------------------
 
 
+def _near_identity(h: np.ndarray, frame_size: tuple[int, int]) -> bool:
+    """True when every corner moves by less than ``_STILL_PX`` under ``h``."""
+    c = _corners(*frame_size)
+    return bool(np.linalg.norm(_map(h / h[2, 2], c)[0] - c, axis=1).max() < _STILL_PX)
+
+
 def _ransac(p_mov: np.ndarray, p_fix: np.ndarray) -> tuple[np.ndarray | None, int]:
     if len(p_mov) < 4:
         return None, 0
@@ -358,6 +366,13 @@ def _register_features(
         return check_homography(h, size, name), 0
     p_mov, p_fix = _match(moving, fixed)
     h, inliers = _ransac(p_mov, p_fix)
+    if h is not None and _near_identity(h, size):
+        # The fixed pattern is tied to the sensor: its features always vote for the identity.
+        # A consistent set of matches that moves is the scene; prefer it when there is one.
+        moved = np.linalg.norm(p_mov - p_fix, axis=1) > _STILL_PX
+        h2, inliers2 = _ransac(p_mov[moved], p_fix[moved])
+        if h2 is not None and inliers2 >= MIN_INLIERS and not _near_identity(h2, size):
+            h, inliers = h2, inliers2
     if h is None or inliers < MIN_INLIERS:
         raise RegistrationError(
             f"{name}: too few inliers ({inliers} of {len(p_mov)} matches, need {MIN_INLIERS}); "
