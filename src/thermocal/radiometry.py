@@ -551,6 +551,13 @@ class BandRadiance:
 TAU2 = BandRadiance()
 
 
+@functools.lru_cache(maxsize=16)
+def band_table(band_m: tuple[float, float] = TAU2_BAND_M) -> BandRadiance:
+    """A shared :class:`BandRadiance` for ``band_m`` (its tables are built once per process)."""
+    band = tuple(float(b) for b in band_m)
+    return TAU2 if band == TAU2.band_m else BandRadiance(band_m=band)
+
+
 # --------------------------------------------------------------------------------------------
 # FLIR raw counts <-> temperature
 # --------------------------------------------------------------------------------------------

@@ -21,7 +21,7 @@ import numpy as np
 
 from thermocal.camera.model import CameraModel
 from thermocal.errors import InvalidInputError
-from thermocal.radiometry import BandRadiance
+from thermocal.radiometry import band_table
 
 
 @dataclass(frozen=True)
@@ -171,7 +171,7 @@ def make_camera(
         defect_counts=defect_counts,
         noise_sigma=float(np.sqrt(p.noise_variance)),
         t_ref_c=p.t_ref_c,
-        band=BandRadiance(band_m=p.band_m),
+        band=band_table(tuple(p.band_m)),
         bit_depth=p.bit_depth,
         info=info,
     )
