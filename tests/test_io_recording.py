@@ -280,7 +280,7 @@ def test_failed_write_leaves_nothing(tmp_path, rec, monkeypatch):
     def fail(*args, **kwargs):
         raise OSError("disk full")
 
-    monkeypatch.setattr(tifffile, "imwrite", fail)
+    monkeypatch.setattr(tifffile.TiffWriter, "write", fail)
     with pytest.raises(OSError, match="disk full"):
         write_recording(tmp_path / "r.tiff", rec)
     assert _names(tmp_path) == []
@@ -293,7 +293,7 @@ def test_failed_write_keeps_existing_recording(tmp_path, rec, frames, monkeypatc
     def fail(*args, **kwargs):
         raise OSError("disk full")
 
-    monkeypatch.setattr(tifffile, "imwrite", fail)
+    monkeypatch.setattr(tifffile.TiffWriter, "write", fail)
     with pytest.raises(OSError):
         write_recording(tmp_path / "r.tiff", Recording(frames[:2]))
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before
@@ -405,3 +405,45 @@ def test_read_temperature_tiff_truncated(tmp_path):
     _truncate(tmp_path / "t.tiff")
     with pytest.raises(FileFormatError):
         read_temperature_tiff(tmp_path / "t.tiff")
+
+
+def test_recording_writer_streams_chunks(tmp_path):
+    from thermocal.io.recording import RecordingWriter, iter_recording
+
+    rng = np.random.default_rng(0)
+    chunks = [rng.integers(0, 16384, (k, 12, 16), dtype=np.uint16) for k in (3, 5, 1)]
+    path = tmp_path / "s.tiff"
+    with RecordingWriter(path, extra={"pivot": 4}) as writer:
+        t = 0.0
+        for c in chunks:
+            writer.append(c, fpa_c=np.full(len(c), 30.0), time_s=t + np.arange(len(c)))
+            t += len(c)
+    rec = read_recording(path)
+    np.testing.assert_array_equal(rec.frames, np.concatenate(chunks))
+    np.testing.assert_array_equal(rec.time_s, np.arange(9.0))
+    assert rec.extra["pivot"] == 4 and rec.housing_c is None
+    starts = [start for start, _ in iter_recording(path, chunk=4)]
+    assert starts == [0, 4, 8]
+
+
+@pytest.mark.parametrize("second", [
+    {"frames": np.zeros((2, 12, 16), np.uint16)},  # fpa_c missing in the second chunk
+    {"frames": np.zeros((2, 10, 16), np.uint16), "fpa_c": [30.0, 30.0]},  # other size
+    {"frames": np.full((2, 12, 16), 20000, np.uint16), "fpa_c": [30.0, 30.0]},  # > 14 bits
+])
+def test_recording_writer_rejects_inconsistent_chunks_and_writes_nothing(tmp_path, second):
+    from thermocal.io.recording import RecordingWriter
+
+    path = tmp_path / "s.tiff"
+    with pytest.raises(InvalidInputError), RecordingWriter(path) as writer:
+        writer.append(np.zeros((2, 12, 16), np.uint16), fpa_c=[30.0, 30.0])
+        writer.append(**second)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_recording_writer_without_frames_writes_nothing(tmp_path):
+    from thermocal.io.recording import RecordingWriter
+
+    with pytest.raises(InvalidInputError, match="no frames"), RecordingWriter(tmp_path / "e.tiff"):
+        pass
+    assert list(tmp_path.iterdir()) == []

@@ -190,3 +190,15 @@ def test_crop_known_answer_and_copy():
 def test_crop_outside_raises(top_left, shape):
     with pytest.raises(InvalidInputError):
         crop(_ramp(20, 30), top_left, shape)
+
+
+def test_long_map_mirror_tiles_instead_of_blowing_up():
+    from thermocal.scenes.maps import make_long_map
+
+    scene = np.tile(np.linspace(10.0, 20.0, 40, dtype=np.float32), (30, 1))  # 30x40, ramp in x
+    long_map = make_long_map(scene, (60, 500))
+    assert long_map.shape == (60, 500)
+    # scaled x2 to cover the height: each tile is 80 wide, every other one mirrored
+    np.testing.assert_allclose(long_map[:, 79], long_map[:, 80], atol=0.3)
+    assert long_map.min() >= 10.0 and long_map.max() <= 20.0
+    np.testing.assert_allclose(make_long_map(scene, (30, 40)), scene, atol=1e-6)

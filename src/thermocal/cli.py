@@ -137,16 +137,20 @@ def simulate_flight_cmd(
     from thermocal._validate import parse_size
     from thermocal.camera.presets import make_camera
     from thermocal.io.atomic import ensure_output_dir
-    from thermocal.simulate.flight import simulate_flight, write_flight
+    from thermocal.simulate.flight import plan_flight, write_simulated_flight
 
     ensure_output_dir(out_dir)
     camera = make_camera(preset, unit=unit, size=parse_size(size))
     scene_c, scene_name = load_scene_or_procedural(scene, seed=seed)
-    flight = simulate_flight(
+    plan = plan_flight(
         scene_c, camera, n_frames=n_frames, motion=motion, fpa_c=fpa_c, fps=fps, seed=seed
     )
     extra = {"scene": scene_name, "unit": unit, "preset": preset, "seed": seed, "motion": motion}
-    write_flight(out_dir, flight, extra=extra)
+    with progress_bar() as bar:
+        task = bar.add_task("flight", total=n_frames)
+        write_simulated_flight(
+            out_dir, plan, camera, extra=extra, progress=lambda k: bar.advance(task, k)
+        )
     click.echo(f"wrote {n_frames} frames ({motion}, scene {scene_name}) to {out_dir}")
 
 

@@ -44,6 +44,7 @@ from thermocal.io.atomic import atomic_path
 __all__ = [
     "SERIES_KEYS",
     "Recording",
+    "RecordingWriter",
     "iter_recording",
     "read_recording",
     "read_temperature_tiff",
@@ -229,6 +230,119 @@ def _check_tiff_name(path: str | os.PathLike[str]) -> Path:
     return p
 
 
+def _sidecar_text(sidecar: dict[str, Any], json_path: Path) -> str:
+    """The sidecar as JSON text: one key per line, each list on one line (readable, compact)."""
+    try:
+        lines = [
+            f"  {json.dumps(key)}: {json.dumps(value, allow_nan=False)}"
+            for key, value in sidecar.items()
+        ]
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(
+            f"{json_path}: extra metadata is not JSON-serialisable ({exc})"
+        ) from None
+    return "{\n" + ",\n".join(lines) + "\n}\n"
+
+
+class RecordingWriter:
+    """Stream a recording to ``NAME.tiff`` + ``NAME.json`` chunk by chunk (bounded memory).
+
+    Use as a context manager; :meth:`append` validates each chunk like :class:`Recording` does.
+    A series (``fpa_c``, ``time_s``, ...) must be given with every chunk or with none. Both files
+    appear, complete, only when the block ends without an error; otherwise nothing is written
+    and an existing recording of that name is left untouched.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output ``NAME.tiff`` (or ``.tif``); its directory must exist.
+    bit_depth : int
+        Bits of the raw counts (default 14).
+    extra : dict, optional
+        Further JSON-serialisable sidecar entries (not the reserved series keys).
+    """
+
+    def __init__(
+        self, path: str | os.PathLike[str], *, bit_depth: int = 14, extra: dict | None = None
+    ) -> None:
+        self.tiff_path = _check_tiff_name(path)
+        self.json_path = sidecar_path(self.tiff_path)
+        # validates bit depth and extra keys once, up front
+        self._template = Recording(np.zeros((1, 1, 1), np.uint16), bit_depth=bit_depth,
+                                   extra=dict(extra or {}))
+        self._series: dict[str, list[float]] | None = None
+        self._shape: tuple[int, int] | None = None
+        self.n_frames = 0
+        self._stack: contextlib.ExitStack | None = None
+
+    def __enter__(self) -> RecordingWriter:
+        stack = contextlib.ExitStack()
+        try:
+            self._tiff_tmp = stack.enter_context(atomic_path(self.tiff_path))
+            self._json_tmp = stack.enter_context(atomic_path(self.json_path))
+            self._writer = stack.enter_context(tifffile.TiffWriter(self._tiff_tmp, bigtiff=True))
+        except BaseException:
+            stack.close()
+            raise
+        self._stack = stack
+        return self
+
+    def append(
+        self,
+        frames: Any,
+        *,
+        fpa_c: Any = None,
+        time_s: Any = None,
+        housing_c: Any = None,
+        ambient_c: Any = None,
+    ) -> None:
+        """Add ``(k, H, W)`` frames (or one ``(H, W)``) with their per-frame series."""
+        if self._stack is None:
+            raise InvalidInputError("RecordingWriter.append: use the writer in a with-block")
+        chunk = Recording(frames, fpa_c=fpa_c, time_s=time_s, housing_c=housing_c,
+                          ambient_c=ambient_c, bit_depth=self._template.bit_depth)
+        present = {k: getattr(chunk, k) for k in SERIES_KEYS if getattr(chunk, k) is not None}
+        if self._series is None:
+            self._series = {k: [] for k in present}
+            self._shape = chunk.frame_shape
+        if set(present) != set(self._series):
+            raise InvalidInputError(
+                f"{self.tiff_path}: every chunk must carry the same series "
+                f"({sorted(self._series)}), got {sorted(present)}"
+            )
+        if chunk.frame_shape != self._shape:
+            raise InvalidInputError(
+                f"{self.tiff_path}: frames of {chunk.frame_shape} after frames of {self._shape}"
+            )
+        # no shape metadata: the pages of all chunks then read back as one (N, H, W) series
+        self._writer.write(
+            chunk.frames, photometric="minisblack", contiguous=True, metadata=None
+        )
+        for key, values in present.items():
+            self._series[key].extend(values.tolist())
+        self.n_frames += chunk.n_frames
+
+    def __exit__(self, exc_type, exc, tb) -> bool:
+        stack, self._stack = self._stack, None
+        assert stack is not None
+        if exc_type is not None:
+            stack.__exit__(exc_type, exc, tb)  # removes both temporary files
+            return False
+        try:
+            if self.n_frames == 0:
+                raise InvalidInputError(f"{self.tiff_path}: no frames were written")
+            sidecar = dict(self._series or {})
+            sidecar["bit_depth"] = self._template.bit_depth
+            sidecar.update(self._template.extra)
+            self._writer.close()
+            self._json_tmp.write_text(_sidecar_text(sidecar, self.json_path), encoding="utf-8")
+        except BaseException as err:
+            stack.__exit__(type(err), err, err.__traceback__)
+            raise
+        stack.__exit__(None, None, None)  # renames both into place
+        return False
+
+
 def write_recording(path: str | os.PathLike[str], rec: Recording) -> tuple[Path, Path]:
     """Write a recording as ``NAME.tiff`` (uint16, one page per frame) and ``NAME.json``.
 
@@ -236,50 +350,17 @@ def write_recording(path: str | os.PathLike[str], rec: Recording) -> tuple[Path,
     complete, so a failed write leaves any previous recording untouched. The sidecar is always
     written (it carries at least ``bit_depth``), which replaces a stale one.
 
-    Parameters
-    ----------
-    path : str or os.PathLike
-        Output ``NAME.tiff`` (or ``.tif``); its directory must exist.
-    rec : Recording
-        The recording.
-
-    Returns
-    -------
-    tuple of pathlib.Path
-        ``(tiff_path, json_path)``.
-
-    Raises
-    ------
-    InvalidInputError
-        If ``path`` is not a TIFF name, ``rec`` is not a Recording, or ``rec.extra`` cannot be
-        written as JSON. Nothing is written then.
+    Returns ``(tiff_path, json_path)``. Raises InvalidInputError if ``path`` is not a TIFF
+    name, ``rec`` is not a Recording, or ``rec.extra`` cannot be written as JSON (nothing is
+    written then).
     """
-    tiff_path = _check_tiff_name(path)
     if not isinstance(rec, Recording):
         raise InvalidInputError(f"rec: expected a Recording, got {type(rec).__name__}")
-    json_path = sidecar_path(tiff_path)
-    try:
-        # one key per line, each list on one line: readable and compact
-        lines = [
-            f"  {json.dumps(key)}: {json.dumps(value, allow_nan=False)}"
-            for key, value in rec.sidecar().items()
-        ]
-    except (TypeError, ValueError) as exc:
-        raise InvalidInputError(
-            f"{json_path}: extra metadata is not JSON-serialisable ({exc})"
-        ) from None
-    text = "{\n" + ",\n".join(lines) + "\n}"
-    frames = rec.frames
-    with atomic_path(tiff_path) as tiff_tmp, atomic_path(json_path) as json_tmp:
-        tifffile.imwrite(
-            tiff_tmp,
-            frames,
-            photometric="minisblack",
-            contiguous=True,
-            bigtiff=frames.nbytes > 2**31,
-        )
-        json_tmp.write_text(text + "\n", encoding="utf-8")
-    return tiff_path, json_path
+    json_path = sidecar_path(_check_tiff_name(path))
+    _sidecar_text(rec.sidecar(), json_path)  # fail early, before any file is created
+    with RecordingWriter(path, bit_depth=rec.bit_depth, extra=rec.extra) as writer:
+        writer.append(rec.frames, **{k: getattr(rec, k) for k in SERIES_KEYS})
+    return writer.tiff_path, writer.json_path
 
 
 # --------------------------------------------------------------------------------------------

@@ -95,6 +95,24 @@ def make_map(scene_c: Any, shape: tuple[int, int], *, scale: float | None = None
     return np.array(big[top : top + hh, left : left + ww], dtype=np.float32, copy=True)
 
 
+def make_long_map(scene_c: Any, shape: tuple[int, int]) -> np.ndarray:
+    """A map of ``shape = (H, W)`` much wider than tall (a long UAV pass) from a scene.
+
+    The scene is resized so that it covers the height ``H`` (and at least its own aspect's
+    width), then mirror-tiled along the width: no scene is blown up to tens of thousands of
+    pixels to cover a long strip. Returns float32 °C ``(H, W)``.
+    """
+    scene = as_temperature_c(scene_c, "scene_c", ndim=2)
+    hh, ww = _check_shape(shape)
+    h0, w0 = scene.shape
+    if w0 * hh / h0 >= ww:
+        return make_map(scene, shape)
+    strip = make_map(scene, (hh, max(1, int(round(w0 * hh / h0)))))
+    reps = -(-ww // strip.shape[1])
+    tiles = [strip if k % 2 == 0 else strip[:, ::-1] for k in range(reps)]
+    return np.ascontiguousarray(np.concatenate(tiles, axis=1)[:, :ww])
+
+
 def augment(
     map_c: Any, *, k_rot90: int = 0, flip_h: bool = False, flip_v: bool = False
 ) -> np.ndarray:

@@ -8,10 +8,12 @@ are kept, so that registration and multi-frame methods can be measured against t
 from __future__ import annotations
 
 import json
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+import tifffile
 
 from thermocal._validate import as_temperature_c
 from thermocal.camera.model import CameraModel, render
@@ -19,7 +21,7 @@ from thermocal.camera.thermal import ThermalParams, ambient_profile, fpa_sensor,
 from thermocal.errors import InvalidInputError
 from thermocal.registration.warp import render_views
 from thermocal.scenes import trajectory
-from thermocal.scenes.maps import make_map
+from thermocal.scenes.maps import make_long_map, make_map
 
 MOTIONS = ("walk", "hover", "uav")
 
@@ -74,6 +76,115 @@ def flight_homographies(
     raise InvalidInputError(f"unknown motion {motion!r}; choose from {', '.join(MOTIONS)}")
 
 
+@dataclass(frozen=True)
+class FlightChunk:
+    """Frames ``start … start + k − 1`` of a flight (fields as in :class:`Flight`)."""
+
+    start: int
+    frames: np.ndarray
+    truth_c: np.ndarray
+    time_s: np.ndarray
+    fpa_c: np.ndarray
+    fpa_true_c: np.ndarray
+    housing_c: np.ndarray
+    ambient_c: np.ndarray
+
+
+@dataclass(frozen=True)
+class FlightPlan:
+    """Everything about a flight but its frames: the map, the path, the thermal state."""
+
+    big_map: np.ndarray
+    to_map: np.ndarray
+    pivot: int
+    time_s: np.ndarray
+    ambient_c: np.ndarray
+    housing_c: np.ndarray
+    fpa_true_c: np.ndarray
+    fpa_rate_c_per_min: np.ndarray
+    fpa_c: np.ndarray
+    seed: int
+
+    @property
+    def homographies(self) -> np.ndarray:
+        """Frame i → pivot frame homographies, ``(N, 3, 3)``."""
+        return trajectory.to_pivot(self.to_map, self.pivot)
+
+
+def plan_flight(
+    scene_c: np.ndarray,
+    camera: CameraModel,
+    *,
+    n_frames: int = 7,
+    motion: str = "walk",
+    fpa_c: float = 30.0,
+    fps: float = 30.0,
+    seed: int = 0,
+    thermal: ThermalParams = ThermalParams(),
+) -> FlightPlan:
+    """Lay out a flight of ``camera`` over ``scene_c`` (°C map, any size: resized into a map).
+
+    The camera has settled at a constant ambient that puts its FPA at ``fpa_c`` (°C); the FPA
+    sensor reading is quantised and noisy (:func:`thermocal.camera.thermal.fpa_sensor`).
+    """
+    if n_frames < 1:
+        raise InvalidInputError(f"a flight needs at least 1 frame, got {n_frames}")
+    if fps <= 0:
+        raise InvalidInputError(f"frame rate must be > 0, got {fps}")
+    scene = as_temperature_c(scene_c, "scene", ndim=2)
+    as_temperature_c(fpa_c, "fpa_c")
+    rng = np.random.default_rng([seed, 0])
+    h, w = camera.shape
+    shape = map_shape_for(motion, n_frames, (w, h))
+    big_map = make_long_map(scene, shape) if motion == "uav" else make_map(scene, shape)
+    to_map = flight_homographies(motion, n_frames, (w, h), shape, rng=rng)
+    time_s = np.arange(n_frames) / fps
+    ambient = ambient_profile(
+        "constant", time_s, low_c=thermal.ambient_for_fpa_c(fpa_c), high_c=fpa_c
+    )
+    state = thermal_response(time_s, ambient, thermal)
+    return FlightPlan(
+        big_map=big_map,
+        to_map=to_map,
+        pivot=n_frames // 2,
+        time_s=time_s,
+        ambient_c=ambient,
+        housing_c=state.housing_c,
+        fpa_true_c=state.fpa_c,
+        fpa_rate_c_per_min=state.fpa_rate_c_per_min,
+        fpa_c=fpa_sensor(state.fpa_c, thermal, rng=rng),
+        seed=seed,
+    )
+
+
+def iter_flight(plan: FlightPlan, camera: CameraModel, *, chunk: int = 64) -> Iterator[FlightChunk]:
+    """Render the flight ``chunk`` frames at a time (bounded memory for long recordings)."""
+    rng = np.random.default_rng([plan.seed, 1])
+    h, w = camera.shape
+    n = len(plan.time_s)
+    for start in range(0, n, chunk):
+        s = slice(start, min(start + chunk, n))
+        truth = render_views(plan.big_map, plan.to_map[s], (w, h))
+        frames = render(
+            camera,
+            truth,
+            plan.fpa_true_c[s],
+            housing_c=plan.housing_c[s],
+            fpa_rate_c_per_min=plan.fpa_rate_c_per_min[s],
+            rng=rng,
+        )
+        yield FlightChunk(
+            start=start,
+            frames=frames,
+            truth_c=truth,
+            time_s=plan.time_s[s],
+            fpa_c=plan.fpa_c[s],
+            fpa_true_c=plan.fpa_true_c[s],
+            housing_c=plan.housing_c[s],
+            ambient_c=plan.ambient_c[s],
+        )
+
+
 def simulate_flight(
     scene_c: np.ndarray,
     camera: CameraModel,
@@ -85,49 +196,66 @@ def simulate_flight(
     seed: int = 0,
     thermal: ThermalParams = ThermalParams(),
 ) -> Flight:
-    """Fly ``camera`` over ``scene_c`` (°C map, any size: it is resized into a large map).
+    """Fly ``camera`` over ``scene_c`` and return the whole flight in memory (short flights).
 
-    The camera has settled at a constant ambient that puts its FPA at ``fpa_c`` (°C).
+    See :func:`plan_flight` for the parameters; :func:`write_simulated_flight` streams long ones.
     """
-    if n_frames < 1:
-        raise InvalidInputError(f"a flight needs at least 1 frame, got {n_frames}")
-    if fps <= 0:
-        raise InvalidInputError(f"frame rate must be > 0, got {fps}")
-    scene = as_temperature_c(scene_c, "scene", ndim=2)
-    as_temperature_c(fpa_c, "fpa_c")
-    rng = np.random.default_rng(seed)
-    h, w = camera.shape
-    shape = map_shape_for(motion, n_frames, (w, h))
-    big_map = make_map(scene, shape)
-    to_map = flight_homographies(motion, n_frames, (w, h), shape, rng=rng)
-    pivot = n_frames // 2
-    truth = render_views(big_map, to_map, (w, h))
-
-    time_s = np.arange(n_frames) / fps
-    ambient = ambient_profile(
-        "constant", time_s, low_c=thermal.ambient_for_fpa_c(fpa_c), high_c=fpa_c
-    )
-    state = thermal_response(time_s, ambient, thermal)
-    frames = render(
-        camera,
-        truth,
-        state.fpa_c,
-        housing_c=state.housing_c,
-        fpa_rate_c_per_min=state.fpa_rate_c_per_min,
-        rng=rng,
-    )
+    plan = plan_flight(scene_c, camera, n_frames=n_frames, motion=motion, fpa_c=fpa_c, fps=fps,
+                       seed=seed, thermal=thermal)
+    chunks = list(iter_flight(plan, camera, chunk=max(1, n_frames)))
     return Flight(
-        frames=frames,
-        truth_c=truth,
-        homographies=trajectory.to_pivot(to_map, pivot),
-        to_map=to_map,
-        pivot=pivot,
-        time_s=time_s,
-        fpa_c=fpa_sensor(state.fpa_c, thermal, rng=rng),
-        fpa_true_c=state.fpa_c,
-        housing_c=state.housing_c,
-        ambient_c=ambient,
+        frames=np.concatenate([c.frames for c in chunks]),
+        truth_c=np.concatenate([c.truth_c for c in chunks]),
+        homographies=plan.homographies,
+        to_map=plan.to_map,
+        pivot=plan.pivot,
+        time_s=plan.time_s,
+        fpa_c=plan.fpa_c,
+        fpa_true_c=plan.fpa_true_c,
+        housing_c=plan.housing_c,
+        ambient_c=plan.ambient_c,
     )
+
+
+def write_simulated_flight(
+    out_dir: str | Path,
+    plan: FlightPlan,
+    camera: CameraModel,
+    *,
+    extra: dict | None = None,
+    chunk: int = 64,
+    progress: Callable[[int], None] | None = None,
+) -> None:
+    """Render a planned flight into ``out_dir`` chunk by chunk (the files of :func:`write_flight`).
+
+    ``progress(k)`` is called after each chunk with the number of frames it added.
+    """
+    from thermocal.io.atomic import atomic_path, ensure_output_dir
+    from thermocal.io.recording import RecordingWriter
+
+    out = Path(out_dir)
+    ensure_output_dir(out)
+    meta = {"pivot": int(plan.pivot), "fpa_true_c": plan.fpa_true_c.tolist()}
+    meta |= json.loads(json.dumps(extra or {}))
+    with (
+        RecordingWriter(out / "frames.tiff", extra=meta) as frames_out,
+        atomic_path(out / "truth.tiff") as truth_tmp,
+        tifffile.TiffWriter(truth_tmp, bigtiff=True) as truth_out,
+    ):
+        for part in iter_flight(plan, camera, chunk=chunk):
+            frames_out.append(
+                part.frames,
+                fpa_c=part.fpa_c,
+                time_s=part.time_s,
+                housing_c=part.housing_c,
+                ambient_c=part.ambient_c,
+            )
+            truth_out.write(part.truth_c, photometric="minisblack", contiguous=True,
+                            metadata=None)
+            if progress is not None:
+                progress(len(part.frames))
+    with atomic_path(out / "homographies.npy") as tmp:
+        np.save(tmp, plan.homographies)
 
 
 def write_flight(out_dir: str | Path, flight: Flight, *, extra: dict | None = None) -> None:
