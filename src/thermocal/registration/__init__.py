@@ -8,23 +8,17 @@ warp_to_pivot(frames, homographies_to_pivot, *, interpolation="linear") -> (warp
 render_views(map_c, homographies, frame_size) -> views
 """
 
-from thermocal.registration.burst import BurstRegistration, register_burst
-from thermocal.registration.features import (
-    METHODS,
-    normalise_frame,
-    register_pair,
-    texture_ratio,
-)
+from thermocal.registration.burst import BURST_METHODS, BurstRegistration, register_burst
+from thermocal.registration.features import normalise_frame, register_pair
 from thermocal.registration.warp import as_homographies, render_views, warp_to_pivot
 
 __all__ = [
-    "METHODS",
+    "BURST_METHODS",
     "BurstRegistration",
     "as_homographies",
     "normalise_frame",
     "register_burst",
     "register_pair",
     "render_views",
-    "texture_ratio",
     "warp_to_pivot",
 ]
