@@ -1,0 +1,149 @@
+"""Shared pieces of every calibration: warnings, input checks, bad-pixel filling, range checks.
+
+Every fitted calibration is a frozen dataclass with ``apply(frames, *, fpa_c=None, time_s=None)``
+returning the scene's blackbody-equivalent (radiance) temperature in °C as float32 ``(N, H, W)``,
+and ``save(path)`` / ``load(path)`` through :mod:`thermocal.calibration.store`.
+"""
+
+from __future__ import annotations
+
+import functools
+import warnings
+from typing import Any
+
+import numpy as np
+
+from thermocal._validate import as_frames, as_temperature_c, check_same_shape
+from thermocal.errors import InvalidInputError
+from thermocal.radiometry import BandRadiance
+
+ZERO_C_K = 273.15
+#: A frame with more than this fraction of its pixels at 0 or at the top count is "saturated".
+SATURATED_FRAME_FRACTION = 0.05
+
+
+class ThermocalWarning(UserWarning):
+    """A result that is computed but may be wrong (e.g. applied outside its calibrated range)."""
+
+
+class OutsideCalibrationRangeWarning(ThermocalWarning):
+    """A calibration applied at FPA temperatures it was not fitted on."""
+
+
+def check_frames(frames: Any, shape: tuple[int, int], *, bit_depth: int = 14) -> np.ndarray:
+    """Validate raw counts for a calibration of frame ``shape`` ``(H, W)``; ``(N, H, W)`` out.
+
+    Raises :class:`InvalidInputError` for non-numeric or NaN input, counts outside 14 bits, or
+    saturated frames (more than 5 % of the pixels at 0 or at the top count), and
+    :class:`ResolutionMismatchError` for frames of another size than the calibration.
+    """
+    counts = as_frames(frames)
+    check_same_shape(counts, np.empty(shape, dtype=np.uint8), "frames", "the calibration")
+    top = 2**bit_depth - 1
+    if counts.dtype.kind in "ui":
+        n_pix = counts.shape[1] * counts.shape[2]
+        for k, frame in enumerate(counts):
+            clipped = np.count_nonzero(frame == top) + np.count_nonzero(frame == 0)
+            if clipped > SATURATED_FRAME_FRACTION * n_pix:
+                raise InvalidInputError(
+                    f"frames: frame {k} is saturated ({100 * clipped / n_pix:.0f} % of its pixels "
+                    f"at 0 or {top}); remove it or lower the scene temperature / gain"
+                )
+    return counts
+
+
+def per_frame_series(values: Any, n: int, name: str, *, temperature: bool = True) -> np.ndarray:
+    """A scalar or ``(n,)`` series as float64 ``(n,)``; raises InvalidInputError otherwise."""
+    check = as_temperature_c if temperature else _as_float
+    arr = check(values, name, ndim=(0, 1))
+    if arr.ndim == 0:
+        return np.full(n, float(arr))
+    if arr.shape != (n,):
+        raise InvalidInputError(f"{name}: expected {n} values (one per frame), got {arr.shape}")
+    return arr.astype(np.float64)
+
+
+def _as_float(values: Any, name: str, *, ndim: Any) -> np.ndarray:
+    from thermocal._validate import as_float_array
+
+    return as_float_array(values, name, ndim=ndim)
+
+
+def require_fpa(fpa_c: Any, n: int, method: str) -> np.ndarray:
+    """The FPA temperature of each frame, °C ``(n,)``; a method that needs it raises without it."""
+    if fpa_c is None:
+        raise InvalidInputError(
+            f"{method}: needs the FPA temperature of every frame (the recording's sidecar "
+            "'fpa_c', or --fpa-c)"
+        )
+    return per_frame_series(fpa_c, n, "fpa_c")
+
+
+def warn_outside_range(fpa_c: np.ndarray, fpa_range_c: tuple[float, float], method: str,
+                       *, margin_c: float = 0.5) -> None:
+    """Warn (:class:`OutsideCalibrationRangeWarning`) if any FPA value leaves the fitted range."""
+    lo, hi = fpa_range_c
+    if fpa_c.size == 0:
+        return
+    mn, mx = float(fpa_c.min()), float(fpa_c.max())
+    if mn < lo - margin_c or mx > hi + margin_c:
+        warnings.warn(
+            f"{method}: FPA temperatures {mn:.2f}…{mx:.2f} °C leave the calibrated range "
+            f"{lo:.2f}…{hi:.2f} °C; the temperatures may be off by several °C",
+            OutsideCalibrationRangeWarning,
+            stacklevel=3,
+        )
+
+
+def fill_bad_pixels(temps: np.ndarray, bad: np.ndarray) -> np.ndarray:
+    """Replace ``bad`` pixels of each frame by the median of their good 3×3 neighbours (in place).
+
+    ``temps`` is ``(N, H, W)`` float32, ``bad`` ``(H, W)`` bool. Only the bad pixels'
+    neighbourhoods are gathered (a few pixels: far cheaper than a full median filter); a bad
+    pixel with no good neighbour gets the frame's median. Returns ``temps``.
+    """
+    if not bad.any():
+        return temps
+    h, w = bad.shape
+    rows, cols = np.nonzero(bad)
+    dr, dc = np.meshgrid(np.arange(-1, 2), np.arange(-1, 2), indexing="ij")
+    nr = np.clip(rows[:, None] + dr.ravel()[None], 0, h - 1)  # (B, 9)
+    nc = np.clip(cols[:, None] + dc.ravel()[None], 0, w - 1)
+    usable = ~bad[nr, nc]
+    for k in range(temps.shape[0]):
+        values = np.where(usable, temps[k][nr, nc], np.nan)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN rows handled below
+            filled = np.nanmedian(values, axis=1)
+        if not np.all(np.isfinite(filled)):
+            filled = np.where(np.isfinite(filled), filled, np.median(temps[k][~bad]))
+        temps[k][rows, cols] = filled
+    return temps
+
+
+@functools.lru_cache(maxsize=8)
+def band_for(band_m: tuple[float, float]) -> BandRadiance:
+    """A shared :class:`BandRadiance` per band (its lookup tables are built once, ~15 ms)."""
+    return BandRadiance(band_m=tuple(float(b) for b in band_m))
+
+
+def robust_outliers(values: np.ndarray, *, mads: float, valid: np.ndarray | None = None
+                    ) -> np.ndarray:
+    """Boolean map of values more than ``mads`` scaled MADs from the median of ``values``."""
+    ref = values if valid is None else values[valid]
+    median = float(np.median(ref))
+    mad = float(np.median(np.abs(ref - median))) * 1.4826 + 1e-12 * max(1.0, abs(median))
+    return np.abs(values - median) > mads * mad
+
+
+def calibration_info(session: Any) -> dict[str, Any]:
+    """Camera unit and source metadata of a chamber session, for the calibration file."""
+    attrs = getattr(session, "attrs", {}) or {}
+    info: dict[str, Any] = {}
+    for key in ("preset", "unit", "seed", "source", "source_file"):
+        if key in attrs:
+            value = attrs[key]
+            info["camera_unit" if key == "unit" else key] = (
+                value.item() if isinstance(value, np.generic) else value
+            )
+    return info

@@ -1,0 +1,383 @@
+"""Chamber datasets for calibration: scene temperatures, FPA rate, stability classes, set points.
+
+A chamber session (:mod:`thermocal.io.chamber`) is a blackbody at set points while the chamber's
+ambient drifts. Before a fit, every frame gets
+
+- the blackbody-equivalent (radiance) temperature of the scene, °C: the blackbody's emissivity
+  ``ε`` (file attribute ``blackbody_emissivity``, default 1) and the ambient it reflects give
+  ``L(T_scene) = ε·L(T_bb) + (1 − ε)·L(T_amb)``;
+- the FPA rate, °C/min (Lin et al. eq. 3: central differences of the FPA temperature, here
+  divided by the time step, optionally smoothed by a local linear fit over ``smooth_s``);
+- a stability class (Lin et al. §2.1): 0 stable, 1 relatively stable (< 0.5 °C/min),
+  2 unstable (> 0.5 °C/min);
+- the set-point visit (block) it belongs to, and whether it is usable (settled blackbody).
+
+Frames are read chunk by chunk (:func:`iter_frames`), so sessions larger than memory can be fitted;
+frames with more than 5 % of their pixels at 0 or the top count are excluded and counted.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from thermocal.calibration.base import SATURATED_FRAME_FRACTION
+from thermocal.errors import FitError, InvalidInputError
+from thermocal.io.chamber import ChamberSession, LazyFrames
+from thermocal.radiometry import TAU2, BandRadiance
+
+STABLE, RELATIVELY_STABLE, UNSTABLE = 0, 1, 2
+STABILITY_NAMES = ("stable", "relatively stable", "unstable")
+
+
+def as_session(session: Any) -> ChamberSession:
+    """A :class:`ChamberSession` from a session, a chamber ``.h5`` or an EnvChamberCtrl ``.npz``.
+
+    Files are opened lazily (frames read chunk by chunk when fitted).
+    """
+    if isinstance(session, ChamberSession):
+        return session
+    if isinstance(session, str | os.PathLike):
+        from thermocal.io.chamber import import_envchamberctrl_npz, read_chamber
+
+        path = Path(session)
+        if path.suffix.lower() == ".npz":
+            return import_envchamberctrl_npz(path)
+        return read_chamber(path, frames=False)
+    raise InvalidInputError(
+        f"session: expected a ChamberSession or a chamber file path, got {type(session).__name__}"
+    )
+
+
+def fpa_rate_c_per_min(fpa_c: Any, time_s: Any, *, smooth_s: float = 0.0) -> np.ndarray:
+    """Rate of change of the FPA temperature, °C/min, ``(M,)`` (Lin et al. eq. 3).
+
+    Eq. 3 takes the forward difference at the first frame, the central difference
+    ``(T[i+1] − T[i−1]) / 2`` inside and the backward difference at the last frame; here each is
+    divided by its time step (``numpy.gradient`` over ``time_s``) so that the rate is in °C/min
+    whatever the frame rate. With ``smooth_s > 0`` the rate is instead the slope of a local
+    least-squares line over the frames within ``± smooth_s / 2`` (a quantised, noisy FPA sensor
+    makes raw differences noisy).
+    """
+    fpa = np.asarray(fpa_c, dtype=np.float64)
+    t = np.asarray(time_s, dtype=np.float64)
+    if fpa.shape != t.shape or fpa.ndim != 1:
+        raise InvalidInputError(f"fpa_c {fpa.shape} and time_s {t.shape} must be equal (M,)")
+    if fpa.size < 2:
+        return np.zeros_like(fpa)
+    if np.any(np.diff(t) <= 0):
+        raise InvalidInputError("time_s must increase strictly from frame to frame")
+    if smooth_s <= 0:
+        return 60.0 * np.gradient(fpa, t)
+    # Local linear regression with sums over a sliding window (vectorised with cumulative sums).
+    t0 = t - t[0]
+    lo = np.searchsorted(t0, t0 - smooth_s / 2, side="left")
+    hi = np.searchsorted(t0, t0 + smooth_s / 2, side="right")
+    c1 = np.concatenate([[0.0], np.cumsum(np.ones_like(t0))])
+    ct = np.concatenate([[0.0], np.cumsum(t0)])
+    ctt = np.concatenate([[0.0], np.cumsum(t0 * t0)])
+    cf = np.concatenate([[0.0], np.cumsum(fpa - fpa[0])])
+    ctf = np.concatenate([[0.0], np.cumsum(t0 * (fpa - fpa[0]))])
+    n, st, stt = c1[hi] - c1[lo], ct[hi] - ct[lo], ctt[hi] - ctt[lo]
+    sf, stf = cf[hi] - cf[lo], ctf[hi] - ctf[lo]
+    den = n * stt - st * st
+    raw = 60.0 * np.gradient(fpa, t)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        slope = 60.0 * (n * stf - st * sf) / den
+    return np.where((n >= 3) & (den > 0), slope, raw)
+
+
+def classify_stability(
+    rate_c_per_min: Any, *, stable_c_per_min: float = 0.05, unstable_c_per_min: float = 0.5
+) -> np.ndarray:
+    """Stability class of each frame, int8 ``(M,)``: 0 stable, 1 relatively stable, 2 unstable.
+
+    Lin et al. call a frame stable at 0 °C/min; a real sensor never reads exactly 0, so
+    ``|rate| ≤ stable_c_per_min`` counts as stable.
+    """
+    rate = np.abs(np.asarray(rate_c_per_min, dtype=np.float64))
+    out = np.full(rate.shape, RELATIVELY_STABLE, dtype=np.int8)
+    out[rate <= stable_c_per_min] = STABLE
+    out[rate > unstable_c_per_min] = UNSTABLE
+    return out
+
+
+def setpoint_blocks(blackbody_c: Any) -> np.ndarray:
+    """Index of the set-point visit (run of equal consecutive set points) of each frame."""
+    bb = np.asarray(blackbody_c, dtype=np.float64)
+    if bb.size == 0:
+        return np.zeros(0, dtype=np.int64)
+    change = np.r_[False, np.abs(np.diff(bb)) > 1e-6]
+    return np.cumsum(change).astype(np.int64)
+
+
+def scene_temperature_c(
+    session: ChamberSession, *, emissivity: float | None = None, band: BandRadiance = TAU2
+) -> np.ndarray:
+    """Blackbody-equivalent (radiance) temperature of the scene of each frame, °C, ``(M,)``.
+
+    ``emissivity`` defaults to the file's ``blackbody_emissivity`` (1 when absent); the reflected
+    surround is the chamber ambient (``ambient_c``; ``housing_c`` or the blackbody itself when
+    the file has no ambient series).
+    """
+    eps = float(
+        session.attrs.get("blackbody_emissivity", 1.0) if emissivity is None else emissivity
+    )
+    if not 0.0 < eps <= 1.0:
+        raise InvalidInputError(f"blackbody emissivity must be in (0, 1], got {eps}")
+    bb = np.asarray(session.blackbody_c, dtype=np.float64)
+    if eps == 1.0:
+        return bb.copy()
+    surround = session.ambient_c if session.ambient_c is not None else session.housing_c
+    if surround is None:
+        surround = bb
+    radiance = eps * band.radiance(bb + 273.15) + (1.0 - eps) * band.radiance(
+        np.asarray(surround, dtype=np.float64) + 273.15
+    )
+    return band.temperature(radiance) - 273.15
+
+
+@dataclass(frozen=True, eq=False)
+class ChamberData:
+    """A chamber session prepared for fitting (all series ``(M,)``).
+
+    Attributes
+    ----------
+    session : ChamberSession
+    scene_c : ndarray
+        Blackbody-equivalent scene temperature, °C.
+    fpa_c, time_s : ndarray
+        FPA sensor reading, °C; time, s.
+    fpa_rate_c_per_min : ndarray
+        Smoothed FPA rate, °C/min.
+    stability : ndarray of int8
+        0 stable, 1 relatively stable, 2 unstable.
+    block : ndarray of int
+        Set-point visit of each frame.
+    usable : ndarray of bool
+        Frames after the blackbody settled (``settle_frames`` dropped after each set-point change).
+    """
+
+    session: ChamberSession
+    scene_c: np.ndarray
+    fpa_c: np.ndarray
+    time_s: np.ndarray
+    fpa_rate_c_per_min: np.ndarray
+    stability: np.ndarray
+    block: np.ndarray
+    usable: np.ndarray
+    info: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def n_frames(self) -> int:
+        return int(self.fpa_c.shape[0])
+
+    @property
+    def frame_shape(self) -> tuple[int, int]:
+        return self.session.frame_shape
+
+    @property
+    def setpoints_c(self) -> np.ndarray:
+        """The distinct blackbody set points of the usable frames, °C (sorted)."""
+        return np.unique(np.round(self.session.blackbody_c[self.usable], 6))
+
+    def summary(self) -> dict[str, Any]:
+        """Counts of frames per stability class, set points and the FPA range (for reports)."""
+        counts = np.bincount(self.stability, minlength=3)
+        return {
+            "frames": self.n_frames,
+            "usable_frames": int(self.usable.sum()),
+            "setpoints_c": [float(v) for v in self.setpoints_c],
+            "fpa_range_c": [float(self.fpa_c.min()), float(self.fpa_c.max())],
+            "max_fpa_rate_c_per_min": float(np.abs(self.fpa_rate_c_per_min).max()),
+            **{f"{name} frames": int(c) for name, c in zip(STABILITY_NAMES, counts, strict=True)},
+        }
+
+
+def prepare_chamber(
+    session: Any,
+    *,
+    rate_smooth_s: float = 60.0,
+    settle_frames: int = 0,
+    stable_c_per_min: float = 0.05,
+    unstable_c_per_min: float = 0.5,
+    emissivity: float | None = None,
+    band: BandRadiance = TAU2,
+) -> ChamberData:
+    """Prepare a chamber session (or file) for fitting; reads no frames.
+
+    Parameters
+    ----------
+    session : ChamberSession or path
+        The session, a chamber ``.h5`` or an EnvChamberCtrl ``.npz``.
+    rate_smooth_s : float
+        Window of the local linear fit of the FPA rate, s (0: raw Lin eq. 3).
+    settle_frames : int
+        Frames dropped after each blackbody set-point change (the blackbody settling).
+    stable_c_per_min, unstable_c_per_min : float
+        Thresholds of the stability classes, °C/min.
+    emissivity : float, optional
+        Blackbody emissivity; default the file's ``blackbody_emissivity`` (or 1).
+    """
+    if isinstance(session, ChamberData):
+        return session
+    s = as_session(session)
+    if settle_frames < 0:
+        raise InvalidInputError(f"settle_frames must be >= 0, got {settle_frames}")
+    fpa = np.asarray(s.fpa_c, dtype=np.float64)
+    t = np.asarray(s.time_s, dtype=np.float64)
+    rate = fpa_rate_c_per_min(fpa, t, smooth_s=rate_smooth_s)
+    block = setpoint_blocks(s.blackbody_c)
+    first = np.r_[0, np.flatnonzero(np.diff(block)) + 1]
+    pos = np.arange(block.size) - first[block]
+    usable = pos >= settle_frames
+    return ChamberData(
+        session=s,
+        scene_c=scene_temperature_c(s, emissivity=emissivity, band=band),
+        fpa_c=fpa,
+        time_s=t,
+        fpa_rate_c_per_min=rate,
+        stability=classify_stability(
+            rate, stable_c_per_min=stable_c_per_min, unstable_c_per_min=unstable_c_per_min
+        ),
+        block=block,
+        usable=usable,
+        info={"rate_smooth_s": rate_smooth_s, "settle_frames": settle_frames},
+    )
+
+
+FRAME_SELECTIONS = ("stable", "settled", "all")
+
+
+def stability_mask(data: ChamberData, frames: str) -> np.ndarray:
+    """Frames to fit by FPA stability: ``"stable"``, ``"settled"`` (not unstable) or ``"all"``."""
+    if frames == "stable":
+        return data.stability == STABLE
+    if frames == "settled":
+        return data.stability != UNSTABLE
+    if frames == "all":
+        return np.ones(data.n_frames, dtype=bool)
+    raise InvalidInputError(f"frames={frames!r}: choose from {', '.join(FRAME_SELECTIONS)}")
+
+
+def require_setpoints(
+    data: ChamberData, n: int, method: str, mask: np.ndarray | None = None
+) -> None:
+    """Raise :class:`FitError` unless the frames in ``mask`` cover at least ``n`` set points."""
+    sel = data.usable if mask is None else (data.usable & mask)
+    found = np.unique(np.round(data.session.blackbody_c[sel], 6))
+    if found.size < n:
+        raise FitError(
+            f"{method} needs blackbody frames at >= {n} different set points, the chamber data "
+            f"give {found.size} ({', '.join(f'{v:g}' for v in found) or 'none'} °C); record more"
+        )
+
+
+def require_fpa_span(data: ChamberData, span_c: float, method: str,
+                     mask: np.ndarray | None = None) -> None:
+    """Raise :class:`FitError` unless the FPA temperatures in ``mask`` span ``span_c`` °C."""
+    sel = data.usable if mask is None else (data.usable & mask)
+    fpa = data.fpa_c[sel]
+    got = float(fpa.max() - fpa.min()) if fpa.size else 0.0
+    if got < span_c:
+        raise FitError(
+            f"{method} needs FPA temperatures spanning >= {span_c:g} °C, the chamber data span "
+            f"{got:.2f} °C; record while the chamber's ambient changes"
+        )
+
+
+@dataclass
+class FrameScan:
+    """Saturation bookkeeping while frames stream by: clipped pixels per frame and per pixel."""
+
+    shape: tuple[int, int]
+    bit_depth: int = 14
+    clipped_per_pixel: np.ndarray = field(init=False)
+    excluded: list[int] = field(default_factory=list)
+    n_seen: int = 0
+
+    def __post_init__(self) -> None:
+        self.clipped_per_pixel = np.zeros(self.shape, dtype=np.int64)
+
+    def check(self, index: np.ndarray, frames: np.ndarray) -> np.ndarray:
+        """Return a bool ``(k,)`` of frames to keep; saturated frames are recorded as excluded."""
+        top = 2**self.bit_depth - 1
+        clipped = (frames == top) | (frames == 0)
+        per_frame = clipped.reshape(len(frames), -1).mean(axis=1)
+        keep = per_frame <= SATURATED_FRAME_FRACTION
+        self.clipped_per_pixel += clipped[keep].sum(axis=0)
+        self.excluded.extend(int(i) for i in index[~keep])
+        self.n_seen += int(keep.sum())
+        return keep
+
+    def saturated_pixels(self) -> np.ndarray:
+        """Pixels clipped in more than half of the kept frames (stuck hot or dead), ``(H, W)``."""
+        return self.clipped_per_pixel > 0.5 * max(self.n_seen, 1)
+
+    def report(self) -> dict[str, Any]:
+        return {
+            "excluded_frames": len(self.excluded),
+            "excluded_frame_indices": self.excluded[:50],
+            "saturated_pixels": int(self.saturated_pixels().sum()),
+        }
+
+
+def iter_frames(
+    session: ChamberSession, index: np.ndarray | None = None, *, chunk: int = 64
+) -> Iterator[tuple[np.ndarray, np.ndarray]]:
+    """Yield ``(indices, frames)`` blocks of at most ``chunk`` frames (uint16 ``(k, H, W)``).
+
+    ``index`` (sorted frame indices) restricts the frames read; lazily stored frames are read
+    from the file block by block, so memory stays bounded.
+    """
+    frames = session.frames
+    n = session.n_frames
+    idx = np.arange(n) if index is None else np.asarray(index, dtype=np.int64)
+    if idx.size == 0:
+        return
+    if isinstance(frames, LazyFrames) and index is None:
+        for sl, block in frames.iter_chunks(chunk):
+            yield np.arange(sl.start, sl.stop), block
+        return
+    for start in range(0, idx.size, chunk):
+        sel = idx[start : start + chunk]
+        if isinstance(frames, LazyFrames):
+            yield sel, frames[sel]
+        else:
+            contiguous = sel[-1] - sel[0] + 1 == sel.size
+            yield sel, (frames[sel[0] : sel[-1] + 1] if contiguous else frames[sel])
+
+
+def group_means(
+    data: ChamberData, groups: np.ndarray, n_groups: int, *, chunk: int = 64,
+    scan: FrameScan | None = None,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Mean frame of each group, float64 ``(n_groups, H, W)``, and frames per group ``(n_groups,)``.
+
+    ``groups[m]`` is the group of frame ``m`` (``-1``: not used). Saturated frames are left out.
+    """
+    groups = np.asarray(groups, dtype=np.int64)
+    h, w = data.frame_shape
+    sums = np.zeros((n_groups, h, w), dtype=np.float64)
+    counts = np.zeros(n_groups, dtype=np.int64)
+    scan = scan or FrameScan((h, w), data.session.bit_depth)
+    used = np.flatnonzero(groups >= 0)
+    for idx, block in iter_frames(data.session, used, chunk=chunk):
+        keep = scan.check(idx, block)
+        g = groups[idx][keep]
+        block = block[keep]
+        for gi in np.unique(g):  # a loop over groups (a few), never over pixels
+            sel = g == gi
+            sums[gi] += block[sel].sum(axis=0, dtype=np.float64)
+            counts[gi] += int(sel.sum())
+    if np.any(counts == 0):
+        raise FitError(
+            f"{int(np.sum(counts == 0))} set point(s) have no usable frame (all saturated?); "
+            "record them again"
+        )
+    return sums / counts[:, None, None], counts

@@ -1,0 +1,369 @@
+"""Lin, Westfeld & Maas: shutter-less correction under fast-changing FPA temperature.
+
+Per pixel, from the raw counts ``G0`` at FPA temperature ``T0`` (°C) changing at ``r`` °C/min:
+
+1. eq. 1, projection to a reference FPA temperature ``T_ref`` with a 2nd-order polynomial fitted
+   on stable frames: ``Gc = a·(T_ref² − T0²) + b·(T_ref − T0) + G0``;
+2. eq. 2–3, removal of the fast-change deviation with a 3rd-order polynomial in the FPA rate
+   fitted on the unstable and relatively stable frames: ``Gf = Gc − (m·r³ + n·r² + p·r)``. Lin et
+   al. use the temporal difference per frame (eq. 3); here it is divided by the time step
+   (°C/min, :func:`~thermocal.calibration.dataset.fpa_rate_c_per_min`) so the coefficients do
+   not depend on the frame rate;
+3. eq. 4–5, the Planck curve ``V = R / (exp(B/T) − F) + O`` fitted with
+   :func:`scipy.optimize.curve_fit` on ≥ 4 blackbody temperatures, and its inverse
+   ``T = B / ln(R / (V − O) + F)`` (K). ``B`` and ``F`` are fitted on the array mean; ``R`` and
+   ``O`` per pixel (linear least squares once ``B`` and ``F`` are known), which also removes the
+   fixed-pattern noise the FLIR Ax65 of the paper removes internally.
+
+In a chamber the blackbody visits several set points; each set point's level is a free intercept
+of the per-pixel regressions (fixed effects), so (a, b) and (m, n, p) are shared by all set points
+as the paper assumes ("without the requirement of specific blackbody temperature"). All pixels
+share the regressors, so each regression is solved for all pixels at once.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.optimize import curve_fit
+
+from thermocal.calibration.base import (
+    ZERO_C_K,
+    band_for,
+    calibration_info,
+    check_frames,
+    fill_bad_pixels,
+    per_frame_series,
+    require_fpa,
+    robust_outliers,
+    warn_outside_range,
+)
+from thermocal.calibration.dataset import (
+    STABLE,
+    FrameScan,
+    fpa_rate_c_per_min,
+    iter_frames,
+    prepare_chamber,
+    require_fpa_span,
+    require_setpoints,
+)
+from thermocal.calibration.store import load_calibration, require_arrays, save_calibration
+from thermocal.errors import FitError, InvalidInputError
+
+METHOD = "lin"
+
+
+def planck_counts(temp_k: Any, r: Any, b: float, f: float, o: Any) -> Any:
+    """Lin et al. eq. 4: counts ``V = R / (exp(B / T) − F) + O`` for ``T`` in K."""
+    return r / (np.exp(b / np.asarray(temp_k, dtype=np.float64)) - f) + o
+
+
+def planck_temperature_k(counts: Any, r: Any, b: float, f: float, o: Any) -> Any:
+    """Lin et al. eq. 5: ``T = B / ln(R / (V − O) + F)``, K (invalid counts give NaN)."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return b / np.log(r / (counts - o) + f)
+
+
+def fit_planck_curve(temp_k: Any, counts: Any) -> tuple[float, float, float, float]:
+    """Fit ``(R, B, F, O)`` of eq. 4 to ≥ 4 (temperature K, counts) pairs with scipy.
+
+    Raises
+    ------
+    FitError
+        With fewer than 4 distinct temperatures, or when the fit does not converge.
+    """
+    t = np.asarray(temp_k, dtype=np.float64)
+    v = np.asarray(counts, dtype=np.float64)
+    if np.unique(np.round(t, 3)).size < 4:
+        raise FitError(
+            f"the Planck curve (Lin et al. eq. 4) needs >= 4 blackbody temperatures, got "
+            f"{np.unique(np.round(t, 3)).size}"
+        )
+    b0, f0 = 1430.0, 1.0  # B ≈ c2 / λ at the middle of the 7.5–13.5 µm band
+    basis = np.stack([1.0 / (np.exp(b0 / t) - f0), np.ones_like(t)], axis=1)
+    (r0, o0), *_ = np.linalg.lstsq(basis, v, rcond=None)
+    try:
+        popt, _ = curve_fit(
+            lambda tt, r, b, f, o: planck_counts(tt, r, b, f, o), t, v,
+            p0=[r0, b0, f0, o0], maxfev=20000,
+        )
+    except (RuntimeError, ValueError) as exc:
+        raise FitError(f"the Planck curve fit did not converge ({exc})") from None
+    if not np.all(np.isfinite(popt)):
+        raise FitError("the Planck curve fit gave non-finite coefficients")
+    return tuple(float(p) for p in popt)  # type: ignore[return-value]
+
+
+@dataclass(frozen=True, eq=False)
+class LinCalibration:
+    """Fitted Lin et al. model; maps ``(H, W)`` float32, ``B`` (K) and ``F`` scalars.
+
+    ``a`` (counts/°C²), ``b`` (counts/°C): eq. 1; ``m, n, p`` (counts per (°C/min)^i): eq. 2;
+    ``r`` and ``o`` (counts): eq. 4 per pixel.
+    """
+
+    a: np.ndarray
+    b: np.ndarray
+    m: np.ndarray
+    n: np.ndarray
+    p: np.ndarray
+    r: np.ndarray
+    o: np.ndarray
+    bad: np.ndarray
+    planck_b: float
+    planck_f: float
+    t_ref_c: float
+    fpa_range_c: tuple[float, float]
+    rate_smooth_s: float = 60.0
+    max_rate_c_per_min: float = 1.0
+    info: dict[str, Any] = field(default_factory=dict)
+
+    method = METHOD
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.bad.shape  # type: ignore[return-value]
+
+    def corrected_counts(self, frames: Any, fpa_c: np.ndarray, rate: np.ndarray) -> np.ndarray:
+        """``Gf`` of eq. 2 for raw counts ``(N, H, W)``, float32."""
+        counts = np.asarray(frames)
+        out = np.empty(counts.shape, dtype=np.float32)
+        tr = np.float32(self.t_ref_c)
+        for k, frame in enumerate(counts):
+            t0 = np.float32(fpa_c[k])
+            rk = np.float32(rate[k])
+            g = frame.astype(np.float32)
+            g += self.a * (tr * tr - t0 * t0) + self.b * (tr - t0)
+            g -= ((self.m * rk + self.n) * rk + self.p) * rk
+            out[k] = g
+        return out
+
+    def apply(self, frames: Any, *, fpa_c: Any = None, time_s: Any = None,
+              frame_rate_hz: float | None = None) -> np.ndarray:
+        """Scene temperature, °C, float32 ``(N, H, W)``.
+
+        ``fpa_c`` (°C per frame) is required; ``time_s`` gives the FPA rate (eq. 3; with the
+        smoothing of the fit). Without ``time_s``, ``frame_rate_hz`` sets the frame times;
+        without either, a single FPA value or a single frame is taken as stable (rate 0).
+        """
+        counts = check_frames(frames, self.shape)
+        nfr = len(counts)
+        fpa = require_fpa(fpa_c, nfr, METHOD)
+        warn_outside_range(fpa, self.fpa_range_c, METHOD)
+        if time_s is None and frame_rate_hz is not None:
+            time_s = np.arange(nfr) / float(frame_rate_hz)
+        if time_s is None:
+            if nfr > 1 and np.ptp(fpa) > 0:
+                raise InvalidInputError(
+                    "lin: the FPA rate needs the time of each frame (sidecar 'time_s')"
+                )
+            rate = np.zeros(nfr)
+        else:
+            t = per_frame_series(time_s, nfr, "time_s", temperature=False)
+            rate = fpa_rate_c_per_min(fpa, t, smooth_s=self.rate_smooth_s)
+        gf = self.corrected_counts(counts, fpa, rate)
+        out = np.empty_like(gf)
+        b, f = np.float32(self.planck_b), np.float32(self.planck_f)
+        for k in range(nfr):
+            den = gf[k] - self.o
+            arg = self.r / np.where(np.abs(den) < 1e-3, np.float32(1e-3), den) + f
+            out[k] = b / np.log(np.maximum(arg, np.float32(1.0 + 1e-6))) - np.float32(ZERO_C_K)
+        return fill_bad_pixels(out, self.bad)
+
+    def save(self, path: str | Path) -> Path:
+        h, w = self.shape
+        names = ("a", "b", "m", "n", "p", "r", "o", "bad")
+        meta = {"planck_b": self.planck_b, "planck_f": self.planck_f, "t_ref_c": self.t_ref_c,
+                "rate_smooth_s": self.rate_smooth_s,
+                "max_rate_c_per_min": self.max_rate_c_per_min, "info": self.info}
+        return save_calibration(
+            path, METHOD, {k: getattr(self, k) for k in names}, resolution=(w, h),
+            fpa_range_c=self.fpa_range_c, camera_unit=self.info.get("camera_unit"), metadata=meta,
+        )
+
+    @classmethod
+    def load(cls, path: str | Path) -> LinCalibration:
+        stored = load_calibration(path, method=METHOD)
+        names = ("a", "b", "m", "n", "p", "r", "o", "bad")
+        require_arrays(stored, names, path)
+        m = stored.metadata
+        maps = {k: stored.arrays[k].astype(np.float32) for k in names[:-1]}
+        return cls(**maps, bad=stored.arrays["bad"].astype(bool),
+                   planck_b=float(m["planck_b"]), planck_f=float(m["planck_f"]),
+                   t_ref_c=float(m["t_ref_c"]), fpa_range_c=stored.fpa_range_c,
+                   rate_smooth_s=float(m["rate_smooth_s"]),
+                   max_rate_c_per_min=float(m["max_rate_c_per_min"]),
+                   info=dict(m.get("info", {})))
+
+
+def _within_solve(
+    xx: np.ndarray, xy: np.ndarray, n_s: np.ndarray, xbar_s: np.ndarray, ybar_s: np.ndarray
+) -> np.ndarray:
+    """Fixed-effects least squares: shared slopes ``(K, P)`` with one intercept per group.
+
+    ``xx`` = Σ x xᵀ ``(K, K)``, ``xy`` = Σ x y ``(K, P)`` over all frames; per group s: ``n_s``
+    frames, mean regressors ``xbar_s`` ``(S, K)`` and mean counts ``ybar_s`` ``(S, P)``.
+    """
+    wxx = xx - np.einsum("s,sk,sl->kl", n_s, xbar_s, xbar_s)
+    wxy = xy - np.einsum("s,sk,sp->kp", n_s, xbar_s, ybar_s)
+    try:
+        return np.linalg.solve(wxx, wxy)
+    except np.linalg.LinAlgError:
+        raise FitError("lin: singular regression; record more FPA temperatures") from None
+
+
+def lin(
+    session: Any,
+    *,
+    fpa_ref_c: float | None = None,
+    rate_smooth_s: float = 60.0,
+    outlier_mads: float = 10.0,
+    band_m: tuple[float, float] = (7.5e-6, 13.5e-6),
+    chunk: int = 64,
+) -> LinCalibration:
+    """Fit Lin et al. to a chamber session.
+
+    Parameters
+    ----------
+    session : ChamberSession, ChamberData or path
+        Needs stable frames at ≥ 3 FPA temperatures spanning ≥ 2 °C (eq. 1), unstable frames
+        (eq. 2; without them m = n = p = 0) and ≥ 4 blackbody set points (eq. 4).
+    fpa_ref_c : float, optional
+        Reference FPA temperature, °C; default the median of the stable frames'.
+    rate_smooth_s : float
+        Window of the FPA-rate estimate, s (0: raw eq. 3).
+    """
+    data = prepare_chamber(session, rate_smooth_s=rate_smooth_s)
+    band = band_for(tuple(band_m))
+    stable = data.usable & (data.stability == STABLE)
+    require_setpoints(data, 4, "lin (the Planck curve of eq. 4)", stable)
+    require_fpa_span(data, 2.0, "lin (eq. 1, from stable frames)", stable)
+    ref = float(np.median(data.fpa_c[stable])) if fpa_ref_c is None else float(fpa_ref_c)
+    bb = np.round(data.session.blackbody_c, 6)
+    points, group = np.unique(bb, return_inverse=True)
+    n_groups = points.size
+    # Radiance of each frame's scene, and a global responsivity to refer every frame of a set
+    # point to that set point's mean radiance (the grey blackbody reflects a drifting ambient).
+    rad = np.asarray(band.radiance(data.scene_c + ZERO_C_K), dtype=np.float64)
+    rad_s = np.array([rad[group == g].mean() for g in range(n_groups)])
+    dt = data.fpa_c - ref
+    h, w = data.frame_shape
+    npix = h * w
+    scan = FrameScan((h, w), data.session.bit_depth)
+    all_idx = np.flatnonzero(data.usable)
+
+    # pass 1: eq. 1 on stable frames (regressors Δ², Δ), and set-point means for the gain.
+    x1 = np.stack([dt**2, dt], axis=1)
+    xx1 = np.zeros((2, 2))
+    xy1 = np.zeros((2, npix))
+    ysum = np.zeros((n_groups, npix))
+    n1 = np.zeros(n_groups)
+    xsum1 = np.zeros((n_groups, 2))
+    ref_counts: np.ndarray | None = None
+    frame_mean = np.full(data.n_frames, np.nan)
+    kept = np.zeros(data.n_frames, dtype=bool)
+    for idx, block in iter_frames(data.session, all_idx, chunk=chunk):
+        keep = scan.check(idx, block)
+        y = block.reshape(len(block), -1).astype(np.float32)
+        if ref_counts is None:
+            ref_counts = y[0].copy()
+        y -= ref_counts
+        frame_mean[idx] = y.mean(axis=1)
+        kept[idx[keep]] = True
+        st = keep & stable[idx]
+        if st.any():
+            xs = x1[idx[st]]
+            xx1 += xs.T @ xs
+            xy1 += xs.T.astype(np.float32) @ y[st]
+            for g in np.unique(group[idx[st]]):
+                sel = group[idx[st]] == g
+                ysum[g] += y[st][sel].sum(axis=0, dtype=np.float64)
+                n1[g] += sel.sum()
+                xsum1[g] += xs[sel].sum(axis=0)
+    assert ref_counts is not None
+    have = n1 > 0
+    # global responsivity (counts per W·m⁻²·sr⁻¹) from the stable set-point means
+    gain = float(np.polyfit(rad_s[have], ysum[have].mean(axis=1) / n1[have], 1)[0])
+    # refer counts to the set point's mean radiance: y' = y − gain·(L − L_s)
+    shift = gain * (rad - rad_s[group])
+    ab = _fixed_effects(x1, stable & kept, group, n_groups, xx1, xy1, ysum, n1, xsum1, shift)
+    a_c, b_c = ab  # centred: G0 = c_s + a_c·Δ² + b_c·Δ
+
+    # pass 2: eq. 2 on every frame (stable ones anchor each set point's level), rate regressors.
+    rate = data.fpa_rate_c_per_min
+    x2 = np.stack([rate**3, rate**2, rate], axis=1)
+    xx2 = np.zeros((3, 3))
+    xy2 = np.zeros((3, npix))
+    ysum2 = np.zeros((n_groups, npix))
+    n2 = np.zeros(n_groups)
+    xsum2 = np.zeros((n_groups, 3))
+    use2 = kept.copy()
+    for idx, block in iter_frames(data.session, np.flatnonzero(use2), chunk=chunk):
+        y = block.reshape(len(block), -1).astype(np.float32) - ref_counts
+        d = dt[idx].astype(np.float32)[:, None]
+        y -= a_c[None] * d * d + b_c[None] * d  # projected to the reference (eq. 1)
+        y -= shift[idx].astype(np.float32)[:, None]
+        xs = x2[idx]
+        xx2 += xs.T @ xs
+        xy2 += xs.T.astype(np.float32) @ y
+        for g in np.unique(group[idx]):
+            sel = group[idx] == g
+            ysum2[g] += y[sel].sum(axis=0, dtype=np.float64)
+            n2[g] += sel.sum()
+            xsum2[g] += xs[sel].sum(axis=0)
+    unstable_frames = int((data.stability[use2] != STABLE).sum())
+    if unstable_frames >= 3 and np.ptp(rate[use2]) > 0.1:
+        have2 = n2 > 0
+        mnp = _within_solve(xx2, xy2, n2[have2], xsum2[have2] / n2[have2, None],
+                            ysum2[have2] / n2[have2, None])
+    else:
+        mnp = np.zeros((3, npix))
+    # each set point's level at the reference, rate 0 (eq. 2 applied), from all its frames
+    level = (ysum2 - np.einsum("sk,kp->sp", xsum2, mnp)) / np.maximum(n2, 1)[:, None]
+    level += ref_counts[None].astype(np.float64)
+    t_k = np.asarray(band.temperature(rad_s), dtype=np.float64)
+    have = n2 > 0
+    planck_r, planck_b, planck_f, planck_o = fit_planck_curve(t_k[have], level[have].mean(axis=1))
+    basis = np.stack([1.0 / (np.exp(planck_b / t_k[have]) - planck_f), np.ones(have.sum())], 1)
+    ro, *_ = np.linalg.lstsq(basis, level[have], rcond=None)  # (2, P): per-pixel R, O
+    r_map, o_map = ro[0].reshape(h, w), ro[1].reshape(h, w)
+    bad = scan.saturated_pixels() | (np.sign(r_map) != np.sign(planck_r))
+    bad |= robust_outliers(r_map, mads=outlier_mads, valid=~bad)
+    if bad.mean() > 0.5:
+        raise FitError("lin: more than half of the pixels did not respond")
+    r_map[bad] = np.median(r_map[~bad])
+    a_lin = a_c
+    b_lin = b_c - 2.0 * a_c * ref  # eq. 1's uncentred b: a·T² + b·T ≡ a_c·Δ² + b_c·Δ + const
+    used = data.fpa_c[kept]
+    info = calibration_info(data.session) | scan.report() | {
+        "planck_r_mean": planck_r, "planck_o_mean": planck_o,
+        "stable_frames": int((stable & kept).sum()), "unstable_frames": unstable_frames,
+        "setpoints_c": [float(v) for v in points],
+    }
+
+    def as_map(v: np.ndarray) -> np.ndarray:
+        return v.reshape(h, w).astype(np.float32)
+
+    return LinCalibration(
+        a=as_map(a_lin), b=as_map(b_lin), m=as_map(mnp[0]), n=as_map(mnp[1]), p=as_map(mnp[2]),
+        r=r_map.astype(np.float32), o=o_map.astype(np.float32), bad=bad,
+        planck_b=planck_b, planck_f=planck_f, t_ref_c=ref,
+        fpa_range_c=(float(used.min()), float(used.max())), rate_smooth_s=rate_smooth_s,
+        max_rate_c_per_min=float(np.abs(rate[kept]).max()), info=info,
+    )
+
+
+def _fixed_effects(
+    x: np.ndarray, sel: np.ndarray, group: np.ndarray, n_groups: int, xx: np.ndarray,
+    xy: np.ndarray, ysum: np.ndarray, n_s: np.ndarray, xsum: np.ndarray, shift: np.ndarray,
+) -> np.ndarray:
+    """Shared slopes of eq. 1 with per-set-point intercepts, counts referred by ``shift``."""
+    # Σ x·(y − shift) = Σ x·y − Σ x·shift (shift is per frame, the same for every pixel)
+    xy = xy - (x[sel] * shift[sel, None]).sum(axis=0)[:, None]
+    ysum = ysum - np.array([shift[sel & (group == g)].sum() for g in range(n_groups)])[:, None]
+    have = n_s > 0
+    return _within_solve(xx, xy, n_s[have], xsum[have] / n_s[have, None],
+                         ysum[have] / n_s[have, None])

@@ -1,0 +1,463 @@
+"""Per-pixel polynomial model (Nugent et al. 2013; Oz et al. eq. 13–18) and its radial fit.
+
+Per pixel p (Oz et al. eq. 13, with the FPA temperature for the ambient, expanded around
+``t_ref_c`` for conditioning, ``Δ = t_fpa − t_ref_c``)::
+
+    I_p = Σ_{i=0}^{3} g_{i,p} · Δ^i · S(T_scene) + Σ_{i=0}^{3} d_{i,p} · Δ^i
+
+The scene term ``S`` is selectable: ``"t4"`` = ``T⁴`` with ``T`` in K (the paper), ``"linear"``
+= ``T`` in °C, ``"radiance"`` = band radiance ``L(T)`` in W·m⁻²·sr⁻¹ (then ``g``/``d`` are the
+:class:`~thermocal.camera.model.CameraModel` gain/offset cubics). Every pixel shares one design
+matrix (the blackbody is uniform), so the least-squares problem (eq. 14–15) is solved for all
+pixels at once from normal equations accumulated chunk by chunk over the frames: memory is bounded
+by one chunk, whatever the session length. Inversion to temperature is closed form per term.
+
+The radial fit (eq. 16–17) replaces each coefficient map by a polynomial in the distance ``R``
+from the frame centre (axes −0.5…0.5): a low-frequency, unit-independent model (no FPN, no
+defects) used to make the network's training data (:func:`camera_model_from_chamber`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from thermocal.calibration.base import (
+    ZERO_C_K,
+    band_for,
+    calibration_info,
+    check_frames,
+    fill_bad_pixels,
+    require_fpa,
+    robust_outliers,
+    warn_outside_range,
+)
+from thermocal.calibration.dataset import (
+    ChamberData,
+    FrameScan,
+    iter_frames,
+    prepare_chamber,
+    require_fpa_span,
+    require_setpoints,
+    stability_mask,
+)
+from thermocal.calibration.store import load_calibration, require_arrays, save_calibration
+from thermocal.errors import FitError, InvalidInputError
+from thermocal.radiometry import BandRadiance
+
+METHOD = "polynomial"
+SCENE_TERMS = ("t4", "linear", "radiance")
+ORDER = 3
+
+
+def scene_term(temp_c: Any, kind: str, band: BandRadiance) -> np.ndarray:
+    """The scene term ``S(T)`` of the model for temperatures in °C (float64)."""
+    t = np.asarray(temp_c, dtype=np.float64)
+    if kind == "t4":
+        return (t + ZERO_C_K) ** 4
+    if kind == "linear":
+        return t.copy()
+    if kind == "radiance":
+        return np.asarray(band.radiance(t + ZERO_C_K), dtype=np.float64)
+    raise InvalidInputError(f"unknown scene term {kind!r}; choose from {', '.join(SCENE_TERMS)}")
+
+
+def _horner(coeffs: np.ndarray, x: float) -> np.ndarray:
+    """``Σ_i coeffs[i] · x^i`` for ``coeffs`` ``(order+1, H, W)`` at a scalar ``x``, float32."""
+    x32 = np.float32(x)
+    out = coeffs[-1] * x32
+    for c in coeffs[-2:0:-1]:
+        out += c
+        out *= x32
+    out += coeffs[0]
+    return out
+
+
+@dataclass(frozen=True, eq=False)
+class PolynomialCalibration:
+    """The fitted per-pixel polynomial model.
+
+    Attributes
+    ----------
+    gain, offset : (4, H, W) float32
+        ``g_i`` (counts per unit of the scene term) and ``d_i`` (counts), coefficients of
+        ``Δ^i``, ``Δ = t_fpa − t_ref_c`` in °C.
+    bad : (H, W) bool
+        Pixels whose fit is unusable (defects, outliers); filled from their neighbours.
+    residual_rms : (H, W) float32
+        RMS residual of the fit, counts.
+    t_ref_c : float
+        Expansion point of the FPA polynomials, °C.
+    scene_term : {"t4", "linear", "radiance"}
+    fpa_range_c : (float, float)
+        FPA temperatures covered by the fit, °C.
+    radial_coefficients : (8, M+1) array or None
+        For a radial model: ``m_j`` of each map (gain rows first), as in Oz et al. eq. 17.
+    """
+
+    gain: np.ndarray
+    offset: np.ndarray
+    bad: np.ndarray
+    residual_rms: np.ndarray
+    t_ref_c: float
+    scene_term: str
+    fpa_range_c: tuple[float, float]
+    band_m: tuple[float, float] = (7.5e-6, 13.5e-6)
+    radial_coefficients: np.ndarray | None = None
+    radial_centre: tuple[float, float] = (0.0, 0.0)
+    info: dict[str, Any] = field(default_factory=dict)
+
+    method = METHOD
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """Frame shape ``(H, W)``."""
+        return self.bad.shape  # type: ignore[return-value]
+
+    @property
+    def band(self) -> BandRadiance:
+        return band_for(tuple(self.band_m))
+
+    def expected_counts(self, scene_c: Any, fpa_c: float) -> np.ndarray:
+        """Model output (counts, float32 ``(H, W)``) for a scene (°C, scalar or ``(H, W)``)."""
+        s = scene_term(scene_c, self.scene_term, self.band).astype(np.float32)
+        dt = float(fpa_c) - self.t_ref_c
+        return _horner(self.gain, dt) * s + _horner(self.offset, dt)
+
+    def apply(self, frames: Any, *, fpa_c: Any = None, time_s: Any = None) -> np.ndarray:
+        """Scene temperature, °C, float32 ``(N, H, W)``, from raw counts and the FPA temperature.
+
+        Parameters
+        ----------
+        frames : (N, H, W) or (H, W) raw counts
+        fpa_c : float or (N,) array
+            FPA temperature of each frame, °C (required).
+        time_s : ignored
+        """
+        counts = check_frames(frames, self.shape)
+        fpa = require_fpa(fpa_c, len(counts), METHOD)
+        warn_outside_range(fpa, self.fpa_range_c, METHOD)
+        out = np.empty(counts.shape, dtype=np.float32)
+        band = self.band
+        cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
+        for k, frame in enumerate(counts):
+            key = float(fpa[k])
+            if key not in cache:
+                dt = key - self.t_ref_c
+                cache = {key: (1.0 / _horner(self.gain, dt), _horner(self.offset, dt))}
+            inv_gain, offset = cache[key]
+            s = frame.astype(np.float32)
+            s -= offset
+            s *= inv_gain
+            out[k] = _invert_scene(s, self.scene_term, band)
+        return fill_bad_pixels(out, self.bad)
+
+    def radial(self, *, order: int = 4, centre: tuple[float, float] = (0.0, 0.0)
+               ) -> PolynomialCalibration:
+        """The radial fit of this model (Oz et al. eq. 16–17): maps → ``Σ_j m_j R^j``.
+
+        Fitted by least squares over the good pixels, all eight maps at once. The result has no
+        defects and no per-pixel FPN: a low-frequency model of the camera family.
+        """
+        if order < 0 or order > 12:
+            raise InvalidInputError(f"radial order must be 0…12, got {order}")
+        from thermocal.camera.presets import radial_map
+
+        r = radial_map(self.shape, centre).astype(np.float64)
+        basis = np.stack([r**j for j in range(order + 1)], axis=-1)  # (H, W, M+1)
+        good = ~self.bad
+        maps = np.concatenate([self.gain, self.offset]).astype(np.float64)  # (8, H, W)
+        coef, *_ = np.linalg.lstsq(basis[good], maps[:, good].T, rcond=None)  # (M+1, 8)
+        fitted = np.einsum("hwj,jm->mhw", basis, coef).astype(np.float32)
+        return replace(
+            self,
+            gain=fitted[: ORDER + 1],
+            offset=fitted[ORDER + 1 :],
+            bad=np.zeros(self.shape, dtype=bool),
+            radial_coefficients=coef.T.copy(),
+            radial_centre=(float(centre[0]), float(centre[1])),
+            info=self.info | {"radial_order": order},
+        )
+
+    def save(self, path: str | Path) -> Path:
+        """Write the calibration file (HDF5, atomic)."""
+        h, w = self.shape
+        arrays = {"gain": self.gain, "offset": self.offset, "bad": self.bad,
+                  "residual_rms": self.residual_rms}
+        if self.radial_coefficients is not None:
+            arrays["radial_coefficients"] = self.radial_coefficients
+        meta = {"t_ref_c": self.t_ref_c, "scene_term": self.scene_term,
+                "band_m": list(self.band_m), "radial_centre": list(self.radial_centre),
+                "info": self.info}
+        return save_calibration(
+            path, METHOD, arrays, resolution=(w, h), fpa_range_c=self.fpa_range_c,
+            camera_unit=self.info.get("camera_unit"), metadata=meta,
+        )
+
+    @classmethod
+    def load(cls, path: str | Path) -> PolynomialCalibration:
+        """Read a calibration file written by :meth:`save`."""
+        stored = load_calibration(path, method=METHOD)
+        require_arrays(stored, ("gain", "offset", "bad", "residual_rms"), path)
+        meta = stored.metadata
+        if meta.get("scene_term") not in SCENE_TERMS:
+            raise InvalidInputError(f"{path}: unknown scene term {meta.get('scene_term')!r}")
+        return cls(
+            gain=stored.arrays["gain"].astype(np.float32),
+            offset=stored.arrays["offset"].astype(np.float32),
+            bad=stored.arrays["bad"].astype(bool),
+            residual_rms=stored.arrays["residual_rms"].astype(np.float32),
+            t_ref_c=float(meta["t_ref_c"]),
+            scene_term=str(meta["scene_term"]),
+            fpa_range_c=stored.fpa_range_c,
+            band_m=tuple(meta["band_m"]),
+            radial_coefficients=stored.arrays.get("radial_coefficients"),
+            radial_centre=tuple(meta.get("radial_centre", (0.0, 0.0))),
+            info=dict(meta.get("info", {})),
+        )
+
+
+def _invert_scene(s: np.ndarray, kind: str, band: BandRadiance) -> np.ndarray:
+    """Temperature (°C, float32) from the scene term ``S`` (float32, modified in place)."""
+    if kind == "linear":
+        return s
+    if kind == "t4":
+        np.maximum(s, np.float32(1e4), out=s)  # 10 K⁴: keeps the root real for broken pixels
+        return np.sqrt(np.sqrt(s)) - np.float32(ZERO_C_K)
+    lo, hi = band.radiance_range
+    np.clip(s, lo, hi, out=s)
+    return band.temperature(s) - np.float32(ZERO_C_K)
+
+
+def polynomial(
+    session: Any,
+    *,
+    scene: str = "t4",
+    t_ref_c: float | None = None,
+    frames: str = "stable",
+    frame_mask: np.ndarray | None = None,
+    outlier_mads: float = 10.0,
+    band_m: tuple[float, float] = (7.5e-6, 13.5e-6),
+    chunk: int = 64,
+    progress: Any = None,
+) -> PolynomialCalibration:
+    """Fit the per-pixel polynomial model to a chamber session (Oz et al. eq. 13–15).
+
+    Parameters
+    ----------
+    session : ChamberSession, ChamberData or path
+    scene : {"t4", "linear", "radiance"}
+        The scene term.
+    t_ref_c : float, optional
+        Expansion point of the FPA polynomials, °C (default: the middle of the FPA range).
+    frames : {"stable", "settled", "all"}
+        Which frames to fit by FPA stability: only stable ones (|rate| ≤ 0.05 °C/min, the
+        default), stable and relatively stable ones (≤ 0.5 °C/min), or all. The model has no
+        transient term: frames taken while the FPA changes bias it.
+    frame_mask : (M,) bool, optional
+        Restrict the fit to these frames (e.g. to hold set points out).
+    outlier_mads : float
+        Pixels whose gain or residual lies more than this many MADs from the median are bad.
+    chunk : int
+        Frames per block read and accumulated (bounds memory).
+    progress : callable, optional
+        ``progress(k)`` after each block of ``k`` frames.
+
+    Raises
+    ------
+    FitError
+        Fewer than 2 set points, or an FPA range under 4 °C (a cubic in the FPA temperature).
+    """
+    if scene not in SCENE_TERMS:
+        raise InvalidInputError(
+            f"unknown scene term {scene!r}; choose from {', '.join(SCENE_TERMS)}"
+        )
+    data = prepare_chamber(session)
+    sel = data.usable & stability_mask(data, frames)
+    if frame_mask is not None:
+        mask = np.asarray(frame_mask, dtype=bool)
+        if mask.shape != sel.shape:
+            raise InvalidInputError(f"frame_mask: expected {sel.shape}, got {mask.shape}")
+        sel &= mask
+    require_setpoints(data, 2, "the polynomial model", sel)
+    require_fpa_span(data, 4.0, "the polynomial model (cubic in the FPA temperature)", sel)
+    band = band_for(tuple(band_m))
+    fpa = data.fpa_c
+    used = np.flatnonzero(sel)
+    lo, hi = float(fpa[used].min()), float(fpa[used].max())
+    ref = 0.5 * (lo + hi) if t_ref_c is None else float(t_ref_c)
+
+    # Design (Oz eq. 14) in centred, scaled variables for conditioning; converted back below.
+    s_all = scene_term(data.scene_c, scene, band)
+    s_mean = float(s_all[used].mean())
+    s_scale = float(np.abs(s_all[used] - s_mean).max()) or 1.0
+    d_scale = float(np.abs(fpa[used] - ref).max()) or 1.0
+    s_t = (s_all - s_mean) / s_scale
+    d_t = (fpa - ref) / d_scale
+    powers = np.stack([d_t**i for i in range(ORDER + 1)], axis=1)  # (M, 4)
+    design = np.concatenate([powers * s_t[:, None], powers], axis=1)  # (M, 8)
+
+    h, w = data.frame_shape
+    n_pix = h * w
+    k_cols = design.shape[1]
+    ata = np.zeros((k_cols, k_cols))
+    aty = np.zeros((k_cols, n_pix))
+    yy = np.zeros(n_pix)
+    ref_counts: np.ndarray | None = None
+    scan = FrameScan((h, w), data.session.bit_depth)
+    for idx, block in iter_frames(data.session, used, chunk=chunk):
+        keep = scan.check(idx, block)
+        if keep.any():
+            y = block[keep].reshape(-1, n_pix).astype(np.float32)
+            if ref_counts is None:
+                ref_counts = y[0].copy()
+            y -= ref_counts  # centred counts: float32 sums stay precise
+            a = design[idx[keep]]
+            ata += a.T @ a
+            aty += a.T.astype(np.float32) @ y
+            yy += np.einsum("kp,kp->p", y, y, dtype=np.float64)
+        if progress is not None:
+            progress(len(idx))
+    if ref_counts is None or scan.n_seen < k_cols:
+        raise FitError(
+            f"the polynomial model needs at least {k_cols} unsaturated frames, got {scan.n_seen}"
+        )
+    try:
+        coef = np.linalg.solve(ata, aty)  # (8, P), scaled variables
+    except np.linalg.LinAlgError:
+        raise FitError(
+            "the polynomial model is singular for these frames: record more set points at "
+            "more FPA temperatures"
+        ) from None
+    rss = yy - 2 * np.einsum("kp,kp->p", coef, aty) + np.einsum("kp,kl,lp->p", coef, ata, coef)
+    residual_rms = np.sqrt(np.maximum(rss, 0) / max(scan.n_seen - k_cols, 1))
+
+    # Back to physical units: S = s_mean + s_scale·s̃, Δ = d_scale·Δ̃, counts = ref + y.
+    pw = d_scale ** -np.arange(ORDER + 1, dtype=np.float64)
+    g = coef[: ORDER + 1] / s_scale * pw[:, None]
+    d = coef[ORDER + 1 :] * pw[:, None] - g * s_mean
+    d[0] += ref_counts
+    gain = g.reshape(ORDER + 1, h, w)
+    offset = d.reshape(ORDER + 1, h, w)
+    rms_map = residual_rms.reshape(h, w)
+    g0 = gain[0]
+    sign = np.sign(np.median(g0))
+    bad = scan.saturated_pixels() | (g0 * sign <= 0)
+    bad |= robust_outliers(g0, mads=outlier_mads, valid=~bad)
+    med_rms = float(np.median(rms_map[~bad])) if (~bad).any() else 0.0
+    bad |= rms_map > max(5.0 * med_rms, med_rms + outlier_mads * 1.4826 * float(
+        np.median(np.abs(rms_map[~bad] - med_rms))) if (~bad).any() else 0.0)
+    if bad.mean() > 0.5:
+        raise FitError("the polynomial model: more than half of the pixels did not respond")
+    # Bad pixels get the median gain (their output is filled from neighbours): no division by 0.
+    gain[:, bad] = np.median(gain[:, ~bad], axis=1)[:, None]
+    info = calibration_info(data.session) | scan.report() | {
+        "frames_used": scan.n_seen,
+        "setpoints_c": [float(v) for v in np.unique(np.round(data.session.blackbody_c[used], 6))],
+        "bad_pixels": int(bad.sum()),
+        "median_residual_counts": med_rms,
+    }
+    return PolynomialCalibration(
+        gain=gain.astype(np.float32),
+        offset=offset.astype(np.float32),
+        bad=bad,
+        residual_rms=rms_map.astype(np.float32),
+        t_ref_c=ref,
+        scene_term=scene,
+        fpa_range_c=(lo, hi),
+        band_m=tuple(band_m),
+        info=info,
+    )
+
+
+def estimate_noise_sigma(data: ChamberData, *, max_pairs: int = 32) -> float:
+    """Temporal noise of the camera, counts: from differences of consecutive frames.
+
+    Pairs of consecutive usable frames of the same set-point visit; the spatial median of each
+    difference (the drift between them) is removed and the robust spread (1.4826·MAD) divided by
+    √2. Returns the median over at most ``max_pairs`` pairs.
+    """
+    same = (np.diff(data.block) == 0) & data.usable[1:] & data.usable[:-1]
+    starts = np.flatnonzero(same)
+    if starts.size == 0:
+        raise FitError("no two consecutive frames at one set point: cannot estimate the noise")
+    starts = starts[np.linspace(0, starts.size - 1, min(max_pairs, starts.size)).astype(int)]
+    idx = np.unique(np.concatenate([starts, starts + 1]))
+    frames = {int(i): f for i, f in zip(*_read(data, idx), strict=True)}
+    sigmas = []
+    for i in starts:
+        diff = frames[int(i) + 1].astype(np.float32) - frames[int(i)].astype(np.float32)
+        diff -= np.median(diff)
+        sigmas.append(1.4826 * float(np.median(np.abs(diff))) / np.sqrt(2.0))
+    return float(np.median(sigmas))
+
+
+def _read(data: ChamberData, idx: np.ndarray) -> tuple[np.ndarray, list[np.ndarray]]:
+    out: list[np.ndarray] = []
+    for _, block in iter_frames(data.session, idx, chunk=64):
+        out.extend(block)
+    return idx, out
+
+
+def camera_model_from_chamber(
+    session: Any,
+    *,
+    radial: bool = True,
+    radial_order: int = 4,
+    t_ref_c: float = 25.0,
+    band_m: tuple[float, float] = (7.5e-6, 13.5e-6),
+    chunk: int = 64,
+) -> Any:
+    """A :class:`~thermocal.camera.model.CameraModel` fitted to a user's chamber session.
+
+    Fits the polynomial model with the band-radiance scene term, so that ``g_i``/``d_i`` are the
+    model's gain/offset cubics around ``t_ref_c``; the housing and transient terms are zero (not
+    separable from chamber data of a uniform blackbody), the temporal noise is estimated from
+    consecutive frames (:func:`estimate_noise_sigma`), defects are the pixels the fit marked bad
+    (stuck at their fitted level). With ``radial=True`` the per-pixel maps are replaced by their
+    radial fit (Oz et al. §IV-C): a unit-independent, low-frequency model without defects.
+
+    Parameters
+    ----------
+    session : ChamberSession, ChamberData or path
+    radial : bool
+        Replace the per-pixel maps by their radial fit of order ``radial_order``.
+    t_ref_c : float
+        Expansion point of the polynomials, °C (the camera model's ``t_ref_c``).
+    """
+    from thermocal.camera.model import CameraModel
+
+    data = prepare_chamber(session)
+    cal = polynomial(data, scene="radiance", t_ref_c=t_ref_c, band_m=band_m, chunk=chunk)
+    sigma = estimate_noise_sigma(data)
+    bit_depth = data.session.bit_depth
+    if radial:
+        cal = cal.radial(order=radial_order)
+    defects = cal.bad.copy()
+    defect_counts = np.zeros(cal.shape, dtype=np.uint16)
+    defect_counts[defects] = np.clip(np.rint(cal.offset[0][defects]), 0, 2**bit_depth - 1)
+    gain = cal.gain.copy()
+    gain[:, defects] = 0.0
+    info = {
+        "source": "camera_model_from_chamber",
+        "radial": radial,
+        "chamber": {k: v for k, v in calibration_info(data.session).items()},
+        "fpa_range_c": list(cal.fpa_range_c),
+        "median_residual_counts": cal.info.get("median_residual_counts"),
+    }
+    return CameraModel(
+        gain=gain,
+        offset=cal.offset.copy(),
+        housing=np.zeros(cal.shape, dtype=np.float32),
+        transient=np.zeros(cal.shape, dtype=np.float32),
+        defects=defects,
+        defect_counts=defect_counts,
+        noise_sigma=sigma,
+        t_ref_c=cal.t_ref_c,
+        band=band_for(tuple(band_m)),
+        bit_depth=bit_depth,
+        info=info,
+    )

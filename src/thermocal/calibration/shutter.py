@@ -1,0 +1,139 @@
+"""Shutter-based baseline: two-point gains, offsets re-referenced on a shutter (FLIR GEV style).
+
+The workflow of Lin et al. Fig. 5b: the per-pixel gain comes from a two-point calibration at a
+reference FPA temperature; every few minutes the camera closes its shutter, a uniform source
+assumed to be at the FPA sensor's temperature, and each pixel's offset is re-referenced to it:
+``o_p = Y_shutter,p − g_p · L(T_fpa)``. Between shutter events the last offset holds. The
+assumption that the shutter sits at the FPA temperature fails when the FPA changes fast (the
+shutter lags), which is what Lin et al. improve on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from thermocal.calibration.base import (
+    ZERO_C_K,
+    band_for,
+    check_frames,
+    fill_bad_pixels,
+    per_frame_series,
+    warn_outside_range,
+)
+from thermocal.calibration.store import load_calibration, require_arrays, save_calibration
+from thermocal.calibration.two_point import TwoPointCalibration, two_point
+from thermocal.errors import InvalidInputError
+
+METHOD = "shutter"
+
+
+@dataclass(frozen=True, eq=False)
+class ShutterCalibration:
+    """Per-pixel gain and reference offset ``(H, W)``, and the shutter offsets recorded so far.
+
+    ``event_time_s`` ``(E,)`` and ``event_offset`` ``(E, H, W)``: the offsets from each shutter
+    closure (see :meth:`with_shutter`); with none, the reference offset is used.
+    """
+
+    gain: np.ndarray
+    offset: np.ndarray
+    bad: np.ndarray
+    fpa_ref_c: float
+    fpa_range_c: tuple[float, float]
+    interval_s: float = 180.0
+    event_time_s: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    event_offset: np.ndarray | None = None
+    band_m: tuple[float, float] = (7.5e-6, 13.5e-6)
+    info: dict[str, Any] = field(default_factory=dict)
+
+    method = METHOD
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.bad.shape  # type: ignore[return-value]
+
+    @classmethod
+    def from_two_point(cls, cal: TwoPointCalibration, *, interval_s: float = 180.0
+                       ) -> ShutterCalibration:
+        return cls(gain=cal.gain, offset=cal.offset, bad=cal.bad, fpa_ref_c=cal.fpa_ref_c,
+                   fpa_range_c=cal.fpa_range, interval_s=interval_s, band_m=cal.band_m,
+                   info=dict(cal.info))
+
+    def with_shutter(self, frames: Any, *, fpa_c: Any, time_s: Any) -> ShutterCalibration:
+        """Add shutter closures: frames ``(E, H, W)`` of the closed shutter, the FPA sensor (°C)
+        and the time (s) of each. Returns a new calibration; this one is unchanged."""
+        counts = check_frames(frames, self.shape).astype(np.float32)
+        n = len(counts)
+        fpa = per_frame_series(fpa_c, n, "fpa_c")
+        t = per_frame_series(time_s, n, "time_s", temperature=False)
+        band = band_for(tuple(self.band_m))
+        shutter_l = band.radiance((fpa + ZERO_C_K).astype(np.float32))
+        offsets = counts - self.gain[None] * shutter_l[:, None, None]
+        times = np.concatenate([self.event_time_s, t])
+        stack = offsets if self.event_offset is None else np.concatenate(
+            [self.event_offset, offsets])
+        order = np.argsort(times, kind="stable")
+        return replace(self, event_time_s=times[order], event_offset=stack[order])
+
+    def apply(self, frames: Any, *, fpa_c: Any = None, time_s: Any = None) -> np.ndarray:
+        """Scene temperature, °C, float32 ``(N, H, W)``; each frame uses the last shutter offset
+        at or before its ``time_s`` (the reference offset before the first closure)."""
+        counts = check_frames(frames, self.shape)
+        n = len(counts)
+        if fpa_c is not None and self.event_offset is None:
+            warn_outside_range(per_frame_series(fpa_c, n, "fpa_c"), self.fpa_range_c, METHOD)
+        if self.event_offset is not None and time_s is None:
+            raise InvalidInputError("shutter: applying shutter offsets needs the frame times")
+        which = np.full(n, -1)
+        if self.event_offset is not None:
+            t = per_frame_series(time_s, n, "time_s", temperature=False)
+            which = np.searchsorted(self.event_time_s, t, side="right") - 1
+        band = band_for(tuple(self.band_m))
+        lo, hi = band.radiance_range
+        inv_gain = (1.0 / self.gain).astype(np.float32)
+        out = np.empty(counts.shape, dtype=np.float32)
+        for k in range(n):
+            off = self.offset if which[k] < 0 else self.event_offset[which[k]]  # type: ignore[index]
+            rad = (counts[k].astype(np.float32) - off) * inv_gain
+            out[k] = band.temperature(np.clip(rad, lo, hi)) - np.float32(ZERO_C_K)
+        return fill_bad_pixels(out, self.bad)
+
+    def save(self, path: str | Path) -> Path:
+        h, w = self.shape
+        arrays = {"gain": self.gain, "offset": self.offset, "bad": self.bad,
+                  "event_time_s": self.event_time_s}
+        if self.event_offset is not None:
+            arrays["event_offset"] = self.event_offset
+        meta = {"fpa_ref_c": self.fpa_ref_c, "interval_s": self.interval_s,
+                "band_m": list(self.band_m), "info": self.info}
+        return save_calibration(path, METHOD, arrays, resolution=(w, h),
+                                fpa_range_c=self.fpa_range_c,
+                                camera_unit=self.info.get("camera_unit"), metadata=meta)
+
+    @classmethod
+    def load(cls, path: str | Path) -> ShutterCalibration:
+        stored = load_calibration(path, method=METHOD)
+        require_arrays(stored, ("gain", "offset", "bad"), path)
+        m = stored.metadata
+        return cls(gain=stored.arrays["gain"].astype(np.float32),
+                   offset=stored.arrays["offset"].astype(np.float32),
+                   bad=stored.arrays["bad"].astype(bool), fpa_ref_c=float(m["fpa_ref_c"]),
+                   fpa_range_c=stored.fpa_range_c, interval_s=float(m["interval_s"]),
+                   event_time_s=stored.arrays.get("event_time_s", np.zeros(0)),
+                   event_offset=stored.arrays.get("event_offset"), band_m=tuple(m["band_m"]),
+                   info=dict(m.get("info", {})))
+
+
+def shutter(session: Any, *, interval_s: float = 180.0, **two_point_options: Any
+            ) -> ShutterCalibration:
+    """The shutter-based baseline: two-point gains from the chamber (see
+    :func:`~thermocal.calibration.two_point.two_point` for the options), offsets re-referenced
+    on shutter closures every ``interval_s`` seconds at apply time (:meth:`with_shutter`)."""
+    if interval_s <= 0:
+        raise InvalidInputError(f"shutter interval must be > 0 s, got {interval_s}")
+    return ShutterCalibration.from_two_point(two_point(session, **two_point_options),
+                                             interval_s=interval_s)

@@ -1,0 +1,504 @@
+"""Wolf, Pezoa & Figueroa (2016): temperature-dependent NU compensation with HW and LMS estimators.
+
+Per pixel p and frame k (Wolf et al. eq. 6), in band radiance ``X`` (W·m⁻²·sr⁻¹)::
+
+    X̂_p[k] = S0_p · Y_p[k] + S1_p + S2_p · ΔT̂[k] + Ω(ΔT[k])
+
+- ``S0, S1, S2`` per pixel from ≥ 3 (blackbody, ΔT) points, eq. 7–9 (least squares over every
+  frame given; ``ΔT`` is the FPA sensor's change from the reference ``fpa_ref_c``);
+- ``Ω``: the spatially uniform term (housing radiation, unmodelled nonlinear dynamics), a
+  Hammerstein–Wiener estimator driven by the FPA sensor: a static polynomial of order 3 in ΔT
+  (input nonlinearity), a first-order linear dynamic block with one extra input lag, and the
+  identity as output map (the linear model of eq. 5). It is identified offline from the chamber
+  session with Bai's (1998) two-stage algorithm: over-parameterised least squares, then a rank-1
+  SVD that separates the linear block from the nonlinearity;
+- ``ΔT̂[k]``: the online LMS estimate of the FPA change from the scene statistics (eq. 10–11),
+  a gradient step that makes ``X̂`` locally flat over a ``(2W+1)²`` window. Here the step is
+  normalised by the gradient's response to ΔT̂ so that ``eta`` does not depend on the units or
+  the frame size (``eta = 1`` jumps to the minimum), and its sign follows eq. 6's
+  ``+ S2 · ΔT̂`` (descent on the local squared error).
+  It runs every frame for ``warmup_frames`` frames, then every ``update_interval_s`` of
+  recording time (the paper: 100 frames, then every 500 ms).
+
+:class:`Wolf2016Stream` does this frame by frame; :meth:`Wolf2016Calibration.apply` runs a fresh
+stream over a batch of frames.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.ndimage import uniform_filter
+
+from thermocal.calibration.base import (
+    ZERO_C_K,
+    band_for,
+    calibration_info,
+    check_frames,
+    fill_bad_pixels,
+    per_frame_series,
+    require_fpa,
+    robust_outliers,
+    warn_outside_range,
+)
+from thermocal.calibration.dataset import (
+    FrameScan,
+    iter_frames,
+    prepare_chamber,
+    require_fpa_span,
+    require_setpoints,
+    stability_mask,
+)
+from thermocal.calibration.store import load_calibration, require_arrays, save_calibration
+from thermocal.errors import FitError, InvalidInputError
+
+METHOD = "wolf2016"
+
+
+@dataclass(frozen=True)
+class HammersteinWiener:
+    """Hammerstein–Wiener model of the uniform term Ω (W·m⁻²·sr⁻¹) from the FPA change ΔT (°C).
+
+    ``v[k] = Σ_i c_i (ΔT[k]/u_scale)^i`` (i = 1…order), ``z[k] = a·z[k−1] + b0·v[k] + b1·v[k−1]``,
+    ``Ω[k] = z[k] + bias``; one step every ``period_s`` seconds of recording time.
+    """
+
+    c: tuple[float, ...]
+    a: float
+    b: tuple[float, float]
+    bias: float
+    u_scale: float
+    period_s: float
+
+    def nonlinearity(self, delta_t_c: Any) -> np.ndarray:
+        u = np.asarray(delta_t_c, dtype=np.float64) / self.u_scale
+        return sum(ci * u ** (i + 1) for i, ci in enumerate(self.c))
+
+    def simulate(self, delta_t_c: Any) -> np.ndarray:
+        """Ω for a series sampled every ``period_s``, starting settled at its first value."""
+        v = self.nonlinearity(delta_t_c)
+        z = np.empty_like(v)
+        prev_z = (self.b[0] + self.b[1]) * v[0] / (1.0 - self.a)
+        prev_v = v[0]
+        for k in range(v.size):  # a scalar recursion over time, not over pixels
+            prev_z = self.a * prev_z + self.b[0] * v[k] + self.b[1] * prev_v
+            prev_v = v[k]
+            z[k] = prev_z
+        return z + self.bias
+
+    def to_list(self) -> list[float]:
+        return [*self.c, self.a, *self.b, self.bias, self.u_scale, self.period_s]
+
+    @classmethod
+    def from_list(cls, values: Any, order: int) -> HammersteinWiener:
+        v = [float(x) for x in values]
+        return cls(tuple(v[:order]), v[order], (v[order + 1], v[order + 2]), v[order + 3],
+                   v[order + 4], v[order + 5])
+
+
+def identify_hammerstein_wiener(
+    delta_t_c: np.ndarray, omega: np.ndarray, *, period_s: float, order: int = 3,
+    segments: np.ndarray | None = None,
+) -> HammersteinWiener:
+    """Identify the HW model of Ω from a series sampled every ``period_s`` (Bai 1998).
+
+    ``segments`` (int per sample) marks contiguous stretches; the recursion never links samples
+    of different segments (e.g. two chamber runs in one file).
+
+    Stage 1 fits the over-parameterised ARX model ``Ω[k] = a·Ω[k−1] + Σ_j Σ_i θ_ji u[k−j]^i +
+    β`` by least squares; stage 2 factors ``θ ≈ b·cᵀ`` with the leading singular pair.
+    """
+    u_all = np.asarray(delta_t_c, dtype=np.float64)
+    y_all = np.asarray(omega, dtype=np.float64)
+    seg = np.zeros(u_all.size, dtype=np.int64) if segments is None else np.asarray(segments)
+    u_scale = float(np.abs(u_all).max()) or 1.0
+    if y_all.size < 4 * (order + 2):
+        raise FitError(
+            f"the Hammerstein–Wiener estimator needs >= {4 * (order + 2)} frames in time "
+            f"order, got {y_all.size}"
+        )
+    powers = np.stack([(u_all / u_scale) ** (i + 1) for i in range(order)], axis=1)  # (K, n)
+    same = seg[1:] == seg[:-1]  # regress only within contiguous segments
+    reg = np.concatenate(
+        [y_all[:-1, None], powers[1:], powers[:-1], np.ones((y_all.size - 1, 1))], axis=1
+    )[same]
+    theta, *_ = np.linalg.lstsq(reg, y_all[1:][same], rcond=None)
+    a = float(np.clip(theta[0], 0.0, 0.999))
+    big = np.stack([theta[1 : 1 + order], theta[1 + order : 1 + 2 * order]])  # (2, n)
+    uu, ss, vt = np.linalg.svd(big)
+    b = uu[:, 0] * ss[0]
+    c = vt[0]
+    if abs(c).max() > 0:
+        sign = np.sign(c[0]) if c[0] != 0 else 1.0
+        b, c = b * sign, c * sign
+    beta = float(theta[-1])
+    model = HammersteinWiener(tuple(float(x) for x in c), a, (float(b[0]), float(b[1])), 0.0,
+                              u_scale, float(period_s))
+    # The constant term of the ARX model becomes the output bias, refitted on the simulated
+    # output (the recursion is run open loop at apply time), segment by segment.
+    sim = np.concatenate([model.simulate(u_all[seg == s]) for s in np.unique(seg)])
+    y_sorted = np.concatenate([y_all[seg == s] for s in np.unique(seg)])
+    bias = float(np.mean(y_sorted - sim)) if np.isfinite(beta) else 0.0
+    return HammersteinWiener(model.c, a, model.b, bias, u_scale, float(period_s))
+
+
+@dataclass(frozen=True, eq=False)
+class Wolf2016Calibration:
+    """Fitted Wolf et al. (2016) model: ``S0`` (W·m⁻²·sr⁻¹ per count), ``S1``, ``S2`` (per °C)."""
+
+    s0: np.ndarray
+    s1: np.ndarray
+    s2: np.ndarray
+    bad: np.ndarray
+    fpa_ref_c: float
+    hw: HammersteinWiener
+    fpa_range_c: tuple[float, float]
+    hw_order: int = 3
+    window: int = 1
+    eta: float = 0.05
+    warmup_frames: int = 100
+    update_interval_s: float = 0.5
+    band_m: tuple[float, float] = (7.5e-6, 13.5e-6)
+    info: dict[str, Any] = field(default_factory=dict)
+
+    method = METHOD
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        return self.bad.shape  # type: ignore[return-value]
+
+    def stream(self, **options: Any) -> Wolf2016Stream:
+        """A fresh per-frame corrector (see :class:`Wolf2016Stream` for the options)."""
+        return Wolf2016Stream(self, **options)
+
+    def apply(self, frames: Any, *, fpa_c: Any = None, time_s: Any = None,
+              frame_rate_hz: float = 30.0, **options: Any) -> np.ndarray:
+        """Correct a recording from a cold start: scene temperature, °C, float32 ``(N, H, W)``.
+
+        ``fpa_c`` (the FPA sensor, °C) is required; ``time_s`` defaults to frames at
+        ``frame_rate_hz``. ``options`` go to :class:`Wolf2016Stream`.
+        """
+        counts = check_frames(frames, self.shape)
+        n = len(counts)
+        fpa = require_fpa(fpa_c, n, METHOD)
+        warn_outside_range(fpa, self.fpa_range_c, METHOD)
+        t = (np.arange(n) / frame_rate_hz if time_s is None
+             else per_frame_series(time_s, n, "time_s", temperature=False))
+        stream = self.stream(**options)
+        out = np.empty(counts.shape, dtype=np.float32)
+        for k in range(n):
+            out[k] = stream.process(counts[k], fpa_c=float(fpa[k]), time_s=float(t[k]))
+        return out
+
+    def save(self, path: str | Path) -> Path:
+        h, w = self.shape
+        meta = {"fpa_ref_c": self.fpa_ref_c, "hw": self.hw.to_list(), "hw_order": self.hw_order,
+                "window": self.window, "eta": self.eta, "warmup_frames": self.warmup_frames,
+                "update_interval_s": self.update_interval_s, "band_m": list(self.band_m),
+                "info": self.info}
+        return save_calibration(
+            path, METHOD, {"s0": self.s0, "s1": self.s1, "s2": self.s2, "bad": self.bad},
+            resolution=(w, h), fpa_range_c=self.fpa_range_c,
+            camera_unit=self.info.get("camera_unit"), metadata=meta,
+        )
+
+    @classmethod
+    def load(cls, path: str | Path) -> Wolf2016Calibration:
+        stored = load_calibration(path, method=METHOD)
+        require_arrays(stored, ("s0", "s1", "s2", "bad"), path)
+        m = stored.metadata
+        order = int(m["hw_order"])
+        return cls(
+            s0=stored.arrays["s0"].astype(np.float32), s1=stored.arrays["s1"].astype(np.float32),
+            s2=stored.arrays["s2"].astype(np.float32), bad=stored.arrays["bad"].astype(bool),
+            fpa_ref_c=float(m["fpa_ref_c"]), hw=HammersteinWiener.from_list(m["hw"], order),
+            fpa_range_c=stored.fpa_range_c, hw_order=order, window=int(m["window"]),
+            eta=float(m["eta"]), warmup_frames=int(m["warmup_frames"]),
+            update_interval_s=float(m["update_interval_s"]), band_m=tuple(m["band_m"]),
+            info=dict(m.get("info", {})),
+        )
+
+
+class Wolf2016Stream:
+    """Frame-by-frame Wolf et al. correction: :meth:`apply` a frame, :meth:`update` the LMS.
+
+    Parameters
+    ----------
+    calibration : Wolf2016Calibration
+    eta : float, optional
+        Normalised LMS rate (0 < eta ≤ 1); default the calibration's.
+    window : int, optional
+        ``W`` of the ``(2W+1)²`` local mean (eq. 11); default the calibration's (1).
+    warmup_frames : int, optional
+        Frames updated every frame at start (default 100).
+    update_interval_s : float, optional
+        Recording time between LMS updates after the warm-up, s (default 0.5).
+    delta_t0_c : float
+        Initial ΔT̂, °C (a cold start: 0).
+    """
+
+    def __init__(self, calibration: Wolf2016Calibration, *, eta: float | None = None,
+                 window: int | None = None, warmup_frames: int | None = None,
+                 update_interval_s: float | None = None, delta_t0_c: float = 0.0) -> None:
+        cal = calibration
+        self.calibration = cal
+        self.eta = float(cal.eta if eta is None else eta)
+        if not 0.0 < self.eta <= 1.0:
+            raise InvalidInputError(f"eta must be in (0, 1], got {self.eta}")
+        self.window = int(cal.window if window is None else window)
+        if self.window < 1:
+            raise InvalidInputError(f"window W must be >= 1, got {self.window}")
+        self.warmup_frames = int(cal.warmup_frames if warmup_frames is None else warmup_frames)
+        self.update_interval_s = float(
+            cal.update_interval_s if update_interval_s is None else update_interval_s
+        )
+        self.delta_t_c = float(delta_t0_c)
+        self.band = band_for(tuple(cal.band_m))
+        self._s2_hp, self._norm = _s2_highpass(cal.s2, cal.bad, self.window)
+        self._last_x: np.ndarray | None = None
+        self._frames = 0
+        self._last_update_s: float | None = None
+        self._hw_time: float | None = None
+        self._hw_z = 0.0
+        self._hw_v = 0.0
+        self.history: list[float] = []
+
+    def _omega(self, fpa_c: float, time_s: float) -> float:
+        hw = self.calibration.hw
+        v = float(hw.nonlinearity(fpa_c - self.calibration.fpa_ref_c))
+        if self._hw_time is None:
+            self._hw_z = (hw.b[0] + hw.b[1]) * v / (1.0 - hw.a)
+            self._hw_v, self._hw_time = v, time_s
+        steps = int((time_s - self._hw_time) // hw.period_s) if hw.period_s > 0 else 0
+        for _ in range(min(max(steps, 0), 10_000)):  # HW runs once per period of recording time
+            self._hw_z = hw.a * self._hw_z + hw.b[0] * v + hw.b[1] * self._hw_v
+            self._hw_v = v
+        if steps > 0:
+            self._hw_time += steps * hw.period_s
+        return self._hw_z + hw.bias
+
+    def apply(self, frame: Any, *, fpa_c: float, time_s: float) -> np.ndarray:
+        """Scene temperature of one frame, °C, float32 ``(H, W)``, with the current ΔT̂."""
+        cal = self.calibration
+        counts = check_frames(frame, cal.shape)[0]
+        x = counts.astype(np.float32) * cal.s0
+        x += cal.s1
+        x += cal.s2 * np.float32(self.delta_t_c)
+        x += np.float32(self._omega(float(fpa_c), float(time_s)))
+        self._last_x = x
+        self._last_time = float(time_s)
+        lo, hi = self.band.radiance_range
+        temp = self.band.temperature(np.clip(x, lo, hi)) - np.float32(ZERO_C_K)
+        return fill_bad_pixels(temp[None], cal.bad)[0]
+
+    def update(self) -> bool:
+        """One LMS step (eq. 10–11) from the last applied frame, if one is due; True if done."""
+        if self._last_x is None:
+            raise InvalidInputError("Wolf2016Stream.update: apply a frame first")
+        self._frames += 1
+        due = (
+            self._frames <= self.warmup_frames
+            or self._last_update_s is None
+            or self._last_time - self._last_update_s >= self.update_interval_s
+        )
+        if due:
+            grad = float(np.sum(self._s2_hp * self._last_x, dtype=np.float64))
+            self.delta_t_c -= self.eta * grad / self._norm
+            self._last_update_s = self._last_time
+        self.history.append(self.delta_t_c)
+        return due
+
+    def process(self, frame: Any, *, fpa_c: float, time_s: float) -> np.ndarray:
+        """:meth:`apply` then :meth:`update`: the temperature of this frame, °C ``(H, W)``."""
+        temp = self.apply(frame, fpa_c=fpa_c, time_s=time_s)
+        self.update()
+        return temp
+
+
+def _s2_highpass(s2: np.ndarray, bad: np.ndarray, window: int) -> tuple[np.ndarray, float]:
+    """The LMS kernel and its normalisation.
+
+    With ``hp(x) = x − E[x]`` (eq. 11, a symmetric box filter), the gradient of eq. 10,
+    ``Σ hp(S2)·hp(X̂)``, equals ``Σ K·X̂`` with ``K = hp(hp(S2))`` (the adjoint; exact away from
+    the border): one dot product per update instead of a filter. Returns ``K`` (zero on bad
+    pixels) and ``Σ K·S2`` (the gradient's response to ΔT̂, for the normalised step).
+    """
+    good = ~bad
+    filled = np.where(good, s2, np.median(s2[good])).astype(np.float32)
+    size = 2 * window + 1
+    hp = filled - uniform_filter(filled, size=size, mode="mirror")
+    kernel = hp - uniform_filter(hp, size=size, mode="mirror")
+    kernel = (kernel - kernel[good].mean()) * good  # blind to a uniform X̂, as hp(X̂) is
+    norm = float(np.sum(kernel.astype(np.float64) * filled))
+    return kernel.astype(np.float32), norm if norm > 0 else 1.0
+
+
+def _lms_fixed_point(x0: np.ndarray, kernel: np.ndarray, norm: float) -> float:
+    """The ΔT̂ at which the LMS of eq. 10 stops on a frame with ``S0·Y + S1 = x0``."""
+    return -float(np.sum(kernel * x0, dtype=np.float64)) / norm
+
+
+def wolf2016(
+    session: Any,
+    *,
+    fpa_ref_c: float | None = None,
+    fpa_window_c: float = 3.0,
+    hw_order: int = 3,
+    hw_setpoints_c: Any = None,
+    frames: str = "settled",
+    window: int = 1,
+    eta: float = 0.05,
+    warmup_frames: int = 100,
+    update_interval_s: float = 0.5,
+    outlier_mads: float = 10.0,
+    band_m: tuple[float, float] = (7.5e-6, 13.5e-6),
+    chunk: int = 64,
+) -> Wolf2016Calibration:
+    """Fit Wolf et al. (2016) to a chamber session.
+
+    Parameters
+    ----------
+    session : ChamberSession, ChamberData or path
+    fpa_ref_c : float, optional
+        Reference FPA temperature (ΔT = 0), °C; default the first frame's.
+    fpa_window_c : float
+        ``S0, S1, S2`` are fitted on the frames within ``± fpa_window_c`` of the reference (the
+        paper: ΔT of 0 and 4 °C); the HW estimator on the whole session.
+    hw_order : int
+        Order of the HW input polynomial (3 in the paper).
+    hw_setpoints_c : sequence of float, optional
+        Identify Ω only on frames at these blackbody set points (default: every frame). Ω is
+        one uniform term for every scene: identify it on the scenes you will measure.
+    frames : {"stable", "settled", "all"}
+        Frames used for ``S0, S1, S2`` by FPA stability.
+    window, eta, warmup_frames, update_interval_s
+        Defaults of the online LMS (see :class:`Wolf2016Stream`).
+
+    Raises
+    ------
+    FitError
+        Fewer than 2 set points or an FPA span under 1 °C near the reference (3 points with 2
+        temperatures and 2 ΔT are the minimum of eq. 7–9), or too few frames for the HW model.
+    """
+    data = prepare_chamber(session)
+    band = band_for(tuple(band_m))
+    first = int(np.flatnonzero(data.usable)[0])
+    ref = float(data.fpa_c[first]) if fpa_ref_c is None else float(fpa_ref_c)
+    near = data.usable & stability_mask(data, frames) & (np.abs(data.fpa_c - ref) <= fpa_window_c)
+    require_setpoints(data, 2, "wolf2016 (S0, S1, S2 of eq. 7-9)", near)
+    require_fpa_span(data, 1.0, f"wolf2016 (S2 of eq. 7-9, frames within ±{fpa_window_c:g} °C "
+                     f"of {ref:.2f} °C)", near)
+    x_all = np.asarray(band.radiance(data.scene_c + ZERO_C_K), dtype=np.float64)
+    dt_all = data.fpa_c - ref
+    h, w = data.frame_shape
+    scan = FrameScan((h, w), data.session.bit_depth)
+    # Per-pixel normal equations of X = S0·Y + S1 + S2·ΔT (eq. 7–9 in least squares).
+    sy = np.zeros((h, w))
+    syy = np.zeros((h, w))
+    syd = np.zeros((h, w))
+    syx = np.zeros((h, w))
+    n = sd = sdd = sx = sxd = 0.0
+    ref_counts: np.ndarray | None = None
+    for idx, block in iter_frames(data.session, np.flatnonzero(near), chunk=chunk):
+        keep = scan.check(idx, block)
+        if not keep.any():
+            continue
+        y = block[keep].astype(np.float64)
+        if ref_counts is None:
+            ref_counts = y[0].copy()
+        y -= ref_counts
+        d = dt_all[idx[keep]]
+        x = x_all[idx[keep]]
+        sy += y.sum(0)
+        syy += np.einsum("kij,kij->ij", y, y)
+        syd += np.tensordot(d, y, axes=1)
+        syx += np.tensordot(x, y, axes=1)
+        n += d.size
+        sd += d.sum()
+        sdd += d @ d
+        sx += x.sum()
+        sxd += x @ d
+    if ref_counts is None:
+        raise FitError("wolf2016: every calibration frame is saturated")
+    mat = np.empty((h, w, 3, 3))
+    mat[..., 0, 0], mat[..., 0, 1], mat[..., 0, 2] = syy, sy, syd
+    mat[..., 1, 0], mat[..., 1, 1], mat[..., 1, 2] = sy, n, sd
+    mat[..., 2, 0], mat[..., 2, 1], mat[..., 2, 2] = syd, sd, sdd
+    rhs = np.stack([syx, np.full((h, w), sx), np.full((h, w), sxd)], axis=-1)
+    bad = scan.saturated_pixels()
+    det = np.linalg.det(mat)
+    bad |= ~(np.abs(det) > 1e-12 * np.abs(mat[..., 0, 0] * n * sdd).clip(1e-300))
+    mat[bad] = np.eye(3)
+    sol = np.linalg.solve(mat, rhs[..., None])[..., 0]
+    s0, s1, s2 = sol[..., 0], sol[..., 1] - sol[..., 0] * ref_counts, sol[..., 2]
+    bad |= (s0 <= 0) | robust_outliers(s0, mads=outlier_mads, valid=~bad)
+    if bad.mean() > 0.5:
+        raise FitError("wolf2016: more than half of the pixels did not respond")
+    for arr in (s0, s1, s2):
+        arr[bad] = np.median(arr[~bad])
+    s0, s1, s2 = (a.astype(np.float32) for a in (s0, s1, s2))
+
+    # Ω: per-frame spatial mean residual over the session, in time order, sampled on the
+    # session's frame interval; identified by Bai's two-stage method. The residual is taken with
+    # the ΔT̂ the online LMS converges to on each frame (its fixed point: X̂ locally flattest),
+    # so that Ω completes what S2·ΔT̂ leaves at apply time.
+    hw_sel = data.usable.copy()
+    if hw_setpoints_c is not None:
+        wanted = np.asarray(hw_setpoints_c, dtype=np.float64)
+        hw_sel &= np.isin(np.round(data.session.blackbody_c, 6), np.round(wanted, 6))
+        if not hw_sel.any():
+            raise FitError(f"wolf2016: no frame at the HW set points {list(wanted)} °C")
+    hw_idx = np.flatnonzero(hw_sel)
+    mean_model = np.full(data.n_frames, np.nan)
+    lms_dt = np.full(data.n_frames, np.nan)
+    good = ~bad
+    s2_hp, norm = _s2_highpass(s2, bad, window)
+    s2_mean = float(s2[good].mean())
+    for idx, block in iter_frames(data.session, hw_idx, chunk=chunk):
+        for i, frame in zip(idx, block, strict=True):
+            x0 = frame.astype(np.float32) * s0 + s1
+            d_hat = _lms_fixed_point(x0, s2_hp, norm)
+            lms_dt[i] = d_hat
+            mean_model[i] = float(x0[good].mean()) + s2_mean * d_hat
+    excluded = np.zeros(data.n_frames, dtype=bool)
+    excluded[scan.excluded] = True
+    valid = hw_sel & np.isfinite(mean_model) & ~excluded
+    # Resample on a uniform grid of the session's frame interval (the ARX model needs equal
+    # steps), run by run: a gap of more than 5 frame intervals in the session (another chamber
+    # run, a pause) starts a new segment.
+    session_steps = np.diff(data.time_s)
+    period = float(np.median(session_steps)) if session_steps.size else 1.0
+    run = np.r_[0, np.cumsum(session_steps > 5 * period)]
+    resid = x_all - mean_model
+    omegas, dgrids, segs = [], [], []
+    for i in np.unique(run[valid]):
+        sel = valid & (run == i)
+        t = data.time_s[sel]
+        if t.size < 2:
+            continue
+        grid = np.arange(t[0], t[-1] + 0.5 * period, period)
+        omegas.append(np.interp(grid, t, resid[sel]))
+        dgrids.append(np.interp(grid, t, dt_all[sel]))
+        segs.append(np.full(grid.size, len(segs)))
+    if not omegas:
+        raise FitError("wolf2016: no run of consecutive frames to identify the HW estimator")
+    omega, dgrid, seg = np.concatenate(omegas), np.concatenate(dgrids), np.concatenate(segs)
+    hw = identify_hammerstein_wiener(dgrid, omega, period_s=period, order=hw_order, segments=seg)
+    sim = np.concatenate([hw.simulate(dgrid[seg == s]) for s in np.unique(seg)])
+    used = data.fpa_c[valid]
+    info = calibration_info(data.session) | scan.report() | {
+        "frames_used_s": int(near.sum()),
+        "frames_used_hw": int(valid.sum()),
+        "lms_fixed_point_rms_c": float(np.sqrt(np.nanmean((lms_dt - dt_all)[valid] ** 2))),
+        "hw_rms_residual": float(np.sqrt(np.mean((sim - omega) ** 2))),
+        "hw_segments": int(seg.max() + 1),
+    }
+    return Wolf2016Calibration(
+        s0=s0, s1=s1, s2=s2, bad=bad, fpa_ref_c=ref, hw=hw,
+        fpa_range_c=(float(used.min()), float(used.max())), hw_order=hw_order, window=window,
+        eta=eta, warmup_frames=warmup_frames, update_interval_s=update_interval_s,
+        band_m=tuple(band_m), info=info,
+    )
