@@ -7,7 +7,6 @@ and ``save(path)`` / ``load(path)`` through :mod:`thermocal.calibration.store`.
 
 from __future__ import annotations
 
-import functools
 import warnings
 from typing import Any
 
@@ -15,7 +14,7 @@ import numpy as np
 
 from thermocal._validate import as_frames, as_temperature_c, check_same_shape
 from thermocal.errors import InvalidInputError
-from thermocal.radiometry import BandRadiance
+from thermocal.radiometry import BandRadiance, band_table
 
 ZERO_C_K = 273.15
 #: A frame with more than this fraction of its pixels at 0 or at the top count is "saturated".
@@ -121,10 +120,9 @@ def fill_bad_pixels(temps: np.ndarray, bad: np.ndarray) -> np.ndarray:
     return temps
 
 
-@functools.lru_cache(maxsize=8)
 def band_for(band_m: tuple[float, float]) -> BandRadiance:
     """A shared :class:`BandRadiance` per band (its lookup tables are built once, ~15 ms)."""
-    return BandRadiance(band_m=tuple(float(b) for b in band_m))
+    return band_table(tuple(float(b) for b in band_m))
 
 
 def robust_outliers(values: np.ndarray, *, mads: float, valid: np.ndarray | None = None
