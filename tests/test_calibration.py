@@ -421,3 +421,16 @@ def test_calibrate_reads_an_envchamberctrl_npz(fit_run, tmp_path, capsys):
     assert code == 0, err
     cal = load_any_calibration(tmp_path / "cal.h5")
     assert isinstance(cal, TwoPointCalibration) and abs(cal.fpa_ref_c - 20.5) < 1e-9
+
+
+def test_polynomial_refuses_too_few_fpa_levels(tmp_path):
+    """Three FPA plateaus cannot determine a cubic in the FPA temperature: say so."""
+    from thermocal.camera import make_camera
+    from thermocal.simulate.chamber import ChamberPlan, write_simulated_chamber
+
+    camera = make_camera("tau2", unit=9, size=(32, 24))
+    plan = ChamberPlan(setpoints_c=(10.0, 30.0, 50.0), frames_per_point=2, profile="steps",
+                       ambient_c=(20.0, 30.0), interval_s=20.0, duration_s=3 * 3600.0)
+    write_simulated_chamber(tmp_path / "c.h5", camera, plan, seed=1)
+    with pytest.raises(FitError, match="well-spread temperatures"):
+        fit_calibration(tmp_path / "c.h5", method="polynomial")

@@ -207,6 +207,7 @@ COMMANDS: list[tuple[str, str]] = [
     ("thermocal.nuc.commands", "nuc"),
     ("thermocal.nn.commands", "estimate"),
     ("thermocal.nn.commands", "train"),
+    ("thermocal.pipeline.commands", "flight"),
 ]
 _register_commands()
 

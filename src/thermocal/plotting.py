@@ -69,3 +69,18 @@ def burst_report_figure(
         fig.suptitle(title)
     fig.tight_layout()
     return fig
+
+
+def temperature_figure(temp_c: np.ndarray, *, title: str = ""):
+    """One temperature map ``(H, W)`` in °C with a colour bar (1–99 % range). Returns the figure."""
+    plt = _pyplot()
+    h, w = temp_c.shape
+    fig, ax = plt.subplots(figsize=(4.5 * w / max(h, w) + 1.2, 4.5 * h / max(h, w)))
+    lo, hi = np.percentile(temp_c, [1, 99])
+    im = ax.imshow(temp_c, cmap="inferno", vmin=lo, vmax=max(hi, lo + 0.1))
+    fig.colorbar(im, ax=ax, fraction=0.046, label="°C")
+    ax.set_xticks([])
+    ax.set_yticks([])
+    if title:
+        ax.set_title(title, fontsize=9)
+    return fig

@@ -278,9 +278,16 @@ def require_setpoints(
         )
 
 
+#: Largest condition number of the normalised Vandermonde matrix of the FPA temperatures that a
+#: polynomial fit in the FPA temperature accepts: 4 well-spread levels or a ramp give 6-8, the
+#: frames at the two ends of a sawtooth or 3 plateaus for a cubic give 30-500.
+MAX_FPA_CONDITION = 25.0
+
+
 def require_fpa_span(data: ChamberData, span_c: float, method: str,
-                     mask: np.ndarray | None = None) -> None:
-    """Raise :class:`FitError` unless the FPA temperatures in ``mask`` span ``span_c`` °C."""
+                     mask: np.ndarray | None = None, *, degree: int = 1) -> None:
+    """Raise :class:`FitError` unless the FPA temperatures in ``mask`` span ``span_c`` °C and
+    are spread over enough distinct levels for a polynomial of ``degree`` in them."""
     sel = data.usable if mask is None else (data.usable & mask)
     fpa = data.fpa_c[sel]
     got = float(fpa.max() - fpa.min()) if fpa.size else 0.0
@@ -288,6 +295,15 @@ def require_fpa_span(data: ChamberData, span_c: float, method: str,
         raise FitError(
             f"{method} needs FPA temperatures spanning >= {span_c:g} °C, the chamber data span "
             f"{got:.2f} °C; record while the chamber's ambient changes"
+        )
+    x = (fpa - fpa.mean()) / fpa.std()
+    sv = np.linalg.svd(np.vander(x, degree + 1, increasing=True) / np.sqrt(x.size),
+                       compute_uv=False)
+    if sv[-1] * MAX_FPA_CONDITION < sv[0]:
+        raise FitError(
+            f"{method} needs the FPA at >= {degree + 1} well-spread temperatures, but the frames "
+            f"it can use hold it at fewer (condition {sv[0] / max(sv[-1], 1e-300):.0f}); record "
+            "while the ambient passes through more levels, or fit frames='settled'"
         )
 
 

@@ -240,7 +240,7 @@ def lin(
     band = band_for(tuple(band_m))
     stable = data.usable & (data.stability == STABLE)
     require_setpoints(data, 4, "lin (the Planck curve of eq. 4)", stable)
-    require_fpa_span(data, 2.0, "lin (eq. 1, from stable frames)", stable)
+    require_fpa_span(data, 2.0, "lin (eq. 1, from stable frames)", stable, degree=2)
     ref = float(np.median(data.fpa_c[stable])) if fpa_ref_c is None else float(fpa_ref_c)
     bb = np.round(data.session.blackbody_c, 6)
     points, group = np.unique(bb, return_inverse=True)

@@ -283,7 +283,8 @@ def polynomial(
             raise InvalidInputError(f"frame_mask: expected {sel.shape}, got {mask.shape}")
         sel &= mask
     require_setpoints(data, 2, "the polynomial model", sel)
-    require_fpa_span(data, 4.0, "the polynomial model (cubic in the FPA temperature)", sel)
+    require_fpa_span(data, 4.0, "the polynomial model (cubic in the FPA temperature)", sel,
+                     degree=3)
     band = band_for(tuple(band_m))
     fpa = data.fpa_c
     used = np.flatnonzero(sel)

@@ -44,8 +44,10 @@ from thermocal.io.atomic import atomic_path
 __all__ = [
     "SERIES_KEYS",
     "Recording",
+    "RecordingHeader",
     "RecordingWriter",
     "iter_recording",
+    "read_recording_header",
     "read_recording",
     "read_temperature_tiff",
     "sidecar_path",
@@ -529,18 +531,53 @@ def read_recording(path: str | os.PathLike[str], *, fpa_c: float | None = None) 
     InvalidInputError
         If ``fpa_c`` is not a valid temperature.
     """
+    header = read_recording_header(path, fpa_c=fpa_c)
+    data, info = _read_tiff_stack(header.path)
+    frames = data.reshape(info.n, info.height, info.width)
+    try:
+        return Recording(frames, bit_depth=header.bit_depth, extra=header.extra, **header.series)
+    except InvalidInputError as exc:
+        raise FileFormatError(f"{header.path}: {exc}") from None
+
+
+@dataclass(frozen=True)
+class RecordingHeader:
+    """What a recording holds, read without its frames: size, per-frame series, extra keys."""
+
+    path: Path
+    n_frames: int
+    frame_shape: tuple[int, int]
+    bit_depth: int
+    series: dict[str, np.ndarray | None]
+    extra: dict[str, Any]
+
+
+def read_recording_header(
+    path: str | os.PathLike[str], *, fpa_c: float | None = None
+) -> RecordingHeader:
+    """Check a recording and read its sidecar, without loading the frames (long recordings).
+
+    Raises as :func:`read_recording`; ``fpa_c`` replaces the sidecar's FPA series.
+    """
     tiff_path = Path(path)
     override = None if fpa_c is None else _check_constant_c(fpa_c, "fpa_c")
     json_path = sidecar_path(tiff_path)
     sidecar = _read_sidecar(json_path)
     bit_depth = _sidecar_bit_depth(sidecar, json_path)
-    data, info = _read_tiff_stack(tiff_path)
+    if not tiff_path.is_file():
+        raise FileFormatError(f"{tiff_path}: no such file")
+    try:
+        with _tiff_errors() as errors, tifffile.TiffFile(tiff_path) as tif:
+            info = _stack_info(tif, tiff_path, errors)
+    except ThermocalError:
+        raise
+    except Exception as exc:  # tifffile raises many types on corrupt input
+        raise _open_error(tiff_path, exc) from None
     if info.dtype != np.uint16:
         raise FileFormatError(
             f"{tiff_path}: expected uint16 raw counts, got {info.dtype} "
             "(a temperature TIFF? read it with read_temperature_tiff)"
         )
-    frames = data.reshape(info.n, info.height, info.width)
     n = info.n
     series: dict[str, np.ndarray | None] = dict.fromkeys(SERIES_KEYS)
     extra: dict[str, Any] = {}
@@ -551,10 +588,7 @@ def read_recording(path: str | os.PathLike[str], *, fpa_c: float | None = None) 
         extra = {k: v for k, v in sidecar.items() if k not in _RESERVED_KEYS}
     if override is not None:
         series["fpa_c"] = np.full(n, override, dtype=np.float64)
-    try:
-        return Recording(frames, bit_depth=bit_depth, extra=extra, **series)
-    except InvalidInputError as exc:
-        raise FileFormatError(f"{tiff_path}: {exc}") from None
+    return RecordingHeader(tiff_path, n, (info.height, info.width), bit_depth, series, extra)
 
 
 def iter_recording(

@@ -1,0 +1,1 @@
+"""End-to-end processing of whole recordings (``thermocal flight``)."""

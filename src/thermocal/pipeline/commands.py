@@ -1,0 +1,48 @@
+"""``thermocal flight``: a whole recording → temperature maps, previews and a log."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from thermocal.progress import progress_bar
+
+
+@click.command("flight")
+@click.argument("recording", type=click.Path(dir_okay=False, path_type=Path))
+@click.option("--out", "out_dir", type=click.Path(path_type=Path), required=True,
+              help="Output folder (created; a rerun resumes).")
+@click.option("--method", type=click.Choice(["kpn", "kpn-no-offset", "e2e", "mean", "calibration"]),
+              default="kpn", show_default=True,
+              help="Network, registered average of a calibration (eq. 9), or a per-frame "
+                   "calibration applied to each pivot.")
+@click.option("--calibration", type=click.Path(dir_okay=False), default=None,
+              help="Calibration file (thermocal calibrate) for --method mean|calibration.")
+@click.option("--model", type=click.Path(dir_okay=False), default=None,
+              help="Network weights (default: the shipped model of --method).")
+@click.option("--frames", "n_frames", type=int, default=7, show_default=True,
+              help="Frames per group (the network's N).")
+@click.option("--stride", type=int, default=7, show_default=True, help="Frames between pivots.")
+@click.option("--fpa-c", type=float, default=None, help="FPA temperature, °C (overrides sidecar).")
+@click.option("--preview-every", type=int, default=1, show_default=True,
+              help="A PNG preview every K pivots (0: none).")
+def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
+           model: str | None, n_frames: int, stride: int, fpa_c: float | None,
+           preview_every: int) -> None:
+    """Turn a whole RECORDING (frames.tiff + sidecar) into one temperature map per pivot."""
+    from thermocal.io.recording import read_recording_header
+    from thermocal.pipeline.flight import FlightOptions, process_flight
+
+    options = FlightOptions(method=method, calibration=calibration, model=model, frames=n_frames,
+                            stride=stride, fpa_c=fpa_c, preview_every=preview_every)
+    total = read_recording_header(recording).n_frames
+    with progress_bar() as bar:
+        task = bar.add_task("flight", total=total - total % stride or total)
+        summary = process_flight(recording, out_dir, options,
+                                 progress=lambda k: bar.advance(task, k))
+    click.echo(
+        f"{summary['processed']} temperature maps written to {out_dir}/temps "
+        f"({summary['skipped_already_done']} already done, {summary['failed']} failed) "
+        f"in {summary['wall_time_s']:.1f} s"
+    )

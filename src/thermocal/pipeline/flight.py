@@ -1,0 +1,265 @@
+"""Process a whole flight: overlapping groups of frames → one temperature map per pivot.
+
+The recording is streamed (a few groups of frames in memory at a time). Each group of ``N``
+consecutive frames is registered onto its middle frame (the pivot) and turned into that pivot's
+temperature map by the chosen method: the kernel prediction network (``kpn``, ``kpn-no-offset``,
+``e2e``), the registered average of a calibration (``mean``, Oz et al. eq. 9) or any per-frame
+calibration applied to the pivot (``calibration``). Outputs, each written atomically::
+
+    OUT/temps/frame_000123.tiff     float32 °C (H, W), one per pivot
+    OUT/previews/frame_000123.png   a preview with a colour bar in °C
+    OUT/log.jsonl                   one line per pivot: frame, time, FPA, inliers, warnings, timing
+    OUT/log.csv, OUT/summary.json   written at the end (frames per second per stage)
+
+A rerun with the same options resumes: pivots whose TIFF exists are skipped.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import time
+import warnings
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from thermocal.errors import InvalidInputError, RegistrationError
+from thermocal.io.atomic import atomic_path, ensure_output_dir, write_json_atomic
+from thermocal.io.recording import iter_recording, read_recording_header, write_temperature_tiff
+
+NETWORK_METHODS = ("kpn", "kpn-no-offset", "e2e")
+METHODS = (*NETWORK_METHODS, "mean", "calibration")
+
+
+@dataclass(frozen=True)
+class FlightOptions:
+    """How to process a flight (see :func:`process_flight`)."""
+
+    method: str = "kpn"
+    calibration: str | None = None
+    model: str | None = None
+    frames: int = 7
+    stride: int = 7
+    fpa_c: float | None = None
+    preview_every: int = 1
+
+    def __post_init__(self) -> None:
+        if self.method not in METHODS:
+            raise InvalidInputError(f"unknown method {self.method!r}; choose from {METHODS}")
+        if self.frames < 1 or self.stride < 1:
+            raise InvalidInputError("--frames and --stride must be >= 1")
+        if self.method in ("mean", "calibration") and self.calibration is None:
+            raise InvalidInputError(f"--method {self.method} needs --calibration CAL.h5")
+        if self.preview_every < 0:
+            raise InvalidInputError("--preview-every must be >= 0 (0: no previews)")
+
+
+@dataclass
+class StageTimes:
+    """Seconds spent per stage and frames that went through it."""
+
+    seconds: dict[str, float] = field(
+        default_factory=lambda: dict.fromkeys(("reading", "registration", "estimate", "writing"),
+                                              0.0)
+    )
+
+    def add(self, stage: str, started: float) -> float:
+        now = time.perf_counter()
+        self.seconds[stage] += now - started
+        return now
+
+
+def pivots_of(n_total: int, n: int, stride: int) -> list[int]:
+    """Pivot frame indices of the groups ``[p − n//2, p − n//2 + n)`` that fit the recording."""
+    if n_total < n:
+        raise InvalidInputError(f"the recording has {n_total} frames, fewer than a group of {n}")
+    return [start + n // 2 for start in range(0, n_total - n + 1, stride)]
+
+
+class _Estimator:
+    """Turns a group of raw frames into the pivot's temperature map, for one method."""
+
+    def __init__(self, options: FlightOptions, frame_shape: tuple[int, int]) -> None:
+        self.options = options
+        self.calibration = None
+        if options.calibration is not None:
+            from thermocal.calibration import load_any_calibration
+
+            self.calibration = load_any_calibration(options.calibration)
+            if tuple(self.calibration.shape) != tuple(frame_shape):
+                raise InvalidInputError(
+                    f"the calibration is {self.calibration.shape[1]}x{self.calibration.shape[0]} "
+                    f"but the frames are {frame_shape[1]}x{frame_shape[0]}"
+                )
+        if options.method in NETWORK_METHODS:
+            from thermocal.nn.infer import shipped_model_path
+            from thermocal.nn.train import load_model
+
+            path = options.model or shipped_model_path(options.method)
+            self.model, self.norm, _ = load_model(path)
+            if self.model.config.n_frames != options.frames:
+                raise InvalidInputError(
+                    f"the model was trained for N = {self.model.config.n_frames} frames; "
+                    f"use --frames {self.model.config.n_frames}"
+                )
+
+    def register(self, frames: np.ndarray, pivot: int):
+        """The group's registration onto its pivot; None for per-frame calibrations."""
+        if self.options.method == "calibration":
+            return None
+        from thermocal.registration import register_burst
+
+        return register_burst(frames, pivot=pivot)
+
+    def estimate(self, frames, fpa_c, time_s, registration, pivot: int) -> np.ndarray:
+        method = self.options.method
+        if method in NETWORK_METHODS:
+            from thermocal.nn.infer import estimate_burst
+
+            return estimate_burst(frames, fpa_c, model=self.model, norm=self.norm, pivot=pivot,
+                                  homographies=registration.homographies).temperature_c
+        if method == "mean":
+            from thermocal.nn.infer import naive_mean
+
+            return naive_mean(frames, self.calibration, fpa_c=fpa_c, pivot=pivot,
+                              homographies=registration.homographies).temperature_c
+        return self.calibration.apply(frames, fpa_c=fpa_c, time_s=time_s)[pivot]
+
+
+def _preview(path: Path, temp_c: np.ndarray, title: str) -> None:
+    from thermocal.plotting import save_figure, temperature_figure
+
+    save_figure(temperature_figure(temp_c, title=title), path, dpi=80)
+
+
+def process_flight(
+    recording: str | Path,
+    out_dir: str | Path,
+    options: FlightOptions = FlightOptions(),
+    *,
+    progress: Callable[[int], None] | None = None,
+) -> dict[str, Any]:
+    """Process a recording into per-pivot temperature maps in ``out_dir``; returns the summary.
+
+    ``progress(k)`` is called with the number of frames each finished group advanced.
+    """
+    header = read_recording_header(recording, fpa_c=options.fpa_c)
+    fpa = header.series["fpa_c"]
+    if fpa is None and options.method != "calibration":
+        raise InvalidInputError(
+            f"{header.path}: no FPA temperature (sidecar fpa_c); give --fpa-c"
+        )
+    time_s = header.series["time_s"]
+    n, stride = options.frames, options.stride
+    pivots = pivots_of(header.n_frames, n, stride)
+    out = ensure_output_dir(Path(out_dir))
+    for sub in ("temps", "previews"):
+        ensure_output_dir(out / sub)
+    log_path = out / "log.jsonl"
+    done = _finished_pivots(out)
+    estimator = _Estimator(options, header.frame_shape)
+    times = StageTimes()
+    buffer_start, buffer = 0, np.empty((0, *header.frame_shape), np.uint16)
+    chunks = iter_recording(header.path, chunk=max(64, n))
+    processed = skipped = failed = 0
+    started = time.perf_counter()
+    with open(log_path, "a", encoding="utf-8") as log:
+        for pivot in pivots:
+            first = pivot - n // 2
+            if pivot in done:
+                skipped += 1
+                if progress:
+                    progress(stride)
+                continue
+            t = time.perf_counter()
+            while buffer_start + len(buffer) < first + n:  # read until the group is in memory
+                start, chunk = next(chunks)
+                keep = max(0, first - buffer_start)
+                buffer = np.concatenate([buffer[keep:], chunk]) if len(buffer) else chunk
+                buffer_start = start + len(chunk) - len(buffer)
+            group = buffer[first - buffer_start : first - buffer_start + n]
+            t = times.add("reading", t)
+            entry = {"frame": pivot, "time_s": None if time_s is None else float(time_s[pivot]),
+                     "fpa_c": None if fpa is None else float(fpa[pivot]), "warnings": []}
+            group_fpa = None if fpa is None else fpa[first : first + n]
+            group_time = None if time_s is None else time_s[first : first + n]
+            try:
+                with warnings.catch_warnings(record=True) as caught:
+                    warnings.simplefilter("always")
+                    registration = estimator.register(group, n // 2)
+                    t = times.add("registration", t)
+                    temp = estimator.estimate(group, group_fpa, group_time, registration, n // 2)
+                    t = times.add("estimate", t)
+                entry["warnings"] = sorted({str(w.message) for w in caught})
+                if registration is not None:
+                    entry["inliers"] = [int(v) for v in registration.inliers]
+            except (RegistrationError, InvalidInputError) as exc:
+                entry["error"] = str(exc)
+                failed += 1
+            else:
+                name = f"frame_{pivot:06d}"
+                write_temperature_tiff(out / "temps" / f"{name}.tiff", temp)
+                if options.preview_every and processed % options.preview_every == 0:
+                    _preview(out / "previews" / f"{name}.png", temp,
+                             f"frame {pivot}, {options.method}")
+                entry["mean_c"] = float(temp.mean())
+                processed += 1
+                times.add("writing", t)
+            log.write(json.dumps(entry) + "\n")
+            log.flush()
+            if progress:
+                progress(stride)
+    elapsed = time.perf_counter() - started
+    entries = _read_log(log_path)
+    _write_csv(out / "log.csv", entries)
+    frames_done = processed * n
+    summary = {
+        "recording": str(header.path),
+        "options": asdict(options),
+        "groups": len(pivots),
+        "processed": processed,
+        "skipped_already_done": skipped,
+        "failed": failed,
+        "wall_time_s": elapsed,
+        "frames_per_second": {
+            stage: (frames_done / s if s > 0 else None) for stage, s in times.seconds.items()
+        },
+        "stage_seconds": times.seconds,
+    }
+    write_json_atomic(out / "summary.json", summary)
+    return summary
+
+
+def _finished_pivots(out: Path) -> set[int]:
+    """Pivots already written by an earlier run (their TIFF exists)."""
+    return {int(p.stem.split("_")[1]) for p in (out / "temps").glob("frame_*.tiff")}
+
+
+def _read_log(log_path: Path) -> list[dict[str, Any]]:
+    entries: dict[int, dict[str, Any]] = {}
+    for line in log_path.read_text(encoding="utf-8").splitlines():
+        try:
+            entry = json.loads(line)
+        except json.JSONDecodeError:  # a line cut by an interruption
+            continue
+        entries[int(entry["frame"])] = entry  # the latest try of each pivot
+    return [entries[k] for k in sorted(entries)]
+
+
+def _write_csv(path: Path, entries: list[dict[str, Any]]) -> None:
+    columns = ("frame", "time_s", "fpa_c", "mean_c", "min_inliers", "warnings", "error")
+    with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as f:
+        writer = csv.writer(f)
+        writer.writerow(columns)
+        for e in entries:
+            inl = e.get("inliers")
+            writer.writerow([e.get("frame"), e.get("time_s"), e.get("fpa_c"), e.get("mean_c"),
+                             min(inl) if inl else None, "; ".join(e.get("warnings", [])),
+                             e.get("error", "")])
+
+
+__all__ = ["METHODS", "FlightOptions", "pivots_of", "process_flight"]

@@ -1,0 +1,99 @@
+"""thermocal flight: streamed groups, per-pivot outputs, resume, and bad input."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from thermocal.calibration import fit_calibration
+from thermocal.camera import make_camera
+from thermocal.errors import FileFormatError, InvalidInputError
+from thermocal.io.recording import read_temperature_tiff
+from thermocal.pipeline.flight import FlightOptions, pivots_of, process_flight
+from thermocal.simulate.chamber import ChamberPlan, write_simulated_chamber
+from thermocal.simulate.flight import plan_flight, write_simulated_flight
+
+SIZE = (64, 48)
+UNIT = 9
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory):
+    """A polynomial calibration of one unit and a 23-frame flight of the same unit."""
+    tmp = tmp_path_factory.mktemp("pipeline")
+    camera = make_camera("tau2", unit=UNIT, size=SIZE)
+    plan = ChamberPlan(setpoints_c=(10.0, 20.0, 30.0, 40.0, 50.0), frames_per_point=2,
+                       profile="sawtooth", ambient_c=(15.0, 35.0), rate_c_per_min=0.2,
+                       interval_s=20.0)
+    write_simulated_chamber(tmp / "chamber.h5", camera, plan, seed=1)
+    cal = fit_calibration(tmp / "chamber.h5", method="polynomial", frames="settled")
+    cal.save(tmp / "cal.h5")
+    scene = 20.0 + 10.0 * np.random.default_rng(0).random((64, 64))
+    flight = plan_flight(scene, camera, n_frames=23, motion="uav", fpa_c=28.0, seed=2)
+    write_simulated_flight(tmp / "flight", flight, camera)
+    return tmp
+
+
+def test_pivots_cover_whole_groups():
+    assert pivots_of(23, 7, 7) == [3, 10, 17]
+    assert pivots_of(7, 7, 3) == [3]
+    with pytest.raises(InvalidInputError, match="fewer than a group"):
+        pivots_of(5, 7, 7)
+
+
+def test_calibration_method_writes_one_map_per_pivot_and_resumes(setup, tmp_path):
+    options = FlightOptions(method="calibration", calibration=str(setup / "cal.h5"),
+                            preview_every=2)
+    out = tmp_path / "out"
+    summary = process_flight(setup / "flight" / "frames.tiff", out, options)
+    assert summary["processed"] == 3 and summary["failed"] == 0
+    names = sorted(p.name for p in (out / "temps").iterdir())
+    assert names == ["frame_000003.tiff", "frame_000010.tiff", "frame_000017.tiff"]
+    assert sorted(p.name for p in (out / "previews").iterdir()) == ["frame_000003.png",
+                                                                    "frame_000017.png"]
+    truth = read_temperature_tiff(setup / "flight" / "truth.tiff")
+    temp = read_temperature_tiff(out / "temps" / "frame_000010.tiff")
+    assert np.median(np.abs(temp - truth[10])) < 0.15
+    log = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+    assert [e["frame"] for e in log] == [3, 10, 17]
+    assert (out / "log.csv").read_text().count("\n") == 4
+
+    (out / "temps" / "frame_000010.tiff").unlink()  # as if interrupted before this pivot
+    again = process_flight(setup / "flight" / "frames.tiff", out, options)
+    assert again["processed"] == 1 and again["skipped_already_done"] == 2
+    assert (out / "temps" / "frame_000010.tiff").exists()
+
+
+def test_mean_of_registered_group(setup, tmp_path):
+    options = FlightOptions(method="mean", calibration=str(setup / "cal.h5"), preview_every=0)
+    summary = process_flight(setup / "flight" / "frames.tiff", tmp_path / "o", options)
+    assert summary["processed"] + summary["failed"] == 3
+    assert not (tmp_path / "o" / "previews").exists() or not any(
+        (tmp_path / "o" / "previews").iterdir())
+
+
+def test_bad_input(setup, tmp_path):
+    rec = setup / "flight" / "frames.tiff"
+    with pytest.raises(InvalidInputError, match="needs --calibration"):
+        FlightOptions(method="mean")
+    (tmp_path / "file").write_text("")
+    with pytest.raises(InvalidInputError):
+        process_flight(rec, tmp_path / "file", FlightOptions(method="calibration",
+                                                            calibration=str(setup / "cal.h5")))
+    # a sidecar whose length does not match the frames
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "frames.tiff").write_bytes(rec.read_bytes())
+    meta = json.loads((setup / "flight" / "frames.json").read_text())
+    meta["fpa_c"] = meta["fpa_c"][:-1]
+    (bad / "frames.json").write_text(json.dumps(meta))
+    with pytest.raises(FileFormatError, match="fpa_c"):
+        process_flight(bad / "frames.tiff", tmp_path / "o2", FlightOptions(method="kpn"))
+    # a truncated recording
+    (bad / "frames.json").unlink()
+    (bad / "frames.tiff").write_bytes(rec.read_bytes()[: rec.stat().st_size // 2])
+    with pytest.raises(FileFormatError):
+        process_flight(bad / "frames.tiff", tmp_path / "o3", FlightOptions(method="kpn"))
+    assert not (tmp_path / "o2").exists() and not (tmp_path / "o3").exists()
