@@ -208,6 +208,7 @@ COMMANDS: list[tuple[str, str]] = [
     ("thermocal.nn.commands", "estimate"),
     ("thermocal.nn.commands", "train"),
     ("thermocal.pipeline.commands", "flight"),
+    ("thermocal.bench", "bench"),
 ]
 _register_commands()
 

@@ -1,0 +1,124 @@
+"""``thermocal bench``: run the accuracy and speed benchmarks of ``benchmarks/`` and gather them.
+
+Each benchmark is a script of the source tree (``benchmarks/NAME.py [--quick] [--json OUT]``) that
+prints Markdown tables; this command runs them one after the other, each in its own process (so
+their timings do not disturb each other), and writes one JSON file and one Markdown report that
+names the machine. It needs a source checkout: the benchmarks are not installed with the package.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import platform
+import subprocess
+import sys
+import tempfile
+import time
+from datetime import UTC, datetime
+from pathlib import Path
+
+import click
+
+from thermocal.errors import InvalidInputError
+
+BENCHMARKS = ("simulator", "calibration", "registration", "nuc", "kpn")
+
+
+def machine() -> str:
+    """One line naming this machine: CPU model, cores, memory, Python."""
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="ascii", errors="replace") as f:
+            cpu = next(line.split(":", 1)[1].strip() for line in f if "model name" in line)
+    except (OSError, StopIteration):
+        pass
+    mem = ""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as f:
+            kib = int(next(line.split()[1] for line in f if line.startswith("MemTotal")))
+        mem = f", {kib / 2**20:.0f} GiB"
+    except (OSError, StopIteration, ValueError):
+        pass
+    return f"{cpu}, {os.cpu_count()} cores{mem}, Python {platform.python_version()}"
+
+
+def find_benchmarks(start: Path | None = None) -> Path:
+    """The ``benchmarks/`` folder of the source checkout this package runs from."""
+    here = Path(__file__).resolve()
+    for root in [*(start.resolve().parents if start else []), *here.parents]:
+        candidate = root / "benchmarks"
+        if (candidate / "simulator.py").is_file():
+            return candidate
+    raise InvalidInputError(
+        "thermocal bench needs a source checkout (benchmarks/ is not installed); "
+        "run it from a clone of the repository"
+    )
+
+
+def run_benchmarks(names: tuple[str, ...], *, quick: bool, folder: Path) -> dict:
+    """Run each benchmark script; returns ``{name: {"markdown", "results", "seconds", "rc"}}``."""
+    out: dict[str, dict] = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        for name in names:
+            json_path = Path(tmp) / f"{name}.json"
+            cmd = [sys.executable, str(folder / f"{name}.py"), "--json", str(json_path)]
+            if quick:
+                cmd.append("--quick")
+            click.echo(f"running benchmarks/{name}.py{' --quick' if quick else ''} …", err=True)
+            started = time.perf_counter()
+            proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
+            seconds = time.perf_counter() - started
+            results = json.loads(json_path.read_text()) if json_path.is_file() else None
+            out[name] = {"markdown": proc.stdout.strip(), "results": results, "seconds": seconds,
+                         "rc": proc.returncode,
+                         "stderr_tail": proc.stderr.strip().splitlines()[-5:]}
+    return out
+
+
+def markdown_report(runs: dict, *, quick: bool, host: str) -> str:
+    """The Markdown report: a header with the machine, then each benchmark's own tables."""
+    lines = [
+        f"# thermocal benchmarks{' (--quick)' if quick else ''}",
+        "",
+        f"- machine: {host}",
+        f"- date: {datetime.now(UTC).strftime('%Y-%m-%d %H:%M UTC')}",
+        f"- command: `thermocal bench{' --quick' if quick else ''}`",
+        "",
+    ]
+    for name, run in runs.items():
+        status = "" if run["rc"] == 0 else f" — FAILED (exit {run['rc']})"
+        lines += [f"## {name} ({run['seconds']:.0f} s){status}", "",
+                  run["markdown"] or "(no output)"]
+        if run["rc"] != 0:
+            lines += ["", "```", *run["stderr_tail"], "```"]
+        lines.append("")
+    return "\n".join(lines)
+
+
+@click.command("bench")
+@click.option("--quick", is_flag=True, help="Small and short versions (about 5 minutes).")
+@click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path),
+              default=None, help="Write all results to this JSON file.")
+@click.option("--markdown", "md_out", type=click.Path(dir_okay=False, path_type=Path),
+              default=None, help="Write the Markdown report here (default: print it).")
+@click.option("--only", type=click.Choice(BENCHMARKS), multiple=True,
+              help="Run only these benchmarks (repeatable).")
+def bench(quick: bool, json_out: Path | None, md_out: Path | None, only: tuple[str, ...]) -> None:
+    """Run the calibration, registration, NUC, network and simulator benchmarks."""
+    from thermocal.io.atomic import atomic_path, write_json_atomic
+
+    folder = find_benchmarks(Path.cwd())
+    host = machine()
+    runs = run_benchmarks(only or BENCHMARKS, quick=quick, folder=folder)
+    report = markdown_report(runs, quick=quick, host=host)
+    if json_out:
+        write_json_atomic(json_out, {"machine": host, "quick": quick, "benchmarks": runs})
+    if md_out:
+        with atomic_path(md_out) as tmp:
+            tmp.write_text(report + "\n", encoding="utf-8")
+    else:
+        click.echo(report)
+    failed = [name for name, run in runs.items() if run["rc"] != 0]
+    if failed:
+        raise click.ClickException(f"benchmarks failed: {', '.join(failed)}")
