@@ -1,58 +1,69 @@
 """``thermocal demo``: the main job on built-in data, end to end, with honest numbers.
 
-A seeded Tau2-class camera unit is calibrated in a simulated chamber (two-point calibration at one
-FPA temperature), then flown over a real aerial radiometric scene (built in) at that FPA temperature
-and 10 °C above it. Every estimate is compared with the ground truth; the table shows what the
-calibration gets right and how it drifts with the FPA temperature.
+A seeded Tau2-class camera unit that the network never saw in training is calibrated in a simulated
+environmental chamber (two-point and per-pixel polynomial calibrations), then flown over the
+built-in real aerial scene on a warm day. Each pivot frame of the pass is turned into temperature
+by the classical methods and by the kernel prediction network (calibration-free: it needs only the
+FPA temperature), and compared with the ground truth.
 """
 
 from __future__ import annotations
 
+import json
+import tempfile
 import time
+import warnings
+from importlib.resources import files
 from pathlib import Path
 
 import numpy as np
 
 from thermocal import metrics
-from thermocal.calibration.two_point import fit_two_point
+from thermocal.calibration import fit_calibration
 from thermocal.camera.model import invert
 from thermocal.camera.presets import make_camera
-from thermocal.camera.thermal import ThermalParams
 from thermocal.io.atomic import ensure_output_dir, write_json_atomic
 from thermocal.scenes.builtin import load_builtin_scene
-from thermocal.simulate.chamber import ChamberPlan, radiance_temperature_c, simulate_chamber
+from thermocal.simulate.chamber import ChamberPlan, write_simulated_chamber
 from thermocal.simulate.flight import simulate_flight
 
-DEMO_UNIT = 7
-CALIBRATION_FPA_C = 30.0
-FLIGHT_FPA_C = (30.0, 40.0)
+#: A unit outside the network's training (0–23) and validation (50–53) units.
+DEMO_UNIT = 101
+FLIGHT_FPA_C = 36.0
+TWO_POINT_FPA_C = 30.0
+N_FRAMES = 7
+N_GROUPS = 3
 
 
-def calibrate_two_point_in_chamber(camera, *, fpa_c: float, seed: int):
-    """Simulate a short chamber session at a settled FPA and fit a two-point calibration."""
-    thermal = ThermalParams()
-    ambient = thermal.ambient_for_fpa_c(fpa_c)
-    low_c, high_c = 10.0, 50.0
+def calibrate_in_chamber(camera, *, seed: int, tmp: Path) -> dict:
+    """A simulated chamber session of ``camera`` and the calibrations fitted on it."""
     plan = ChamberPlan(
-        setpoints_c=(low_c, high_c),
-        frames_per_point=16,
-        profile="constant",
-        ambient_c=(ambient, ambient),
-        interval_s=1.0,
-        duration_s=32.0,
+        setpoints_c=(0.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0),
+        frames_per_point=2,
+        profile="sawtooth",
+        ambient_c=(15.0, 35.0),
+        rate_c_per_min=0.25,
+        interval_s=20.0,
     )
-    parts = list(simulate_chamber(camera, plan, seed=seed, thermal=thermal))
-    frames = np.concatenate([p.frames for p in parts])
-    blackbody = np.concatenate([p.blackbody_c for p in parts])
-    effective = radiance_temperature_c(
-        blackbody, np.concatenate([p.ambient_c for p in parts]), plan.emissivity, camera.band
-    )
-    fpa = float(np.median(np.concatenate([p.fpa_c for p in parts])))
-    low, high = blackbody == low_c, blackbody == high_c
-    return fit_two_point(
-        frames[low], frames[high], float(effective[low].mean()), float(effective[high].mean()),
-        fpa_ref_c=fpa,
-    )
+    path = tmp / "chamber.h5"
+    write_simulated_chamber(path, camera, plan, seed=seed)
+    return {
+        f"two-point (FPA {TWO_POINT_FPA_C:.0f} °C)": fit_calibration(
+            path, method="two-point", fpa_ref_c=TWO_POINT_FPA_C),
+        "polynomial (per pixel, FPA-dependent)": fit_calibration(
+            path, method="polynomial", scene="radiance", frames="settled"),
+    }
+
+
+def _network():
+    """The shipped KPN + offset model, or None (with the reason) when torch is not installed."""
+    try:
+        from thermocal.nn.infer import shipped_model_path
+        from thermocal.nn.train import load_model
+    except ImportError as exc:  # torch is an optional dependency
+        return None, f"network skipped: {exc}"
+    model, norm, _ = load_model(shipped_model_path("kpn"))
+    return (model, norm), ""
 
 
 def _scores(estimate: np.ndarray, truth: np.ndarray, valid: np.ndarray) -> dict[str, float]:
@@ -63,73 +74,83 @@ def _scores(estimate: np.ndarray, truth: np.ndarray, valid: np.ndarray) -> dict[
     }
 
 
-def run_demo(out_dir: str | Path, *, unit: int = DEMO_UNIT, size=(336, 256), n_frames: int = 9,
+def run_demo(out_dir: str | Path, *, unit: int = DEMO_UNIT, size=(336, 256),
              seed: int = 2026) -> dict:
-    """Run the demo, print its table, write ``results.json`` and one figure per flight."""
+    """Run the demo, print its table, write ``results.json`` and the figures; return results."""
     from rich.console import Console
     from rich.table import Table
 
-    from thermocal.plotting import burst_report_figure, save_figure
+    from thermocal.plotting import burst_report_figure, error_cdf_figure, save_figure
 
     started = time.perf_counter()
     console = Console()
-    out = Path(out_dir)
-    ensure_output_dir(out)
+    out = ensure_output_dir(Path(out_dir))
     camera = make_camera("tau2", unit=unit, size=size)
-    calibration = calibrate_two_point_in_chamber(camera, fpa_c=CALIBRATION_FPA_C, seed=seed)
+    with tempfile.TemporaryDirectory() as tmp:
+        calibrations = calibrate_in_chamber(camera, seed=seed, tmp=Path(tmp))
+    network, note = _network()
+
     scene = load_builtin_scene("aerial")
+    flight = simulate_flight(scene, camera, n_frames=N_FRAMES * N_GROUPS, motion="uav",
+                             fpa_c=FLIGHT_FPA_C, seed=seed + 1)
+    pivots = [g * N_FRAMES + N_FRAMES // 2 for g in range(N_GROUPS)]
+    estimates: dict[str, list[np.ndarray]] = {}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # e.g. the two-point used away from its FPA: shown below
+        for pivot in pivots:
+            first = pivot - N_FRAMES // 2
+            group = flight.frames[first:first + N_FRAMES]
+            fpa = flight.fpa_c[first:first + N_FRAMES]
+            for name, cal in calibrations.items():
+                temp = cal.apply(flight.frames[pivot], fpa_c=flight.fpa_c[pivot])[0]
+                estimates.setdefault(name, []).append(temp)
+            if network is not None:
+                from thermocal.nn.infer import estimate_burst
 
-    rows = []
-    figures = []
-    for fpa_c in FLIGHT_FPA_C:
-        flight = simulate_flight(
-            scene, camera, n_frames=n_frames, motion="uav", fpa_c=fpa_c, seed=seed + 1
-        )
-        estimates = {
-            f"two-point (fitted at FPA {CALIBRATION_FPA_C:.0f} °C)": calibration.apply(
-                flight.frames
-            ),
-            "true camera model (oracle)": invert(
-                camera,
-                flight.frames,
-                flight.fpa_true_c,
-                housing_c=flight.housing_c,
-                fpa_rate_c_per_min=0.0,
-            ),
-        }
-        # The camera's few dead and hot pixels carry no information: scored everywhere else.
-        valid = np.broadcast_to(~camera.defects, flight.truth_c.shape)
-        for method, est in estimates.items():
-            rows.append({"method": method, "fpa_c": fpa_c, **_scores(est, flight.truth_c, valid)})
-        p = flight.pivot
-        fig = burst_report_figure(
-            flight.frames[p],
-            flight.truth_c[p],
-            {m.split(" (")[0]: e[p] for m, e in estimates.items()},
-            title=f"pivot frame, FPA {fpa_c:.0f} °C (two-point calibrated at "
-            f"{CALIBRATION_FPA_C:.0f} °C)",
-            valid=~camera.defects,
-        )
-        figures.append(f"report_fpa{fpa_c:.0f}.png")
-        save_figure(fig, out / figures[-1])
+                est = estimate_burst(group, fpa, model=network[0], norm=network[1])
+                estimates.setdefault("KPN + offset (calibration-free)", []).append(
+                    est.temperature_c)
+            oracle = invert(camera, flight.frames[pivot], flight.fpa_true_c[pivot],
+                            housing_c=flight.housing_c[pivot])[0]
+            estimates.setdefault("true camera model (oracle)", []).append(oracle)
 
-    table = Table(
-        title=f"Tau2-class unit {unit}, {size[0]}x{size[1]}, UAV pass of {n_frames} frames over "
-        "the built-in aerial scene (flirpy, -3.4...9.9 °C); dead and hot pixels excluded"
-    )
-    for col in ("method", "flight FPA °C", "MAE °C", "RMSE °C", "within 0.5 °C"):
+    truth = flight.truth_c[pivots]
+    # The unit's few dead and hot pixels carry no information: scored everywhere else.
+    valid = np.broadcast_to(~camera.defects, truth.shape)
+    rows = [{"method": m, **_scores(np.stack(e), truth, valid)} for m, e in estimates.items()]
+
+    table = Table(title=(
+        f"Tau2-class unit {unit} ({size[0]}x{size[1]}), never seen by the network; UAV pass over "
+        f"the built-in aerial scene at FPA {FLIGHT_FPA_C:.0f} °C; {N_GROUPS} pivot frames of "
+        f"{N_FRAMES}-frame groups; dead/hot pixels excluded"))
+    for col in ("method", "MAE °C", "RMSE °C", "within 0.5 °C"):
         table.add_column(col, justify="left" if col == "method" else "right")
     for r in rows:
-        table.add_row(
-            r["method"], f"{r['fpa_c']:.0f}", f"{r['mae_c']:.3f}", f"{r['rmse_c']:.3f}",
-            f"{100 * r['within_0.5c']:.1f} %",
-        )
+        table.add_row(r["method"], f"{r['mae_c']:.3f}", f"{r['rmse_c']:.3f}",
+                      f"{100 * r['within_0.5c']:.1f} %")
     console.print(table)
+    if note:
+        console.print(note)
+
+    shown = {m.split(" (")[0]: e[0] for m, e in estimates.items() if "oracle" not in m}
+    figures = {"report.png": burst_report_figure(
+        flight.frames[pivots[0]], truth[0], shown, valid=~camera.defects,
+        title=f"pivot frame {pivots[0]}, FPA {FLIGHT_FPA_C:.0f} °C, camera unit {unit}")}
+    figures["error_cdf.png"] = error_cdf_figure(
+        {m: np.stack(e) for m, e in estimates.items()}, truth, valid=valid)
+    fig7 = _fig7_results()
+    if fig7 is not None:
+        from thermocal.plotting import mae_vs_frames_figure
+
+        figures["mae_vs_n.png"] = mae_vs_frames_figure(fig7)
+    for name, fig in figures.items():
+        save_figure(fig, out / name)
 
     results = {
         "camera": {"preset": "tau2", "unit": unit, "size": list(size)},
-        "scene": "aerial (flirpy example_radiometric.tiff)",
-        "n_frames": n_frames,
+        "scene": "aerial (flirpy example_radiometric.tiff, built in)",
+        "flight_fpa_c": FLIGHT_FPA_C,
+        "pivots": pivots,
         "seed": seed,
         "rows": rows,
         "wall_time_s": time.perf_counter() - started,
@@ -138,3 +159,9 @@ def run_demo(out_dir: str | Path, *, unit: int = DEMO_UNIT, size=(336, 256), n_f
     console.print(f"report written to {out}/ ({', '.join(figures)}, results.json) in "
                   f"{results['wall_time_s']:.1f} s")
     return results
+
+
+def _fig7_results() -> dict | None:
+    """MAE against N from the network benchmark, shipped beside the weights (if present)."""
+    path = Path(str(files("thermocal") / "nn" / "weights" / "fig7.json"))
+    return json.loads(path.read_text()) if path.is_file() else None

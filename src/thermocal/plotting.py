@@ -84,3 +84,44 @@ def temperature_figure(temp_c: np.ndarray, *, title: str = ""):
     if title:
         ax.set_title(title, fontsize=9)
     return fig
+
+
+def error_cdf_figure(estimates_c: dict[str, np.ndarray], truth_c: np.ndarray, *,
+                     valid: np.ndarray | None = None, max_error_c: float = 3.0):
+    """Fraction of pixels within an absolute error, per method, with the 0.5 °C line
+    (Oz et al. Fig. 12). Returns the figure."""
+    from thermocal.metrics import error_cdf
+
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6.0, 4.0))
+    for name, est in estimates_c.items():
+        thresholds, fraction = error_cdf(est, truth_c, valid=valid, max_error=max_error_c)
+        ax.plot(thresholds, 100 * fraction, label=name)
+    ax.axvline(0.5, color="k", linestyle="--", linewidth=1)
+    ax.set_xlabel("absolute error (°C)")
+    ax.set_ylabel("pixels within (%)")
+    ax.set_xlim(0, max_error_c)
+    ax.set_ylim(0, 100)
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def mae_vs_frames_figure(results: dict):
+    """MAE against the number of frames N per network variant (Oz et al. Fig. 7).
+
+    ``results = {"n": [1, 3, …], "mae_c": {variant: [...]}, "note": "..."}``.
+    """
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6.0, 4.0))
+    for name, values in results["mae_c"].items():
+        ax.plot(results["n"], values, marker="o", label=name)
+    ax.set_xlabel("frames N")
+    ax.set_ylabel("MAE (°C)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    if results.get("note"):
+        ax.set_title(results["note"], fontsize=8)
+    fig.tight_layout()
+    return fig
