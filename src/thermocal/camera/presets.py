@@ -39,13 +39,13 @@ class CameraPreset:
     band_m: tuple[float, float] = (7.5e-6, 13.5e-6)
     t_ref_c: float = 25.0
     gain: float = 70.0
-    gain_unit_sigma: float = 0.04
+    gain_unit_sigma: float = 0.005
     gain_tempco: tuple[float, float, float] = (-4.0e-3, 1.5e-5, -1.0e-7)
     vignetting: float = 0.06
     gain_pixel_sigma: float = 0.015
     column_gain_range: tuple[float, float] = (0.9, 1.01)
     offset: float = 4500.0
-    offset_unit_sigma: float = 150.0
+    offset_unit_sigma: float = 15.0
     offset_radial: float = -100.0
     offset_pixel_sigma: float = 30.0
     column_offset_sigma: float = 6.0
@@ -55,7 +55,8 @@ class CameraPreset:
     housing_floor: float = 0.5
     transient: float = 75.0
     transient_radial: float = 0.3
-    radial_strength_range: tuple[float, float] = (0.6, 1.4)
+    radial_strength_range: tuple[float, float] = (0.8, 1.2)
+    tempco_unit_sigma: float = 0.05
     centre_jitter: float = 0.03
     defect_fraction: float = 2e-4
     hot_fraction: float = 0.4
@@ -103,7 +104,7 @@ def make_camera(
     strength = rng.uniform(*p.radial_strength_range, size=4)  # vignetting, offset, housing, trans.
     unit_gain = p.gain * (1.0 + p.gain_unit_sigma * rng.standard_normal())
     unit_offset = p.offset + p.offset_unit_sigma * rng.standard_normal()
-    tempco_scale = 1.0 + 0.1 * rng.standard_normal(3)
+    tempco_scale = 1.0 + p.tempco_unit_sigma * rng.standard_normal(3)
     transient_scale = float(np.clip(1.0 + 0.15 * rng.standard_normal(), 0.75, 1.25))
 
     pix = np.random.default_rng([zlib.crc32(p.name.encode()), int(unit), width, height])
