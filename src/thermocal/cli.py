@@ -191,13 +191,7 @@ def _register_commands() -> None:
     import importlib
 
     for module, name in COMMANDS:
-        try:
-            cmd = getattr(importlib.import_module(module), name)
-        except ModuleNotFoundError as exc:  # a capability not built yet
-            if not (exc.name and module.startswith(exc.name)):
-                raise
-            continue
-        cli.add_command(cmd)
+        cli.add_command(getattr(importlib.import_module(module), name))
 
 
 # (module, click command) pairs; each module keeps heavy imports (torch, cv2) inside functions.
