@@ -22,7 +22,7 @@ import click
 
 from thermocal.errors import InvalidInputError
 
-BENCHMARKS = ("simulator", "calibration", "registration", "nuc", "kpn")
+BENCHMARKS = ("simulator", "calibration", "registration", "nuc", "kpn", "flight")
 
 
 def machine() -> str:
