@@ -265,13 +265,15 @@ def _ransac(p_mov: np.ndarray, p_fix: np.ndarray) -> tuple[np.ndarray | None, in
 
 
 def register_pair(
-    moving: Any, fixed: Any, *, method: str = "auto"
+    moving: Any, fixed: Any, *, method: str = "auto", fixed_pattern: Any = None
 ) -> tuple[np.ndarray, int]:
     """Homography that maps pixels of ``moving`` onto ``fixed``.
 
     The pair is registered as a two-frame burst (:func:`thermocal.registration.register_burst`
-    with ``pivot=1``), so the fixed pattern is estimated from the two frames only: a pair is
-    much harder than a burst (see ``benchmarks/registration.py``).
+    with ``pivot=1``). Without ``fixed_pattern`` the pattern is estimated from the two frames
+    only, which fails on low-contrast scenes (see ``benchmarks/registration.py``); with the
+    pattern of the recording the frames come from
+    (:func:`thermocal.registration.estimate_fixed_pattern`) a pair is as easy as a burst.
 
     Parameters
     ----------
@@ -279,6 +281,8 @@ def register_pair(
         Raw frames (uint16 14-bit counts or float), same size. Never modified.
     method : {"auto", "ecc", "sift", "sift-ecc", "orb", "orb-ecc"}
         See :func:`thermocal.registration.register_burst`.
+    fixed_pattern : FixedPattern or array_like (H, W), optional
+        The known fixed pattern (counts) of the camera.
 
     Returns
     -------
@@ -302,5 +306,5 @@ def register_pair(
         raise ResolutionMismatchError(
             f"moving is {a.shape[1]}x{a.shape[0]} but fixed is {b.shape[1]}x{b.shape[0]}"
         )
-    reg = register_burst(np.stack([a, b]), pivot=1, method=method)
+    reg = register_burst(np.stack([a, b]), pivot=1, method=method, fixed_pattern=fixed_pattern)
     return reg.homographies[0], int(reg.inliers[0])

@@ -1,0 +1,301 @@
+"""Registering a long recording frame by frame: each frame to the one before it.
+
+For a recording of thousands of frames (a UAV pass at 3.8 px of motion per frame) the fixed
+pattern is estimated from the recording itself -- the temporal median over a long window, where
+the scene has moved far (:func:`~thermocal.registration.fixed_pattern.estimate_fixed_pattern`)
+-- and removed; consecutive frames then overlap by 95 % or more and are aligned quickly:
+
+1. **candidates**: the motion of the previous pair (a camera moves smoothly) and the two
+   strongest phase-correlation peaks at half resolution;
+2. **ECC** (``cv2.findTransformECC``, affine) at half resolution from the candidates (a few
+   iterations each, the best continuing), then at full resolution.
+
+Frame → pivot homographies for a burst inside the recording compose the chain
+(:meth:`SequenceRegistration.to_pivot`); their error grows with the distance to the pivot (see
+``benchmarks/registration.py``).
+
+A pair whose correlation stays below :data:`MIN_CORRELATION` or whose homography is degenerate is
+flagged (``ok`` False), not dropped: :meth:`SequenceRegistration.to_pivot` refuses to compose
+through it.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from thermocal.errors import InvalidInputError, RegistrationError
+from thermocal.registration import _dense as dense
+from thermocal.registration.features import check_homography
+from thermocal.registration.fixed_pattern import (
+    FixedPattern,
+    as_fixed_pattern,
+    estimate_fixed_pattern,
+)
+
+__all__ = ["MIN_CORRELATION", "SequenceRegistration", "register_sequence"]
+
+#: Lowest ECC correlation accepted between consecutive FPN-corrected frames.
+MIN_CORRELATION = 0.5
+#: Frames per block that share one fixed-pattern estimate (when it is estimated here).
+BLOCK_FRAMES = 512
+
+_LEVEL = 1  # pyramid level of the coarse alignment
+_HIGHPASS = 12.0  # px at that level
+_BLUR = 1.0  # px at full resolution
+_PEAKS = 2
+_RACE = 5
+_COARSE_ITERATIONS = 20
+_FINE_ITERATIONS = 10
+
+
+@dataclass(frozen=True, eq=False)
+class SequenceRegistration:
+    """Frame-to-previous homographies of a recording.
+
+    Attributes
+    ----------
+    to_previous : numpy.ndarray, shape (M, 3, 3), float64
+        Pixel ``(x, y)`` of frame ``k`` → pixel of frame ``k − 1``, ``h33 = 1``; the identity for
+        ``k = 0``.
+    correlation : numpy.ndarray, shape (M,), float64
+        ECC correlation of FPN-corrected frame ``k`` with frame ``k − 1`` (1 for ``k = 0``).
+    ok : numpy.ndarray, shape (M,), bool
+        Whether ``to_previous[k]`` is trusted: correlation at least :data:`MIN_CORRELATION` and a
+        plausible homography (True for ``k = 0``).
+    fixed_pattern : FixedPattern
+        The fixed-pattern estimate removed before aligning (the first block's when it was
+        estimated block by block, see ``patterns``).
+    patterns : tuple of FixedPattern
+        One estimate per block of ``block`` frames (a single one when it was given).
+    block : int
+        Frames per block of ``patterns``.
+    """
+
+    to_previous: np.ndarray
+    correlation: np.ndarray
+    ok: np.ndarray
+    fixed_pattern: FixedPattern
+    patterns: tuple[FixedPattern, ...] = ()
+    block: int = BLOCK_FRAMES
+
+    def __len__(self) -> int:
+        return len(self.to_previous)
+
+    def to_pivot(self, indices: Any, pivot: int) -> np.ndarray:
+        """Homographies of frames ``indices`` to frame ``pivot``, composed along the chain.
+
+        Parameters
+        ----------
+        indices : int or sequence of int
+            Frame indices (any order, may include ``pivot``).
+        pivot : int
+            Index of the pivot frame.
+
+        Returns
+        -------
+        numpy.ndarray, shape (n, 3, 3), float64
+            ``H_i``: pixel of frame ``indices[i]`` → pixel of the pivot; the pivot's own is the
+            identity. For ``i > pivot`` it is ``P[pivot+1] @ ... @ P[i]`` with ``P`` =
+            ``to_previous``; for ``i < pivot`` the inverse of ``P[i+1] @ ... @ P[pivot]``.
+
+        Raises
+        ------
+        RegistrationError
+            The chain between a frame and the pivot passes through a pair that failed (``ok``
+            False); the message names it.
+        InvalidInputError
+            An index outside the recording.
+        """
+        m = len(self.to_previous)
+        idx = np.atleast_1d(np.asarray(indices))
+        if idx.dtype.kind not in "iu" or idx.ndim != 1:
+            raise InvalidInputError(f"indices: expected frame indices, got {indices!r}")
+        for v in (*idx.tolist(), pivot):
+            if isinstance(v, bool) or not isinstance(v, int | np.integer) or not 0 <= v < m:
+                raise InvalidInputError(f"frame index {v!r} is outside the recording (0..{m - 1})")
+        p = int(pivot)
+        out = np.empty((len(idx), 3, 3))
+        for n, i in enumerate(idx.tolist()):
+            lo, hi = min(i, p), max(i, p)
+            bad = [k for k in range(lo + 1, hi + 1) if not self.ok[k]]
+            if bad:
+                k = bad[0]
+                raise RegistrationError(
+                    f"frame {i} cannot be composed onto pivot {p}: frame {k} was not registered "
+                    f"to frame {k - 1} (ECC correlation {self.correlation[k]:.2f})"
+                )
+            h = np.eye(3)
+            for k in range(lo + 1, hi + 1):
+                h = h @ self.to_previous[k]
+            if i < p:
+                h = np.linalg.inv(h)
+            out[n] = h / h[2, 2]
+        return out
+
+
+def _check_stack(frames: Any) -> tuple[Any, tuple[int, int, int]]:
+    shape = getattr(frames, "shape", None)
+    dtype = getattr(frames, "dtype", None)
+    if shape is None or dtype is None:
+        frames = np.asarray(frames)
+        shape, dtype = frames.shape, frames.dtype
+    if np.dtype(dtype).kind not in "biuf":
+        raise InvalidInputError(f"frames: expected raw counts or floats, got dtype {dtype}")
+    if len(shape) != 3:
+        raise InvalidInputError(f"frames: expected a (M, H, W) recording, got shape {tuple(shape)}")
+    m, h, w = (int(v) for v in shape)
+    if m < 2:
+        raise InvalidInputError(f"frames: a sequence needs at least 2 frames, got {m}")
+    if min(h, w) < 16:
+        raise InvalidInputError(f"frames: {w}x{h} is too small to register (at least 16x16)")
+    return frames, (m, h, w)
+
+
+class _Prepared:
+    """A frame with its pattern removed, at half and at full resolution (ECC-ready)."""
+
+    __slots__ = ("coarse", "fine")
+
+    def __init__(self, frame: np.ndarray, pattern: np.ndarray) -> None:
+        x = np.asarray(frame).astype(np.float32) - pattern
+        if not np.all(np.isfinite(x)):
+            raise InvalidInputError("frames: contain NaN or infinite values")
+        self.fine = dense.prepare(x, blur=_BLUR)
+        self.coarse = dense.prepare(dense.pyr_down(x, _LEVEL), highpass=_HIGHPASS)
+
+
+def _pair(
+    moving: _Prepared, fixed: _Prepared, prediction: np.ndarray | None, window: np.ndarray
+) -> tuple[np.ndarray, float]:
+    """Frame → previous frame: ``(h, correlation)``."""
+    cands = [] if prediction is None else [dense.to_level(prediction, _LEVEL)]
+    cands += [dense.translation(dx, dy) for dx, dy in
+              dense.phase_peaks(moving.coarse, fixed.coarse, window, count=_PEAKS)]
+    h, cc = dense.best_of(moving.coarse, fixed.coarse, cands, iterations=_COARSE_ITERATIONS,
+                          race=_RACE)
+    if h is None or cc <= -1.0:
+        return np.eye(3), -1.0
+    h = dense.from_level(h, _LEVEL)
+    fine, fine_cc = dense.ecc(moving.fine, fixed.fine, h, iterations=_FINE_ITERATIONS)
+    if fine_cc > -1.0:
+        return fine, fine_cc
+    return h, cc
+
+
+def register_sequence(
+    frames: Any,
+    *,
+    fixed_pattern: Any = None,
+    block: int = BLOCK_FRAMES,
+    workers: int | None = None,
+    progress: Callable[[int], None] | None = None,
+) -> SequenceRegistration:
+    """Register every frame of a recording to the frame before it.
+
+    Parameters
+    ----------
+    frames : array_like, shape (M, H, W)
+        Raw frames (uint16 counts or float), ``M >= 2``; any indexable stack (numpy array,
+        memory map, h5py dataset), read a block at a time. Never modified.
+    fixed_pattern : FixedPattern or array_like (H, W), optional
+        The fixed pattern to remove (counts). None estimates it block by block from the
+        recording (:func:`~thermocal.registration.fixed_pattern.estimate_fixed_pattern` over a
+        window of ``block`` frames around each block); that needs the scene to move far within a
+        block, as it does on a UAV pass.
+    block : int
+        Frames per block (one pattern estimate each, and the unit of parallel work).
+    workers : int, optional
+        Threads that register blocks in parallel (default: up to 2, the CPU count).
+    progress : callable, optional
+        Called with the number of frames done after each block.
+
+    Returns
+    -------
+    SequenceRegistration
+
+    Raises
+    ------
+    InvalidInputError
+        Not a numeric ``(M, H, W)`` stack, fewer than 2 frames, NaN, a bad pattern or block.
+    ResolutionMismatchError
+        A fixed pattern of another size than the frames.
+    """
+    frames, (m, hh, w) = _check_stack(frames)
+    if isinstance(block, bool) or not isinstance(block, int | np.integer) or block < 2:
+        raise InvalidInputError(f"block: expected an integer >= 2, got {block!r}")
+    block = int(block)
+    n_workers = dense.check_workers(workers)
+    starts = list(range(0, m, block))
+    if fixed_pattern is not None:
+        given = as_fixed_pattern(fixed_pattern, (hh, w))
+        patterns = [given] * len(starts)
+    else:
+        if m < 3:
+            raise InvalidInputError(
+                "frames: two frames are too few to estimate the fixed pattern; pass fixed_pattern"
+            )
+        patterns = []
+        for s in starts:
+            lo = max(0, min(s - block // 2, m - 2 * block))
+            hi = min(m, lo + 2 * block)
+            patterns.append(estimate_fixed_pattern(_Window(frames, lo, hi)))
+
+    to_prev = np.repeat(np.eye(3)[None], m, axis=0)
+    corr = np.ones(m)
+    ok = np.ones(m, dtype=bool)
+    window = dense.hanning(((hh + 1) // 2, (w + 1) // 2))
+
+    def run_block(b: int) -> int:
+        s = starts[b]
+        e = min(m, s + block)
+        pat = patterns[b].pattern
+        first = max(0, s - 1)
+        prev = _Prepared(frames[first], pat)
+        prediction = None
+        for k in range(first + 1, e):
+            cur = _Prepared(frames[k], pat)
+            h, cc = _pair(cur, prev, prediction, window)
+            good = cc >= MIN_CORRELATION
+            if good:
+                try:
+                    h = check_homography(h, (w, hh), f"frame {k} (to frame {k - 1})")
+                except RegistrationError:
+                    good = False
+            to_prev[k], corr[k], ok[k] = h, cc, good
+            prediction = h if good else None
+            prev = cur
+        return e - s
+
+    if n_workers <= 1 or len(starts) == 1:
+        for b in range(len(starts)):
+            done = run_block(b)
+            if progress is not None:
+                progress(done)
+    else:
+        with ThreadPoolExecutor(max_workers=min(n_workers, len(starts))) as pool:
+            for fut in as_completed([pool.submit(run_block, b) for b in range(len(starts))]):
+                done = fut.result()
+                if progress is not None:
+                    progress(done)
+    to_prev[0] = np.eye(3)
+    corr[0], ok[0] = 1.0, True
+    return SequenceRegistration(
+        to_previous=to_prev, correlation=corr, ok=ok, fixed_pattern=patterns[0],
+        patterns=tuple(patterns), block=block,
+    )
+
+
+class _Window:
+    """Frames ``lo … hi − 1`` of an indexable stack, indexable from 0 (no copy)."""
+
+    def __init__(self, frames: Any, lo: int, hi: int) -> None:
+        self.frames, self.lo = frames, lo
+        self.shape = (hi - lo, *tuple(frames.shape[1:]))
+
+    def __getitem__(self, i: int) -> np.ndarray:
+        return np.asarray(self.frames[self.lo + int(i)])
