@@ -8,7 +8,8 @@ calibration applied to the pivot (``calibration``). Outputs, each written atomic
 
     OUT/temps/frame_000123.tiff     float32 °C (H, W), one per pivot
     OUT/previews/frame_000123.png   a preview with a colour bar in °C
-    OUT/log.jsonl                   one line per pivot: frame, time, FPA, inliers, warnings, timing
+    OUT/log.jsonl                   one line per pivot: frame, time, FPA, registration quality
+                                    (lowest ECC correlation in the group), warnings, errors
     OUT/log.csv, OUT/summary.json   written at the end (frames per second per stage)
 
 A rerun with the same options resumes: pivots whose TIFF exists are skipped.
@@ -32,6 +33,8 @@ from thermocal.io.atomic import atomic_path, ensure_output_dir, write_json_atomi
 from thermocal.io.recording import iter_recording, read_recording_header, write_temperature_tiff
 
 NETWORK_METHODS = ("kpn", "kpn-no-offset", "e2e")
+#: Frames registered together as one sequence (a batch of groups).
+BATCH_FRAMES = 512
 METHODS = (*NETWORK_METHODS, "mean", "calibration")
 
 
@@ -107,26 +110,30 @@ class _Estimator:
                     f"use --frames {self.model.config.n_frames}"
                 )
 
-    def register(self, frames: np.ndarray, pivot: int):
-        """The group's registration onto its pivot; None for per-frame calibrations."""
+    def register(self, frames: np.ndarray):
+        """Frame-to-previous registration of a run of frames; None for per-frame calibrations.
+
+        Consecutive frames of a recording overlap most, and the run's many frames give a good
+        fixed-pattern estimate: far faster and more accurate than registering each group alone.
+        """
         if self.options.method == "calibration":
             return None
-        from thermocal.registration import register_burst
+        from thermocal.registration import register_sequence
 
-        return register_burst(frames, pivot=pivot)
+        return register_sequence(frames)
 
-    def estimate(self, frames, fpa_c, time_s, registration, pivot: int) -> np.ndarray:
+    def estimate(self, frames, fpa_c, time_s, homographies, pivot: int) -> np.ndarray:
         method = self.options.method
         if method in NETWORK_METHODS:
             from thermocal.nn.infer import estimate_burst
 
             return estimate_burst(frames, fpa_c, model=self.model, norm=self.norm, pivot=pivot,
-                                  homographies=registration.homographies).temperature_c
+                                  homographies=homographies).temperature_c
         if method == "mean":
             from thermocal.nn.infer import naive_mean
 
             return naive_mean(frames, self.calibration, fpa_c=fpa_c, pivot=pivot,
-                              homographies=registration.homographies).temperature_c
+                              homographies=homographies).temperature_c
         return self.calibration.apply(frames, fpa_c=fpa_c, time_s=time_s)[pivot]
 
 
@@ -163,56 +170,69 @@ def process_flight(
     done = _finished_pivots(out)
     estimator = _Estimator(options, header.frame_shape)
     times = StageTimes()
-    buffer_start, buffer = 0, np.empty((0, *header.frame_shape), np.uint16)
-    chunks = iter_recording(header.path, chunk=max(64, n))
+    reader = _FrameWindow(header.path, header.frame_shape, chunk=max(64, n))
+    per_batch = max(1, BATCH_FRAMES // stride)
     processed = skipped = failed = 0
     started = time.perf_counter()
     with open(log_path, "a", encoding="utf-8") as log:
-        for pivot in pivots:
-            first = pivot - n // 2
-            if pivot in done:
-                skipped += 1
-                if progress:
-                    progress(stride)
+        for b in range(0, len(pivots), per_batch):
+            batch = pivots[b : b + per_batch]
+            todo = [p for p in batch if p not in done]
+            skipped += len(batch) - len(todo)
+            if progress and len(todo) < len(batch):
+                progress(stride * (len(batch) - len(todo)))
+            if not todo:
                 continue
             t = time.perf_counter()
-            while buffer_start + len(buffer) < first + n:  # read until the group is in memory
-                start, chunk = next(chunks)
-                keep = max(0, first - buffer_start)
-                buffer = np.concatenate([buffer[keep:], chunk]) if len(buffer) else chunk
-                buffer_start = start + len(chunk) - len(buffer)
-            group = buffer[first - buffer_start : first - buffer_start + n]
+            a, z = todo[0] - n // 2, todo[-1] - n // 2 + n
+            frames = reader.frames(a, z)
             t = times.add("reading", t)
-            entry = {"frame": pivot, "time_s": None if time_s is None else float(time_s[pivot]),
-                     "fpa_c": None if fpa is None else float(fpa[pivot]), "warnings": []}
-            group_fpa = None if fpa is None else fpa[first : first + n]
-            group_time = None if time_s is None else time_s[first : first + n]
             try:
-                with warnings.catch_warnings(record=True) as caught:
-                    warnings.simplefilter("always")
-                    registration = estimator.register(group, n // 2)
-                    t = times.add("registration", t)
-                    temp = estimator.estimate(group, group_fpa, group_time, registration, n // 2)
-                    t = times.add("estimate", t)
-                entry["warnings"] = sorted({str(w.message) for w in caught})
-                if registration is not None:
-                    entry["inliers"] = [int(v) for v in registration.inliers]
+                sequence = estimator.register(frames)
+                batch_error = None
             except (RegistrationError, InvalidInputError) as exc:
-                entry["error"] = str(exc)
-                failed += 1
-            else:
-                name = f"frame_{pivot:06d}"
-                write_temperature_tiff(out / "temps" / f"{name}.tiff", temp)
-                if options.preview_every and processed % options.preview_every == 0:
-                    _preview(out / "previews" / f"{name}.png", temp,
-                             f"frame {pivot}, {options.method}")
-                entry["mean_c"] = float(temp.mean())
-                processed += 1
-                times.add("writing", t)
-            log.write(json.dumps(entry) + "\n")
-            log.flush()
-            if progress:
-                progress(stride)
+                sequence, batch_error = None, str(exc)
+            t = times.add("registration", t)
+            for pivot in todo:
+                first = pivot - n // 2
+                entry = {"frame": pivot,
+                         "time_s": None if time_s is None else float(time_s[pivot]),
+                         "fpa_c": None if fpa is None else float(fpa[pivot]), "warnings": []}
+                group = frames[first - a : first - a + n]
+                try:
+                    if batch_error is not None:
+                        raise RegistrationError(batch_error)
+                    homographies = None
+                    if sequence is not None:
+                        local = range(first - a, first - a + n)
+                        homographies = sequence.to_pivot(local, pivot - a)
+                        entry["registration_correlation"] = float(
+                            sequence.correlation[first - a + 1 : first - a + n].min())
+                    with warnings.catch_warnings(record=True) as caught:
+                        warnings.simplefilter("always")
+                        temp = estimator.estimate(
+                            group, None if fpa is None else fpa[first : first + n],
+                            None if time_s is None else time_s[first : first + n],
+                            homographies, n // 2)
+                    entry["warnings"] = sorted({str(w.message) for w in caught})
+                    t = times.add("estimate", t)
+                except (RegistrationError, InvalidInputError) as exc:
+                    entry["error"] = str(exc)
+                    failed += 1
+                    t = times.add("estimate", t)
+                else:
+                    name = f"frame_{pivot:06d}"
+                    write_temperature_tiff(out / "temps" / f"{name}.tiff", temp)
+                    if options.preview_every and processed % options.preview_every == 0:
+                        _preview(out / "previews" / f"{name}.png", temp,
+                                 f"frame {pivot}, {options.method}")
+                    entry["mean_c"] = float(temp.mean())
+                    processed += 1
+                    t = times.add("writing", t)
+                log.write(json.dumps(entry) + "\n")
+                log.flush()
+                if progress:
+                    progress(stride)
     elapsed = time.perf_counter() - started
     entries = _read_log(log_path)
     _write_csv(out / "log.csv", entries)
@@ -234,6 +254,31 @@ def process_flight(
     return summary
 
 
+class _FrameWindow:
+    """Frames ``[a, z)`` of a recording, read in order, keeping only what is still needed."""
+
+    def __init__(self, path: Path, shape: tuple[int, int], *, chunk: int) -> None:
+        self._chunks = iter_recording(path, chunk=chunk)
+        self._start = 0  # index of self._buffer[0]
+        self._buffer = np.empty((0, *shape), np.uint16)
+
+    def _drop_before(self, a: int) -> None:
+        drop = min(max(0, a - self._start), len(self._buffer))
+        self._buffer = self._buffer[drop:]
+        self._start += drop
+
+    def frames(self, a: int, z: int) -> np.ndarray:
+        """Frames ``a … z − 1`` (``a`` never decreases between calls)."""
+        self._drop_before(a)
+        while self._start + len(self._buffer) < z:
+            start, chunk = next(self._chunks)
+            if not len(self._buffer):
+                self._start = start
+            self._buffer = np.concatenate([self._buffer, chunk]) if len(self._buffer) else chunk
+            self._drop_before(a)
+        return self._buffer[a - self._start : z - self._start]
+
+
 def _finished_pivots(out: Path) -> set[int]:
     """Pivots already written by an earlier run (their TIFF exists)."""
     return {int(p.stem.split("_")[1]) for p in (out / "temps").glob("frame_*.tiff")}
@@ -251,15 +296,15 @@ def _read_log(log_path: Path) -> list[dict[str, Any]]:
 
 
 def _write_csv(path: Path, entries: list[dict[str, Any]]) -> None:
-    columns = ("frame", "time_s", "fpa_c", "mean_c", "min_inliers", "warnings", "error")
+    columns = ("frame", "time_s", "fpa_c", "mean_c", "registration_correlation", "warnings",
+               "error")
     with atomic_path(path) as tmp, open(tmp, "w", newline="", encoding="utf-8") as f:
         writer = csv.writer(f)
         writer.writerow(columns)
         for e in entries:
-            inl = e.get("inliers")
             writer.writerow([e.get("frame"), e.get("time_s"), e.get("fpa_c"), e.get("mean_c"),
-                             min(inl) if inl else None, "; ".join(e.get("warnings", [])),
-                             e.get("error", "")])
+                             e.get("registration_correlation"),
+                             "; ".join(e.get("warnings", [])), e.get("error", "")])
 
 
 __all__ = ["METHODS", "FlightOptions", "pivots_of", "process_flight"]
