@@ -1,0 +1,379 @@
+"""KPN benchmark: multi-frame temperature estimation (Oz et al.) on a held-out evaluation set.
+
+The evaluation set is fixed and seeded and never trained on: the held-out real scenes of
+:data:`thermocal.nn.data.EVAL_SCENES` (the built-in aerial scene and a fixed subset of the shared
+JPEGs) flown over by the held-out camera units :data:`thermocal.nn.data.EVAL_UNITS` (the training
+used units 0-23, its validation units 50-53), with walk and hover trajectories (60-80 % overlap),
+an FPA temperature drawn over 15-45 °C, and the registration error of Oz et al. §IV-D on the true
+homographies (``--register``: the homographies found by ``register_burst`` instead).
+
+Tables:
+
+1. accuracy at N = 7 on the pixels seen by at least half the frames: MAE, the MAE left after
+   removing each burst's mean error ("bias-free", i.e. the non-uniformity and noise left once
+   the unit's unknown global offset is set aside), the MAE left after the best affine map onto
+   the truth ("affine-free", an oracle that also sets the unit's unknown gain aside), the
+   fraction within 0.5 °C (Fig. 12), for the
+   shipped KPN and the calibration-free baselines: a two-point calibration of another unit made
+   at a nominal FPA of 30 °C (pivot frame alone, and eq. 9 registered mean), and scene-based NUC
+   (hardie2000 with the same homographies) followed by a global fit (the other unit's array-mean
+   gain and offset); plus, for reference only, the same unit's own two-point calibration at the
+   burst's FPA (not calibration-free);
+2. per-scene MAE of the KPN;
+3. speed and size: one 336×256 burst of 7 frames, parameters, multiply-adds, training
+   throughput (samples/s, a few steps of the shipped configuration);
+4. with ``--fig7``: MAE against N for KPN + offset, KPN and E2E, each trained here for
+   ``--fig7-minutes`` (short trainings: a harness, not the paper's budget).
+
+    .venv/bin/python benchmarks/kpn.py [--quick] [--json OUT.json] [--model MODEL.pt]
+                                       [--register] [--fig7 [--fig7-minutes M] [--fig7-n 1,3,5]]
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import platform
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+from thermocal.calibration.two_point import fit_two_point
+from thermocal.camera.model import render
+from thermocal.camera.presets import make_camera
+from thermocal.metrics import best_affine_fit, fraction_within, mae
+from thermocal.nn.data import (
+    EVAL_UNITS,
+    TRAIN_UNITS,
+    BurstConfig,
+    ScenePool,
+    coverage_mask,
+    evaluation_scenes,
+)
+from thermocal.nn.infer import estimate_burst, naive_mean, run_network, shipped_model_path
+from thermocal.nn.model import ModelConfig, count_macs, count_parameters
+from thermocal.nn.train import TrainConfig, load_model, train
+from thermocal.radiometry import BandRadiance
+from thermocal.scenes.trajectory import perturb_homographies
+from thermocal.simulate.flight import simulate_flight
+
+NOMINAL_FPA_C = 30.0
+OTHER_UNIT = 7  # the unit whose two-point calibration the calibration-free baselines borrow
+
+
+def eval_bursts(n_frames: int, *, quick: bool, register: bool = False):
+    """The fixed evaluation bursts: list of dicts (frames, truth, valid mask, fpa, unit, …)."""
+    scenes = evaluation_scenes()
+    per_scene = 1 if quick else 4
+    size = (168, 128) if quick else (336, 256)
+    out = []
+    for si, (name, scene) in enumerate(scenes.items()):
+        for k in range(per_scene):
+            seed = 1000 * si + k
+            rng = np.random.default_rng([2026, seed])
+            unit = EVAL_UNITS[(si + k) % len(EVAL_UNITS)]
+            cam = make_camera("tau2", unit=unit, size=(336, 256))
+            if quick:
+                cam = cam.crop(64, 84, size[1], size[0])
+            fpa = float(rng.uniform(15.0, 45.0))
+            motion = ("walk", "hover")[(si + k) % 2]
+            fl = simulate_flight(scene, cam, n_frames=n_frames, motion=motion, fpa_c=fpa,
+                                 seed=seed)
+            hs = perturb_homographies(fl.homographies, rng=rng, frame_size=size,
+                                      pivot=fl.pivot)
+            if register:
+                from thermocal.registration import register_burst
+
+                hs = register_burst(fl.frames, pivot=fl.pivot).homographies
+            from thermocal.registration.warp import warp_to_pivot
+
+            _, valid = warp_to_pivot(fl.frames, hs)
+            out.append({
+                "scene": name, "unit": unit, "fpa_c": fpa, "motion": motion, "camera": cam,
+                "frames": fl.frames, "fpa_read": fl.fpa_c, "truth": fl.truth_c[fl.pivot],
+                "hs": hs, "pivot": fl.pivot, "mask": coverage_mask(valid),
+                "fpa_true": fl.fpa_true_c, "housing": fl.housing_c,
+            })
+    return out
+
+
+def two_point_of(cam, fpa_c: float, housing_c: float, seed: int):
+    rng = np.random.default_rng(seed)
+    lo = render(cam, np.full(16, 10.0), fpa_c, housing_c=housing_c, rng=rng)
+    hi = render(cam, np.full(16, 50.0), fpa_c, housing_c=housing_c, rng=rng)
+    return fit_two_point(lo, hi, 10.0, 50.0, fpa_ref_c=fpa_c)
+
+
+class FamilyModel:
+    """The average of the training units' camera models (gain, offset, housing maps), inverted
+    exactly: a perfect calibration-free calibration of the camera *family*. On a held-out unit
+    its error is the floor of any calibration-free method: what the unit differs from the
+    family (offset, gain, radial strengths), averaged over the burst by eq. 9."""
+
+    def __init__(self, units, window=None) -> None:
+        from dataclasses import replace
+
+        cams = [make_camera("tau2", unit=u, size=(336, 256)) for u in units]
+        if window is not None:
+            cams = [c.crop(*window) for c in cams]
+        base = cams[0]
+        self.model = replace(
+            base,
+            gain=np.mean([c.gain for c in cams], axis=0).astype(np.float32),
+            offset=np.mean([c.offset for c in cams], axis=0).astype(np.float32),
+            housing=np.mean([c.housing for c in cams], axis=0).astype(np.float32),
+            defects=np.zeros(base.shape, bool),
+            defect_counts=np.zeros(base.shape, np.uint16),
+        )
+        self.housing_offset_c = -1.5  # the camera settled: housing = FPA − 1.5 °C
+
+    @property
+    def shape(self):
+        return self.model.shape
+
+    def apply(self, frames, *, fpa_c=None):
+        from thermocal.camera.model import invert
+
+        fpa = np.broadcast_to(np.asarray(fpa_c, dtype=np.float64), (len(frames),))
+        return invert(self.model, frames, fpa, housing_c=fpa + self.housing_offset_c)
+
+
+def scores(est: np.ndarray, b: dict) -> dict:
+    m = b["mask"]
+    err = est - b["truth"]
+    bias = float(err[m].mean())
+    fit = best_affine_fit(est, b["truth"], m)
+    return {
+        "mae": mae(est, b["truth"], valid=m),
+        "bias_free": float(np.mean(np.abs(err[m] - bias))),
+        "affine_free": mae(fit, b["truth"], valid=m),
+        "within_0_5": fraction_within(est, b["truth"], 0.5, valid=m),
+        "bias": bias,
+    }
+
+
+def run_methods(bursts, model, norm, *, baselines: bool = True) -> dict[str, list[dict]]:
+    """Every method on every burst: name → list of per-burst scores."""
+    from thermocal.nuc import correct_nonuniformity
+
+    res: dict[str, list[dict]] = {}
+    cal_cache: dict = {}
+    fam_cache: dict = {}
+    band = BandRadiance()
+    for b in bursts:
+        cam = b["camera"]
+        if model is not None:
+            e = estimate_burst(b["frames"], b["fpa_read"], model=model, norm=norm,
+                               homographies=b["hs"], pivot=b["pivot"])
+            res.setdefault("KPN + offset (shipped)", []).append(scores(e.temperature_c, b))
+        if not baselines:
+            continue
+        key = cam.shape
+        if key not in cal_cache:
+            other = make_camera("tau2", unit=OTHER_UNIT, size=(336, 256))
+            if cam.shape != other.shape:
+                other = other.crop(64, 84, *cam.shape)
+            cal_cache[key] = two_point_of(other, NOMINAL_FPA_C, NOMINAL_FPA_C - 1.5, 5)
+        other_cal = cal_cache[key]
+        piv = b["pivot"]
+        t_piv = other_cal.apply(b["frames"][piv : piv + 1])[0]
+        res.setdefault("two-point, other unit, FPA 30 °C (pivot frame)", []).append(
+            scores(t_piv, b))
+        m9 = naive_mean(b["frames"], other_cal, homographies=b["hs"], pivot=piv)
+        res.setdefault("two-point, other unit, FPA 30 °C (eq. 9 mean)", []).append(
+            scores(m9.temperature_c, b))
+        nuc = correct_nonuniformity(b["frames"], method="hardie2000", homographies=b["hs"])[piv]
+        g, o = float(other_cal.gain.mean()), float(other_cal.offset.mean())
+        lo, hi = band.radiance_range
+        t_nuc = band.temperature(np.clip((nuc - o) / g, lo, hi)) - 273.15
+        res.setdefault("hardie2000 NUC + global fit (other unit)", []).append(scores(t_nuc, b))
+        if key not in fam_cache:
+            fam_cache[key] = FamilyModel(
+                TRAIN_UNITS, None if cam.shape == (256, 336) else (64, 84, *cam.shape))
+        fam = naive_mean(b["frames"], fam_cache[key], fpa_c=b["fpa_read"],
+                         homographies=b["hs"], pivot=piv)
+        res.setdefault("(floor) exact model of the average training unit (eq. 9 mean)",
+                       []).append(scores(fam.temperature_c, b))
+        own = two_point_of(cam, float(np.mean(b["fpa_true"])), float(np.mean(b["housing"])), 6)
+        m9o = naive_mean(b["frames"], own, homographies=b["hs"], pivot=piv)
+        res.setdefault("(reference) own two-point at the burst FPA (eq. 9 mean)", []).append(
+            scores(m9o.temperature_c, b))
+    return res
+
+
+def summarise(res: dict[str, list[dict]]) -> list[dict]:
+    rows = []
+    for name, lst in res.items():
+        maes = [r["mae"] for r in lst]
+        rows.append({
+            "method": name,
+            "mae_c": float(np.mean(maes)),
+            "median_mae_c": float(np.median(maes)),
+            "bias_free_mae_c": float(np.mean([r["bias_free"] for r in lst])),
+            "affine_free_mae_c": float(np.mean([r["affine_free"] for r in lst])),
+            "within_0_5": float(np.mean([r["within_0_5"] for r in lst])),
+            "mean_abs_bias_c": float(np.mean([abs(r["bias"]) for r in lst])),
+        })
+    return rows
+
+
+def speed(model, norm, *, threads: int = 2) -> dict:
+    torch.set_num_threads(threads)
+    rng = np.random.default_rng(0)
+    n = model.config.n_frames
+    warped = rng.uniform(6000, 9000, (n, 256, 336)).astype(np.float32)
+    valid = np.ones(warped.shape, dtype=bool)
+    run_network(model, norm, warped, valid, 30.0)
+    times = []
+    for _ in range(5):
+        t = time.perf_counter()
+        run_network(model, norm, warped, valid, 30.0)
+        times.append(time.perf_counter() - t)
+    return {
+        "network_ms_336x256": 1000 * statistics.median(times),
+        "parameters": count_parameters(model),
+        "gmacs_336x256": count_macs(model, 256, 336) / 1e9,
+        "threads": threads,
+    }
+
+
+def training_throughput(model_cfg: ModelConfig, data: dict, *, steps: int = 6) -> float:
+    """Samples/s of the shipped configuration (data generation included), a few steps."""
+    cfg = BurstConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in data.items()})
+    with tempfile.TemporaryDirectory() as tmp:
+        res = train(Path(tmp) / "m.pt", model_cfg, cfg,
+                    TrainConfig(steps_per_epoch=steps, max_epochs=1, val_bursts=16, workers=1),
+                    pool_fn=lambda: ScenePool.training(n_procedural=6),
+                    val_pool_fn=lambda: ScenePool.training(seed=1, n_procedural=3),
+                    log=lambda s: None, progress=False)
+    return res.samples_per_s
+
+
+def fig7(ns, minutes: float, *, quick: bool, base: ModelConfig, data: dict) -> list[dict]:
+    """Train the three variants for each N with a wall-clock budget, evaluate each."""
+    rows = []
+    cfg0 = BurstConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in data.items()})
+    for n in ns:
+        bursts = eval_bursts(n, quick=True)
+        for variant in ("kpn", "kpn-no-offset", "e2e"):
+            mc = ModelConfig(**{**base.to_dict(), "n_frames": n, "variant": variant,
+                                "centre": base.centre and variant == "kpn"})
+            bc = dataclasses.replace(cfg0, n_frames=n)
+            with tempfile.TemporaryDirectory() as tmp:
+                out = Path(tmp) / "m.pt"
+                r = train(out, mc, bc,
+                          TrainConfig(lr=1e-3, steps_per_epoch=25, max_epochs=10_000,
+                                      val_bursts=32, max_minutes=minutes, workers=1),
+                          pool_fn=lambda: ScenePool.training(n_procedural=12),
+                          val_pool_fn=lambda: ScenePool.training(seed=1042, n_procedural=4),
+                          log=lambda s: None, progress=False)
+                model, norm, _ = load_model(out)
+            res = run_methods(bursts, model, norm, baselines=False)
+            s = summarise(res)[0]
+            rows.append({"n": n, "variant": variant, "mae_c": s["mae_c"],
+                         "bias_free_mae_c": s["bias_free_mae_c"],
+                         "affine_free_mae_c": s["affine_free_mae_c"], "steps": r.steps,
+                         "val_mae_c": r.best_val_mae_c})
+            print(f"  fig7 N={n} {variant}: MAE {s['mae_c']:.2f} °C "
+                  f"(bias-free {s['bias_free_mae_c']:.2f}) after {r.steps} steps", flush=True)
+    return rows
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--quick", action="store_true")
+    ap.add_argument("--json", type=Path)
+    ap.add_argument("--model", type=Path, default=None)
+    ap.add_argument("--register", action="store_true",
+                    help="use register_burst's homographies instead of the perturbed true ones")
+    ap.add_argument("--fig7", action="store_true")
+    ap.add_argument("--fig7-minutes", type=float, default=2.0)
+    ap.add_argument("--fig7-n", default="1,3,5,7,9,11")
+    args = ap.parse_args()
+    torch.set_num_threads(2)
+    path = args.model or shipped_model_path("kpn")
+    model, norm, info = load_model(path)
+    n = model.config.n_frames
+    t0 = time.time()
+    bursts = eval_bursts(n, quick=args.quick, register=args.register)
+    res = run_methods(bursts, model, norm)
+    rows = summarise(res)
+    eval_s = time.time() - t0
+
+    scenes = sorted({b["scene"] for b in bursts})
+    size = bursts[0]["frames"].shape
+    print(f"## KPN benchmark ({'quick' if args.quick else 'full'})\n")
+    print(f"machine: {platform.machine()}, {os.cpu_count()} CPU cores, torch "
+          f"{torch.__version__}, 2 threads; model `{path.name}` "
+          f"({model.config.to_dict()})")
+    print(f"data: {len(bursts)} bursts of N = {n} frames {size[2]}x{size[1]} over held-out "
+          f"scenes {', '.join(scenes)}; held-out camera units {sorted({b['unit'] for b in bursts})}"
+          f" (training units {info['data'].get('units', '?')[:1]}…"
+          f"{info['data'].get('units', '?')[-1:]}); FPA 15-45 °C; registration: "
+          f"{'register_burst' if args.register else 'true homographies + Oz error'}; "
+          f"metrics on pixels seen by ≥ half the frames; {eval_s:.0f} s\n")
+    print("| method | MAE °C | median MAE °C | within 0.5 °C | mean abs bias °C | "
+          "bias-free MAE °C | affine-free MAE °C |")
+    print("|---|---|---|---|---|---|---|")
+    for r in rows:
+        print(f"| {r['method']} | {r['mae_c']:.2f} | {r['median_mae_c']:.2f} | "
+              f"{100 * r['within_0_5']:.0f} % | {r['mean_abs_bias_c']:.2f} | "
+              f"{r['bias_free_mae_c']:.2f} | {r['affine_free_mae_c']:.2f} |")
+    print("\n(bias-free: after removing each burst's mean error; affine-free: after the best "
+          "affine map onto the truth (an oracle): what is left of non-uniformity and noise once "
+          "the unit's unknown global offset / gain are set aside)")
+    print("\nKPN per scene (MAE °C / bias-free MAE °C):\n")
+    print("| scene | unit | FPA °C | MAE °C | bias °C | bias-free °C | affine-free °C |")
+    print("|---|---|---|---|---|---|---|")
+    for b, s in zip(bursts, res["KPN + offset (shipped)"], strict=True):
+        print(f"| {b['scene']} ({b['motion']}) | {b['unit']} | {b['fpa_c']:.1f} | "
+              f"{s['mae']:.2f} | {s['bias']:+.2f} | {s['bias_free']:.2f} | "
+              f"{s['affine_free']:.2f} |")
+
+    sp = speed(model, norm)
+    sps = training_throughput(model.config, info["data"], steps=4 if args.quick else 8)
+    print("\n| speed and size | value |\n|---|---|")
+    print(f"| network, one 336×256 burst of {n} (median of 5, 2 threads) | "
+          f"{sp['network_ms_336x256']:.0f} ms |")
+    print(f"| parameters | {sp['parameters']:,} |")
+    print(f"| multiply-adds, 336×256 | {sp['gmacs_336x256']:.2f} G |")
+    print(f"| training throughput (crop {info['data'].get('crop')}, batch 16, data included) | "
+          f"{sps:.1f} samples/s |")
+    meta = info["meta"]
+    print(f"| shipped model: validation MAE at save | {meta.get('val_mae_c')} °C "
+          f"(step {meta.get('step')}) |")
+
+    fig = None
+    if args.fig7:
+        ns = [int(x) for x in args.fig7_n.split(",")]
+        print(f"\n### Fig. 7 harness: {args.fig7_minutes} min of training per model "
+              f"(quick evaluation set)\n", flush=True)
+        fig = fig7(ns, args.fig7_minutes, quick=True, base=model.config, data=info["data"])
+        print("\n| N | KPN + offset MAE °C | KPN MAE °C | E2E MAE °C | steps each |")
+        print("|---|---|---|---|---|")
+        for n_ in ns:
+            r = {x["variant"]: x for x in fig if x["n"] == n_}
+            print(f"| {n_} | {r['kpn']['mae_c']:.2f} ({r['kpn']['bias_free_mae_c']:.2f}) | "
+                  f"{r['kpn-no-offset']['mae_c']:.2f} ({r['kpn-no-offset']['bias_free_mae_c']:.2f})"
+                  f" | {r['e2e']['mae_c']:.2f} ({r['e2e']['bias_free_mae_c']:.2f}) | "
+                  f"{r['kpn']['steps']}/{r['kpn-no-offset']['steps']}/{r['e2e']['steps']} |")
+        print("(in brackets: bias-free MAE)")
+
+    if args.json:
+        args.json.write_text(json.dumps({
+            "quick": args.quick, "register": args.register, "model": str(path),
+            "accuracy": rows,
+            "per_burst": [{"scene": b["scene"], "unit": b["unit"], "fpa_c": b["fpa_c"], **s}
+                          for b, s in zip(bursts, res["KPN + offset (shipped)"], strict=True)],
+            "speed": sp, "training_samples_per_s": sps, "fig7": fig,
+        }, indent=2))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,495 @@
+"""Synthetic training bursts for the KPN, made on the fly by the camera simulator (numpy only).
+
+The pipeline of Oz et al. §IV-C/D, with the physical camera model of :mod:`thermocal.camera` in
+place of their fitted degradation model:
+
+1. a temperature map is drawn from a pool of source scenes (procedural maps and real radiometric
+   scenes of the *training* list), a random region is cut, resized and flipped / rotated by 90°,
+   and its temperature level and contrast are re-drawn (so that the network sees the whole
+   operating range, not only the few scenes it has);
+2. ``N`` views of it are made by a random walk or a hover whose extreme views overlap the pivot
+   (middle) frame by 60-80 %;
+3. a sub-window of the sensor of a camera unit drawn from the *training units* renders every view
+   at an FPA temperature drawn over the operating range (the camera settled at that ambient), with
+   the column FPN of eq. 19 re-drawn for the burst and temporal noise σ² = 5 counts² per frame;
+4. the true frame → pivot homographies get the registration error of §IV-D (±2 px, N(0, 5e-5) on
+   h31, h32) and the frames are warped onto the pivot with it: the network's input, with validity
+   masks (a pivot pixel that a frame does not see is 0 and flagged False);
+5. the target is the scene in the pivot's view.
+
+Normalisation (eq. 20-21) maps temperatures and counts linearly onto ``[0, 1]`` with constants
+kept in :class:`Normalisation`, which travels with the weights.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field, replace
+from typing import Any
+
+import cv2
+import numpy as np
+
+from thermocal.camera.model import CameraModel, render
+from thermocal.camera.presets import PRESETS, make_camera
+from thermocal.camera.thermal import ThermalParams, fpa_sensor
+from thermocal.errors import InvalidInputError
+from thermocal.registration.warp import render_views, warp_to_pivot
+from thermocal.scenes import trajectory
+from thermocal.scenes.maps import random_augment
+from thermocal.scenes.procedural import KINDS, procedural_scene
+
+__all__ = [
+    "EVAL_SCENES",
+    "EVAL_UNITS",
+    "TRAIN_EXCLUDED_SCENES",
+    "TRAIN_UNITS",
+    "VAL_UNITS",
+    "Burst",
+    "BurstConfig",
+    "Normalisation",
+    "ScenePool",
+    "UnitCache",
+    "coverage_mask",
+    "make_burst",
+    "make_bursts",
+]
+
+#: Camera units of the ``tau2`` preset used for training, validation (early stopping and the
+#: learning-rate schedule) and evaluation (benchmarks, tests). The three sets never overlap.
+TRAIN_UNITS: tuple[int, ...] = tuple(range(0, 24))
+VAL_UNITS: tuple[int, ...] = (50, 51, 52, 53)
+EVAL_UNITS: tuple[int, ...] = (100, 101, 102, 103, 104)
+
+#: Real scenes held out for evaluation (never trained on): the built-in aerial scene (and its copy
+#: in ``shared/data/flirpy``), the built-in floor heating (and its copy in ``shared/data/scenes``)
+#: and a fixed subset of the shared JPEGs (the two car scenes are held out together, being alike).
+EVAL_SCENES: tuple[str, ...] = (
+    "builtin:aerial",
+    "02_irwatercooler",
+    "11_ir_moving_car",
+    "12_ir_moving_mercedes",
+    "14_kujawy_wiatrak",
+)
+TRAIN_EXCLUDED_SCENES: frozenset[str] = frozenset(
+    {"example_radiometric", "10_ir_fussbodenheizung", *EVAL_SCENES}
+)
+
+_THERMAL = ThermalParams()
+
+
+@dataclass(frozen=True)
+class Normalisation:
+    """Eq. 20-21: ``x̄ = (x − min) / (max − min)`` for temperatures, counts and the FPA.
+
+    Attributes
+    ----------
+    temp_min_c, temp_max_c : float
+        Scene temperature range of the training maps, °C (eq. 20).
+    counts_min, counts_max : float
+        Raw-count range of the training frames, counts (eq. 21).
+    fpa_min_c, fpa_max_c : float
+        FPA temperature range, °C (the operating range of the training data).
+    """
+
+    temp_min_c: float = -40.0
+    temp_max_c: float = 100.0
+    counts_min: float = 2000.0
+    counts_max: float = 14000.0
+    fpa_min_c: float = 10.0
+    fpa_max_c: float = 50.0
+
+    def temp(self, t_c: np.ndarray) -> np.ndarray:
+        """Normalised temperature (eq. 20)."""
+        return (t_c - self.temp_min_c) / (self.temp_max_c - self.temp_min_c)
+
+    def temp_inverse(self, x: np.ndarray) -> np.ndarray:
+        """°C from a normalised temperature."""
+        return x * (self.temp_max_c - self.temp_min_c) + self.temp_min_c
+
+    def counts(self, counts: np.ndarray) -> np.ndarray:
+        """Normalised gray levels (eq. 21)."""
+        return (counts - self.counts_min) / (self.counts_max - self.counts_min)
+
+    def fpa(self, fpa_c: np.ndarray | float) -> np.ndarray | float:
+        """Normalised FPA temperature (eq. 20 applied to the camera's temperature)."""
+        return (fpa_c - self.fpa_min_c) / (self.fpa_max_c - self.fpa_min_c)
+
+    def to_dict(self) -> dict[str, float]:
+        """Plain floats, for the weights file."""
+        return {k: float(v) for k, v in asdict(self).items()}
+
+
+@dataclass(frozen=True)
+class BurstConfig:
+    """How synthetic bursts are made (defaults: Oz et al. §IV-D at a CPU-friendly crop size).
+
+    Attributes
+    ----------
+    n_frames : int
+        Frames per burst ``N``; the pivot is frame ``N // 2``.
+    crop : int
+        Side of the square frames, pixels (the paper: 128).
+    motions : tuple of str
+        Trajectories drawn from: ``"walk"`` and/or ``"hover"``.
+    overlap : (float, float)
+        Overlap range of the extreme views with the pivot.
+    translation_px, perspective_sigma : float
+        Registration error: uniform ±``translation_px`` and N(0, σ²) on h31, h32.
+    fpa_range_c : (float, float)
+        FPA temperature drawn uniformly over this range, °C.
+    temp_mean_range_c : (float, float)
+        Mean temperature of a training map, drawn uniformly, °C.
+    contrast_range : (float, float)
+        Factor on the map's deviations from its mean, drawn log-uniformly.
+    temp_clip_c : (float, float)
+        Map temperatures are clipped to this range, °C.
+    map_scale_range : (float, float)
+        Map pixels per source-scene pixel, drawn log-uniformly.
+    redraw_column_fpn : bool
+        Re-draw the unit's column FPN (eq. 19: gain ``U[0.9, 1.01]`` per column, and the additive
+        column term) for every burst.
+    augment : bool
+        Flips and 90° rotations, re-drawn levels and contrast (off for validation).
+    preset : str
+        Camera preset.
+    units : tuple of int
+        Camera units drawn from.
+    sensor_size : (int, int)
+        ``(W, H)`` of the full sensor; each burst uses a random ``crop × crop`` window of it.
+    """
+
+    n_frames: int = 7
+    crop: int = 64
+    motions: tuple[str, ...] = ("walk", "hover")
+    overlap: tuple[float, float] = (0.6, 0.8)
+    translation_px: float = 2.0
+    perspective_sigma: float = trajectory.PERSPECTIVE_SIGMA
+    fpa_range_c: tuple[float, float] = (10.0, 50.0)
+    temp_mean_range_c: tuple[float, float] = (-15.0, 60.0)
+    contrast_range: tuple[float, float] = (0.3, 2.0)
+    temp_clip_c: tuple[float, float] = (-40.0, 100.0)
+    map_scale_range: tuple[float, float] = (0.5, 2.0)
+    redraw_column_fpn: bool = True
+    augment: bool = True
+    preset: str = "tau2"
+    units: tuple[int, ...] = TRAIN_UNITS
+    sensor_size: tuple[int, int] = (336, 256)
+
+    def __post_init__(self) -> None:
+        if self.n_frames < 1:
+            raise InvalidInputError(f"n_frames must be >= 1, got {self.n_frames}")
+        if not 16 <= self.crop <= min(self.sensor_size):
+            raise InvalidInputError(
+                f"crop must be 16 … {min(self.sensor_size)} px, got {self.crop}"
+            )
+        bad = set(self.motions) - {"walk", "hover"}
+        if bad or not self.motions:
+            raise InvalidInputError(f"motions must be walk and/or hover, got {self.motions}")
+        if not self.units:
+            raise InvalidInputError("units: give at least one camera unit")
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-able form."""
+        return {k: list(v) if isinstance(v, tuple) else v for k, v in asdict(self).items()}
+
+
+@dataclass(frozen=True)
+class Burst:
+    """One synthetic burst registered onto its pivot.
+
+    Attributes
+    ----------
+    frames : (N, S, S) float32
+        Warped raw counts (0 where ``valid`` is False).
+    valid : (N, S, S) bool
+        Where each warped frame sees the pivot pixel.
+    truth_c : (S, S) float32
+        The scene in the pivot's view, °C.
+    raw : (N, S, S) uint16
+        The frames as the camera gave them (before registration).
+    homographies : (N, 3, 3) float64
+        The frame → pivot homographies used for warping (with the registration error).
+    fpa_c : float
+        The FPA temperature the camera reports, °C.
+    unit : int
+        Camera unit.
+    camera : CameraModel
+        The sensor window that rendered the burst (with the re-drawn FPN).
+    """
+
+    frames: np.ndarray
+    valid: np.ndarray
+    truth_c: np.ndarray
+    raw: np.ndarray
+    homographies: np.ndarray
+    fpa_c: float
+    unit: int
+    camera: CameraModel = field(repr=False)
+
+
+def coverage_mask(valid: np.ndarray) -> np.ndarray:
+    """Pixels of the pivot seen by at least half the frames, ``(H, W)`` bool.
+
+    The mask ``M`` of eq. 12 (loss) and of the evaluation: where the burst really holds
+    redundant views of the scene. ``valid`` is ``(N, H, W)``.
+    """
+    n = valid.shape[0]
+    return valid.sum(axis=0) >= max(1, math.ceil(n / 2))
+
+
+class ScenePool:
+    """Source temperature maps to cut training crops from.
+
+    Parameters
+    ----------
+    maps : list of (H, W) float32 arrays
+        Temperature maps, °C.
+    names : list of str
+        Their names (for the record).
+    weights : list of float, optional
+        Relative probability of drawing each map (default uniform).
+    """
+
+    def __init__(
+        self, maps: list[np.ndarray], names: list[str], weights: list[float] | None = None
+    ) -> None:
+        if not maps or len(maps) != len(names):
+            raise InvalidInputError("ScenePool needs at least one map and one name per map")
+        self.maps = [np.ascontiguousarray(m, dtype=np.float32) for m in maps]
+        self.names = list(names)
+        w = np.ones(len(maps)) if weights is None else np.asarray(weights, dtype=np.float64)
+        self.p = w / w.sum()
+
+    @classmethod
+    def training(
+        cls,
+        *,
+        n_procedural: int = 24,
+        size: int = 384,
+        seed: int = 42,
+        real: bool = True,
+        real_weight: float = 0.35,
+    ) -> ScenePool:
+        """Procedural maps (farmland, urban, mixed) and the real scenes of the training list.
+
+        Real scenes in :data:`TRAIN_EXCLUDED_SCENES` (the evaluation set) are never loaded.
+        ``real_weight`` is the total probability of drawing a real scene.
+        """
+        maps, names, weights = [], [], []
+        for i in range(n_procedural):
+            kind = KINDS[i % len(KINDS)]
+            rng = np.random.default_rng([seed, 7919, i])
+            scale = float(np.exp(rng.uniform(np.log(0.5), np.log(2.0))))
+            maps.append(procedural_scene((size, size), rng=rng, kind=kind, scale=scale))
+            names.append(f"procedural:{kind}:{i}")
+        real_maps = training_real_scenes() if real else {}
+        n_real = len(real_maps)
+        for name, m in real_maps.items():
+            maps.append(m)
+            names.append(name)
+        if n_real:
+            weights = [(1.0 - real_weight) / n_procedural] * n_procedural
+            weights += [real_weight / n_real] * n_real
+        return cls(maps, names, weights if n_real else None)
+
+    def draw(self, rng: np.random.Generator) -> tuple[np.ndarray, str]:
+        """A map drawn at random (not copied; callers must not modify it)."""
+        i = int(rng.choice(len(self.maps), p=self.p))
+        return self.maps[i], self.names[i]
+
+
+def training_real_scenes() -> dict[str, np.ndarray]:
+    """The real scenes of ``shared/data`` that are not held out for evaluation, °C maps."""
+    from thermocal.scenes.real import list_shared_scenes, load_scene
+
+    out = {}
+    for name, path in list_shared_scenes().items():
+        if name in TRAIN_EXCLUDED_SCENES:
+            continue
+        out[name] = load_scene(path)
+    return out
+
+
+def evaluation_scenes() -> dict[str, np.ndarray]:
+    """The held-out real scenes (:data:`EVAL_SCENES`) that can be found, °C maps."""
+    from thermocal.scenes.builtin import load_builtin_scene
+    from thermocal.scenes.real import list_shared_scenes, load_scene
+
+    shared = list_shared_scenes()
+    out = {}
+    for name in EVAL_SCENES:
+        if name.startswith("builtin:"):
+            out[name] = load_builtin_scene(name.split(":", 1)[1])
+        elif name in shared:
+            out[name] = load_scene(shared[name])
+    return out
+
+
+class UnitCache:
+    """Full-sensor camera units, made once (``make_camera`` is the slow part)."""
+
+    def __init__(self, preset: str, sensor_size: tuple[int, int]) -> None:
+        self.preset = preset
+        self.sensor_size = tuple(sensor_size)
+        self._units: dict[int, CameraModel] = {}
+
+    def get(self, unit: int) -> CameraModel:
+        """Unit ``unit`` of the preset at the full sensor size."""
+        if unit not in self._units:
+            self._units[unit] = make_camera(self.preset, unit=unit, size=self.sensor_size)
+        return self._units[unit]
+
+
+def _source_map(
+    scene: np.ndarray, shape: tuple[int, int], cfg: BurstConfig, rng: np.random.Generator
+) -> np.ndarray:
+    """A ``shape`` map cut from ``scene`` at a random scale and place, °C, float32."""
+    hm, wm = shape
+    sh, sw = scene.shape
+    lo, hi = cfg.map_scale_range if cfg.augment else (1.0, 1.0)
+    scale = float(np.exp(rng.uniform(np.log(lo), np.log(hi)))) if hi > lo else lo
+    scale = max(scale, hm / sh, wm / sw)  # a scene too small is enlarged to cover the map
+    ch, cw = min(sh, math.ceil(hm / scale)), min(sw, math.ceil(wm / scale))
+    if cfg.augment:
+        top, left = int(rng.integers(0, sh - ch + 1)), int(rng.integers(0, sw - cw + 1))
+    else:
+        top, left = (sh - ch) // 2, (sw - cw) // 2
+    region = scene[top : top + ch, left : left + cw]
+    interp = cv2.INTER_AREA if scale < 1.0 else cv2.INTER_CUBIC
+    out = cv2.resize(region, (wm, hm), interpolation=interp)
+    return np.clip(out, region.min(), region.max()).astype(np.float32)
+
+
+def _relevel(m: np.ndarray, cfg: BurstConfig, rng: np.random.Generator) -> np.ndarray:
+    """Re-draw the mean temperature and the contrast of a map (augmentation), °C."""
+    mean = float(m.mean())
+    lo, hi = cfg.contrast_range
+    k = float(np.exp(rng.uniform(np.log(lo), np.log(hi))))
+    target = rng.uniform(*cfg.temp_mean_range_c)
+    out = (m - mean) * np.float32(k) + np.float32(target)
+    return np.clip(out, *cfg.temp_clip_c).astype(np.float32)
+
+
+def redraw_column_fpn(camera: CameraModel, left: int, rng: np.random.Generator) -> CameraModel:
+    """The sensor window ``camera`` (starting at column ``left`` of its unit) with new column FPN.
+
+    Eq. 19: the multiplicative column factor ``U[u_min, u_max]`` and the additive column offset
+    of the preset are drawn again, replacing the unit's own. A camera without column FPN of its
+    own (a radial model fitted on a chamber file, Oz et al. §IV-C) gets it on top, with the
+    ``tau2`` preset's ranges.
+    """
+    info = camera.info
+    p = info.get("preset_parameters") or asdict(PRESETS["tau2"])
+    w = camera.shape[1]
+    if "column_gain" in info:
+        old_gain = np.asarray(info["column_gain"], dtype=np.float32)[left : left + w]
+        old_off = np.asarray(info["column_offset"], dtype=np.float32)[left : left + w]
+    else:
+        old_gain, old_off = np.ones(w, np.float32), np.zeros(w, np.float32)
+    new_gain = rng.uniform(*p["column_gain_range"], size=w).astype(np.float32)
+    new_off = (p["column_offset_sigma"] * rng.standard_normal(w)).astype(np.float32)
+    gain = camera.gain * (new_gain / old_gain)[None, None, :]
+    offset = camera.offset.copy()
+    offset[0] += (new_off - old_off)[None, :]
+    return replace(camera, gain=gain.astype(np.float32), offset=offset)
+
+
+def make_burst(
+    pool: ScenePool,
+    cfg: BurstConfig,
+    *,
+    rng: np.random.Generator,
+    units: UnitCache | None = None,
+    unit: int | None = None,
+    fpa_c: float | None = None,
+) -> Burst:
+    """One synthetic burst (see the module docstring).
+
+    Parameters
+    ----------
+    pool : ScenePool
+        Source maps.
+    cfg : BurstConfig
+        How to make it.
+    rng : numpy.random.Generator
+        Source of randomness: the same generator state gives the same burst.
+    units : UnitCache, optional
+        Cache of full-sensor units (made if not given).
+    unit, fpa_c : optional
+        Force the camera unit / the true FPA temperature (°C) instead of drawing them.
+    """
+    units = units or UnitCache(cfg.preset, cfg.sensor_size)
+    n, s = cfg.n_frames, cfg.crop
+    scene, _ = pool.draw(rng)
+    motion = cfg.motions[int(rng.integers(len(cfg.motions)))]
+    map_shape = (2 * s + 16, 2 * s + 16)
+    if cfg.augment:
+        scene = random_augment(scene, rng=rng) if min(scene.shape) >= 8 else scene
+    big = _source_map(scene, map_shape, cfg, rng)
+    if cfg.augment:
+        big = _relevel(big, cfg, rng)
+    if motion == "walk":
+        to_map = trajectory.walk_homographies(
+            n, (s, s), map_shape[::-1], rng=rng, overlap=cfg.overlap
+        )
+    else:
+        to_map = trajectory.hover_homographies(
+            n, (s, s), map_shape[::-1], rng=rng, overlap=cfg.overlap
+        )
+    pivot = n // 2
+    truth = render_views(big, to_map, (s, s))
+
+    u = int(cfg.units[int(rng.integers(len(cfg.units)))]) if unit is None else int(unit)
+    full = units.get(u)
+    sh, sw = full.shape
+    top, left = int(rng.integers(0, sh - s + 1)), int(rng.integers(0, sw - s + 1))
+    cam = full.crop(top, left, s, s)
+    if cfg.redraw_column_fpn:
+        cam = redraw_column_fpn(cam, left, rng)
+    fpa_true = float(rng.uniform(*cfg.fpa_range_c)) if fpa_c is None else float(fpa_c)
+    housing = fpa_true - _THERMAL.fpa_self_heating_c
+    raw = render(cam, truth, fpa_true, housing_c=housing, rng=rng)
+    fpa_read = float(fpa_sensor(np.array([fpa_true]), _THERMAL, rng=rng)[0])
+
+    h_true = trajectory.to_pivot(to_map, pivot)
+    h_reg = trajectory.perturb_homographies(
+        h_true,
+        rng=rng,
+        frame_size=(s, s),
+        translation_px=cfg.translation_px,
+        perspective_sigma=cfg.perspective_sigma,
+        pivot=pivot,
+    )
+    warped, valid = warp_to_pivot(raw, h_reg)
+    return Burst(
+        frames=warped,
+        valid=valid,
+        truth_c=truth[pivot],
+        raw=raw,
+        homographies=h_reg,
+        fpa_c=fpa_read,
+        unit=u,
+        camera=cam,
+    )
+
+
+def make_bursts(
+    pool: ScenePool,
+    cfg: BurstConfig,
+    *,
+    seed: int,
+    start: int,
+    count: int,
+    units: UnitCache | None = None,
+) -> list[Burst]:
+    """Bursts ``start … start + count − 1`` of the seeded stream ``seed``.
+
+    Burst ``i`` depends only on ``(seed, i)``, so a training run resumed at any step sees the
+    same data as one that never stopped.
+    """
+    units = units or UnitCache(cfg.preset, cfg.sensor_size)
+    return [
+        make_burst(pool, cfg, rng=np.random.default_rng([seed, i]), units=units)
+        for i in range(start, start + count)
+    ]

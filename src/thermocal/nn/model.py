@@ -1,0 +1,353 @@
+"""The kernel prediction network with offset block of Oz et al. (appendix, Fig. 6, Tables I-II).
+
+Shapes follow kornia: tensors are ``(B, C, H, W)``; a burst is ``(B, N, H, W)`` of normalised
+gray levels registered onto the pivot (eq. 21), the FPA temperature ``(B,)`` normalised (eq. 20).
+
+* :class:`UNet`: an input 3×3 conv ``N → μ`` (no activation); ``L`` encoder blocks of three 3×3
+  convs (GeLU + batch norm on the first two, neither on the last, which multiplies the channels by
+  ``ξ``) each followed by ``ξ × ξ`` average pooling; a bottleneck block; ``L`` decoder blocks fed
+  with the pixel-shuffled (×ξ) lower level concatenated with the encoder output of their level.
+* :class:`KernelHead`: three 1×1 convs (GeLU on the first two) giving ``N·K²`` channels.
+* :func:`apply_kernels`: eq. 11, the per-pixel ``K × K`` kernel of every frame applied to the
+  ``K × K`` patch of that frame around the pixel, summed over frames.
+* :class:`OffsetBlock`: eq. 10, a polynomial of degree ν in each frame's mean gray level and in
+  the FPA temperature, averaged over frames.
+* :class:`KPN`: the whole model; ``variant="kpn"`` (with the offset block), ``"kpn-no-offset"``
+  and ``"e2e"`` (the same UNet with a head that predicts the temperature directly).
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+
+import torch
+import torch.nn.functional as F
+from torch import nn
+
+from thermocal.errors import InvalidInputError
+
+__all__ = [
+    "KPN",
+    "VARIANTS",
+    "KernelHead",
+    "ModelConfig",
+    "OffsetBlock",
+    "UNet",
+    "apply_kernels",
+    "count_macs",
+    "count_parameters",
+    "frame_means",
+]
+
+VARIANTS = ("kpn", "kpn-no-offset", "e2e")
+
+
+@dataclass(frozen=True)
+class ModelConfig:
+    """Sizes of the network (the paper: ``mu=64, xi=2, levels=4``).
+
+    Attributes
+    ----------
+    n_frames : int
+        Frames per burst ``N``.
+    mu : int
+        Channels after the input conv, ``μ``.
+    xi : int
+        Channel factor and pooling / pixel-shuffle factor per level, ``ξ``.
+    levels : int
+        Number of encoder (and decoder) levels, ``L``.
+    kernel : int
+        Side ``K`` of the predicted per-pixel kernels (odd).
+    degree : int
+        Degree ``ν`` of the offset polynomial (eq. 10).
+    variant : {"kpn", "kpn-no-offset", "e2e"}
+        KPN with offset block, KPN alone, or end-to-end UNet.
+    fpa_input : bool
+        Also feed the normalised FPA temperature to the UNet as a constant input plane (an
+        addition to the paper, which gives it to the offset block only: it lets the kernels,
+        i.e. the gain of eq. 11, follow the FPA temperature).
+    centre : bool
+        Only with the offset block (``variant="kpn"``): the kernels of eq. 11 are applied to the
+        frames minus the burst's mean gray level ``μ`` (the mean of the frame means), so that
+        the offset block, which is given the frame means, carries the whole level and the kernels
+        only the contrast. An addition to the paper: with raw levels (≈ 0.4 after eq. 21) every
+        relative error of a predicted kernel sum is multiplied by the level, not by the scene's
+        contrast. With ``fpa_input`` the UNet is also given ``μ`` as a constant plane.
+    """
+
+    n_frames: int = 7
+    mu: int = 64
+    xi: int = 2
+    levels: int = 4
+    kernel: int = 5
+    degree: int = 4
+    variant: str = "kpn"
+    fpa_input: bool = False
+    centre: bool = False
+
+    def __post_init__(self) -> None:
+        if self.variant not in VARIANTS:
+            raise InvalidInputError(f"variant {self.variant!r}: choose from {', '.join(VARIANTS)}")
+        if self.centre and self.variant != "kpn":
+            raise InvalidInputError("centre needs the offset block (variant 'kpn')")
+        if self.n_frames < 1 or self.mu < 1 or self.xi < 1 or self.levels < 0:
+            raise InvalidInputError(f"bad network sizes: {self}")
+        if self.kernel < 1 or self.kernel % 2 == 0:
+            raise InvalidInputError(f"kernel size must be odd and >= 1, got {self.kernel}")
+        if self.degree < 0:
+            raise InvalidInputError(f"offset degree must be >= 0, got {self.degree}")
+
+    @property
+    def multiple(self) -> int:
+        """Frame sides must be a multiple of this (``ξ^L``)."""
+        return self.xi**self.levels
+
+    def to_dict(self) -> dict:
+        """JSON-able form."""
+        return asdict(self)
+
+
+def _block(c_in: int, c_mid: int, c_out: int) -> nn.Sequential:
+    """Table I: conv-BN-GeLU, conv-BN-GeLU, conv (3×3, 'same' padding)."""
+    return nn.Sequential(
+        nn.Conv2d(c_in, c_mid, 3, padding=1),
+        nn.BatchNorm2d(c_mid),
+        nn.GELU(),
+        nn.Conv2d(c_mid, c_mid, 3, padding=1),
+        nn.BatchNorm2d(c_mid),
+        nn.GELU(),
+        nn.Conv2d(c_mid, c_out, 3, padding=1),
+    )
+
+
+class UNet(nn.Module):
+    """Encoder-decoder of the appendix; returns ``μ`` feature channels at full resolution.
+
+    Level ``i`` (0 = full resolution) works with ``μ·ξ^i`` channels; its encoder block outputs
+    ``μ·ξ^(i+1)`` (Table I) before pooling. The decoder block of level ``i`` takes the
+    pixel-shuffled output of the level below concatenated with that encoder output and gives
+    ``μ·ξ^(i+1)`` channels (``μ`` at level 0), so that the next pixel shuffle has ``μ·ξ^(i−1)``.
+    """
+
+    def __init__(self, c_in: int, mu: int, xi: int, levels: int) -> None:
+        super().__init__()
+        self.xi, self.levels = xi, levels
+        self.inp = nn.Conv2d(c_in, mu, 3, padding=1)
+        self.enc = nn.ModuleList(
+            _block(mu * xi**i, mu * xi**i, mu * xi ** (i + 1))
+            for i in range(levels)
+        )
+        c_bottom = mu * xi**levels
+        self.bottom = _block(c_bottom, c_bottom, c_bottom * xi) if levels else _block(mu, mu, mu)
+        dec = []
+        for i in range(levels):
+            c_up = mu * xi**i  # pixel shuffle (×ξ) of the μ·ξ^(i+2) channels from below
+            c_skip = mu * xi ** (i + 1)
+            c_out = mu * xi ** (i + 1) if i else mu
+            dec.append(_block(c_up + c_skip, mu * xi**i, c_out))
+        self.dec = nn.ModuleList(dec)
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """``(B, C_in, H, W) → (B, μ, H, W)``; ``H, W`` multiples of ``ξ^L``."""
+        x = self.inp(x)
+        skips = []
+        for block in self.enc:
+            x = block(x)
+            skips.append(x)
+            x = F.avg_pool2d(x, self.xi)
+        x = self.bottom(x)
+        for i in reversed(range(self.levels)):
+            x = F.pixel_shuffle(x, self.xi)
+            x = self.dec[i](torch.cat([x, skips[i]], dim=1))
+        return x
+
+
+class KernelHead(nn.Module):
+    """Table II: 1×1 conv-GeLU, 1×1 conv-GeLU, 1×1 conv to ``c_out`` channels."""
+
+    def __init__(self, mu: int, c_out: int) -> None:
+        super().__init__()
+        self.net = nn.Sequential(
+            nn.Conv2d(mu, mu, 1),
+            nn.GELU(),
+            nn.Conv2d(mu, mu, 1),
+            nn.GELU(),
+            nn.Conv2d(mu, c_out, 1),
+        )
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """``(B, μ, H, W) → (B, c_out, H, W)``."""
+        return self.net(x)
+
+
+def apply_kernels(frames: torch.Tensor, kernels: torch.Tensor, k: int) -> torch.Tensor:
+    """Eq. 11 (first term): ``Σ_n ⟨K_n^p, S^p(I_n)⟩`` for every pixel ``p``.
+
+    Parameters
+    ----------
+    frames : (B, N, H, W) tensor
+        Registered, normalised frames.
+    kernels : (B, N·K², H, W) tensor
+        Per-pixel kernels, frame-major (channel ``n·K² + j`` is tap ``j`` of frame ``n``).
+    k : int
+        Kernel side ``K``; patches outside the frame are zero-padded.
+
+    Returns
+    -------
+    (B, 1, H, W) tensor
+    """
+    b, n, h, w = frames.shape
+    if kernels.shape != (b, n * k * k, h, w):
+        raise InvalidInputError(
+            f"kernels {tuple(kernels.shape)} do not match frames {(b, n, h, w)}"
+        )
+    patches = F.unfold(frames, k, padding=k // 2).view(b, n * k * k, h, w)
+    return (patches * kernels).sum(dim=1, keepdim=True)
+
+
+class OffsetBlock(nn.Module):
+    """Eq. 10: ``d = (1/N) Σ_n Σ_{i,j=0..ν} δ_{n,i,j} · mean(I_n)^i · t^j``.
+
+    The appendix realises the coefficients as an ``N × (ν+1)`` weight matrix; with the powers of
+    the FPA (ambient) temperature ``t`` of eq. 10 each frame has ``(ν+1)²`` coefficients here,
+    one matrix ``(N, (ν+1)²)``: a single matrix product gives all the frames' offsets.
+    Inputs are normalised (eq. 20-21), so the powers stay in ``[0, 1]``. Starts at zero.
+    """
+
+    def __init__(self, n_frames: int, degree: int) -> None:
+        super().__init__()
+        self.degree = degree
+        self.delta = nn.Parameter(torch.zeros(n_frames, (degree + 1) ** 2))
+
+    def forward(self, means: torch.Tensor, fpa: torch.Tensor) -> torch.Tensor:
+        """``means (B, N)``, ``fpa (B,)`` → offset ``(B, 1, 1, 1)``."""
+        p = torch.arange(self.degree + 1, dtype=means.dtype, device=means.device)
+        m_pow = means[..., None] ** p  # (B, N, ν+1)
+        t_pow = fpa[:, None] ** p  # (B, ν+1)
+        feats = (m_pow[..., :, None] * t_pow[:, None, None, :]).flatten(2)  # (B, N, (ν+1)²)
+        d = (feats * self.delta).sum(dim=2).mean(dim=1)
+        return d.view(-1, 1, 1, 1)
+
+
+class KPN(nn.Module):
+    """The temperature estimation network: UNet → kernels (eq. 11) + offset block (eq. 10).
+
+    ``forward(frames, fpa, valid)`` takes registered normalised frames ``(B, N, H, W)`` (0 where
+    a frame does not see the pixel), the normalised FPA temperature ``(B,)`` and optionally the
+    validity masks ``(B, N, H, W)`` (for the frame means of the offset block; default: every
+    pixel), and returns the normalised temperature of the pivot ``(B, 1, H, W)``. ``H, W`` must
+    be multiples of ``ξ^L``.
+    """
+
+    def __init__(self, config: ModelConfig, *, init: bool = True) -> None:
+        super().__init__()
+        self.config = config
+        c = config
+        extra = (int(c.fpa_input) * (2 if c.centre else 1))
+        self.unet = UNet(c.n_frames + extra, c.mu, c.xi, c.levels)
+        c_out = 1 if c.variant == "e2e" else c.n_frames * c.kernel**2
+        self.head = KernelHead(c.mu, c_out)
+        self.offset = OffsetBlock(c.n_frames, c.degree) if c.variant == "kpn" else None
+        if init:  # skipped when weights are loaded next (orthogonal init of big layers is slow)
+            self.reset_parameters()
+
+    def reset_parameters(self, gain: float = 0.1) -> None:
+        """Orthogonal initialisation of the weights scaled by ``gain`` (§IV-D), zero biases.
+
+        One addition: the bias of the last kernel-head conv puts ``1/N`` on the centre tap of
+        every frame's kernel, so that the untrained KPN starts from the plain average of the
+        registered frames (eq. 9 with unit gain) instead of from zero; the E2E head starts from
+        the mean of the frames in the same way through its offset. This only shortens training.
+        """
+        for m in self.modules():
+            if isinstance(m, nn.Conv2d):
+                nn.init.orthogonal_(m.weight, gain=gain)
+                nn.init.zeros_(m.bias)
+        c = self.config
+        if c.variant != "e2e":
+            last = self.head.net[-1]
+            with torch.no_grad():
+                bias = last.bias.view(c.n_frames, c.kernel**2)
+                bias[:, (c.kernel**2) // 2] = 1.0 / c.n_frames
+        if self.offset is not None:
+            nn.init.zeros_(self.offset.delta)
+            if c.centre:  # start from d = μ (the level the centring took away): δ_{n,1,0} = 1
+                with torch.no_grad():
+                    self.offset.delta[:, c.degree + 1] = 1.0
+
+    def forward(
+        self,
+        frames: torch.Tensor,
+        fpa: torch.Tensor,
+        valid: torch.Tensor | None = None,
+        *,
+        means: torch.Tensor | None = None,
+    ) -> torch.Tensor:
+        """See the class docstring; ``means (B, N)`` overrides the frame means (tiling)."""
+        c = self.config
+        if frames.ndim != 4 or frames.shape[1] != c.n_frames:
+            raise InvalidInputError(
+                f"expected frames (B, {c.n_frames}, H, W), got {tuple(frames.shape)}"
+            )
+        b, _, h, w = frames.shape
+        if h % c.multiple or w % c.multiple:
+            raise InvalidInputError(f"frame sides must be multiples of {c.multiple}, got {h}x{w}")
+        if means is None:
+            means = frame_means(frames, valid)
+        planes = []
+        if c.centre:
+            level = means.mean(dim=1).view(b, 1, 1, 1)
+            frames = frames - level
+            if valid is not None:
+                frames = frames * valid.to(frames.dtype)
+            if c.fpa_input:
+                planes.append(level.expand(b, 1, h, w))
+        if c.fpa_input:
+            planes.insert(0, fpa.view(b, 1, 1, 1).expand(b, 1, h, w).to(frames.dtype))
+        x = torch.cat([frames, *planes], dim=1) if planes else frames
+        feats = self.unet(x)
+        out = self.head(feats)
+        if c.variant == "e2e":
+            return out + means.mean(dim=1).view(b, 1, 1, 1)
+        out = apply_kernels(frames, out, c.kernel)
+        if self.offset is not None:
+            out = out + self.offset(means, fpa)
+        return out
+
+
+def frame_means(frames: torch.Tensor, valid: torch.Tensor | None) -> torch.Tensor:
+    """Mean of each frame over its valid pixels, ``(B, N)``."""
+    if valid is None:
+        return frames.mean(dim=(2, 3))
+    v = valid.to(frames.dtype)
+    return (frames * v).sum(dim=(2, 3)) / v.sum(dim=(2, 3)).clamp_min(1.0)
+
+
+def count_parameters(model: nn.Module) -> int:
+    """Number of trainable parameters."""
+    return sum(p.numel() for p in model.parameters() if p.requires_grad)
+
+
+def count_macs(model: KPN, height: int, width: int) -> int:
+    """Multiply-accumulates of one forward pass on a ``height × width`` burst (convs + eq. 11)."""
+    macs = 0
+
+    def hook(mod: nn.Module, inp: tuple, out: torch.Tensor) -> None:
+        nonlocal macs
+        k = mod.kernel_size[0] * mod.kernel_size[1]
+        macs += out.numel() * mod.in_channels * k // mod.groups
+
+    handles = [m.register_forward_hook(hook) for m in model.modules() if isinstance(m, nn.Conv2d)]
+    c = model.config
+    was_training = model.training
+    model.eval()
+    try:
+        with torch.no_grad():
+            model(torch.zeros(1, c.n_frames, height, width), torch.zeros(1))
+    finally:
+        for h in handles:
+            h.remove()
+        model.train(was_training)
+    if c.variant != "e2e":
+        macs += c.n_frames * c.kernel**2 * height * width
+    return int(macs)

@@ -1,0 +1,130 @@
+"""Synthetic bursts for the KPN (numpy only): physics, determinism, held-out sets."""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+
+from thermocal.camera.model import invert
+from thermocal.errors import InvalidInputError
+from thermocal.nn.data import (
+    EVAL_SCENES,
+    EVAL_UNITS,
+    TRAIN_EXCLUDED_SCENES,
+    TRAIN_UNITS,
+    VAL_UNITS,
+    BurstConfig,
+    Normalisation,
+    ScenePool,
+    UnitCache,
+    coverage_mask,
+    make_burst,
+    make_bursts,
+    redraw_column_fpn,
+)
+from thermocal.scenes.procedural import procedural_scene
+
+
+@pytest.fixture(scope="module")
+def pool():
+    rng = np.random.default_rng(3)
+    maps = [procedural_scene((160, 160), rng=rng, kind=k) for k in ("farmland", "urban")]
+    return ScenePool(maps, ["a", "b"])
+
+
+@pytest.fixture(scope="module")
+def cfg():
+    return BurstConfig(n_frames=5, crop=32, units=(0, 1))
+
+
+def test_torch_not_imported_by_data_or_commands():
+    import thermocal.nn.commands  # noqa: F401
+    import thermocal.nn.data  # noqa: F401
+
+    if "torch" in sys.modules:  # another test may have imported it: check in a fresh process
+        import subprocess
+
+        code = ("import sys, thermocal, thermocal.cli, thermocal.nn.data, thermocal.nn.commands; "
+                "assert 'torch' not in sys.modules and 'kornia' not in sys.modules")
+        subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_burst_shapes_and_masks(pool, cfg):
+    b = make_burst(pool, cfg, rng=np.random.default_rng(0))
+    assert b.frames.shape == b.valid.shape == b.raw.shape == (5, 32, 32)
+    assert b.truth_c.shape == (32, 32)
+    assert b.frames.dtype == np.float32 and b.raw.dtype == np.uint16
+    assert b.valid[2].all()  # the pivot sees itself
+    assert np.all(b.frames[~b.valid] == 0)
+    assert np.allclose(b.homographies[2], np.eye(3))
+    # 60-80 % overlap: every frame sees much, but not all, of the pivot
+    frac = b.valid.reshape(5, -1).mean(axis=1)
+    assert np.all(frac[[0, 1, 3, 4]] > 0.4) and np.any(frac < 0.95)
+    m = coverage_mask(b.valid)
+    assert m.shape == (32, 32) and m.mean() > 0.5
+    assert b.unit in (0, 1)
+
+
+def test_burst_is_deterministic(pool, cfg):
+    a = make_bursts(pool, cfg, seed=42, start=3, count=2)
+    b = make_bursts(pool, cfg, seed=42, start=3, count=2)
+    c = make_bursts(pool, cfg, seed=42, start=4, count=1)
+    for x, y in zip(a, b, strict=True):
+        assert np.array_equal(x.raw, y.raw) and np.array_equal(x.truth_c, y.truth_c)
+    assert np.array_equal(a[1].raw, c[0].raw)  # burst i depends on (seed, i) only
+    assert not np.array_equal(a[0].raw, a[1].raw)
+
+
+def test_pivot_frame_is_the_camera_model_of_the_truth(pool, cfg):
+    """The pivot's raw counts invert (oracle calibration) to the target temperature."""
+    b = make_burst(pool, cfg, rng=np.random.default_rng(5), fpa_c=30.0)
+    est = invert(b.camera, b.raw[2], 30.0, housing_c=30.0 - 1.5)[0]
+    ok = ~b.camera.defects
+    err = np.abs(est - b.truth_c)[ok]
+    assert np.median(err) < 0.1  # only the temporal noise (NETD ≈ 50 mK) separates them
+
+
+def test_column_fpn_is_redrawn(cfg):
+    units = UnitCache("tau2", (336, 256))
+    cam = units.get(0).crop(10, 20, 32, 32)
+    new = redraw_column_fpn(cam, 20, np.random.default_rng(1))
+    ratio = new.gain[0] / cam.gain[0]
+    assert np.allclose(ratio, ratio[0:1, :])  # a factor per column (eq. 19)
+    assert ratio.std() > 0.01
+    assert 0.85 < ratio.min() and ratio.max() < 1.15
+    assert np.array_equal(new.offset[1:], cam.offset[1:])
+
+
+def test_held_out_sets_are_disjoint():
+    assert not set(TRAIN_UNITS) & set(EVAL_UNITS)
+    assert not set(TRAIN_UNITS) & set(VAL_UNITS)
+    assert not set(VAL_UNITS) & set(EVAL_UNITS)
+    assert set(EVAL_SCENES) <= TRAIN_EXCLUDED_SCENES
+    assert "example_radiometric" in TRAIN_EXCLUDED_SCENES  # the aerial scene's copy
+
+
+def test_training_pool_never_holds_evaluation_scenes(shared_data):
+    pool = ScenePool.training(n_procedural=3, size=64)
+    assert not set(pool.names) & TRAIN_EXCLUDED_SCENES
+    assert any(not n.startswith("procedural") for n in pool.names)
+
+
+def test_normalisation_round_trip():
+    n = Normalisation()
+    t = np.array([-40.0, 0.0, 100.0])
+    assert np.allclose(n.temp(t), [0.0, 40 / 140, 1.0])
+    assert np.allclose(n.temp_inverse(n.temp(t)), t)
+    assert n.fpa(10.0) == 0.0 and n.fpa(50.0) == 1.0
+
+
+def test_bad_config():
+    with pytest.raises(InvalidInputError):
+        BurstConfig(n_frames=0)
+    with pytest.raises(InvalidInputError):
+        BurstConfig(crop=8)
+    with pytest.raises(InvalidInputError):
+        BurstConfig(motions=("uav",))
+    with pytest.raises(InvalidInputError):
+        ScenePool([], [])

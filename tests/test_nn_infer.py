@@ -1,0 +1,253 @@
+"""`thermocal estimate` / `thermocal train` and the inference path: contract and bad input."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+import tifffile
+
+torch = pytest.importorskip("torch")
+
+from thermocal.calibration.two_point import fit_two_point  # noqa: E402
+from thermocal.camera.model import render  # noqa: E402
+from thermocal.camera.presets import make_camera  # noqa: E402
+from thermocal.cli import main  # noqa: E402
+from thermocal.errors import InvalidInputError, RegistrationError  # noqa: E402
+from thermocal.io.recording import Recording, write_recording  # noqa: E402
+from thermocal.nn import infer  # noqa: E402
+from thermocal.nn.data import BurstConfig, Normalisation  # noqa: E402
+from thermocal.nn.infer import estimate_burst, naive_mean, run_network  # noqa: E402
+from thermocal.nn.model import KPN, ModelConfig  # noqa: E402
+from thermocal.nn.train import load_model, save_model  # noqa: E402
+from thermocal.scenes.procedural import procedural_scene  # noqa: E402
+from thermocal.simulate.flight import simulate_flight, write_flight  # noqa: E402
+
+
+def run(args: list[str], capsys) -> tuple[int, str]:
+    try:
+        main(args)
+        code = 0
+    except SystemExit as exc:
+        code = exc.code if isinstance(exc.code, int) else 1
+    return code, capsys.readouterr().err
+
+
+@pytest.fixture(scope="module")
+def camera():
+    return make_camera("tau2", unit=101, size=(64, 48))
+
+
+@pytest.fixture(scope="module")
+def flight(camera):
+    scene = procedural_scene((200, 200), rng=np.random.default_rng(2), kind="urban")
+    return simulate_flight(scene, camera, n_frames=3, motion="walk", fpa_c=30.0, seed=4)
+
+
+@pytest.fixture(scope="module")
+def tiny_model(tmp_path_factory):
+    torch.manual_seed(0)
+    model = KPN(ModelConfig(n_frames=3, mu=4, levels=1, kernel=3))
+    path = tmp_path_factory.mktemp("m") / "tiny.pt"
+    save_model(path, model, Normalisation(), BurstConfig(n_frames=3, crop=32))
+    return path
+
+
+@pytest.fixture
+def true_registration(monkeypatch, flight):
+    """register_burst replaced by the flight's true homographies (registration is tested
+    elsewhere)."""
+    import thermocal.registration as reg
+
+    def fake(frames, *, pivot=None, method="auto"):
+        return reg.BurstRegistration(flight.homographies, flight.pivot,
+                                     np.zeros(len(frames), dtype=int), "true")
+
+    monkeypatch.setattr(reg, "register_burst", fake)
+
+
+def test_estimate_writes_the_pivot_temperature(tmp_path, flight, tiny_model, true_registration,
+                                               capsys):
+    write_flight(tmp_path / "f", flight)
+    out = tmp_path / "t.tiff"
+    code, err = run(["estimate", str(tmp_path / "f" / "frames.tiff"), "--model", str(tiny_model),
+                     "--out", str(out)], capsys)
+    assert code == 0, err
+    t = tifffile.imread(out)
+    assert t.shape == (48, 64) and t.dtype == np.float32 and np.all(np.isfinite(t))
+
+
+def test_estimate_registered_and_pivot(tmp_path, flight, tiny_model, capsys):
+    rec = Recording(frames=flight.frames, fpa_c=flight.fpa_c)
+    write_recording(tmp_path / "r.tiff", rec)
+    out = tmp_path / "t.tiff"
+    code, err = run(["estimate", str(tmp_path / "r.tiff"), "--model", str(tiny_model),
+                     "--registered", "--pivot", "0", "--out", str(out)], capsys)
+    assert code == 0, err
+    assert tifffile.imread(out).shape == (48, 64)
+
+
+@pytest.mark.parametrize(
+    ("frames_fn", "extra", "message"),
+    [
+        (lambda f: f[:2], [], "trained for N = 3 frames, got 2"),
+        (lambda f: np.concatenate([f[:2], np.full_like(f[:1], 16383)]), [], "saturated"),
+    ],
+)
+def test_estimate_bad_bursts(tmp_path, flight, tiny_model, capsys, frames_fn, extra, message):
+    rec = Recording(frames=frames_fn(flight.frames), fpa_c=None)
+    write_recording(tmp_path / "r.tiff", rec)
+    out = tmp_path / "t.tiff"
+    code, err = run(["estimate", str(tmp_path / "r.tiff"), "--model", str(tiny_model),
+                     "--registered", "--fpa-c", "30", "--out", str(out), *extra], capsys)
+    assert code == 2 and message in err and len(err.strip().splitlines()) == 1
+    assert not out.exists()
+
+
+def test_estimate_needs_an_fpa_temperature(tmp_path, flight, tiny_model, capsys):
+    write_recording(tmp_path / "r.tiff", Recording(frames=flight.frames))
+    out = tmp_path / "t.tiff"
+    code, err = run(["estimate", str(tmp_path / "r.tiff"), "--model", str(tiny_model),
+                     "--registered", "--out", str(out)], capsys)
+    assert code == 2 and "no FPA temperature" in err and not out.exists()
+
+
+def test_estimate_rejects_a_file_that_is_not_weights(tmp_path, flight, capsys):
+    write_recording(tmp_path / "r.tiff", Recording(frames=flight.frames, fpa_c=flight.fpa_c))
+    bad = tmp_path / "bad.pt"
+    bad.write_bytes(b"not a model at all")
+    out = tmp_path / "t.tiff"
+    code, err = run(["estimate", str(tmp_path / "r.tiff"), "--model", str(bad), "--registered",
+                     "--out", str(out)], capsys)
+    assert code == 2 and "not a thermocal weights file" in err and not out.exists()
+    other = tmp_path / "other.pt"
+    torch.save({"hello": 1}, other)
+    code, err = run(["estimate", str(tmp_path / "r.tiff"), "--model", str(other), "--registered",
+                     "--out", str(out)], capsys)
+    assert code == 2 and "not a thermocal weights file" in err
+
+
+def test_estimate_frames_of_different_sizes(tmp_path, tiny_model, capsys):
+    path = tmp_path / "mixed.tiff"
+    with tifffile.TiffWriter(path) as tw:
+        tw.write(np.full((48, 64), 5000, np.uint16))
+        tw.write(np.full((40, 64), 5000, np.uint16))
+        tw.write(np.full((48, 64), 5000, np.uint16))
+    code, err = run(["estimate", str(path), "--model", str(tiny_model), "--fpa-c", "30",
+                     "--registered", "--out", str(tmp_path / "t.tiff")], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1
+
+
+def test_estimate_burst_that_does_not_overlap(flight, tiny_model):
+    model, norm, _ = load_model(tiny_model)
+    far = flight.homographies.copy()
+    far[0] = np.array([[1.0, 0, 500.0], [0, 1.0, 0], [0, 0, 1.0]])
+    with pytest.raises(RegistrationError, match="overlaps the pivot"):
+        estimate_burst(flight.frames, 30.0, model=model, norm=norm, homographies=far)
+
+
+def test_estimate_mean_needs_a_calibration(tmp_path, flight, capsys):
+    write_recording(tmp_path / "r.tiff", Recording(frames=flight.frames, fpa_c=flight.fpa_c))
+    code, err = run(["estimate", str(tmp_path / "r.tiff"), "--method", "mean", "--out",
+                     str(tmp_path / "t.tiff")], capsys)
+    assert code == 2 and "--calibration" in err
+
+
+def test_estimate_method_must_match_the_model(tmp_path, flight, tiny_model, capsys):
+    write_recording(tmp_path / "r.tiff", Recording(frames=flight.frames, fpa_c=flight.fpa_c))
+    code, err = run(["estimate", str(tmp_path / "r.tiff"), "--model", str(tiny_model),
+                     "--method", "e2e", "--registered", "--out", str(tmp_path / "t.tiff")],
+                    capsys)
+    assert code == 2 and "not e2e" in err
+
+
+def test_naive_mean_with_the_units_own_calibration(tmp_path, camera, flight):
+    """Eq. 9 through a two-point calibration of the same unit at the burst's FPA temperature:
+    the registered average is close to the truth (the known answer of a perfect calibration)."""
+    rng = np.random.default_rng(0)
+    fpa = float(flight.fpa_true_c.mean())
+    housing = float(flight.housing_c.mean())
+    lo = render(camera, np.full(8, 10.0), fpa, housing_c=housing, rng=rng)
+    hi = render(camera, np.full(8, 50.0), fpa, housing_c=housing, rng=rng)
+    cal = fit_two_point(lo, hi, 10.0, 50.0, fpa_ref_c=fpa)
+    est = naive_mean(flight.frames, cal, fpa_c=flight.fpa_c, homographies=flight.homographies)
+    truth = flight.truth_c[flight.pivot]
+    inner = est.coverage == 3
+    err = np.abs(est.temperature_c - truth)[inner]
+    assert np.median(err) < 0.3
+    # through the CLI too
+    cal.save(tmp_path / "cal.h5")
+    assert infer.load_any_calibration(tmp_path / "cal.h5").shape == (48, 64)
+
+
+def test_tiled_inference_matches_one_pass(flight, tiny_model):
+    model, norm, _ = load_model(tiny_model)
+    warped = flight.frames.astype(np.float32)
+    valid = np.ones(warped.shape, dtype=bool)
+    one = run_network(model, norm, warped, valid, 30.0, tile=512)
+    tiled = run_network(model, norm, warped, valid, 30.0, tile=24, margin=8)
+    assert one.shape == tiled.shape == (48, 64)
+    assert np.allclose(one, tiled, atol=1e-3)
+
+
+def test_train_command_smoke(tmp_path, capsys):
+    out = tmp_path / "m.pt"
+    code, err = run(["train", "--out", str(out), "--frames", "3", "--mu", "4", "--levels", "1",
+                     "--kernel", "3", "--crop", "32", "--batch", "2", "--steps-per-epoch", "2",
+                     "--max-epochs", "1", "--val-bursts", "2", "--units", "0-1", "--workers", "0",
+                     "--threads", "1", "--scenes", "3"], capsys)
+    assert code == 0, err
+    model, norm, info = load_model(out)
+    assert model.config.n_frames == 3 and norm.counts_max > norm.counts_min
+    assert info["meta"]["val_mae_c"] is not None
+    assert out.with_suffix(".ckpt").is_file()
+    # --resume continues from the checkpoint
+    code, err = run(["train", "--out", str(out), "--resume", "--max-epochs", "2", "--workers",
+                     "0", "--scenes", "3"], capsys)
+    assert code == 0, err
+    assert json.loads(json.dumps(info["data"]))["n_frames"] == 3
+
+
+def test_train_bad_options(tmp_path, capsys):
+    code, err = run(["train", "--out", str(tmp_path / "m.pt"), "--crop", "30"], capsys)
+    assert code == 2 and "multiple" in err
+    code, err = run(["train", "--out", str(tmp_path / "m.pt"), "--units", "x"], capsys)
+    assert code == 2 and "units" in err
+    with pytest.raises(InvalidInputError):
+        infer.shipped_model_path("mean")
+
+
+def test_train_from_a_chamber_file(tmp_path, capsys):
+    """The real-camera path: the camera model fitted on a chamber file replaces the preset."""
+    chamber = tmp_path / "c.h5"
+    code, err = run(["simulate", "chamber", str(chamber), "--size", "32x24", "--seed", "1",
+                     "--unit", "3", "--ambient-profile", "steps", "--ambient-c", "10:40",
+                     "--interval-s", "30"], capsys)
+    assert code == 0, err
+    out = tmp_path / "m.pt"
+    code, err = run(["train", "--out", str(out), "--chamber", str(chamber), "--frames", "3",
+                     "--mu", "4", "--levels", "1", "--kernel", "3", "--crop", "16", "--batch",
+                     "2", "--steps-per-epoch", "2", "--max-epochs", "1", "--val-bursts", "2",
+                     "--workers", "0", "--threads", "1", "--scenes", "3"], capsys)
+    assert code == 0, err
+    model, norm, info = load_model(out)
+    assert info["meta"]["chamber"] == str(chamber)
+    assert info["data"]["sensor_size"] == [32, 24]
+    lo, hi = info["data"]["fpa_range_c"]
+    assert 14.0 < lo < hi < 48.0  # the FPA range the chamber covered (not the preset 10-50)
+
+
+def test_estimate_registered_frames_with_uncovered_borders(tmp_path, flight, tiny_model, capsys):
+    """Frames registered elsewhere hold 0 where they do not cover the pivot: not saturation."""
+    from thermocal.registration.warp import warp_to_pivot
+
+    warped, valid = warp_to_pivot(flight.frames, flight.homographies)
+    assert (~valid).mean() > 0.05
+    frames = np.where(valid, np.rint(warped), 0).astype(np.uint16)
+    write_recording(tmp_path / "r.tiff", Recording(frames=frames, fpa_c=flight.fpa_c))
+    out = tmp_path / "t.tiff"
+    code, err = run(["estimate", str(tmp_path / "r.tiff"), "--model", str(tiny_model),
+                     "--registered", "--out", str(out)], capsys)
+    assert code == 0, err
+    assert np.all(np.isfinite(tifffile.imread(out)))

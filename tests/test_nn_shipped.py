@@ -1,0 +1,80 @@
+"""The shipped KPN weights: they load, and beat the calibration-free baselines on a held-out
+camera unit and a held-out real scene (a small seeded burst)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")
+
+from thermocal.calibration.two_point import fit_two_point  # noqa: E402
+from thermocal.camera.model import render  # noqa: E402
+from thermocal.camera.presets import make_camera  # noqa: E402
+from thermocal.nn.data import EVAL_UNITS, TRAIN_UNITS, coverage_mask  # noqa: E402
+from thermocal.nn.infer import SHIPPED_MODELS, estimate_burst, shipped_model_path  # noqa: E402
+from thermocal.nn.train import load_model  # noqa: E402
+from thermocal.scenes.builtin import load_builtin_scene  # noqa: E402
+from thermocal.scenes.trajectory import perturb_homographies  # noqa: E402
+from thermocal.simulate.flight import simulate_flight  # noqa: E402
+
+UNIT = 101  # held out: never a training or validation unit
+FPA_C = 40.0
+NOMINAL_FPA_C = 30.0
+
+
+@pytest.fixture(scope="module")
+def shipped():
+    from importlib.resources import files
+
+    if not (files("thermocal.nn") / "weights" / SHIPPED_MODELS["kpn"]).is_file():
+        pytest.fail("the shipped KPN weights are missing from thermocal/nn/weights")
+    return load_model(shipped_model_path("kpn"))
+
+
+@pytest.fixture(scope="module")
+def burst():
+    cam = make_camera("tau2", unit=UNIT, size=(336, 256)).crop(64, 104, 96, 128)
+    scene = load_builtin_scene("aerial")  # held out: never trained on
+    fl = simulate_flight(scene, cam, n_frames=7, motion="walk", fpa_c=FPA_C, seed=0)
+    hs = perturb_homographies(fl.homographies, rng=np.random.default_rng(0),
+                              frame_size=(128, 96), pivot=fl.pivot)
+    from thermocal.registration.warp import warp_to_pivot
+
+    _, valid = warp_to_pivot(fl.frames, hs)
+    return fl, hs, coverage_mask(valid)
+
+
+def _mae_and_bias_free(est, truth, mask):
+    err = (est - truth)[mask]
+    return float(np.abs(err).mean()), float(np.abs(err - err.mean()).mean())
+
+
+def test_shipped_weights_load(shipped):
+    model, norm, info = shipped
+    assert model.config.n_frames == 7 and model.config.variant == "kpn"
+    assert not model.training
+    assert set(info["data"]["units"]) <= set(TRAIN_UNITS)
+    assert UNIT in EVAL_UNITS and UNIT not in info["data"]["units"]
+    assert norm.counts_max > norm.counts_min and norm.temp_max_c > norm.temp_min_c
+
+
+def test_shipped_kpn_beats_calibration_free_baselines(shipped, burst):
+    model, norm, _ = shipped
+    fl, hs, mask = burst
+    truth = fl.truth_c[fl.pivot]
+    est = estimate_burst(fl.frames, fl.fpa_c, model=model, norm=norm, homographies=hs)
+    kpn_mae, kpn_rel = _mae_and_bias_free(est.temperature_c, truth, mask)
+
+    # baseline: a two-point calibration of another unit at the nominal FPA temperature
+    other = make_camera("tau2", unit=7, size=(336, 256)).crop(64, 104, 96, 128)
+    rng = np.random.default_rng(1)
+    lo = render(other, np.full(8, 10.0), NOMINAL_FPA_C, housing_c=NOMINAL_FPA_C - 1.5, rng=rng)
+    hi = render(other, np.full(8, 50.0), NOMINAL_FPA_C, housing_c=NOMINAL_FPA_C - 1.5, rng=rng)
+    cal = fit_two_point(lo, hi, 10.0, 50.0, fpa_ref_c=NOMINAL_FPA_C)
+    tp = cal.apply(fl.frames[fl.pivot : fl.pivot + 1])[0]
+    tp_mae, tp_rel = _mae_and_bias_free(tp, truth, mask)
+
+    assert np.all(np.isfinite(est.temperature_c))
+    assert kpn_mae < tp_mae, (kpn_mae, tp_mae)
+    assert kpn_rel < tp_rel, (kpn_rel, tp_rel)
