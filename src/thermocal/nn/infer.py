@@ -321,28 +321,6 @@ def naive_mean(
     return Estimate(mean.astype(np.float32), count, hs, p)
 
 
-def load_any_calibration(path: str | os.PathLike[str]) -> Any:
-    """A per-pixel calibration file, as the object of its method (with ``.apply``)."""
-    from thermocal.calibration.store import load_calibration
-
-    stored = load_calibration(path)
-    if stored.method in ("two-point", "one-point"):
-        from thermocal.calibration.two_point import TwoPointCalibration
-
-        return TwoPointCalibration.load(path)
-    if stored.method == "polynomial":
-        from thermocal.calibration.polynomial import PolynomialCalibration
-
-        return PolynomialCalibration.load(path)
-    if stored.method == "wolf2016":
-        from thermocal.calibration.wolf2016 import Wolf2016Calibration
-
-        return Wolf2016Calibration.load(path)
-    raise InvalidInputError(
-        f"{path}: a {stored.method} calibration cannot be used by --method mean"
-    )
-
-
 def estimate_file(
     frames_path: str | os.PathLike[str],
     out: str | os.PathLike[str],
@@ -372,6 +350,8 @@ def estimate_file(
     rec = read_recording(frames_path, fpa_c=fpa_c)
     fpa = rec.fpa_c
     if method == "mean":
+        from thermocal.calibration import load_any_calibration
+
         cal = load_any_calibration(calibration)
         result = naive_mean(rec.frames, cal, fpa_c=fpa, pivot=pivot, registered=registered)
     else:
