@@ -14,14 +14,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import time
 import tracemalloc
 import warnings
 
 import numpy as np
 
+from thermocal.bench import machine
 from thermocal.calibration import (
     OutsideCalibrationRangeWarning,
     fit_calibration,
@@ -37,16 +36,6 @@ SETPOINTS = (5.0, 15.0, 25.0, 35.0, 45.0, 55.0, 65.0, 75.0)
 HELD_OUT = (10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0)
 LIN_REGIONS = (11.6, 26.4, 67.6, 36.8)
 HW_SETPOINTS = (15.0, 25.0, 35.0, 45.0)
-
-
-def machine() -> str:
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as f:
-            cpu = next(line.split(":", 1)[1].strip() for line in f if "model name" in line)
-    except (OSError, StopIteration):
-        pass
-    return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}"
 
 
 def simulate(camera, plans, seed):

@@ -12,18 +12,15 @@ from __future__ import annotations
 import argparse
 import json
 import resource
-import sys
 import tempfile
 import time
 from pathlib import Path
 
+from thermocal.bench import machine
 from thermocal.camera import make_camera
 from thermocal.pipeline.flight import FlightOptions, process_flight
 from thermocal.scenes.builtin import load_builtin_scene
 from thermocal.simulate.flight import plan_flight, write_simulated_flight
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from simulator import machine  # noqa: E402
 
 UNIT = 101  # never a training unit of the network
 

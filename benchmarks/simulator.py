@@ -13,8 +13,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
-import platform
 import resource
 import tempfile
 import time
@@ -22,22 +20,12 @@ from pathlib import Path
 
 import numpy as np
 
+from thermocal.bench import machine
 from thermocal.camera import make_camera, render
 from thermocal.registration.warp import warp_to_pivot
 from thermocal.scenes.procedural import procedural_scene
 from thermocal.simulate.chamber import ChamberPlan, write_simulated_chamber
 from thermocal.simulate.flight import simulate_flight
-
-
-def machine() -> str:
-    """A one-line description of the machine."""
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo") as f:
-            cpu = next(line.split(":", 1)[1].strip() for line in f if "model name" in line)
-    except (OSError, StopIteration):
-        pass
-    return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}"
 
 
 def best_of(fn, repeats: int) -> float:
