@@ -72,7 +72,7 @@ def simulate() -> None:
 @click.option(
     "--ambient-profile",
     type=click.Choice(["constant", "steps", "ramp", "sawtooth"]),
-    default="sawtooth",
+    default="steps",
     show_default=True,
 )
 @click.option("--ambient-c", default="10:40", show_default=True, help="Ambient range A:B, °C.")

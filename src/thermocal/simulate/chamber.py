@@ -41,7 +41,7 @@ class ChamberPlan:
     setpoints_c: tuple[float, ...] = (10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0)
     frames_per_point: int = 5
     order: str = "sweep"
-    profile: str = "sawtooth"
+    profile: str = "steps"
     ambient_c: tuple[float, float] = (10.0, 40.0)
     rate_c_per_min: float = 0.5
     interval_s: float = 2.0
