@@ -45,6 +45,7 @@ from thermocal.calibration.dataset import (
     stability_mask,
 )
 from thermocal.calibration.store import load_calibration, require_arrays, save_calibration
+from thermocal.camera.model import horner
 from thermocal.errors import FitError, InvalidInputError
 from thermocal.radiometry import BandRadiance
 
@@ -63,17 +64,6 @@ def scene_term(temp_c: Any, kind: str, band: BandRadiance) -> np.ndarray:
     if kind == "radiance":
         return np.asarray(band.radiance(t + ZERO_C_K), dtype=np.float64)
     raise InvalidInputError(f"unknown scene term {kind!r}; choose from {', '.join(SCENE_TERMS)}")
-
-
-def _horner(coeffs: np.ndarray, x: float) -> np.ndarray:
-    """``Σ_i coeffs[i] · x^i`` for ``coeffs`` ``(order+1, H, W)`` at a scalar ``x``, float32."""
-    x32 = np.float32(x)
-    out = coeffs[-1] * x32
-    for c in coeffs[-2:0:-1]:
-        out += c
-        out *= x32
-    out += coeffs[0]
-    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -125,7 +115,7 @@ class PolynomialCalibration:
         """Model output (counts, float32 ``(H, W)``) for a scene (°C, scalar or ``(H, W)``)."""
         s = scene_term(scene_c, self.scene_term, self.band).astype(np.float32)
         dt = float(fpa_c) - self.t_ref_c
-        return _horner(self.gain, dt) * s + _horner(self.offset, dt)
+        return horner(self.gain, dt) * s + horner(self.offset, dt)
 
     def apply(self, frames: Any, *, fpa_c: Any = None, time_s: Any = None) -> np.ndarray:
         """Scene temperature, °C, float32 ``(N, H, W)``, from raw counts and the FPA temperature.
@@ -147,7 +137,7 @@ class PolynomialCalibration:
             key = float(fpa[k])
             if key not in cache:
                 dt = key - self.t_ref_c
-                cache = {key: (1.0 / _horner(self.gain, dt), _horner(self.offset, dt))}
+                cache = {key: (1.0 / horner(self.gain, dt), horner(self.offset, dt))}
             inv_gain, offset = cache[key]
             s = frame.astype(np.float32)
             s -= offset

@@ -96,11 +96,11 @@ class CameraModel:
 
     def gain_at(self, fpa_c: float) -> np.ndarray:
         """``G_p(t_fpa)``, counts per W·m⁻²·sr⁻¹, ``(H, W)`` float32."""
-        return _horner(self.gain, fpa_c - self.t_ref_c)
+        return horner(self.gain, fpa_c - self.t_ref_c)
 
     def offset_at(self, fpa_c: float) -> np.ndarray:
         """``O_p(t_fpa)``, counts, ``(H, W)`` float32."""
-        return _horner(self.offset, fpa_c - self.t_ref_c)
+        return horner(self.offset, fpa_c - self.t_ref_c)
 
     def without_transient(self) -> CameraModel:
         """The same unit with ``C_p = 0``: what a method that ignores the transient term assumes."""
@@ -123,7 +123,7 @@ class CameraModel:
         )
 
 
-def _horner(coeffs: np.ndarray, x: float) -> np.ndarray:
+def horner(coeffs: np.ndarray, x: float) -> np.ndarray:
     """Evaluate ``Σ_i coeffs[i] · x^i`` at a scalar ``x``; ``coeffs`` is ``(order+1, H, W)``."""
     x = np.float32(x)
     out = coeffs[-1] * x

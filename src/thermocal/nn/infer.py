@@ -110,19 +110,27 @@ def check_burst(
 
 
 def register(
-    frames: np.ndarray, *, pivot: int | None = None, registered: bool = False
+    frames: np.ndarray,
+    *,
+    pivot: int | None = None,
+    registered: bool = False,
+    homographies: Any = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
     """Warp a burst onto its pivot: ``(warped float32, valid bool, homographies, pivot)``.
 
-    ``registered=True`` takes the frames as already registered (identity homographies; pixels
-    at 0 counts are taken as not covered). Otherwise
-    :func:`thermocal.registration.register_burst` finds the homographies.
+    Known frame → pivot ``homographies`` are used as given. ``registered=True`` takes the frames
+    as already registered (identity homographies; pixels at 0 counts are taken as not covered).
+    Otherwise :func:`thermocal.registration.register_burst` finds the homographies.
     """
     n = frames.shape[0]
     if pivot is None:
         pivot = n // 2
     if not 0 <= pivot < n:
         raise InvalidInputError(f"pivot {pivot} is not a frame index (0 … {n - 1})")
+    if homographies is not None:
+        hs = as_homographies(homographies, n=n)
+        warped, valid = warp_to_pivot(frames, hs)
+        return warped, valid, hs, pivot
     if registered:
         hs = np.repeat(np.eye(3)[None], n, axis=0)
         warped = frames.astype(np.float32)
@@ -259,12 +267,8 @@ def estimate_burst(
             f"of {n_model} frames"
         )
     fpa = _fpa_value(fpa_c, arr.shape[0])
-    if homographies is not None:
-        p = arr.shape[0] // 2 if pivot is None else pivot
-        hs = as_homographies(homographies, n=arr.shape[0])
-        warped, valid = warp_to_pivot(arr, hs)
-    else:
-        warped, valid, hs, p = register(arr, pivot=pivot, registered=registered)
+    warped, valid, hs, p = register(arr, pivot=pivot, registered=registered,
+                                    homographies=homographies)
     _check_overlap(valid, p)
     temp = run_network(
         model, norm, _to_model_order(warped, p), _to_model_order(valid, p), fpa
@@ -307,12 +311,7 @@ def naive_mean(
             f"{calibration.shape[1]}x{calibration.shape[0]}"
         )
     temps = calibration.apply(arr, fpa_c=fpa_c)
-    if homographies is not None:
-        p = arr.shape[0] // 2 if pivot is None else pivot
-        hs = as_homographies(homographies, n=arr.shape[0])
-        _, valid = warp_to_pivot(arr, hs)
-    else:
-        _, valid, hs, p = register(arr, pivot=pivot, registered=registered)
+    _, valid, hs, p = register(arr, pivot=pivot, registered=registered, homographies=homographies)
     _check_overlap(valid, p)
     warped_t, valid_t = warp_to_pivot(temps, hs)
     valid_t &= valid
