@@ -22,17 +22,16 @@ Tables:
 2. per-scene MAE of the KPN;
 3. speed and size: one 336×256 burst of 7 frames, parameters, multiply-adds, training
    throughput (samples/s, a few steps of the shipped configuration);
-4. with ``--fig7``: MAE against N for KPN + offset, KPN and E2E, each trained here for
-   ``--fig7-minutes`` (short trainings: a harness, not the paper's budget).
+
+Fig. 7 (MAE against N for the three variants) is ``benchmarks/kpn_fig7.py``.
 
     .venv/bin/python benchmarks/kpn.py [--quick] [--json OUT.json] [--model MODEL.pt]
-                                       [--register] [--fig7 [--fig7-minutes M] [--fig7-n 1,3,5]]
+                                       [--register] [--accuracy-only] [--device cuda]
 """
 
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import os
 import platform
@@ -58,7 +57,7 @@ from thermocal.nn.data import (
 )
 from thermocal.nn.infer import estimate_burst, naive_mean, run_network, shipped_model_path
 from thermocal.nn.model import ModelConfig, count_macs, count_parameters
-from thermocal.nn.train import TrainConfig, load_model, train
+from thermocal.nn.train import TrainConfig, load_model, resolve_device, train
 from thermocal.radiometry import BandRadiance
 from thermocal.scenes.trajectory import perturb_homographies
 from thermocal.simulate.flight import simulate_flight
@@ -83,10 +82,8 @@ def eval_bursts(n_frames: int, *, quick: bool, register: bool = False):
                 cam = cam.crop(64, 84, size[1], size[0])
             fpa = float(rng.uniform(15.0, 45.0))
             motion = ("walk", "hover")[(si + k) % 2]
-            fl = simulate_flight(scene, cam, n_frames=n_frames, motion=motion, fpa_c=fpa,
-                                 seed=seed)
-            hs = perturb_homographies(fl.homographies, rng=rng, frame_size=size,
-                                      pivot=fl.pivot)
+            fl = simulate_flight(scene, cam, n_frames=n_frames, motion=motion, fpa_c=fpa, seed=seed)
+            hs = perturb_homographies(fl.homographies, rng=rng, frame_size=size, pivot=fl.pivot)
             if register:
                 from thermocal.registration import register_burst
 
@@ -94,12 +91,23 @@ def eval_bursts(n_frames: int, *, quick: bool, register: bool = False):
             from thermocal.registration.warp import warp_to_pivot
 
             _, valid = warp_to_pivot(fl.frames, hs)
-            out.append({
-                "scene": name, "unit": unit, "fpa_c": fpa, "motion": motion, "camera": cam,
-                "frames": fl.frames, "fpa_read": fl.fpa_c, "truth": fl.truth_c[fl.pivot],
-                "hs": hs, "pivot": fl.pivot, "mask": coverage_mask(valid),
-                "fpa_true": fl.fpa_true_c, "housing": fl.housing_c,
-            })
+            out.append(
+                {
+                    "scene": name,
+                    "unit": unit,
+                    "fpa_c": fpa,
+                    "motion": motion,
+                    "camera": cam,
+                    "frames": fl.frames,
+                    "fpa_read": fl.fpa_c,
+                    "truth": fl.truth_c[fl.pivot],
+                    "hs": hs,
+                    "pivot": fl.pivot,
+                    "mask": coverage_mask(valid),
+                    "fpa_true": fl.fpa_true_c,
+                    "housing": fl.housing_c,
+                }
+            )
     return out
 
 
@@ -169,8 +177,14 @@ def run_methods(bursts, model, norm, *, baselines: bool = True) -> dict[str, lis
     for b in bursts:
         cam = b["camera"]
         if model is not None:
-            e = estimate_burst(b["frames"], b["fpa_read"], model=model, norm=norm,
-                               homographies=b["hs"], pivot=b["pivot"])
+            e = estimate_burst(
+                b["frames"],
+                b["fpa_read"],
+                model=model,
+                norm=norm,
+                homographies=b["hs"],
+                pivot=b["pivot"],
+            )
             res.setdefault("KPN + offset (shipped)", []).append(scores(e.temperature_c, b))
         if not baselines:
             continue
@@ -184,10 +198,12 @@ def run_methods(bursts, model, norm, *, baselines: bool = True) -> dict[str, lis
         piv = b["pivot"]
         t_piv = other_cal.apply(b["frames"][piv : piv + 1])[0]
         res.setdefault("two-point, other unit, FPA 30 °C (pivot frame)", []).append(
-            scores(t_piv, b))
+            scores(t_piv, b)
+        )
         m9 = naive_mean(b["frames"], other_cal, homographies=b["hs"], pivot=piv)
         res.setdefault("two-point, other unit, FPA 30 °C (eq. 9 mean)", []).append(
-            scores(m9.temperature_c, b))
+            scores(m9.temperature_c, b)
+        )
         nuc = correct_nonuniformity(b["frames"], method="hardie2000", homographies=b["hs"])[piv]
         g, o = float(other_cal.gain.mean()), float(other_cal.offset.mean())
         lo, hi = band.radiance_range
@@ -195,15 +211,19 @@ def run_methods(bursts, model, norm, *, baselines: bool = True) -> dict[str, lis
         res.setdefault("hardie2000 NUC + global fit (other unit)", []).append(scores(t_nuc, b))
         if key not in fam_cache:
             fam_cache[key] = FamilyModel(
-                TRAIN_UNITS, None if cam.shape == (256, 336) else (64, 84, *cam.shape))
-        fam = naive_mean(b["frames"], fam_cache[key], fpa_c=b["fpa_read"],
-                         homographies=b["hs"], pivot=piv)
-        res.setdefault("(floor) exact model of the average training unit (eq. 9 mean)",
-                       []).append(scores(fam.temperature_c, b))
+                TRAIN_UNITS, None if cam.shape == (256, 336) else (64, 84, *cam.shape)
+            )
+        fam = naive_mean(
+            b["frames"], fam_cache[key], fpa_c=b["fpa_read"], homographies=b["hs"], pivot=piv
+        )
+        res.setdefault("(floor) exact model of the average training unit (eq. 9 mean)", []).append(
+            scores(fam.temperature_c, b)
+        )
         own = two_point_of(cam, float(np.mean(b["fpa_true"])), float(np.mean(b["housing"])), 6)
         m9o = naive_mean(b["frames"], own, homographies=b["hs"], pivot=piv)
         res.setdefault("(reference) own two-point at the burst FPA (eq. 9 mean)", []).append(
-            scores(m9o.temperature_c, b))
+            scores(m9o.temperature_c, b)
+        )
     return res
 
 
@@ -211,15 +231,17 @@ def summarise(res: dict[str, list[dict]]) -> list[dict]:
     rows = []
     for name, lst in res.items():
         maes = [r["mae"] for r in lst]
-        rows.append({
-            "method": name,
-            "mae_c": float(np.mean(maes)),
-            "median_mae_c": float(np.median(maes)),
-            "bias_free_mae_c": float(np.mean([r["bias_free"] for r in lst])),
-            "affine_free_mae_c": float(np.mean([r["affine_free"] for r in lst])),
-            "within_0_5": float(np.mean([r["within_0_5"] for r in lst])),
-            "mean_abs_bias_c": float(np.mean([abs(r["bias"]) for r in lst])),
-        })
+        rows.append(
+            {
+                "method": name,
+                "mae_c": float(np.mean(maes)),
+                "median_mae_c": float(np.median(maes)),
+                "bias_free_mae_c": float(np.mean([r["bias_free"] for r in lst])),
+                "affine_free_mae_c": float(np.mean([r["affine_free"] for r in lst])),
+                "within_0_5": float(np.mean([r["within_0_5"] for r in lst])),
+                "mean_abs_bias_c": float(np.mean([abs(r["bias"]) for r in lst])),
+            }
+        )
     return rows
 
 
@@ -247,42 +269,37 @@ def training_throughput(model_cfg: ModelConfig, data: dict, *, steps: int = 6) -
     """Samples/s of the shipped configuration (data generation included), a few steps."""
     cfg = BurstConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in data.items()})
     with tempfile.TemporaryDirectory() as tmp:
-        res = train(Path(tmp) / "m.pt", model_cfg, cfg,
-                    TrainConfig(steps_per_epoch=steps, max_epochs=1, val_bursts=16, workers=1),
-                    pool_fn=lambda: ScenePool.training(n_procedural=6),
-                    val_pool_fn=lambda: ScenePool.training(seed=1, n_procedural=3),
-                    log=lambda s: None, progress=False)
+        res = train(
+            Path(tmp) / "m.pt",
+            model_cfg,
+            cfg,
+            TrainConfig(steps_per_epoch=steps, max_epochs=1, val_bursts=16, workers=1),
+            pool_fn=lambda: ScenePool.training(n_procedural=6),
+            val_pool_fn=lambda: ScenePool.training(seed=1, n_procedural=3),
+            log=lambda s: None,
+            progress=False,
+        )
     return res.samples_per_s
 
 
-def fig7(ns, minutes: float, *, quick: bool, base: ModelConfig, data: dict) -> list[dict]:
-    """Train the three variants for each N with a wall-clock budget, evaluate each."""
-    rows = []
-    cfg0 = BurstConfig(**{k: tuple(v) if isinstance(v, list) else v for k, v in data.items()})
-    for n in ns:
-        bursts = eval_bursts(n, quick=True)
-        for variant in ("kpn", "kpn-no-offset", "e2e"):
-            mc = ModelConfig(**{**base.to_dict(), "n_frames": n, "variant": variant,
-                                "centre": base.centre and variant == "kpn"})
-            bc = dataclasses.replace(cfg0, n_frames=n)
-            with tempfile.TemporaryDirectory() as tmp:
-                out = Path(tmp) / "m.pt"
-                r = train(out, mc, bc,
-                          TrainConfig(lr=1e-3, steps_per_epoch=25, max_epochs=10_000,
-                                      val_bursts=32, max_minutes=minutes, workers=1),
-                          pool_fn=lambda: ScenePool.training(n_procedural=12),
-                          val_pool_fn=lambda: ScenePool.training(seed=1042, n_procedural=4),
-                          log=lambda s: None, progress=False)
-                model, norm, _ = load_model(out)
-            res = run_methods(bursts, model, norm, baselines=False)
-            s = summarise(res)[0]
-            rows.append({"n": n, "variant": variant, "mae_c": s["mae_c"],
-                         "bias_free_mae_c": s["bias_free_mae_c"],
-                         "affine_free_mae_c": s["affine_free_mae_c"], "steps": r.steps,
-                         "val_mae_c": r.best_val_mae_c})
-            print(f"  fig7 N={n} {variant}: MAE {s['mae_c']:.2f} °C "
-                  f"(bias-free {s['bias_free_mae_c']:.2f}) after {r.steps} steps", flush=True)
-    return rows
+def print_speed(sp: dict, sps: float, n: int, info: dict) -> None:
+    """The speed-and-size table."""
+    print("\n| speed and size | value |\n|---|---|")
+    print(
+        f"| network, one 336×256 burst of {n} (median of 5, 2 threads) | "
+        f"{sp['network_ms_336x256']:.0f} ms |"
+    )
+    print(f"| parameters | {sp['parameters']:,} |")
+    print(f"| multiply-adds, 336×256 | {sp['gmacs_336x256']:.2f} G |")
+    print(
+        f"| training throughput (crop {info['data'].get('crop')}, batch 16, data included) | "
+        f"{sps:.1f} samples/s |"
+    )
+    meta = info["meta"]
+    print(
+        f"| shipped model: validation MAE at save | {meta.get('val_mae_c')} °C "
+        f"(step {meta.get('step')}) |"
+    )
 
 
 def main() -> None:
@@ -290,11 +307,17 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true")
     ap.add_argument("--json", type=Path)
     ap.add_argument("--model", type=Path, default=None)
-    ap.add_argument("--register", action="store_true",
-                    help="use register_burst's homographies instead of the perturbed true ones")
-    ap.add_argument("--fig7", action="store_true")
-    ap.add_argument("--fig7-minutes", type=float, default=2.0)
-    ap.add_argument("--fig7-n", default="1,3,5,7,9,11")
+    ap.add_argument(
+        "--register",
+        action="store_true",
+        help="use register_burst's homographies instead of the perturbed true ones",
+    )
+    ap.add_argument(
+        "--accuracy-only",
+        action="store_true",
+        help="the KPN's accuracy table alone (no baselines, speed or throughput)",
+    )
+    ap.add_argument("--device", default="cpu", help="where the model runs (cpu, cuda, auto)")
     args = ap.parse_args()
     torch.set_num_threads(2)
     path = args.model or shipped_model_path("kpn")
@@ -302,77 +325,85 @@ def main() -> None:
     n = model.config.n_frames
     t0 = time.time()
     bursts = eval_bursts(n, quick=args.quick, register=args.register)
-    res = run_methods(bursts, model, norm)
+    res = run_methods(
+        bursts, model.to(resolve_device(args.device)), norm, baselines=not args.accuracy_only
+    )
+    model.cpu()
     rows = summarise(res)
     eval_s = time.time() - t0
 
     scenes = sorted({b["scene"] for b in bursts})
     size = bursts[0]["frames"].shape
     print(f"## KPN benchmark ({'quick' if args.quick else 'full'})\n")
-    print(f"machine: {platform.machine()}, {os.cpu_count()} CPU cores, torch "
-          f"{torch.__version__}, 2 threads; model `{path.name}` "
-          f"({model.config.to_dict()})")
-    print(f"data: {len(bursts)} bursts of N = {n} frames {size[2]}x{size[1]} over held-out "
-          f"scenes {', '.join(scenes)}; held-out camera units {sorted({b['unit'] for b in bursts})}"
-          f" (training units {info['data'].get('units', '?')[:1]}…"
-          f"{info['data'].get('units', '?')[-1:]}); FPA 15-45 °C; registration: "
-          f"{'register_burst' if args.register else 'true homographies + Oz error'}; "
-          f"metrics on pixels seen by ≥ half the frames; {eval_s:.0f} s\n")
-    print("| method | MAE °C | median MAE °C | within 0.5 °C | mean abs bias °C | "
-          "bias-free MAE °C | affine-free MAE °C |")
+    print(
+        f"machine: {platform.machine()}, {os.cpu_count()} CPU cores, torch "
+        f"{torch.__version__}, 2 threads; model `{path.name}` "
+        f"({model.config.to_dict()})"
+    )
+    print(
+        f"data: {len(bursts)} bursts of N = {n} frames {size[2]}x{size[1]} over held-out "
+        f"scenes {', '.join(scenes)}; held-out camera units {sorted({b['unit'] for b in bursts})}"
+        f" (training units {info['data'].get('units', '?')[:1]}…"
+        f"{info['data'].get('units', '?')[-1:]}); FPA 15-45 °C; registration: "
+        f"{'register_burst' if args.register else 'true homographies + Oz error'}; "
+        f"metrics on pixels seen by ≥ half the frames; {eval_s:.0f} s\n"
+    )
+    print(
+        "| method | MAE °C | median MAE °C | within 0.5 °C | mean abs bias °C | "
+        "bias-free MAE °C | affine-free MAE °C |"
+    )
     print("|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['method']} | {r['mae_c']:.2f} | {r['median_mae_c']:.2f} | "
-              f"{100 * r['within_0_5']:.0f} % | {r['mean_abs_bias_c']:.2f} | "
-              f"{r['bias_free_mae_c']:.2f} | {r['affine_free_mae_c']:.2f} |")
-    print("\n(bias-free: after removing each burst's mean error; affine-free: after the best "
-          "affine map onto the truth (an oracle): what is left of non-uniformity and noise once "
-          "the unit's unknown global offset / gain are set aside)")
+        print(
+            f"| {r['method']} | {r['mae_c']:.2f} | {r['median_mae_c']:.2f} | "
+            f"{100 * r['within_0_5']:.0f} % | {r['mean_abs_bias_c']:.2f} | "
+            f"{r['bias_free_mae_c']:.2f} | {r['affine_free_mae_c']:.2f} |"
+        )
+    print(
+        "\n(bias-free: after removing each burst's mean error; affine-free: after the best "
+        "affine map onto the truth (an oracle): what is left of non-uniformity and noise once "
+        "the unit's unknown global offset / gain are set aside)"
+    )
     print("\nKPN per scene (MAE °C / bias-free MAE °C):\n")
     print("| scene | unit | FPA °C | MAE °C | bias °C | bias-free °C | affine-free °C |")
     print("|---|---|---|---|---|---|---|")
     for b, s in zip(bursts, res["KPN + offset (shipped)"], strict=True):
-        print(f"| {b['scene']} ({b['motion']}) | {b['unit']} | {b['fpa_c']:.1f} | "
-              f"{s['mae']:.2f} | {s['bias']:+.2f} | {s['bias_free']:.2f} | "
-              f"{s['affine_free']:.2f} |")
+        print(
+            f"| {b['scene']} ({b['motion']}) | {b['unit']} | {b['fpa_c']:.1f} | "
+            f"{s['mae']:.2f} | {s['bias']:+.2f} | {s['bias_free']:.2f} | "
+            f"{s['affine_free']:.2f} |"
+        )
 
-    sp = speed(model, norm)
-    sps = training_throughput(model.config, info["data"], steps=4 if args.quick else 8)
-    print("\n| speed and size | value |\n|---|---|")
-    print(f"| network, one 336×256 burst of {n} (median of 5, 2 threads) | "
-          f"{sp['network_ms_336x256']:.0f} ms |")
-    print(f"| parameters | {sp['parameters']:,} |")
-    print(f"| multiply-adds, 336×256 | {sp['gmacs_336x256']:.2f} G |")
-    print(f"| training throughput (crop {info['data'].get('crop')}, batch 16, data included) | "
-          f"{sps:.1f} samples/s |")
-    meta = info["meta"]
-    print(f"| shipped model: validation MAE at save | {meta.get('val_mae_c')} °C "
-          f"(step {meta.get('step')}) |")
-
-    fig = None
-    if args.fig7:
-        ns = [int(x) for x in args.fig7_n.split(",")]
-        print(f"\n### Fig. 7 harness: {args.fig7_minutes} min of training per model "
-              f"(quick evaluation set)\n", flush=True)
-        fig = fig7(ns, args.fig7_minutes, quick=True, base=model.config, data=info["data"])
-        print("\n| N | KPN + offset MAE °C | KPN MAE °C | E2E MAE °C | steps each |")
-        print("|---|---|---|---|---|")
-        for n_ in ns:
-            r = {x["variant"]: x for x in fig if x["n"] == n_}
-            print(f"| {n_} | {r['kpn']['mae_c']:.2f} ({r['kpn']['bias_free_mae_c']:.2f}) | "
-                  f"{r['kpn-no-offset']['mae_c']:.2f} ({r['kpn-no-offset']['bias_free_mae_c']:.2f})"
-                  f" | {r['e2e']['mae_c']:.2f} ({r['e2e']['bias_free_mae_c']:.2f}) | "
-                  f"{r['kpn']['steps']}/{r['kpn-no-offset']['steps']}/{r['e2e']['steps']} |")
-        print("(in brackets: bias-free MAE)")
+    sp = sps = None
+    if args.accuracy_only:
+        print(
+            f"\nparameters {count_parameters(model):,}; multiply-adds at 336×256 "
+            f"{count_macs(model, 256, 336) / 1e9:.1f} G; validation MAE at save "
+            f"{info['meta'].get('val_mae_c')} °C (step {info['meta'].get('step')})"
+        )
+    else:
+        sp = speed(model, norm)
+        sps = training_throughput(model.config, info["data"], steps=4 if args.quick else 8)
+        print_speed(sp, sps, n, info)
 
     if args.json:
-        args.json.write_text(json.dumps({
-            "quick": args.quick, "register": args.register, "model": str(path),
-            "accuracy": rows,
-            "per_burst": [{"scene": b["scene"], "unit": b["unit"], "fpa_c": b["fpa_c"], **s}
-                          for b, s in zip(bursts, res["KPN + offset (shipped)"], strict=True)],
-            "speed": sp, "training_samples_per_s": sps, "fig7": fig,
-        }, indent=2))
+        args.json.write_text(
+            json.dumps(
+                {
+                    "quick": args.quick,
+                    "register": args.register,
+                    "model": str(path),
+                    "accuracy": rows,
+                    "per_burst": [
+                        {"scene": b["scene"], "unit": b["unit"], "fpa_c": b["fpa_c"], **s}
+                        for b, s in zip(bursts, res["KPN + offset (shipped)"], strict=True)
+                    ],
+                    "speed": sp,
+                    "training_samples_per_s": sps,
+                },
+                indent=2,
+            )
+        )
 
 
 if __name__ == "__main__":

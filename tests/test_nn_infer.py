@@ -61,18 +61,29 @@ def true_registration(monkeypatch, flight):
     import thermocal.registration as reg
 
     def fake(frames, *, pivot=None, method="auto"):
-        return reg.BurstRegistration(flight.homographies, flight.pivot,
-                                     np.zeros(len(frames), dtype=int), "true")
+        return reg.BurstRegistration(
+            flight.homographies, flight.pivot, np.zeros(len(frames), dtype=int), "true"
+        )
 
     monkeypatch.setattr(reg, "register_burst", fake)
 
 
-def test_estimate_writes_the_pivot_temperature(tmp_path, flight, tiny_model, true_registration,
-                                               capsys):
+def test_estimate_writes_the_pivot_temperature(
+    tmp_path, flight, tiny_model, true_registration, capsys
+):
     write_flight(tmp_path / "f", flight)
     out = tmp_path / "t.tiff"
-    code, err = run(["estimate", str(tmp_path / "f" / "frames.tiff"), "--model", str(tiny_model),
-                     "--out", str(out)], capsys)
+    code, err = run(
+        [
+            "estimate",
+            str(tmp_path / "f" / "frames.tiff"),
+            "--model",
+            str(tiny_model),
+            "--out",
+            str(out),
+        ],
+        capsys,
+    )
     assert code == 0, err
     t = tifffile.imread(out)
     assert t.shape == (48, 64) and t.dtype == np.float32 and np.all(np.isfinite(t))
@@ -82,8 +93,20 @@ def test_estimate_registered_and_pivot(tmp_path, flight, tiny_model, capsys):
     rec = Recording(frames=flight.frames, fpa_c=flight.fpa_c)
     write_recording(tmp_path / "r.tiff", rec)
     out = tmp_path / "t.tiff"
-    code, err = run(["estimate", str(tmp_path / "r.tiff"), "--model", str(tiny_model),
-                     "--registered", "--pivot", "0", "--out", str(out)], capsys)
+    code, err = run(
+        [
+            "estimate",
+            str(tmp_path / "r.tiff"),
+            "--model",
+            str(tiny_model),
+            "--registered",
+            "--pivot",
+            "0",
+            "--out",
+            str(out),
+        ],
+        capsys,
+    )
     assert code == 0, err
     assert tifffile.imread(out).shape == (48, 64)
 
@@ -99,8 +122,21 @@ def test_estimate_bad_bursts(tmp_path, flight, tiny_model, capsys, frames_fn, ex
     rec = Recording(frames=frames_fn(flight.frames), fpa_c=None)
     write_recording(tmp_path / "r.tiff", rec)
     out = tmp_path / "t.tiff"
-    code, err = run(["estimate", str(tmp_path / "r.tiff"), "--model", str(tiny_model),
-                     "--registered", "--fpa-c", "30", "--out", str(out), *extra], capsys)
+    code, err = run(
+        [
+            "estimate",
+            str(tmp_path / "r.tiff"),
+            "--model",
+            str(tiny_model),
+            "--registered",
+            "--fpa-c",
+            "30",
+            "--out",
+            str(out),
+            *extra,
+        ],
+        capsys,
+    )
     assert code == 2 and message in err and len(err.strip().splitlines()) == 1
     assert not out.exists()
 
@@ -108,8 +144,18 @@ def test_estimate_bad_bursts(tmp_path, flight, tiny_model, capsys, frames_fn, ex
 def test_estimate_needs_an_fpa_temperature(tmp_path, flight, tiny_model, capsys):
     write_recording(tmp_path / "r.tiff", Recording(frames=flight.frames))
     out = tmp_path / "t.tiff"
-    code, err = run(["estimate", str(tmp_path / "r.tiff"), "--model", str(tiny_model),
-                     "--registered", "--out", str(out)], capsys)
+    code, err = run(
+        [
+            "estimate",
+            str(tmp_path / "r.tiff"),
+            "--model",
+            str(tiny_model),
+            "--registered",
+            "--out",
+            str(out),
+        ],
+        capsys,
+    )
     assert code == 2 and "no FPA temperature" in err and not out.exists()
 
 
@@ -118,13 +164,33 @@ def test_estimate_rejects_a_file_that_is_not_weights(tmp_path, flight, capsys):
     bad = tmp_path / "bad.pt"
     bad.write_bytes(b"not a model at all")
     out = tmp_path / "t.tiff"
-    code, err = run(["estimate", str(tmp_path / "r.tiff"), "--model", str(bad), "--registered",
-                     "--out", str(out)], capsys)
+    code, err = run(
+        [
+            "estimate",
+            str(tmp_path / "r.tiff"),
+            "--model",
+            str(bad),
+            "--registered",
+            "--out",
+            str(out),
+        ],
+        capsys,
+    )
     assert code == 2 and "not a thermocal weights file" in err and not out.exists()
     other = tmp_path / "other.pt"
     torch.save({"hello": 1}, other)
-    code, err = run(["estimate", str(tmp_path / "r.tiff"), "--model", str(other), "--registered",
-                     "--out", str(out)], capsys)
+    code, err = run(
+        [
+            "estimate",
+            str(tmp_path / "r.tiff"),
+            "--model",
+            str(other),
+            "--registered",
+            "--out",
+            str(out),
+        ],
+        capsys,
+    )
     assert code == 2 and "not a thermocal weights file" in err
 
 
@@ -134,8 +200,20 @@ def test_estimate_frames_of_different_sizes(tmp_path, tiny_model, capsys):
         tw.write(np.full((48, 64), 5000, np.uint16))
         tw.write(np.full((40, 64), 5000, np.uint16))
         tw.write(np.full((48, 64), 5000, np.uint16))
-    code, err = run(["estimate", str(path), "--model", str(tiny_model), "--fpa-c", "30",
-                     "--registered", "--out", str(tmp_path / "t.tiff")], capsys)
+    code, err = run(
+        [
+            "estimate",
+            str(path),
+            "--model",
+            str(tiny_model),
+            "--fpa-c",
+            "30",
+            "--registered",
+            "--out",
+            str(tmp_path / "t.tiff"),
+        ],
+        capsys,
+    )
     assert code == 2 and len(err.strip().splitlines()) == 1
 
 
@@ -149,16 +227,36 @@ def test_estimate_burst_that_does_not_overlap(flight, tiny_model):
 
 def test_estimate_mean_needs_a_calibration(tmp_path, flight, capsys):
     write_recording(tmp_path / "r.tiff", Recording(frames=flight.frames, fpa_c=flight.fpa_c))
-    code, err = run(["estimate", str(tmp_path / "r.tiff"), "--method", "mean", "--out",
-                     str(tmp_path / "t.tiff")], capsys)
+    code, err = run(
+        [
+            "estimate",
+            str(tmp_path / "r.tiff"),
+            "--method",
+            "mean",
+            "--out",
+            str(tmp_path / "t.tiff"),
+        ],
+        capsys,
+    )
     assert code == 2 and "--calibration" in err
 
 
 def test_estimate_method_must_match_the_model(tmp_path, flight, tiny_model, capsys):
     write_recording(tmp_path / "r.tiff", Recording(frames=flight.frames, fpa_c=flight.fpa_c))
-    code, err = run(["estimate", str(tmp_path / "r.tiff"), "--model", str(tiny_model),
-                     "--method", "e2e", "--registered", "--out", str(tmp_path / "t.tiff")],
-                    capsys)
+    code, err = run(
+        [
+            "estimate",
+            str(tmp_path / "r.tiff"),
+            "--model",
+            str(tiny_model),
+            "--method",
+            "e2e",
+            "--registered",
+            "--out",
+            str(tmp_path / "t.tiff"),
+        ],
+        capsys,
+    )
     assert code == 2 and "not e2e" in err
 
 
@@ -195,18 +293,61 @@ def test_tiled_inference_matches_one_pass(flight, tiny_model):
 
 def test_train_command_smoke(tmp_path, capsys):
     out = tmp_path / "m.pt"
-    code, err = run(["train", "--out", str(out), "--frames", "3", "--mu", "4", "--levels", "1",
-                     "--kernel", "3", "--crop", "32", "--batch", "2", "--steps-per-epoch", "2",
-                     "--max-epochs", "1", "--val-bursts", "2", "--units", "0-1", "--workers", "0",
-                     "--threads", "1", "--scenes", "3"], capsys)
+    code, err = run(
+        [
+            "train",
+            "--out",
+            str(out),
+            "--frames",
+            "3",
+            "--mu",
+            "4",
+            "--levels",
+            "1",
+            "--kernel",
+            "3",
+            "--crop",
+            "32",
+            "--batch",
+            "2",
+            "--steps-per-epoch",
+            "2",
+            "--max-epochs",
+            "1",
+            "--val-bursts",
+            "2",
+            "--units",
+            "0-1",
+            "--workers",
+            "0",
+            "--threads",
+            "1",
+            "--scenes",
+            "3",
+        ],
+        capsys,
+    )
     assert code == 0, err
     model, norm, info = load_model(out)
     assert model.config.n_frames == 3 and norm.counts_max > norm.counts_min
     assert info["meta"]["val_mae_c"] is not None
     assert out.with_suffix(".ckpt").is_file()
     # --resume continues from the checkpoint
-    code, err = run(["train", "--out", str(out), "--resume", "--max-epochs", "2", "--workers",
-                     "0", "--scenes", "3"], capsys)
+    code, err = run(
+        [
+            "train",
+            "--out",
+            str(out),
+            "--resume",
+            "--max-epochs",
+            "2",
+            "--workers",
+            "0",
+            "--scenes",
+            "3",
+        ],
+        capsys,
+    )
     assert code == 0, err
     assert json.loads(json.dumps(info["data"]))["n_frames"] == 3
 
@@ -223,15 +364,62 @@ def test_train_bad_options(tmp_path, capsys):
 def test_train_from_a_chamber_file(tmp_path, capsys):
     """The real-camera path: the camera model fitted on a chamber file replaces the preset."""
     chamber = tmp_path / "c.h5"
-    code, err = run(["simulate", "chamber", str(chamber), "--size", "32x24", "--seed", "1",
-                     "--unit", "3", "--ambient-profile", "steps", "--ambient-c", "10:40",
-                     "--interval-s", "30"], capsys)
+    code, err = run(
+        [
+            "simulate",
+            "chamber",
+            str(chamber),
+            "--size",
+            "32x24",
+            "--seed",
+            "1",
+            "--unit",
+            "3",
+            "--ambient-profile",
+            "steps",
+            "--ambient-c",
+            "10:40",
+            "--interval-s",
+            "30",
+        ],
+        capsys,
+    )
     assert code == 0, err
     out = tmp_path / "m.pt"
-    code, err = run(["train", "--out", str(out), "--chamber", str(chamber), "--frames", "3",
-                     "--mu", "4", "--levels", "1", "--kernel", "3", "--crop", "16", "--batch",
-                     "2", "--steps-per-epoch", "2", "--max-epochs", "1", "--val-bursts", "2",
-                     "--workers", "0", "--threads", "1", "--scenes", "3"], capsys)
+    code, err = run(
+        [
+            "train",
+            "--out",
+            str(out),
+            "--chamber",
+            str(chamber),
+            "--frames",
+            "3",
+            "--mu",
+            "4",
+            "--levels",
+            "1",
+            "--kernel",
+            "3",
+            "--crop",
+            "16",
+            "--batch",
+            "2",
+            "--steps-per-epoch",
+            "2",
+            "--max-epochs",
+            "1",
+            "--val-bursts",
+            "2",
+            "--workers",
+            "0",
+            "--threads",
+            "1",
+            "--scenes",
+            "3",
+        ],
+        capsys,
+    )
     assert code == 0, err
     model, norm, info = load_model(out)
     assert info["meta"]["chamber"] == str(chamber)
@@ -249,7 +437,57 @@ def test_estimate_registered_frames_with_uncovered_borders(tmp_path, flight, tin
     frames = np.where(valid, np.rint(warped), 0).astype(np.uint16)
     write_recording(tmp_path / "r.tiff", Recording(frames=frames, fpa_c=flight.fpa_c))
     out = tmp_path / "t.tiff"
-    code, err = run(["estimate", str(tmp_path / "r.tiff"), "--model", str(tiny_model),
-                     "--registered", "--out", str(out)], capsys)
+    code, err = run(
+        [
+            "estimate",
+            str(tmp_path / "r.tiff"),
+            "--model",
+            str(tiny_model),
+            "--registered",
+            "--out",
+            str(out),
+        ],
+        capsys,
+    )
     assert code == 0, err
     assert np.all(np.isfinite(tifffile.imread(out)))
+
+
+def test_training_stream_is_the_same_with_any_number_of_workers():
+    """Workers take turns (batch start + w, start + w + W, …): the same batches in order."""
+    import torch
+
+    from thermocal.nn.data import ScenePool
+    from thermocal.nn.train import _Stream
+
+    cfg = BurstConfig(n_frames=3, crop=16, units=(0,), sensor_size=(32, 24))
+    stream = _Stream(
+        lambda: ScenePool.training(seed=1, n_procedural=2),
+        cfg,
+        Normalisation(),
+        seed=5,
+        batch=2,
+        start_batch=3,
+        cameras=None,
+    )
+
+    def first(workers: int, n: int = 4) -> list:
+        loader = torch.utils.data.DataLoader(stream, batch_size=None, num_workers=workers)
+        it = iter(loader)
+        return [next(it)[0] for _ in range(n)]
+
+    alone, shared = first(0), first(2)
+    assert all(torch.equal(a, b) for a, b in zip(alone, shared, strict=True))
+    assert not torch.equal(alone[0], alone[1])
+
+
+def test_train_device_option(tmp_path, capsys):
+    import torch
+
+    from thermocal.nn.train import resolve_device
+
+    assert resolve_device("cpu").type == "cpu"
+    assert resolve_device("auto").type == ("cuda" if torch.cuda.is_available() else "cpu")
+    if not torch.cuda.is_available():
+        code, err = run(["train", "--out", str(tmp_path / "m.pt"), "--device", "cuda"], capsys)
+        assert code == 2 and "no GPU" in err

@@ -41,18 +41,36 @@ def _parse_range(text: str, name: str) -> tuple[float, float]:
 
 @click.command("estimate")
 @click.argument("frames", type=click.Path(path_type=Path))
-@click.option("--out", "out", type=click.Path(path_type=Path), required=True,
-              help="Output temperature TIFF (float32 °C, the pivot frame).")
-@click.option("--fpa-c", type=float, default=None,
-              help="FPA temperature, °C (overrides the sidecar's fpa_c).")
+@click.option(
+    "--out",
+    "out",
+    type=click.Path(path_type=Path),
+    required=True,
+    help="Output temperature TIFF (float32 °C, the pivot frame).",
+)
+@click.option(
+    "--fpa-c", type=float, default=None, help="FPA temperature, °C (overrides the sidecar's fpa_c)."
+)
 @click.option("--method", type=click.Choice(METHODS), default="kpn", show_default=True)
-@click.option("--model", "model_path", type=click.Path(path_type=Path), default=None,
-              help="Weights file (default: the shipped model for --method).")
+@click.option(
+    "--model",
+    "model_path",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Weights file (default: the shipped model for --method).",
+)
 @click.option("--pivot", type=int, default=None, help="Pivot frame index (default: the middle).")
-@click.option("--registered", is_flag=True,
-              help="The frames are already registered onto the pivot (skip registration).")
-@click.option("--calibration", type=click.Path(path_type=Path), default=None,
-              help="Per-pixel calibration file, for --method mean.")
+@click.option(
+    "--registered",
+    is_flag=True,
+    help="The frames are already registered onto the pivot (skip registration).",
+)
+@click.option(
+    "--calibration",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Per-pixel calibration file, for --method mean.",
+)
 def estimate(
     frames: Path,
     out: Path,
@@ -80,48 +98,101 @@ def estimate(
 
 
 @click.command("train")
-@click.option("--out", "out", type=click.Path(path_type=Path), required=True,
-              help="Weights file to write (.pt); a checkpoint OUT.ckpt is kept beside it.")
-@click.option("--frames", "n_frames", type=int, default=7, show_default=True,
-              help="Frames per burst N.")
+@click.option(
+    "--out",
+    "out",
+    type=click.Path(path_type=Path),
+    required=True,
+    help="Weights file to write (.pt); a checkpoint OUT.ckpt is kept beside it.",
+)
+@click.option(
+    "--frames", "n_frames", type=int, default=7, show_default=True, help="Frames per burst N."
+)
 @click.option("--steps", type=int, default=None, help="Stop after this many batches.")
 @click.option("--seed", type=int, default=42, show_default=True)
-@click.option("--variant", type=click.Choice(["kpn", "kpn-no-offset", "e2e"]), default="kpn",
-              show_default=True)
+@click.option(
+    "--variant",
+    type=click.Choice(["kpn", "kpn-no-offset", "e2e"]),
+    default="kpn",
+    show_default=True,
+)
 @click.option("--mu", type=int, default=16, show_default=True, help="Channels μ (paper: 64).")
 @click.option("--xi", type=int, default=2, show_default=True, help="Level factor ξ.")
 @click.option("--levels", type=int, default=3, show_default=True, help="Levels L (paper: 4).")
 @click.option("--kernel", type=int, default=5, show_default=True, help="Kernel side K.")
 @click.option("--degree", type=int, default=4, show_default=True, help="Offset degree ν.")
-@click.option("--fpa-input/--no-fpa-input", default=True, show_default=True,
-              help="Feed the FPA temperature to the UNet too (not only the offset block).")
-@click.option("--centre/--no-centre", default=True, show_default=True,
-              help="KPN with offset block: apply the kernels to the frames minus the burst's "
-                   "mean level (the offset block carries the level).")
+@click.option(
+    "--fpa-input/--no-fpa-input",
+    default=True,
+    show_default=True,
+    help="Feed the FPA temperature to the UNet too (not only the offset block).",
+)
+@click.option(
+    "--centre/--no-centre",
+    default=True,
+    show_default=True,
+    help="KPN with offset block: apply the kernels to the frames minus the burst's "
+    "mean level (the offset block carries the level).",
+)
 @click.option("--crop", type=int, default=64, show_default=True, help="Training crop side, px.")
 @click.option("--batch", type=int, default=16, show_default=True)
 @click.option("--steps-per-epoch", type=int, default=100, show_default=True)
 @click.option("--max-epochs", type=int, default=60, show_default=True)
 @click.option("--lr", type=float, default=1e-4, show_default=True)
-@click.option("--units", "units_text", default="0-23", show_default=True,
-              help="Training camera units of the preset.")
-@click.option("--val-units", "val_units_text", default="50-53", show_default=True,
-              help="Validation camera units (never training units).")
-@click.option("--fpa-range-c", default=None,
-              help="FPA temperature range of the training data, °C (default 10:50, or the "
-                   "range the chamber file covers).")
+@click.option(
+    "--units",
+    "units_text",
+    default="0-23",
+    show_default=True,
+    help="Training camera units of the preset.",
+)
+@click.option(
+    "--val-units",
+    "val_units_text",
+    default="50-53",
+    show_default=True,
+    help="Validation camera units (never training units).",
+)
+@click.option(
+    "--fpa-range-c",
+    default=None,
+    help="FPA temperature range of the training data, °C (default 10:50, or the "
+    "range the chamber file covers).",
+)
 @click.option("--val-bursts", type=int, default=64, show_default=True)
-@click.option("--scenes", "n_scenes", type=int, default=24, show_default=True,
-              help="Procedural maps in the training pool (beside the real training scenes).")
-@click.option("--chamber", type=click.Path(path_type=Path), default=None,
-              help="Fit the camera model on this chamber file (polynomial + radial) and train "
-                   "on it instead of the simulator preset.")
-@click.option("--max-minutes", type=float, default=None,
-              help="Wall-clock budget; the run saves and stops cleanly when it runs out.")
+@click.option(
+    "--scenes",
+    "n_scenes",
+    type=int,
+    default=24,
+    show_default=True,
+    help="Procedural maps in the training pool (beside the real training scenes).",
+)
+@click.option(
+    "--chamber",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Fit the camera model on this chamber file (polynomial + radial) and train "
+    "on it instead of the simulator preset.",
+)
+@click.option(
+    "--max-minutes",
+    type=float,
+    default=None,
+    help="Wall-clock budget; the run saves and stops cleanly when it runs out.",
+)
 @click.option("--resume", is_flag=True, help="Continue from OUT.ckpt.")
 @click.option("--threads", type=int, default=2, show_default=True)
-@click.option("--workers", type=int, default=1, show_default=True,
-              help="Data-generating processes.")
+@click.option(
+    "--workers", type=int, default=1, show_default=True, help="Data-generating processes."
+)
+@click.option(
+    "--device",
+    type=click.Choice(["auto", "cpu", "cuda"]),
+    default="auto",
+    show_default=True,
+    help="Where the network trains (auto: a GPU when there is one).",
+)
 def train(
     out: Path,
     n_frames: int,
@@ -150,6 +221,7 @@ def train(
     resume: bool,
     threads: int,
     workers: int,
+    device: str,
 ) -> None:
     """Train the KPN on synthetic bursts from the camera simulator (Oz et al. §IV)."""
     import os
@@ -164,10 +236,15 @@ def train(
     from thermocal.nn.train import TrainConfig
     from thermocal.nn.train import train as run_training
 
-    for name, value in (("--frames", n_frames), ("--batch", batch),
-                        ("--steps-per-epoch", steps_per_epoch), ("--max-epochs", max_epochs),
-                        ("--threads", threads), ("--val-bursts", val_bursts),
-                        ("--scenes", n_scenes)):
+    for name, value in (
+        ("--frames", n_frames),
+        ("--batch", batch),
+        ("--steps-per-epoch", steps_per_epoch),
+        ("--max-epochs", max_epochs),
+        ("--threads", threads),
+        ("--val-bursts", val_bursts),
+        ("--scenes", n_scenes),
+    ):
         if value < 1:
             raise InvalidInputError(f"{name} must be >= 1, got {value}")
     if steps is not None and steps < 1:
@@ -201,16 +278,35 @@ def train(
             fpa_range = tuple(float(v) for v in camera.info["fpa_range_c"])
     if crop > min(sensor_size):
         raise InvalidInputError(f"--crop {crop} is larger than the sensor {sensor_size}")
-    model_cfg = ModelConfig(n_frames=n_frames, mu=mu, xi=xi, levels=levels, kernel=kernel,
-                            degree=degree, variant=variant, fpa_input=fpa_input,
-                            centre=centre and variant == "kpn")
+    model_cfg = ModelConfig(
+        n_frames=n_frames,
+        mu=mu,
+        xi=xi,
+        levels=levels,
+        kernel=kernel,
+        degree=degree,
+        variant=variant,
+        fpa_input=fpa_input,
+        centre=centre and variant == "kpn",
+    )
     if crop % model_cfg.multiple:
         raise InvalidInputError(f"--crop must be a multiple of ξ^L = {model_cfg.multiple}")
-    burst_cfg = BurstConfig(n_frames=n_frames, crop=crop, fpa_range_c=fpa_range, units=units,
-                            sensor_size=sensor_size)
-    train_cfg = TrainConfig(batch=batch, steps_per_epoch=steps_per_epoch, max_epochs=max_epochs,
-                            lr=lr, seed=seed, val_bursts=val_bursts, max_minutes=max_minutes,
-                            max_steps=steps, threads=threads, workers=workers)
+    burst_cfg = BurstConfig(
+        n_frames=n_frames, crop=crop, fpa_range_c=fpa_range, units=units, sensor_size=sensor_size
+    )
+    train_cfg = TrainConfig(
+        batch=batch,
+        steps_per_epoch=steps_per_epoch,
+        max_epochs=max_epochs,
+        lr=lr,
+        seed=seed,
+        val_bursts=val_bursts,
+        max_minutes=max_minutes,
+        max_steps=steps,
+        threads=threads,
+        workers=workers,
+        device=device,
+    )
 
     def log(line: str) -> None:
         click.echo(line, err=True)
@@ -223,9 +319,19 @@ def train(
     def val_pool_fn() -> ScenePool:
         return ScenePool.training(seed=seed + 1000, n_procedural=n_val_scenes)
 
-    result = run_training(out, model_cfg, burst_cfg, train_cfg, resume=resume, cameras=cameras,
-                          val_units=val_units, log=log, meta=meta, pool_fn=pool_fn,
-                          val_pool_fn=val_pool_fn)
+    result = run_training(
+        out,
+        model_cfg,
+        burst_cfg,
+        train_cfg,
+        resume=resume,
+        cameras=cameras,
+        val_units=val_units,
+        log=log,
+        meta=meta,
+        pool_fn=pool_fn,
+        val_pool_fn=val_pool_fn,
+    )
     click.echo(
         f"trained {result.steps} steps ({result.epochs} epochs, stopped: {result.stopped}) in "
         f"{result.wall_s / 60:.1f} min at {result.samples_per_s:.1f} samples/s; best validation "

@@ -186,14 +186,15 @@ def run_network(
     of ``ξ^L``. The offset block's frame means are taken over each whole frame's valid pixels,
     so that every tile gets the same offset. Tiles of ``tile`` pixels overlap by ``margin``
     pixels on each side; only their centres are kept, so that the seams see the same context
-    as the interior.
+    as the interior. It runs where the model's parameters are (CPU or GPU).
     """
     n, h, w = warped.shape
+    device = next(model.parameters()).device
     x = np.where(valid, norm.counts(warped), 0.0).astype(np.float32)
-    xt = torch.from_numpy(x)[None]
-    vt = torch.from_numpy(valid)[None]
+    xt = torch.from_numpy(x)[None].to(device)
+    vt = torch.from_numpy(valid)[None].to(device)
     means = frame_means(xt, vt)
-    fpa = torch.tensor([norm.fpa(float(fpa_c))], dtype=torch.float32)
+    fpa = torch.tensor([norm.fpa(float(fpa_c))], dtype=torch.float32, device=device)
     mult = model.config.multiple
     out = np.empty((h, w), dtype=np.float32)
     step = max(tile - 2 * margin, mult)
@@ -216,7 +217,7 @@ def run_network(
                     sub = torch.nn.functional.pad(sub, (0, pw, 0, ph))
                     vsub = torch.nn.functional.pad(vsub, (0, pw, 0, ph))
                 sub = sub.contiguous(memory_format=torch.channels_last)
-                est = model(sub, fpa, vsub, means=means)[0, 0].numpy()
+                est = model(sub, fpa, vsub, means=means)[0, 0].cpu().numpy()
                 out[y0:y1, x0:x1] = est[y0 - ya : y1 - ya, x0 - xa : x1 - xa]
                 if h <= tile and w <= tile:
                     break
@@ -267,12 +268,11 @@ def estimate_burst(
             f"of {n_model} frames"
         )
     fpa = _fpa_value(fpa_c, arr.shape[0])
-    warped, valid, hs, p = register(arr, pivot=pivot, registered=registered,
-                                    homographies=homographies)
-    _check_overlap(valid, p)
-    temp = run_network(
-        model, norm, _to_model_order(warped, p), _to_model_order(valid, p), fpa
+    warped, valid, hs, p = register(
+        arr, pivot=pivot, registered=registered, homographies=homographies
     )
+    _check_overlap(valid, p)
+    temp = run_network(model, norm, _to_model_order(warped, p), _to_model_order(valid, p), fpa)
     return Estimate(temp, valid.sum(axis=0), hs, p)
 
 
@@ -367,4 +367,3 @@ def estimate_file(
         )
     write_temperature_tiff(out, result.temperature_c)
     return out
-

@@ -134,8 +134,7 @@ class UNet(nn.Module):
         self.xi, self.levels = xi, levels
         self.inp = nn.Conv2d(c_in, mu, 3, padding=1)
         self.enc = nn.ModuleList(
-            _block(mu * xi**i, mu * xi**i, mu * xi ** (i + 1))
-            for i in range(levels)
+            _block(mu * xi**i, mu * xi**i, mu * xi ** (i + 1)) for i in range(levels)
         )
         c_bottom = mu * xi**levels
         self.bottom = _block(c_bottom, c_bottom, c_bottom * xi) if levels else _block(mu, mu, mu)
@@ -243,7 +242,7 @@ class KPN(nn.Module):
         super().__init__()
         self.config = config
         c = config
-        extra = (int(c.fpa_input) * (2 if c.centre else 1))
+        extra = int(c.fpa_input) * (2 if c.centre else 1)
         self.unet = UNet(c.n_frames + extra, c.mu, c.xi, c.levels)
         c_out = 1 if c.variant == "e2e" else c.n_frames * c.kernel**2
         self.head = KernelHead(c.mu, c_out)

@@ -85,6 +85,8 @@ class TrainConfig:
         torch intra-op threads.
     workers : int
         Data-generating processes (0: in the training process).
+    device : str
+        ``"cpu"``, ``"cuda"`` or ``"auto"`` (CUDA when PyTorch sees a GPU, else the CPU).
     """
 
     batch: int = 16
@@ -99,6 +101,7 @@ class TrainConfig:
     max_steps: int | None = None
     threads: int = 2
     workers: int = 1
+    device: str = "cpu"
 
 
 @dataclass(frozen=True)
@@ -159,14 +162,17 @@ class _Stream(torch.utils.data.IterableDataset):
     def __iter__(self) -> Iterator[tuple[torch.Tensor, ...]]:
         pool = self.pool_fn()
         units = _unit_cache(self.cfg, self.cameras)
-        k = self.start
+        # W workers: worker w makes batches start + w, start + w + W, …; the DataLoader takes
+        # one from each in turn, so the stream is the same whatever the number of workers.
+        info = torch.utils.data.get_worker_info()
+        k, stride = (self.start, 1) if info is None else (self.start + info.id, info.num_workers)
         while True:
             bursts = [
                 make_burst(pool, self.cfg, rng=np.random.default_rng([self.seed, i]), units=units)
                 for i in range(k * self.batch, (k + 1) * self.batch)
             ]
             yield batch_tensors(bursts, self.norm)
-            k += 1
+            k += stride
 
 
 def _unit_cache(cfg: BurstConfig, cameras: dict[int, CameraModel] | None) -> UnitCache:
@@ -194,7 +200,7 @@ def fit_normalisation(
     vals = []
     for i in range(count):
         b = make_burst(pool, cfg, rng=np.random.default_rng([seed, 99991, i]), units=units)
-        vals.append(b.raw.ravel()[:: 7])
+        vals.append(b.raw.ravel()[::7])
     allv = np.concatenate(vals).astype(np.float64)
     lo, hi = np.percentile(allv, [0.01, 99.99])
     return Normalisation(
@@ -228,7 +234,7 @@ def save_model(
         "normalisation": norm.to_dict(),
         "data": json.loads(json.dumps(burst_cfg.to_dict())),
         "meta": json.loads(json.dumps(meta or {}, default=float)),
-        "state_dict": {k: v.detach().clone() for k, v in model.state_dict().items()},
+        "state_dict": {k: v.detach().cpu().clone() for k, v in model.state_dict().items()},
     }
     with atomic_path(out) as tmp:
         torch.save(payload, tmp)
@@ -273,10 +279,27 @@ def load_model(path: str | os.PathLike[str]) -> tuple[KPN, Normalisation, dict[s
 # --------------------------------------------------------------------------------------------
 # training
 # --------------------------------------------------------------------------------------------
-def _seed_everything(seed: int) -> None:
+def resolve_device(name: str) -> torch.device:
+    """``"cpu"``, ``"cuda"`` (an error without a GPU) or ``"auto"`` (CUDA when there is one)."""
+    if name == "auto":
+        name = "cuda" if torch.cuda.is_available() else "cpu"
+    if name not in ("cpu", "cuda"):
+        raise InvalidInputError(f"device must be cpu, cuda or auto, got {name!r}")
+    if name == "cuda" and not torch.cuda.is_available():
+        raise InvalidInputError("device cuda asked for, but PyTorch sees no GPU here")
+    return torch.device(name)
+
+
+def _seed_everything(seed: int, device: torch.device) -> None:
     torch.manual_seed(seed)
     np.random.seed(seed)  # noqa: NPY002 - only for third-party code that reads the global state
-    torch.use_deterministic_algorithms(True)
+    if device.type == "cuda":
+        # cuBLAS is deterministic only with a fixed workspace; a CUDA op without a deterministic
+        # kernel warns instead of stopping the run (CPU runs stay strictly deterministic)
+        os.environ.setdefault("CUBLAS_WORKSPACE_CONFIG", ":4096:8")
+        torch.use_deterministic_algorithms(True, warn_only=True)
+    else:
+        torch.use_deterministic_algorithms(True)
 
 
 def validate(
@@ -291,7 +314,9 @@ def validate(
     losses, abs_sum, rel_sum, n_pix = [], 0.0, 0.0, 0
     span = norm.temp_max_c - norm.temp_min_c
     with torch.no_grad():
-        for frames, fpa, valid, truth, mask in val:
+        device = next(model.parameters()).device
+        for batch in val:
+            frames, fpa, valid, truth, mask = (t.to(device) for t in batch)
             est = model(frames, fpa, valid)
             losses.append(float(kpn_loss(est, truth, mask)))
             m = mask.to(est.dtype)
@@ -356,12 +381,21 @@ def train(
         except Exception:
             raise FileFormatError(f"{ckpt_path}: damaged checkpoint") from None
         model_cfg = ModelConfig(**state["model_cfg"])
-        burst_cfg = BurstConfig(**{k: tuple(v) if isinstance(v, list) else v
-                                   for k, v in state["burst_cfg"].items()})
+        burst_cfg = BurstConfig(
+            **{k: tuple(v) if isinstance(v, list) else v for k, v in state["burst_cfg"].items()}
+        )
         # the budget (epochs, minutes, steps) is the new call's; everything else the checkpoint's
-        train_cfg = TrainConfig(**{**state["train_cfg"], "max_minutes": train_cfg.max_minutes,
-                                   "max_steps": train_cfg.max_steps,
-                                   "max_epochs": train_cfg.max_epochs})
+        train_cfg = TrainConfig(
+            **{
+                **state["train_cfg"],
+                "max_minutes": train_cfg.max_minutes,
+                "max_steps": train_cfg.max_steps,
+                "max_epochs": train_cfg.max_epochs,
+                "device": train_cfg.device,
+                "workers": train_cfg.workers,
+                "threads": train_cfg.threads,
+            }
+        )
     if model_cfg.n_frames != burst_cfg.n_frames:
         raise InvalidInputError(
             f"model has N = {model_cfg.n_frames} but the data N = {burst_cfg.n_frames}"
@@ -369,8 +403,9 @@ def train(
     if cameras is None and set(val_units) & set(burst_cfg.units):
         raise InvalidInputError("validation units must not be training units")
 
+    device = resolve_device(train_cfg.device)
     torch.set_num_threads(train_cfg.threads)
-    _seed_everything(train_cfg.seed)
+    _seed_everything(train_cfg.seed, device)
     pool_fn = pool_fn or (lambda: ScenePool.training(seed=train_cfg.seed))
     val_pool_fn = val_pool_fn or (
         lambda: ScenePool.training(seed=train_cfg.seed + 1000, n_procedural=9)
@@ -386,8 +421,12 @@ def train(
     val_pool = val_pool_fn()
     val_units_cache = _unit_cache(val_cfg, cameras)
     val_bursts = [
-        make_burst(val_pool, val_cfg, rng=np.random.default_rng([train_cfg.seed, 7, i]),
-                   units=val_units_cache)
+        make_burst(
+            val_pool,
+            val_cfg,
+            rng=np.random.default_rng([train_cfg.seed, 7, i]),
+            units=val_units_cache,
+        )
         for i in range(train_cfg.val_bursts)
     ]
     val = [
@@ -395,7 +434,7 @@ def train(
         for i in range(0, len(val_bursts), train_cfg.batch)
     ]
 
-    model = KPN(model_cfg)
+    model = KPN(model_cfg).to(device)
     opt = torch.optim.Adam(model.parameters(), lr=train_cfg.lr)
     sched = torch.optim.lr_scheduler.ReduceLROnPlateau(
         opt, mode="min", factor=0.5, patience=train_cfg.lr_patience
@@ -436,12 +475,22 @@ def train(
         with atomic_path(ckpt_path) as tmp:
             torch.save(payload, tmp)
 
-    stream = _Stream(pool_fn, burst_cfg, norm, seed=train_cfg.seed, batch=train_cfg.batch,
-                     start_batch=step, cameras=cameras)
+    stream = _Stream(
+        pool_fn,
+        burst_cfg,
+        norm,
+        seed=train_cfg.seed,
+        batch=train_cfg.batch,
+        start_batch=step,
+        cameras=cameras,
+    )
     loader = torch.utils.data.DataLoader(
-        stream, batch_size=None, num_workers=train_cfg.workers,
+        stream,
+        batch_size=None,
+        num_workers=train_cfg.workers,
         prefetch_factor=4 if train_cfg.workers else None,
         persistent_workers=False,
+        pin_memory=device.type == "cuda",
     )
     budget_s = None if train_cfg.max_minutes is None else 60.0 * train_cfg.max_minutes
     stopped = "max_epochs"
@@ -449,15 +498,22 @@ def train(
     it = iter(loader)
     bar_ctx = _bar(progress)
     with bar_ctx as bar:
-        task = bar.add_task("training", total=train_cfg.max_epochs * train_cfg.steps_per_epoch,
-                            completed=step) if bar else None
+        task = (
+            bar.add_task(
+                "training", total=train_cfg.max_epochs * train_cfg.steps_per_epoch, completed=step
+            )
+            if bar
+            else None
+        )
         model.train()
         while epoch < train_cfg.max_epochs:
             run_loss, n_run = 0.0, 0
             out_of_time = False
             for _ in range(train_cfg.steps_per_epoch):
                 ts = time.monotonic()
-                frames, fpa, valid, truth, mask = next(it)
+                frames, fpa, valid, truth, mask = (
+                    t.to(device, non_blocking=True) for t in next(it)
+                )
                 opt.zero_grad(set_to_none=True)
                 loss = kpn_loss(model(frames, fpa, valid), truth, mask)
                 loss.backward()
@@ -468,9 +524,14 @@ def train(
                 run_loss += float(loss.detach())
                 n_run += 1
                 if bar:
-                    bar.update(task, advance=1, description=(
-                        f"epoch {epoch + 1} loss {run_loss / n_run:.4f} "
-                        f"val MAE {best_mae:.2f} °C"))
+                    bar.update(
+                        task,
+                        advance=1,
+                        description=(
+                            f"epoch {epoch + 1} loss {run_loss / n_run:.4f} "
+                            f"val MAE {best_mae:.2f} °C"
+                        ),
+                    )
                 if budget_s is not None and time.monotonic() - t0 > budget_s:
                     out_of_time = True
                     break
@@ -480,22 +541,43 @@ def train(
             val_loss, val_mae, val_rel = validate(model, val, norm)
             sched.step(val_loss)
             lr = opt.param_groups[0]["lr"]
-            history.append({"epoch": epoch, "step": step, "train_loss": run_loss / max(n_run, 1),
-                            "val_loss": val_loss, "val_mae_c": val_mae,
-                            "val_mae_bias_free_c": val_rel, "lr": lr,
-                            "elapsed_s": elapsed_before + time.monotonic() - t0})
+            history.append(
+                {
+                    "epoch": epoch,
+                    "step": step,
+                    "train_loss": run_loss / max(n_run, 1),
+                    "val_loss": val_loss,
+                    "val_mae_c": val_mae,
+                    "val_mae_bias_free_c": val_rel,
+                    "lr": lr,
+                    "elapsed_s": elapsed_before + time.monotonic() - t0,
+                }
+            )
             if val_loss < best:
                 best, best_mae, bad = val_loss, val_mae, 0
-                save_model(out, model, norm, burst_cfg, {
-                    **(meta or {}), "val_mae_c": val_mae, "val_loss": val_loss, "step": step,
-                    "epoch": epoch, "val_units": list(val_units)})
+                save_model(
+                    out,
+                    model,
+                    norm,
+                    burst_cfg,
+                    {
+                        **(meta or {}),
+                        "val_mae_c": val_mae,
+                        "val_loss": val_loss,
+                        "step": step,
+                        "epoch": epoch,
+                        "val_units": list(val_units),
+                    },
+                )
             else:
                 bad += 1
-            log(f"epoch {epoch} step {step} train_loss {run_loss / max(n_run, 1):.5f} "
+            log(
+                f"epoch {epoch} step {step} train_loss {run_loss / max(n_run, 1):.5f} "
                 f"val_loss {val_loss:.5f} val_mae {val_mae:.3f} C (bias-free {val_rel:.3f} C) "
                 f"best {best_mae:.3f} C "
                 f"lr {lr:.2e} elapsed {elapsed_before + time.monotonic() - t0:.0f} s "
-                f"train {samples / max(t_train, 1e-9):.1f} samples/s")
+                f"train {samples / max(t_train, 1e-9):.1f} samples/s"
+            )
             checkpoint()
             if out_of_time:
                 stopped = "max_minutes"

@@ -24,6 +24,7 @@ import math
 from typing import Any
 
 import numpy as np
+from scipy.optimize import brentq
 
 from thermocal._validate import check_rng
 from thermocal.errors import InvalidInputError
@@ -184,7 +185,7 @@ def _distance_for_overlap(
 ) -> float:
     """Distance (map px) along ``direction`` from the pivot centre where the overlap is ``target``.
 
-    Bisection on :func:`overlap_fraction` (which falls monotonically with the distance).
+    Root of :func:`overlap_fraction` − target (which falls monotonically with the distance).
     """
     w, h = frame_size
     c0 = pivot_m @ np.array([(w - 1) / 2.0, (h - 1) / 2.0, 1.0])
@@ -195,18 +196,11 @@ def _distance_for_overlap(
         m = _similarity(x, y, theta, scale, frame_size)
         return float(overlap_fraction(inv_p @ m, frame_size))
 
-    lo, hi = 0.0, 2.0 * (w + h) * max(scale, 1.0)
-    if ov(lo) <= target:
+    hi = 2.0 * (w + h) * max(scale, 1.0)  # far enough for no overlap at all
+    if ov(0.0) <= target:
         return 0.0
-    for _ in range(60):
-        mid = 0.5 * (lo + hi)
-        if ov(mid) > target:
-            lo = mid
-        else:
-            hi = mid
-        if hi - lo < 1e-6:
-            break
-    return 0.5 * (lo + hi)
+    # Brent's method: ~10 overlap evaluations where bisection to the same 1e-4 px needs ~25
+    return float(brentq(lambda d: ov(d) - target, 0.0, hi, xtol=1e-4))
 
 
 # --------------------------------------------------------------------------------------------
@@ -418,9 +412,7 @@ def walk_homographies(
             heading = phi + (math.pi + rng.uniform(-0.25, 0.25) if leg == 0 else 0.0)
             e = np.array([math.cos(heading), math.sin(heading)])
             e_perp = np.array([-e[1], e[0]])
-            idx = [pivot - j for j in range(1, k + 1)] if leg == 0 else list(
-                range(pivot + 1, n)
-            )
+            idx = [pivot - j for j in range(1, k + 1)] if leg == 0 else list(range(pivot + 1, n))
             ext = idx[-1]
             target = rng.uniform(lo, hi)
             dist = _distance_for_overlap(target, e, m_p, thetas[ext], scales[ext], fs)

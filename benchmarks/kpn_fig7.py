@@ -1,0 +1,218 @@
+"""Fig. 7 of Oz et al.: MAE against the burst length N for KPN + offset, KPN and E2E.
+
+Every (variant, N) model is trained for the same wall-clock budget on the *same* stream of
+synthetic bursts: bursts of N_max = max(N) frames are made once and each model takes the N frames
+around the pivot (so the N-frame bursts are sub-bursts of the N_max ones: shorter ones overlap
+their pivot more than the 60-80 % of the extreme views of an N_max burst). Sharing the data makes
+the comparison fair (every model sees the same scenes, units and noise) and the sweep affordable:
+burst generation, not the network, bounds the training speed. Each model then runs on the fixed
+held-out evaluation set of ``benchmarks/kpn.py`` made with N frames (held-out real scenes, held-out
+camera units 100-104, full 336×256 frames).
+
+Optimisation: Adam at ``--lr``, halved at 50 % and 75 % of the budget (a fixed schedule: the
+models share one budget, so none stops early); the loss of eq. 12 over the pixels seen by at least
+half of the model's N frames. Network sizes are the shipped model's unless given.
+
+    .venv/bin/python benchmarks/kpn_fig7.py --minutes 7 --device auto --workers 4 \\
+        --variants kpn,kpn-no-offset,e2e --ns 1,3,5,7,9,11 --json fig7.json [--out-dir DIR]
+
+Several processes (say one per variant) can share a GPU; ``--merge A.json B.json --json OUT``
+joins their results into the file that ships beside the weights (``nn/weights/fig7.json``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import torch
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+from kpn import eval_bursts, run_methods, summarise  # noqa: E402
+
+from thermocal.nn.data import BurstConfig, ScenePool  # noqa: E402
+from thermocal.nn.infer import shipped_model_path  # noqa: E402
+from thermocal.nn.loss import kpn_loss  # noqa: E402
+from thermocal.nn.model import KPN, ModelConfig  # noqa: E402
+from thermocal.nn.train import (  # noqa: E402
+    _seed_everything,
+    _Stream,
+    fit_normalisation,
+    load_model,
+    resolve_device,
+    save_model,
+)
+
+
+def sub_burst(batch: tuple[torch.Tensor, ...], n: int, n_max: int) -> tuple[torch.Tensor, ...]:
+    """The ``n`` frames around the pivot of an ``n_max``-frame batch, with their coverage mask."""
+    frames, fpa, valid, truth, _ = batch
+    p = n_max // 2
+    sel = slice(p - n // 2, p - n // 2 + n)
+    v = valid[:, sel]
+    mask = v.sum(dim=1, keepdim=True) >= max(1, math.ceil(n / 2))
+    return frames[:, sel].contiguous(), fpa, v.contiguous(), truth, mask
+
+
+def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
+    device = resolve_device(args.device)
+    torch.set_num_threads(args.threads)
+    _seed_everything(42, device)
+    ns = [int(x) for x in args.ns.split(",")]
+    variants = args.variants.split(",")
+    if any(n % 2 == 0 for n in ns):
+        raise SystemExit("N must be odd (a pivot in the middle)")
+    n_max = max(ns)
+    cfg = BurstConfig(n_frames=n_max, crop=args.crop)
+    pool_fn = lambda: ScenePool.training(seed=42, n_procedural=24)  # noqa: E731
+    norm = fit_normalisation(pool_fn(), cfg, seed=42)
+    models, opts = {}, {}
+    for v in variants:
+        for n in ns:
+            mc = ModelConfig(
+                **{
+                    **base.to_dict(),
+                    "n_frames": n,
+                    "variant": v,
+                    "centre": base.centre and v == "kpn",
+                }
+            )
+            models[(v, n)] = KPN(mc).to(device).train()
+            opts[(v, n)] = torch.optim.Adam(models[(v, n)].parameters(), lr=args.lr)
+    stream = _Stream(pool_fn, cfg, norm, seed=42, batch=args.batch, start_batch=0, cameras=None)
+    loader = torch.utils.data.DataLoader(
+        stream,
+        batch_size=None,
+        num_workers=args.workers,
+        prefetch_factor=4 if args.workers else None,
+        pin_memory=device.type == "cuda",
+    )
+    t0, steps, budget = time.monotonic(), 0, 60.0 * args.minutes
+    losses = {k: [] for k in models}
+    it = iter(loader)
+    while time.monotonic() - t0 < budget:
+        frac = (time.monotonic() - t0) / budget
+        lr = args.lr * (0.25 if frac > 0.75 else 0.5 if frac > 0.5 else 1.0)
+        batch = tuple(t.to(device, non_blocking=True) for t in next(it))
+        for key, model in models.items():
+            frames, fpa, valid, truth, mask = sub_burst(batch, key[1], n_max)
+            opt = opts[key]
+            for g in opt.param_groups:
+                g["lr"] = lr
+            opt.zero_grad(set_to_none=True)
+            loss = kpn_loss(model(frames, fpa, valid), truth, mask)
+            loss.backward()
+            opt.step()
+            losses[key].append(float(loss.detach()))
+        steps += 1
+        if steps % 100 == 0:
+            print(
+                f"step {steps} {time.monotonic() - t0:.0f} s "
+                + " ".join(f"{v}/{n}:{np.mean(losses[(v, n)][-100:]):.4f}" for v, n in models),
+                flush=True,
+            )
+    wall = time.monotonic() - t0
+    print(
+        f"trained {len(models)} models for {steps} steps each (batch {args.batch}) in "
+        f"{wall:.0f} s: {steps * args.batch / wall:.0f} bursts/s",
+        flush=True,
+    )
+    out_dir = Path(args.out_dir) if args.out_dir else None
+    rows = []
+    torch.set_num_threads(args.eval_threads)
+    for n in ns:
+        bursts = eval_bursts(n, quick=args.quick)
+        for v in variants:
+            model = models[(v, n)].cpu().eval()
+            path = (out_dir or Path("/tmp")) / f"fig7_{v}_n{n}.pt"
+            save_model(path, model, norm, cfg, {"fig7": True, "steps": steps})
+            model, norm_, _ = load_model(path)  # as `thermocal estimate` would run it
+            if out_dir is None:
+                path.unlink()
+            s = summarise(run_methods(bursts, model, norm_, baselines=False))[0]
+            rows.append(
+                {
+                    "n": n,
+                    "variant": v,
+                    "mae_c": s["mae_c"],
+                    "bias_free_mae_c": s["bias_free_mae_c"],
+                    "affine_free_mae_c": s["affine_free_mae_c"],
+                    "within_0_5": s["within_0_5"],
+                    "steps": steps,
+                    "batch": args.batch,
+                    "train_loss_last100": float(np.mean(losses[(v, n)][-100:])),
+                }
+            )
+            print(
+                f"N={n} {v}: MAE {s['mae_c']:.3f} °C, bias-free {s['bias_free_mae_c']:.3f}, "
+                f"within 0.5 °C {100 * s['within_0_5']:.0f} %",
+                flush=True,
+            )
+    return rows
+
+
+def to_figure_json(rows: list[dict], note: str) -> dict:
+    """The ``fig7.json`` layout the demo reads: ``{"n": [...], "mae_c": {variant: [...]}}``."""
+    ns = sorted({r["n"] for r in rows})
+    variants = sorted({r["variant"] for r in rows}, key=["kpn", "kpn-no-offset", "e2e"].index)
+    pick = {(r["variant"], r["n"]): r for r in rows}
+    return {
+        "n": ns,
+        "mae_c": {v: [pick[(v, n)]["mae_c"] for n in ns] for v in variants},
+        "bias_free_mae_c": {v: [pick[(v, n)]["bias_free_mae_c"] for n in ns] for v in variants},
+        "within_0_5": {v: [pick[(v, n)]["within_0_5"] for n in ns] for v in variants},
+        "rows": rows,
+        "note": note,
+    }
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--minutes", type=float, default=5.0)
+    ap.add_argument("--ns", default="1,3,5,7,9,11")
+    ap.add_argument("--variants", default="kpn,kpn-no-offset,e2e")
+    ap.add_argument("--device", default="auto")
+    ap.add_argument("--workers", type=int, default=1)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--eval-threads", type=int, default=2)
+    ap.add_argument("--batch", type=int, default=32)
+    ap.add_argument("--lr", type=float, default=1e-3)
+    ap.add_argument("--crop", type=int, default=64)
+    ap.add_argument("--quick", action="store_true", help="the small evaluation set")
+    ap.add_argument("--out-dir", default=None, help="keep the trained models here")
+    ap.add_argument("--json", type=Path, required=True)
+    ap.add_argument(
+        "--merge",
+        nargs="+",
+        type=Path,
+        default=None,
+        help="join the rows of these result files instead of training",
+    )
+    args = ap.parse_args()
+    if args.merge:
+        rows = [r for p in args.merge for r in json.loads(p.read_text())["rows"]]
+        notes = {json.loads(p.read_text())["note"] for p in args.merge}
+        args.json.write_text(json.dumps(to_figure_json(rows, " / ".join(sorted(notes))), indent=2))
+        return
+    base, _, _ = load_model(shipped_model_path("kpn"))
+    rows = train_sweep(args, base.config)
+    dev = torch.cuda.get_device_name() if resolve_device(args.device).type == "cuda" else "CPU"
+    note = (
+        f"each model trained {args.minutes:g} min on shared bursts (batch {args.batch}, "
+        f"crop {args.crop}, lr {args.lr:g}) on {dev} ({os.cpu_count()} cores, "
+        f"{platform.machine()}); evaluated on the held-out set of benchmarks/kpn.py"
+        f"{' (quick)' if args.quick else ''}: MAE °C on pixels seen by >= half the frames"
+    )
+    args.json.write_text(json.dumps(to_figure_json(rows, note), indent=2))
+
+
+if __name__ == "__main__":
+    main()
