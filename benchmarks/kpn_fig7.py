@@ -135,6 +135,7 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
             path = (out_dir or Path("/tmp")) / f"fig7_{v}_n{n}.pt"
             save_model(path, model, norm, cfg, {"fig7": True, "steps": steps})
             model, norm_, _ = load_model(path)  # as `thermocal estimate` would run it
+            model = model.to(device)
             if out_dir is None:
                 path.unlink()
             s = summarise(run_methods(bursts, model, norm_, baselines=False))[0]

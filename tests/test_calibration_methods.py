@@ -121,6 +121,52 @@ def test_wolf2016_lms_settles_from_a_cold_start(wolf_fit_run, wolf_eval_run, cam
     assert abs(cold.delta_t_c - warm.delta_t_c) < 0.3
 
 
+def test_wolf2016_output_settles_from_a_cold_start_on_a_ramp(wolf_fit_run, camera):
+    """A stream started mid-ramp matches one that ran from the start within 100 frames."""
+    session, _ = wolf_fit_run
+    amb = ThermalParams().ambient_for_fpa_c(20.0)
+    plan = ChamberPlan(setpoints_c=(30.0,), frames_per_point=1, profile="ramp",
+                       ambient_c=(amb, amb + 15.0), rate_c_per_min=15.0 / 40.0, interval_s=1.0,
+                       duration_s=1200.0)
+    ev, _ = simulate(camera, [plan], seed=12)
+    wolf = fit_calibration(session, "wolf2016", fpa_ref_c=float(ev.fpa_c[0]),
+                           hw_setpoints_c=(15.0, 25.0, 35.0, 45.0))
+    good = ~camera.defects
+    start, n = 1000, 150
+
+    def gap_to_warm(**options):
+        warm = wolf.stream(**options)
+        for k in range(start):
+            warm.process(ev.frames[k], fpa_c=ev.fpa_c[k], time_s=ev.time_s[k])
+        cold = wolf.stream(**options)
+        gaps = []
+        for k in range(start, start + n):
+            a = cold.process(ev.frames[k], fpa_c=ev.fpa_c[k], time_s=ev.time_s[k])
+            b = warm.process(ev.frames[k], fpa_c=ev.fpa_c[k], time_s=ev.time_s[k])
+            gaps.append(float(np.abs(a[good] - b[good]).mean()))
+        return np.array(gaps)
+
+    gaps = gap_to_warm()
+    assert gaps[0] > 1.0  # ΔT̂ = 0 at the start: degrees off
+    assert gaps[100:].max() < 0.05  # settled (LMS and HW state) within 100 frames
+    # a HW block started settled lags the ramp's rate term for its time constant
+    assert gap_to_warm(hw_start="steady")[100:].max() > 0.1
+
+
+def test_hammerstein_wiener_starts_on_a_ramp():
+    hw = HammersteinWiener((1.0, -0.3, 0.05), 0.95, (20.0, -19.8), 0.1, 40.0, 2.0)
+    rate = 0.01  # °C/s
+    ramp = rate * hw.period_s * np.arange(2000.0)  # long after the settled start: on the ramp
+    z, v = hw.initial_state(float(ramp[-1]), rate)
+    assert abs(z + hw.bias - hw.simulate(ramp)[-1]) < 1e-3
+    assert v == pytest.approx(float(hw.nonlinearity(ramp[-1])))
+    # started on the ramp, the recursion stays on it; settled (rate 0), it lags by the rate term
+    tail = ramp[-200:]
+    np.testing.assert_allclose(hw.simulate(tail, rate_c_per_s=rate), hw.simulate(ramp)[-200:],
+                               atol=1e-3)
+    assert abs(hw.simulate(tail)[0] - hw.simulate(ramp)[-200]) > 0.05
+
+
 def test_hammerstein_wiener_identifies_a_known_system():
     rng = np.random.default_rng(0)
     dt = np.cumsum(0.05 * rng.standard_normal(3000))
@@ -218,6 +264,37 @@ def test_lin_beats_two_point_and_the_shutter_under_fast_fpa_change(lin_fit_run, 
     err_no_rate = region_errors(no_rate.apply(frames, fpa_c=sensor, time_s=time_s), scene,
                                 camera)
     assert err_no_rate.mean() > 1.2 * err_lin.mean()
+
+
+def test_lin_level_follows_the_scene_dependent_fpa_slope(lin_fit_run, camera):
+    """The responsivity's FPA dependence makes eq. 1's slope depend on the scene level: the
+    lin-level extension follows it, and equals lin on a camera without it."""
+    from dataclasses import replace
+
+    session, _ = lin_fit_run
+    frames, scene, sensor, time_s, _ = four_region_run(camera, seed=9)
+    lin = fit_calibration(session, "lin")
+    ext = fit_calibration(session, "lin-level")
+    assert (lin.method, ext.method) == ("lin", "lin-level") and lin.a1 is None
+    err_lin = region_errors(lin.apply(frames, fpa_c=sensor, time_s=time_s), scene, camera)
+    err_ext = region_errors(ext.apply(frames, fpa_c=sensor, time_s=time_s), scene, camera)
+    assert err_lin[0] > 0.7  # the 11.6 °C region, far below the set points' mean level
+    assert err_ext.max() < 0.2 and err_ext[0] < err_lin[0] / 4
+    # a camera whose responsivity does not depend on the FPA temperature: no level effect
+    gain = camera.gain.copy()
+    gain[1:] = 0.0
+    flat = replace(camera, gain=gain)
+    steps = ChamberPlan(setpoints_c=SETPOINTS, frames_per_point=3, profile="steps",
+                        ambient_c=(5.0, 40.0), interval_s=10.0)
+    fast = ChamberPlan(setpoints_c=SETPOINTS, frames_per_point=3, profile="sawtooth",
+                       ambient_c=(5.0, 40.0), rate_c_per_min=1.5, interval_s=5.0)
+    flat_session, _ = simulate(flat, [steps, fast], seed=3)
+    frames, scene, sensor, time_s, _ = four_region_run(flat, seed=9)
+    errs = [region_errors(fit_calibration(flat_session, m).apply(frames, fpa_c=sensor,
+                                                                 time_s=time_s), scene, flat)
+            for m in ("lin", "lin-level")]
+    assert errs[0].max() < 0.2
+    np.testing.assert_allclose(errs[1], errs[0], atol=0.03)
 
 
 def test_lin_rejects_too_few_setpoints(lin_fit_run):

@@ -20,7 +20,7 @@ from thermocal.calibration.dataset import (
     fpa_rate_c_per_min,
     prepare_chamber,
 )
-from thermocal.calibration.lin import LinCalibration, fit_planck_curve, lin
+from thermocal.calibration.lin import LinCalibration, fit_planck_curve, lin, lin_level
 from thermocal.calibration.polynomial import (
     PolynomialCalibration,
     camera_model_from_chamber,
@@ -45,6 +45,7 @@ CALIBRATION_METHODS: dict[str, Callable[..., Any]] = {
     "polynomial": polynomial,
     "wolf2016": wolf2016,
     "lin": lin,
+    "lin-level": lin_level,  # an extension of lin, not in the paper (see calibration.lin)
 }
 
 #: method name stored in a calibration file → class that loads it.
@@ -55,6 +56,7 @@ CALIBRATION_CLASSES: dict[str, type] = {
     "polynomial": PolynomialCalibration,
     "wolf2016": Wolf2016Calibration,
     "lin": LinCalibration,
+    "lin-level": LinCalibration,
 }
 
 
@@ -102,6 +104,7 @@ __all__ = [
     "fit_two_point",
     "fpa_rate_c_per_min",
     "lin",
+    "lin_level",
     "load_any_calibration",
     "one_point",
     "polynomial",

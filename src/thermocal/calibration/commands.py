@@ -9,7 +9,7 @@ import click
 
 from thermocal.errors import InvalidInputError
 
-_METHODS = ["two-point", "one-point", "shutter", "polynomial", "wolf2016", "lin"]
+_METHODS = ["two-point", "one-point", "shutter", "polynomial", "wolf2016", "lin", "lin-level"]
 
 
 def _check_output(path: Path, suffixes: tuple[str, ...]) -> None:

@@ -15,6 +15,19 @@ Per pixel, from the raw counts ``G0`` at FPA temperature ``T0`` (°C) changing a
    ``O`` per pixel (linear least squares once ``B`` and ``F`` are known), which also removes the
    fixed-pattern noise the FLIR Ax65 of the paper removes internally.
 
+**Extension ``lin-level``** (not in the paper; ``lin(..., level=True)``). A microbolometer's
+responsivity changes with the FPA temperature (the tau2 preset: −0.4 %/°C), so the FPA slope of
+the counts depends on the scene level: a per-pixel ``(a, b)`` fitted over all set points is right
+only near their mean and leaves errors that grow with the distance from it and with
+``|T0 − T_ref|``.
+The extension makes eq. 1's coefficients linear in the scene's band radiance ``ℓ`` (relative to
+the set points' mean), fitted on the same stable frames at ≥ 2 blackbody temperatures:
+``Gc = G0 + (a + a1·ℓ)·(T_ref² − T0²) + (b + b1·ℓ)·(T_ref − T0)``. At apply time ``ℓ`` of each
+pixel is read off its own corrected counts, ``ℓ = (Gf − c)/g`` (``c``, ``g``: the pixel's counts at
+the mean level and its responsivity at ``T_ref``, from the set-point levels), which makes
+``Gf = (U·g − W·c)/(g − W)`` in closed form, ``U`` being the paper's ``Gf`` and ``W = a1·(T_ref² −
+T0²) + b1·(T_ref − T0)``. Eq. 2–5 are unchanged.
+
 In a chamber the blackbody visits several set points; each set point's level is a free intercept
 of the per-pixel regressions (fixed effects), so (a, b) and (m, n, p) are shared by all set points
 as the paper assumes ("without the requirement of specific blackbody temperature"). All pixels
@@ -54,6 +67,8 @@ from thermocal.calibration.store import load_calibration, require_arrays, save_c
 from thermocal.errors import FitError, InvalidInputError
 
 METHOD = "lin"
+METHOD_LEVEL = "lin-level"
+METHODS = (METHOD, METHOD_LEVEL)
 
 
 def planck_counts(temp_k: Any, r: Any, b: float, f: float, o: Any) -> Any:
@@ -102,7 +117,10 @@ class LinCalibration:
     """Fitted Lin et al. model; maps ``(H, W)`` float32, ``B`` (K) and ``F`` scalars.
 
     ``a`` (counts/°C²), ``b`` (counts/°C): eq. 1; ``m, n, p`` (counts per (°C/min)^i): eq. 2;
-    ``r`` and ``o`` (counts): eq. 4 per pixel.
+    ``r`` and ``o`` (counts): eq. 4 per pixel. The ``lin-level`` extension adds ``a1``, ``b1``
+    (eq. 1's coefficients per W·m⁻²·sr⁻¹ of scene level), ``level_counts`` (counts at the mean
+    set-point level at ``T_ref``) and ``level_gain`` (counts per W·m⁻²·sr⁻¹ at ``T_ref``); all
+    ``None`` for the paper's method.
     """
 
     a: np.ndarray
@@ -120,8 +138,15 @@ class LinCalibration:
     rate_smooth_s: float = 60.0
     max_rate_c_per_min: float = 1.0
     info: dict[str, Any] = field(default_factory=dict)
+    a1: np.ndarray | None = None
+    b1: np.ndarray | None = None
+    level_counts: np.ndarray | None = None
+    level_gain: np.ndarray | None = None
 
-    method = METHOD
+    @property
+    def method(self) -> str:
+        """``"lin"`` (the paper) or ``"lin-level"`` (eq. 1 linear in the scene level)."""
+        return METHOD if self.a1 is None else METHOD_LEVEL
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -138,6 +163,9 @@ class LinCalibration:
             g = frame.astype(np.float32)
             g += self.a * (tr * tr - t0 * t0) + self.b * (tr - t0)
             g -= ((self.m * rk + self.n) * rk + self.p) * rk
+            if self.a1 is not None:  # lin-level: Gf = U + ℓ·W with ℓ = (Gf − c)/g, solved
+                w = self.a1 * (tr * tr - t0 * t0) + self.b1 * (tr - t0)
+                g = (g * self.level_gain - w * self.level_counts) / (self.level_gain - w)
             out[k] = g
         return out
 
@@ -151,8 +179,8 @@ class LinCalibration:
         """
         counts = check_frames(frames, self.shape)
         nfr = len(counts)
-        fpa = require_fpa(fpa_c, nfr, METHOD)
-        warn_outside_range(fpa, self.fpa_range_c, METHOD)
+        fpa = require_fpa(fpa_c, nfr, self.method)
+        warn_outside_range(fpa, self.fpa_range_c, self.method)
         if time_s is None and frame_rate_hz is not None:
             time_s = np.arange(nfr) / float(frame_rate_hz)
         if time_s is None:
@@ -176,27 +204,36 @@ class LinCalibration:
     def save(self, path: str | Path) -> Path:
         h, w = self.shape
         names = ("a", "b", "m", "n", "p", "r", "o", "bad")
+        if self.a1 is not None:
+            names += _LEVEL_MAPS
         meta = {"planck_b": self.planck_b, "planck_f": self.planck_f, "t_ref_c": self.t_ref_c,
                 "rate_smooth_s": self.rate_smooth_s,
                 "max_rate_c_per_min": self.max_rate_c_per_min, "info": self.info}
         return save_calibration(
-            path, METHOD, {k: getattr(self, k) for k in names}, resolution=(w, h),
+            path, self.method, {k: getattr(self, k) for k in names}, resolution=(w, h),
             fpa_range_c=self.fpa_range_c, camera_unit=self.info.get("camera_unit"), metadata=meta,
         )
 
     @classmethod
     def load(cls, path: str | Path) -> LinCalibration:
-        stored = load_calibration(path, method=METHOD)
+        stored = load_calibration(path)
+        if stored.method not in METHODS:
+            raise InvalidInputError(f"{path}: a {stored.method} calibration, not {METHOD}")
         names = ("a", "b", "m", "n", "p", "r", "o", "bad")
+        if stored.method == METHOD_LEVEL:
+            names += _LEVEL_MAPS
         require_arrays(stored, names, path)
         m = stored.metadata
-        maps = {k: stored.arrays[k].astype(np.float32) for k in names[:-1]}
+        maps = {k: stored.arrays[k].astype(np.float32) for k in names if k != "bad"}
         return cls(**maps, bad=stored.arrays["bad"].astype(bool),
                    planck_b=float(m["planck_b"]), planck_f=float(m["planck_f"]),
                    t_ref_c=float(m["t_ref_c"]), fpa_range_c=stored.fpa_range_c,
                    rate_smooth_s=float(m["rate_smooth_s"]),
                    max_rate_c_per_min=float(m["max_rate_c_per_min"]),
                    info=dict(m.get("info", {})))
+
+
+_LEVEL_MAPS = ("a1", "b1", "level_counts", "level_gain")
 
 
 def _within_solve(
@@ -223,8 +260,9 @@ def lin(
     outlier_mads: float = 10.0,
     band_m: tuple[float, float] = (7.5e-6, 13.5e-6),
     chunk: int = 64,
+    level: bool = False,
 ) -> LinCalibration:
-    """Fit Lin et al. to a chamber session.
+    """Fit Lin et al. to a chamber session (``level=True``: the ``lin-level`` extension).
 
     Parameters
     ----------
@@ -235,6 +273,9 @@ def lin(
         Reference FPA temperature, °C; default the median of the stable frames'.
     rate_smooth_s : float
         Window of the FPA-rate estimate, s (0: raw eq. 3).
+    level : bool
+        Make eq. 1's coefficients linear in the scene level (the ``lin-level`` extension, see
+        the module docstring); False is the paper's method.
     """
     data = prepare_chamber(session, rate_smooth_s=rate_smooth_s)
     band = band_for(tuple(band_m))
@@ -250,18 +291,23 @@ def lin(
     rad = np.asarray(band.radiance(data.scene_c + ZERO_C_K), dtype=np.float64)
     rad_s = np.array([rad[group == g].mean() for g in range(n_groups)])
     dt = data.fpa_c - ref
+    # scene level of each frame (its set point's mean radiance) around the set points' mean
+    level_c = float(rad_s[np.unique(group[stable])].mean())
+    ell = rad_s[group] - level_c
     h, w = data.frame_shape
     npix = h * w
     scan = FrameScan((h, w), data.session.bit_depth)
     all_idx = np.flatnonzero(data.usable)
 
-    # pass 1: eq. 1 on stable frames (regressors Δ², Δ), and set-point means for the gain.
-    x1 = np.stack([dt**2, dt], axis=1)
-    xx1 = np.zeros((2, 2))
-    xy1 = np.zeros((2, npix))
+    # pass 1: eq. 1 on stable frames (regressors Δ², Δ; lin-level: also ℓ·Δ², ℓ·Δ), and
+    # set-point means for the gain.
+    x1 = np.stack([dt**2, dt] + ([ell * dt**2, ell * dt] if level else []), axis=1)
+    k1 = x1.shape[1]
+    xx1 = np.zeros((k1, k1))
+    xy1 = np.zeros((k1, npix))
     ysum = np.zeros((n_groups, npix))
     n1 = np.zeros(n_groups)
-    xsum1 = np.zeros((n_groups, 2))
+    xsum1 = np.zeros((n_groups, k1))
     ref_counts: np.ndarray | None = None
     frame_mean = np.full(data.n_frames, np.nan)
     kept = np.zeros(data.n_frames, dtype=bool)
@@ -290,7 +336,8 @@ def lin(
     # refer counts to the set point's mean radiance: y' = y − gain·(L − L_s)
     shift = gain * (rad - rad_s[group])
     ab = _fixed_effects(x1, stable & kept, group, n_groups, xx1, xy1, ysum, n1, xsum1, shift)
-    a_c, b_c = ab  # centred: G0 = c_s + a_c·Δ² + b_c·Δ
+    a_c, b_c = ab[0], ab[1]  # centred: G0 = c_s + a_c·Δ² + b_c·Δ (+ ℓ·(a1_c·Δ² + b1_c·Δ))
+    a1_c, b1_c = (ab[2], ab[3]) if level else (np.zeros(npix), np.zeros(npix))
 
     # pass 2: eq. 2 on every frame (stable ones anchor each set point's level), rate regressors.
     rate = data.fpa_rate_c_per_min
@@ -305,6 +352,8 @@ def lin(
         y = block.reshape(len(block), -1).astype(np.float32) - ref_counts
         d = dt[idx].astype(np.float32)[:, None]
         y -= a_c[None] * d * d + b_c[None] * d  # projected to the reference (eq. 1)
+        if level:
+            y -= ell[idx].astype(np.float32)[:, None] * (a1_c[None] * d * d + b1_c[None] * d)
         y -= shift[idx].astype(np.float32)[:, None]
         xs = x2[idx]
         xx2 += xs.T @ xs
@@ -322,13 +371,15 @@ def lin(
     else:
         mnp = np.zeros((3, npix))
     # each set point's level at the reference, rate 0 (eq. 2 applied), from all its frames
-    level = (ysum2 - np.einsum("sk,kp->sp", xsum2, mnp)) / np.maximum(n2, 1)[:, None]
-    level += ref_counts[None].astype(np.float64)
+    sp_level = (ysum2 - np.einsum("sk,kp->sp", xsum2, mnp)) / np.maximum(n2, 1)[:, None]
+    sp_level += ref_counts[None].astype(np.float64)
     t_k = np.asarray(band.temperature(rad_s), dtype=np.float64)
     have = n2 > 0
-    planck_r, planck_b, planck_f, planck_o = fit_planck_curve(t_k[have], level[have].mean(axis=1))
+    planck_r, planck_b, planck_f, planck_o = fit_planck_curve(
+        t_k[have], sp_level[have].mean(axis=1)
+    )
     basis = np.stack([1.0 / (np.exp(planck_b / t_k[have]) - planck_f), np.ones(have.sum())], 1)
-    ro, *_ = np.linalg.lstsq(basis, level[have], rcond=None)  # (2, P): per-pixel R, O
+    ro, *_ = np.linalg.lstsq(basis, sp_level[have], rcond=None)  # (2, P): per-pixel R, O
     r_map, o_map = ro[0].reshape(h, w), ro[1].reshape(h, w)
     bad = scan.saturated_pixels() | (np.sign(r_map) != np.sign(planck_r))
     bad |= robust_outliers(r_map, mads=outlier_mads, valid=~bad)
@@ -337,12 +388,22 @@ def lin(
     r_map[bad] = np.median(r_map[~bad])
     a_lin = a_c
     b_lin = b_c - 2.0 * a_c * ref  # eq. 1's uncentred b: a·T² + b·T ≡ a_c·Δ² + b_c·Δ + const
+    extra: dict[str, np.ndarray] = {}
+    if level:
+        # each pixel's counts at the reference against the set points' level: c + g·ℓ
+        lev_basis = np.stack([np.ones(have.sum()), rad_s[have] - level_c], axis=1)
+        cg, *_ = np.linalg.lstsq(lev_basis, sp_level[have], rcond=None)
+        gain_map = cg[1].reshape(h, w)
+        bad |= ~(gain_map > 0)
+        gain_map[bad] = np.median(gain_map[~bad])
+        extra = {"a1": a1_c, "b1": b1_c - 2.0 * a1_c * ref, "level_counts": cg[0],
+                 "level_gain": gain_map.ravel()}
     used = data.fpa_c[kept]
     info = calibration_info(data.session) | scan.report() | {
         "planck_r_mean": planck_r, "planck_o_mean": planck_o,
         "stable_frames": int((stable & kept).sum()), "unstable_frames": unstable_frames,
         "setpoints_c": [float(v) for v in points],
-    }
+    } | ({"level_centre_radiance": level_c} if level else {})
 
     def as_map(v: np.ndarray) -> np.ndarray:
         return v.reshape(h, w).astype(np.float32)
@@ -353,7 +414,13 @@ def lin(
         planck_b=planck_b, planck_f=planck_f, t_ref_c=ref,
         fpa_range_c=(float(used.min()), float(used.max())), rate_smooth_s=rate_smooth_s,
         max_rate_c_per_min=float(np.abs(rate[kept]).max()), info=info,
+        **{k: as_map(v) for k, v in extra.items()},
     )
+
+
+def lin_level(session: Any, **options: Any) -> LinCalibration:
+    """The ``lin-level`` extension of Lin et al.: :func:`lin` with ``level=True``."""
+    return lin(session, level=True, **options)
 
 
 def _fixed_effects(

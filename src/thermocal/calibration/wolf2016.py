@@ -20,6 +20,15 @@ Per pixel p and frame k (Wolf et al. eq. 6), in band radiance ``X`` (W·m⁻²·
   It runs every frame for ``warmup_frames`` frames, then every ``update_interval_s`` of
   recording time (the paper: 100 frames, then every 500 ms).
 
+The paper does not say how the HW linear block starts. Identified on chamber data, the block is
+mostly a lead (``b0 ≈ −b1``: Ω follows the FPA *rate*, through the housing's lead and the
+transient term), so a block started settled at the first FPA sample is wrong by the rate term
+whenever a stream starts while the FPA temperature is changing, and takes its time constant
+(minutes) to catch up. A stream
+therefore starts on the steady response to a ramp at the FPA rate fitted to its first samples
+(``hw_start="ramp"``, as ``lfilter_zi`` starts a filter on a constant); ``hw_start="steady"`` keeps
+the settled start.
+
 :class:`Wolf2016Stream` does this frame by frame; :meth:`Wolf2016Calibration.apply` runs a fresh
 stream over a batch of frames.
 """
@@ -77,13 +86,31 @@ class HammersteinWiener:
         u = np.asarray(delta_t_c, dtype=np.float64) / self.u_scale
         return sum(ci * u ** (i + 1) for i, ci in enumerate(self.c))
 
-    def simulate(self, delta_t_c: Any) -> np.ndarray:
-        """Ω for a series sampled every ``period_s``, starting settled at its first value."""
-        v = self.nonlinearity(delta_t_c)
+    def initial_state(self, delta_t_c: float, rate_c_per_s: float = 0.0) -> tuple[float, float]:
+        """State ``(z, v)`` of the linear block after a steady ramp through ``delta_t_c``.
+
+        The ramp is ``rate_c_per_s`` (°C/s) in ΔT, i.e. ``v[k] − v[k−1] = r`` with
+        ``r = v(ΔT) − v(ΔT − rate·period_s)``; its particular solution is ``z = G·v − r·(a·G +
+        b1)/(1 − a)`` with the DC gain ``G = (b0 + b1)/(1 − a)``. ``rate_c_per_s = 0`` is the
+        steady state of a constant input (what ``scipy.signal.lfilter_zi`` gives).
+        """
+        v = float(self.nonlinearity(delta_t_c))
+        r = v - float(self.nonlinearity(delta_t_c - rate_c_per_s * self.period_s))
+        gain = (self.b[0] + self.b[1]) / (1.0 - self.a)
+        return gain * v - r * (self.a * gain + self.b[1]) / (1.0 - self.a), v
+
+    def simulate(self, delta_t_c: Any, rate_c_per_s: float = 0.0) -> np.ndarray:
+        """Ω for a series sampled every ``period_s``.
+
+        It starts on the steady response to a ramp of ``rate_c_per_s`` (°C/s) through its
+        first value: settled at that value for the default 0.
+        """
+        u = np.asarray(delta_t_c, dtype=np.float64)
+        v = self.nonlinearity(u)
         z = np.empty_like(v)
-        prev_z = (self.b[0] + self.b[1]) * v[0] / (1.0 - self.a)
-        prev_v = v[0]
-        for k in range(v.size):  # a scalar recursion over time, not over pixels
+        prev_z, prev_v = self.initial_state(float(u[0]), rate_c_per_s)
+        z[0] = prev_z
+        for k in range(1, v.size):  # a scalar recursion over time, not over pixels
             prev_z = self.a * prev_z + self.b[0] * v[k] + self.b[1] * prev_v
             prev_v = v[k]
             z[k] = prev_z
@@ -179,7 +206,8 @@ class Wolf2016Calibration:
         """Correct a recording from a cold start: scene temperature, °C, float32 ``(N, H, W)``.
 
         ``fpa_c`` (the FPA sensor, °C) is required; ``time_s`` defaults to frames at
-        ``frame_rate_hz``. ``options`` go to :class:`Wolf2016Stream`.
+        ``frame_rate_hz``. ``options`` go to :class:`Wolf2016Stream` (e.g. ``hw_start``: by
+        default the HW block starts on the FPA ramp fitted to the first samples).
         """
         counts = check_frames(frames, self.shape)
         n = len(counts)
@@ -238,11 +266,23 @@ class Wolf2016Stream:
         Recording time between LMS updates after the warm-up, s (default 0.5).
     delta_t0_c : float
         Initial ΔT̂, °C (a cold start: 0).
+    hw_start : {"ramp", "steady"}
+        Initial state of the HW linear block (the paper does not specify one). ``"ramp"``
+        (default): for the first ``hw_rate_window_s`` of recording time the state is held at the
+        steady response to a ramp through the current FPA sample, at the rate fitted by least
+        squares to the FPA samples seen so far (0 until they span ``hw_rate_min_s``); then the
+        recursion runs from there. ``"steady"``: settled at the first sample (rate 0), which
+        leaves the block's own lag (its time constant, minutes) to catch up when the stream
+        starts while the FPA temperature is changing.
+    hw_rate_window_s, hw_rate_min_s : float
+        See ``hw_start`` (s; default 60 and 10).
     """
 
     def __init__(self, calibration: Wolf2016Calibration, *, eta: float | None = None,
                  window: int | None = None, warmup_frames: int | None = None,
-                 update_interval_s: float | None = None, delta_t0_c: float = 0.0) -> None:
+                 update_interval_s: float | None = None, delta_t0_c: float = 0.0,
+                 hw_start: str = "ramp", hw_rate_window_s: float = 60.0,
+                 hw_rate_min_s: float = 10.0) -> None:
         cal = calibration
         self.calibration = cal
         self.eta = float(cal.eta if eta is None else eta)
@@ -261,23 +301,46 @@ class Wolf2016Stream:
         self._last_x: np.ndarray | None = None
         self._frames = 0
         self._last_update_s: float | None = None
+        if hw_start not in ("ramp", "steady"):
+            raise InvalidInputError(f"hw_start must be 'ramp' or 'steady', got {hw_start!r}")
+        if not 0.0 <= hw_rate_min_s <= hw_rate_window_s:
+            raise InvalidInputError("need 0 <= hw_rate_min_s <= hw_rate_window_s")
+        self.hw_start = hw_start
+        self.hw_rate_window_s = float(hw_rate_window_s) if hw_start == "ramp" else 0.0
+        self.hw_rate_min_s = float(hw_rate_min_s)
         self._hw_time: float | None = None
+        self._hw_t0 = 0.0
         self._hw_z = 0.0
         self._hw_v = 0.0
+        self._fpa_sums = np.zeros(5)  # n, Σt, Σt², Σf, Σt·f of the FPA samples in the window
         self.history: list[float] = []
+
+    def _fpa_rate(self, delta_t_c: float, time_s: float) -> float:
+        """Least-squares FPA rate (°C/s) of the samples so far; 0 until they span the minimum."""
+        t = time_s - self._hw_t0
+        self._fpa_sums += (1.0, t, t * t, delta_t_c, t * delta_t_c)
+        n, st, stt, sf, stf = self._fpa_sums
+        var = stt - st * st / n
+        if t < self.hw_rate_min_s or var <= 0:
+            return 0.0
+        return float((stf - st * sf / n) / var)
 
     def _omega(self, fpa_c: float, time_s: float) -> float:
         hw = self.calibration.hw
-        v = float(hw.nonlinearity(fpa_c - self.calibration.fpa_ref_c))
+        d = fpa_c - self.calibration.fpa_ref_c
         if self._hw_time is None:
-            self._hw_z = (hw.b[0] + hw.b[1]) * v / (1.0 - hw.a)
-            self._hw_v, self._hw_time = v, time_s
+            self._hw_time = self._hw_t0 = time_s
         steps = int((time_s - self._hw_time) // hw.period_s) if hw.period_s > 0 else 0
+        if steps > 0:
+            self._hw_time += steps * hw.period_s
+        if time_s - self._hw_t0 <= self.hw_rate_window_s:  # the start: no history to recurse on
+            rate = self._fpa_rate(d, time_s) if self.hw_start == "ramp" else 0.0
+            self._hw_z, self._hw_v = hw.initial_state(d, rate)
+            return self._hw_z + hw.bias
+        v = float(hw.nonlinearity(d))
         for _ in range(min(max(steps, 0), 10_000)):  # HW runs once per period of recording time
             self._hw_z = hw.a * self._hw_z + hw.b[0] * v + hw.b[1] * self._hw_v
             self._hw_v = v
-        if steps > 0:
-            self._hw_time += steps * hw.period_s
         return self._hw_z + hw.bias
 
     def apply(self, frame: Any, *, fpa_c: float, time_s: float) -> np.ndarray:
