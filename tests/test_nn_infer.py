@@ -491,3 +491,28 @@ def test_train_device_option(tmp_path, capsys):
     if not torch.cuda.is_available():
         code, err = run(["train", "--out", str(tmp_path / "m.pt"), "--device", "cuda"], capsys)
         assert code == 2 and "no GPU" in err
+
+
+def test_train_init_starts_from_a_weights_file(tmp_path, capsys):
+    """--init: fine-tuning starts from the given weights and keeps their normalisation."""
+    first = tmp_path / "a.pt"
+    small = ["--frames", "3", "--mu", "4", "--levels", "1", "--kernel", "3", "--crop", "32",
+             "--batch", "2", "--steps-per-epoch", "1", "--max-epochs", "1", "--val-bursts", "2",
+             "--units", "0-1", "--workers", "0", "--threads", "1", "--scenes", "3"]
+    code, err = run(["train", "--out", str(first), *small], capsys)
+    assert code == 0, err
+    second = tmp_path / "b.pt"
+    code, err = run(["train", "--out", str(second), "--init", str(first),
+                     "--temp-mean-range-c", "-35:60", "--lr", "1e-12", *small], capsys)
+    assert code == 0, err
+    a, norm_a, _ = load_model(first)
+    b, norm_b, info = load_model(second)
+    assert norm_a == norm_b
+    assert info["data"]["temp_mean_range_c"] == [-35.0, 60.0]
+    # a learning rate of 1e-12: the weights are (almost) those it started from
+    wa, wb = a.state_dict(), b.state_dict()
+    assert all(np.allclose(wa[k].numpy(), wb[k].numpy(), atol=1e-6) for k in wa
+               if wa[k].dtype.is_floating_point and "running" not in k)
+    code, err = run(["train", "--out", str(tmp_path / "c.pt"), "--init", str(first),
+                     *[x if x != "4" else "8" for x in small]], capsys)
+    assert code == 2 and "not the one to train" in err

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import numpy as np
@@ -115,13 +116,21 @@ def mae_vs_frames_figure(results: dict):
     """
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6.0, 4.0))
+    values_all = []
     for name, values in results["mae_c"].items():
         ax.plot(results["n"], values, marker="o", label=name)
+        values_all.extend(values)
+    if values_all and min(values_all) > 0 and max(values_all) > 4 * min(values_all):
+        from matplotlib.ticker import FormatStrFormatter
+
+        ax.set_yscale("log")  # one unstable variant would otherwise flatten the others
+        ax.yaxis.set_major_formatter(FormatStrFormatter("%g"))
+        ax.yaxis.set_minor_formatter(FormatStrFormatter("%g"))
     ax.set_xlabel("frames N")
     ax.set_ylabel("MAE (°C)")
-    ax.grid(alpha=0.3)
+    ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     if results.get("note"):
-        ax.set_title(results["note"], fontsize=8)
+        ax.set_title(textwrap.fill(results["note"], 90), fontsize=7)
     fig.tight_layout()
     return fig

@@ -187,6 +187,18 @@ def estimate(
     "--workers", type=int, default=1, show_default=True, help="Data-generating processes."
 )
 @click.option(
+    "--temp-mean-range-c",
+    default=None,
+    help="Range of the training maps' mean temperature, °C (default -15:60).",
+)
+@click.option(
+    "--init",
+    "init",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Start from this weights file (same network; its normalisation is kept).",
+)
+@click.option(
     "--device",
     type=click.Choice(["auto", "cpu", "cuda"]),
     default="auto",
@@ -221,6 +233,8 @@ def train(
     resume: bool,
     threads: int,
     workers: int,
+    temp_mean_range_c: str | None,
+    init: Path | None,
     device: str,
 ) -> None:
     """Train the KPN on synthetic bursts from the camera simulator (Oz et al. §IV)."""
@@ -291,8 +305,16 @@ def train(
     )
     if crop % model_cfg.multiple:
         raise InvalidInputError(f"--crop must be a multiple of ξ^L = {model_cfg.multiple}")
+    extra = {}
+    if temp_mean_range_c:
+        extra["temp_mean_range_c"] = _parse_range(temp_mean_range_c, "--temp-mean-range-c")
     burst_cfg = BurstConfig(
-        n_frames=n_frames, crop=crop, fpa_range_c=fpa_range, units=units, sensor_size=sensor_size
+        n_frames=n_frames,
+        crop=crop,
+        fpa_range_c=fpa_range,
+        units=units,
+        sensor_size=sensor_size,
+        **extra,
     )
     train_cfg = TrainConfig(
         batch=batch,
@@ -331,6 +353,7 @@ def train(
         meta=meta,
         pool_fn=pool_fn,
         val_pool_fn=val_pool_fn,
+        init=init,
     )
     click.echo(
         f"trained {result.steps} steps ({result.epochs} epochs, stopped: {result.stopped}) in "

@@ -343,6 +343,7 @@ def train(
     log: Callable[[str], None] = print,
     progress: bool = True,
     meta: dict[str, Any] | None = None,
+    init: str | os.PathLike[str] | None = None,
 ) -> TrainResult:
     """Train a KPN and write the best weights to ``out`` (and a checkpoint to ``out.ckpt``).
 
@@ -364,6 +365,9 @@ def train(
         Units of the validation set (never the training units).
     log : callable
         Receives one line per epoch.
+    init : path, optional
+        Start from the weights and the normalisation of this weights file (fine-tuning, e.g. on
+        a wider scene range or another camera model); its configuration must be ``model_cfg``.
     """
     t0 = time.monotonic()
     out = Path(out)
@@ -411,11 +415,18 @@ def train(
         lambda: ScenePool.training(seed=train_cfg.seed + 1000, n_procedural=9)
     )
     pool = pool_fn()
-    norm = (
-        Normalisation(**state["norm"])
-        if state
-        else fit_normalisation(pool, burst_cfg, seed=train_cfg.seed, cameras=cameras)
-    )
+    init_model = None
+    if init is not None and not state:
+        init_model, norm, _ = load_model(init)
+        if init_model.config != model_cfg:
+            raise InvalidInputError(
+                f"{init}: its network ({init_model.config.to_dict()}) is not the one to train "
+                f"({model_cfg.to_dict()})"
+            )
+    elif state:
+        norm = Normalisation(**state["norm"])
+    else:
+        norm = fit_normalisation(pool, burst_cfg, seed=train_cfg.seed, cameras=cameras)
 
     val_cfg = BurstConfig(**{**asdict(burst_cfg), "units": tuple(val_units)})
     val_pool = val_pool_fn()
@@ -434,7 +445,10 @@ def train(
         for i in range(0, len(val_bursts), train_cfg.batch)
     ]
 
-    model = KPN(model_cfg).to(device)
+    model = KPN(model_cfg)
+    if init_model is not None:
+        model.load_state_dict(init_model.state_dict())
+    model = model.to(device)
     opt = torch.optim.Adam(model.parameters(), lr=train_cfg.lr)
     sched = torch.optim.lr_scheduler.ReduceLROnPlateau(
         opt, mode="min", factor=0.5, patience=train_cfg.lr_patience
