@@ -43,6 +43,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from thermocal.burst import naive_mean
 from thermocal.calibration.two_point import fit_two_point
 from thermocal.camera.model import render
 from thermocal.camera.presets import make_camera
@@ -55,7 +56,7 @@ from thermocal.nn.data import (
     coverage_mask,
     evaluation_scenes,
 )
-from thermocal.nn.infer import estimate_burst, naive_mean, run_network, shipped_model_path
+from thermocal.nn.infer import estimate_burst, run_network, shipped_model_path
 from thermocal.nn.model import ModelConfig, count_macs, count_parameters
 from thermocal.nn.train import TrainConfig, load_model, resolve_device, train
 from thermocal.radiometry import BandRadiance

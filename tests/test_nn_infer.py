@@ -516,3 +516,31 @@ def test_train_init_starts_from_a_weights_file(tmp_path, capsys):
     code, err = run(["train", "--out", str(tmp_path / "c.pt"), "--init", str(first),
                      *[x if x != "4" else "8" for x in small]], capsys)
     assert code == 2 and "not the one to train" in err
+
+
+def test_burst_module_and_mean_need_no_torch():
+    """Eq. 9 (``--method mean``) and the burst checks run without importing torch."""
+    import subprocess
+    import sys
+
+    code = (
+        "import sys, numpy as np\n"
+        "from thermocal.burst import naive_mean\n"
+        "from thermocal.calibration.two_point import fit_two_point\n"
+        "from thermocal.camera.presets import make_camera\n"
+        "from thermocal.camera.model import render\n"
+        "from thermocal.scenes.procedural import procedural_scene\n"
+        "from thermocal.simulate.flight import simulate_flight\n"
+        "cam = make_camera('tau2', unit=2, size=(64, 48))\n"
+        "rng = np.random.default_rng(0)\n"
+        "lo = render(cam, np.full(4, 10.0), 30.0, housing_c=28.5, rng=rng)\n"
+        "hi = render(cam, np.full(4, 50.0), 30.0, housing_c=28.5, rng=rng)\n"
+        "cal = fit_two_point(lo, hi, 10.0, 50.0, fpa_ref_c=30.0)\n"
+        "fl = simulate_flight(procedural_scene((160, 200), rng=rng), cam, n_frames=3,\n"
+        "                     motion='walk', fpa_c=30.0, seed=1)\n"
+        "est = naive_mean(fl.frames, cal, homographies=fl.homographies)\n"
+        "assert np.isfinite(est.temperature_c).all()\n"
+        "print('torch' in sys.modules)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"

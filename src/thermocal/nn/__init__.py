@@ -8,6 +8,7 @@ need them; importing :mod:`thermocal.nn` itself, :mod:`thermocal.nn.data` or
 ``model``     the UNet + kernel-prediction head, the offset block (eq. 10, 11), the E2E ablation
 ``loss``      eq. 12: masked L1 + Sobel-gradient L1 + SSIM loss
 ``train``     training loop, checkpoints, the weights file
-``infer``     tiled inference on a burst of any size, registration, the naive mean of eq. 9
+``infer``     tiled inference on a burst of any size (validation, registration and the naive
+              mean of eq. 9 are in :mod:`thermocal.burst`, without torch)
 ``commands``  ``thermocal estimate`` and ``thermocal train``
 """

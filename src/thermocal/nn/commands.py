@@ -82,7 +82,7 @@ def estimate(
     calibration: Path | None,
 ) -> None:
     """Estimate the scene temperature of a burst's pivot frame (Oz et al. KPN + offset)."""
-    from thermocal.nn.infer import estimate_file
+    from thermocal.burst import estimate_file
 
     estimate_file(
         frames,

@@ -130,7 +130,7 @@ class _Estimator:
             return estimate_burst(frames, fpa_c, model=self.model, norm=self.norm, pivot=pivot,
                                   homographies=homographies).temperature_c
         if method == "mean":
-            from thermocal.nn.infer import naive_mean
+            from thermocal.burst import naive_mean
 
             return naive_mean(frames, self.calibration, fpa_c=fpa_c, pivot=pivot,
                               homographies=homographies).temperature_c

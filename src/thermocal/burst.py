@@ -1,0 +1,236 @@
+"""Bursts of overlapping frames without a network (numpy and OpenCV only).
+
+Validation of a raw burst (:func:`check_burst`), its registration onto the pivot frame
+(:func:`register`), the overlap and FPA checks, and eq. 9 of Oz et al. (:func:`naive_mean`: the
+registered average of a per-frame calibration). The network (:mod:`thermocal.nn.infer`) builds on
+these; :func:`estimate_file` is ``thermocal estimate`` and imports torch only for the network
+methods.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from thermocal._validate import as_frames
+from thermocal.errors import InvalidInputError, RegistrationError, ResolutionMismatchError
+from thermocal.registration.warp import as_homographies, warp_to_pivot
+
+__all__ = [
+    "MIN_OVERLAP",
+    "SATURATED_FRACTION",
+    "Estimate",
+    "check_burst",
+    "check_overlap",
+    "estimate_file",
+    "fpa_value",
+    "naive_mean",
+    "register",
+]
+
+#: A frame with more than this fraction of its pixels at 0 or at the largest count is saturated.
+SATURATED_FRACTION = 0.02
+#: Every frame must see at least this fraction of the pivot frame.
+MIN_OVERLAP = 0.1
+
+
+class Estimate:
+    """The result of :func:`estimate_burst`.
+
+    Attributes
+    ----------
+    temperature_c : (H, W) float32
+        Estimated scene temperature of the pivot frame, °C.
+    coverage : (H, W) int
+        How many frames see each pivot pixel.
+    homographies : (N, 3, 3) float64
+        Frame → pivot homographies used.
+    pivot : int
+    """
+
+    def __init__(
+        self, temperature_c: np.ndarray, coverage: np.ndarray, homographies: np.ndarray, pivot: int
+    ) -> None:
+        self.temperature_c = temperature_c
+        self.coverage = coverage
+        self.homographies = homographies
+        self.pivot = pivot
+
+
+def check_burst(
+    frames: Any, *, bit_depth: int = 14, name: str = "frames", registered: bool = False
+) -> np.ndarray:
+    """Validate a raw burst: ``(N, H, W)`` counts, no saturated or dead frames.
+
+    Raises :class:`InvalidInputError` for saturated frames (more than 2 % of the pixels at 0 or
+    at ``2**bit_depth − 1``) or constant frames. For ``registered`` frames, 0 marks pixels a
+    frame does not cover: they are not counted.
+    """
+    arr = as_frames(frames, name)
+    top = 2**bit_depth - 1
+    for k, f in enumerate(arr):
+        covered = np.count_nonzero(f > 0) if registered else f.size
+        n_pix = max(covered, 1)
+        sat = np.count_nonzero(f >= top) / n_pix
+        low = 0.0 if registered else np.count_nonzero(f <= 0) / n_pix
+        if sat > SATURATED_FRACTION or low > SATURATED_FRACTION:
+            which = f"{100 * sat:.0f} % at {top}" if sat >= low else f"{100 * low:.0f} % at 0"
+            raise InvalidInputError(
+                f"{name}: frame {k} is saturated ({which}); use frames within the sensor's range"
+            )
+        if covered == 0 or float(f.max()) == float(f[f > 0].min() if registered else f.min()):
+            raise InvalidInputError(f"{name}: frame {k} is constant (a dead or blank frame)")
+    return arr
+
+
+def register(
+    frames: np.ndarray,
+    *,
+    pivot: int | None = None,
+    registered: bool = False,
+    homographies: Any = None,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, int]:
+    """Warp a burst onto its pivot: ``(warped float32, valid bool, homographies, pivot)``.
+
+    Known frame → pivot ``homographies`` are used as given. ``registered=True`` takes the frames
+    as already registered (identity homographies; pixels at 0 counts are taken as not covered).
+    Otherwise :func:`thermocal.registration.register_burst` finds the homographies.
+    """
+    n = frames.shape[0]
+    if pivot is None:
+        pivot = n // 2
+    if not 0 <= pivot < n:
+        raise InvalidInputError(f"pivot {pivot} is not a frame index (0 … {n - 1})")
+    if homographies is not None:
+        hs = as_homographies(homographies, n=n)
+        warped, valid = warp_to_pivot(frames, hs)
+        return warped, valid, hs, pivot
+    if registered:
+        hs = np.repeat(np.eye(3)[None], n, axis=0)
+        warped = frames.astype(np.float32)
+        valid = frames > 0
+        valid[pivot] = True
+        return warped, valid, hs, pivot
+    try:
+        from thermocal.registration import register_burst
+    except ImportError:
+        raise RegistrationError(
+            "burst registration is not available in this installation; register the frames "
+            "yourself and pass --registered"
+        ) from None
+    reg = register_burst(frames, pivot=pivot)
+    hs = as_homographies(reg.homographies, n=n)
+    warped, valid = warp_to_pivot(frames, hs)
+    return warped, valid, hs, int(reg.pivot)
+
+
+def check_overlap(valid: np.ndarray, pivot: int) -> None:
+    """Every frame must see at least :data:`MIN_OVERLAP` of the pivot frame (``valid`` is
+    ``(N, H, W)``); raises :class:`RegistrationError` otherwise."""
+    frac = valid.reshape(valid.shape[0], -1).mean(axis=1)
+    for k, f in enumerate(frac):
+        if k != pivot and f < MIN_OVERLAP:
+            raise RegistrationError(
+                f"frame {k} overlaps the pivot frame {pivot} by only {100 * f:.0f} %; a burst "
+                f"needs overlapping views (at least {100 * MIN_OVERLAP:.0f} %)"
+            )
+
+
+def fpa_value(fpa_c: Any, n: int) -> float:
+    """One FPA temperature for a burst, °C: the mean of one value or one per frame."""
+    if fpa_c is None:
+        raise InvalidInputError(
+            "no FPA temperature: give --fpa-c or a sidecar JSON with fpa_c (the network needs it)"
+        )
+    arr = np.asarray(fpa_c, dtype=np.float64).ravel()
+    if arr.size not in (1, n) or not np.all(np.isfinite(arr)):
+        raise InvalidInputError(f"fpa_c: expected one finite value or {n}, got {arr.size}")
+    value = float(arr.mean())
+    if not -60.0 <= value <= 120.0:
+        raise InvalidInputError(f"fpa_c: {value:.1f} °C is not a plausible FPA temperature")
+    return value
+
+
+def naive_mean(
+    frames: Any,
+    calibration: Any,
+    *,
+    fpa_c: Any = None,
+    pivot: int | None = None,
+    registered: bool = False,
+    homographies: Any = None,
+) -> Estimate:
+    """Eq. 9: the registered average of the per-frame temperatures given by a calibration.
+
+    Every frame goes through ``calibration.apply(frames, fpa_c=…)`` (°C), is warped onto the
+    pivot, and the valid values of each pivot pixel are averaged.
+    """
+    arr = check_burst(frames, registered=registered)
+    if calibration.shape != arr.shape[1:]:
+        raise ResolutionMismatchError(
+            f"frames are {arr.shape[2]}x{arr.shape[1]} but the calibration is "
+            f"{calibration.shape[1]}x{calibration.shape[0]}"
+        )
+    temps = calibration.apply(arr, fpa_c=fpa_c)
+    _, valid, hs, p = register(arr, pivot=pivot, registered=registered, homographies=homographies)
+    check_overlap(valid, p)
+    warped_t, valid_t = warp_to_pivot(temps, hs)
+    valid_t &= valid
+    count = valid_t.sum(axis=0)
+    mean = (warped_t * valid_t).sum(axis=0) / np.maximum(count, 1)
+    return Estimate(mean.astype(np.float32), count, hs, p)
+
+
+def estimate_file(
+    frames_path: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    fpa_c: float | None = None,
+    method: str = "kpn",
+    model_path: str | os.PathLike[str] | None = None,
+    pivot: int | None = None,
+    registered: bool = False,
+    calibration: str | os.PathLike[str] | None = None,
+) -> Path:
+    """``thermocal estimate``: read a recording, estimate the pivot's temperature, write it.
+
+    The output (float32 °C TIFF, ``(H, W)``) is written atomically and only after every check.
+    """
+    from thermocal.io.recording import read_recording, write_temperature_tiff
+
+    out = Path(out)
+    if out.suffix.lower() not in (".tif", ".tiff"):
+        raise InvalidInputError(f"{out}: the output must be a .tiff file")
+    if not out.parent.is_dir():
+        raise InvalidInputError(f"{out.parent}: output folder does not exist")
+    if method == "mean" and calibration is None:
+        raise InvalidInputError(
+            "--method mean needs a per-pixel calibration: give --calibration CAL.h5"
+        )
+    rec = read_recording(frames_path, fpa_c=fpa_c)
+    fpa = rec.fpa_c
+    if method == "mean":
+        from thermocal.calibration import load_any_calibration
+
+        cal = load_any_calibration(calibration)
+        result = naive_mean(rec.frames, cal, fpa_c=fpa, pivot=pivot, registered=registered)
+    else:
+        from thermocal.nn.infer import estimate_burst, shipped_model_path
+        from thermocal.nn.train import load_model
+
+        path = Path(model_path) if model_path is not None else shipped_model_path(method)
+        model, norm, _ = load_model(path)
+        expected = "kpn" if method == "kpn" else method
+        if model.config.variant != expected:
+            raise InvalidInputError(
+                f"{path} holds a {model.config.variant} model, not {method}; pass the right "
+                "--model or --method"
+            )
+        result = estimate_burst(
+            rec.frames, fpa, model=model, norm=norm, pivot=pivot, registered=registered
+        )
+    write_temperature_tiff(out, result.temperature_c)
+    return out
