@@ -513,6 +513,12 @@ def test_train_init_starts_from_a_weights_file(tmp_path, capsys):
     wa, wb = a.state_dict(), b.state_dict()
     assert all(np.allclose(wa[k].numpy(), wb[k].numpy(), atol=1e-6) for k in wa
                if wa[k].dtype.is_floating_point and "running" not in k)
+    code, err = run(["train", "--out", str(tmp_path / "s.pt"), "--init", "shipped", "--steps",
+                     "1", "--max-epochs", "1", "--val-bursts", "2", "--batch", "2", "--workers",
+                     "0", "--threads", "1", "--scenes", "3", "--units", "0"], capsys)
+    assert code == 0, err
+    shipped = load_model(infer.shipped_model_path("kpn"))[0]
+    assert load_model(tmp_path / "s.pt")[0].config == shipped.config
     code, err = run(["train", "--out", str(tmp_path / "c.pt"), "--init", str(first),
                      *[x if x != "4" else "8" for x in small]], capsys)
     assert code == 2 and "not the one to train" in err

@@ -196,7 +196,8 @@ def estimate(
     "init",
     type=click.Path(path_type=Path),
     default=None,
-    help="Start from this weights file (same network; its normalisation is kept).",
+    help="Start from this weights file, or 'shipped' for the shipped KPN (same network; its "
+    "normalisation is kept).",
 )
 @click.option(
     "--device",
@@ -305,6 +306,10 @@ def train(
     )
     if crop % model_cfg.multiple:
         raise InvalidInputError(f"--crop must be a multiple of ξ^L = {model_cfg.multiple}")
+    if init is not None and str(init) == "shipped":
+        from thermocal.nn.infer import shipped_model_path
+
+        init = shipped_model_path("kpn")
     extra = {}
     if temp_mean_range_c:
         extra["temp_mean_range_c"] = _parse_range(temp_mean_range_c, "--temp-mean-range-c")
