@@ -97,3 +97,36 @@ def test_bad_input(setup, tmp_path):
     with pytest.raises(FileFormatError):
         process_flight(bad / "frames.tiff", tmp_path / "o3", FlightOptions(method="kpn"))
     assert not (tmp_path / "o2").exists() and not (tmp_path / "o3").exists()
+
+
+def test_disk_full_keeps_finished_outputs_and_resumes(setup, tmp_path, monkeypatch, capsys):
+    """A full disk mid-run: one line, exit 2, finished maps kept, no temporary files, resume."""
+    import errno
+
+    import tifffile
+
+    from thermocal.cli import main
+
+    real_imwrite = tifffile.imwrite
+    calls = {"n": 0}
+
+    def imwrite_then_full(*args, **kwargs):
+        calls["n"] += 1
+        if calls["n"] > 1:
+            raise OSError(errno.ENOSPC, "No space left on device", str(args[0]))
+        return real_imwrite(*args, **kwargs)
+
+    monkeypatch.setattr(tifffile, "imwrite", imwrite_then_full)
+    out = tmp_path / "out"
+    argv = ["flight", str(setup / "flight" / "frames.tiff"), "--out", str(out), "--method",
+            "calibration", "--calibration", str(setup / "cal.h5"), "--preview-every", "0"]
+    with pytest.raises(SystemExit) as stop:
+        main(argv)
+    assert stop.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "No space left on device" in err
+    assert [p.name for p in (out / "temps").iterdir()] == ["frame_000003.tiff"]
+    monkeypatch.setattr(tifffile, "imwrite", real_imwrite)
+    main(argv)
+    names = sorted(p.name for p in (out / "temps").iterdir())
+    assert names == ["frame_000003.tiff", "frame_000010.tiff", "frame_000017.tiff"]

@@ -221,6 +221,13 @@ def main(argv: list[str] | None = None) -> None:
     except ThermocalError as exc:
         click.echo(f"thermocal: error: {exc}", err=True)
         sys.exit(2)
+    except OSError as exc:
+        # the machine, not the input: a full or read-only disk, a vanished file; outputs are
+        # written atomically, so what finished is kept and nothing half-written is left
+        where = f"{exc.filename}: " if exc.filename else ""
+        click.echo(f"thermocal: error: {where}{exc.strerror or exc} (finished outputs are kept; "
+                   "rerun to resume)", err=True)
+        sys.exit(2)
     except KeyboardInterrupt:
         click.echo("thermocal: interrupted", err=True)
         sys.exit(130)
