@@ -27,6 +27,7 @@ All work is vectorised float32 numpy / OpenCV on whole frames; no Python loop ov
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 import cv2
@@ -48,7 +49,12 @@ _EPS = np.float32(1e-3)
 
 
 class StreamingNUC:
-    """Base of the streaming correctors: shape bookkeeping, ``process`` and batch ``correct``."""
+    """Base of the streaming correctors: shape bookkeeping, ``process`` and batch ``correct``.
+
+    A method states only its own rule: ``_start(x)`` (state from the first frame),
+    ``_update(x)`` (learn from one checked float32 frame), ``_apply(x)`` (correct one) and, when
+    the estimate needs a few frames first, ``_ready()`` (False: frames pass through unchanged).
+    """
 
     #: Frames needed before the estimate means anything (batch use checks it).
     min_frames = 2
@@ -69,16 +75,25 @@ class StreamingNUC:
 
     def update(self, frame: Any) -> None:
         """Learn from one frame ``(H, W)`` (raw counts or float)."""
-        x = self._frame(frame)
+        self._learn(self._frame(frame))
+
+    def _learn(self, x: np.ndarray) -> None:
+        """Learn from a checked frame and count it."""
         self._update(x)
         self.n_seen += 1
 
     def _update(self, x: np.ndarray) -> None:  # pragma: no cover
         raise NotImplementedError
 
+    def _ready(self) -> bool:
+        """Whether the parameters are estimated yet (until then ``apply`` copies the frame)."""
+        return True
+
     def apply(self, frame: Any) -> np.ndarray:
         """Correct one frame ``(H, W)`` with the current parameters; float32 ``(H, W)``."""
         x = self._frame(frame)
+        if not self._ready():
+            return x.copy()
         return self._apply(x)
 
     def _apply(self, x: np.ndarray) -> np.ndarray:  # pragma: no cover
@@ -96,11 +111,103 @@ class StreamingNUC:
         -------
         numpy.ndarray, float32, shape (N, H, W)
         """
-        arr = as_nuc_frames(frames, min_frames=self.min_frames)
+        return self._run(as_nuc_frames(frames, min_frames=self.min_frames))
+
+    def _run(
+        self, arr: np.ndarray, per_frame: Callable[[int], dict[str, Any]] | None = None
+    ) -> np.ndarray:
+        """``process`` every frame of checked ``(N, H, W)`` float32 frames in order, with the
+        keyword arguments ``per_frame(k)`` for frame k when given; float32 ``(N, H, W)``."""
         out = np.empty(arr.shape, dtype=np.float32)
         for k in range(arr.shape[0]):
-            out[k] = self.process(arr[k])
+            out[k] = self.process(arr[k], **({} if per_frame is None else per_frame(k)))
         return out
+
+
+class _ExponentialWindow(StreamingNUC):
+    """Per-pixel temporal mean ``self.mean`` and one spread statistic, both recursive means with
+    weight ``max(1/n, 1/window)`` (cumulative at first, then an exponential window of ``window``
+    frames); ready after 2 frames. A method states its spread by ``_start`` (state after
+    ``super()._start``) and ``_update_spread``, and keeps its own keyword-only ``__init__`` (so
+    that an unknown option's ``TypeError`` names the method's class)."""
+
+    def __init__(self, *, window: int = 200) -> None:
+        super().__init__()
+        self.window = check_int(window, "window", minimum=2)
+
+    def _start(self, x: np.ndarray) -> None:
+        self.mean = x.copy()
+
+    def _ready(self) -> bool:
+        return self.n_seen >= 2
+
+    def _update(self, x: np.ndarray) -> None:
+        a = np.float32(max(1.0 / (self.n_seen + 1), 1.0 / self.window))
+        d = x - self.mean
+        self.mean += a * d
+        self._update_spread(a, x, d)
+
+    def _update_spread(self, a: np.float32, x: np.ndarray, d: np.ndarray) -> None:
+        """Update the spread with weight ``a`` from frame ``x``; ``d`` is ``x`` minus the mean
+        before this frame, ``self.mean`` is already updated."""
+        raise NotImplementedError  # pragma: no cover
+
+
+class _LinearLMS(StreamingNUC):
+    """``y = g·x + o`` per pixel, learned by LMS steps ``o ← o − μ·e``, ``g ← g − μ_g·e·x/x̄²``
+    on an error ``e`` that each method defines (``_update`` calls :meth:`_descend`)."""
+
+    def __init__(self, *, learning_rate: float, gain_rate: float) -> None:
+        super().__init__()
+        self.mu = np.float32(check_positive(learning_rate, "learning_rate", upper=1.0))
+        if not 0 <= float(gain_rate) < 10:
+            raise InvalidInputError(f"gain_rate: expected 0 <= gain_rate < 10, got {gain_rate!r}")
+        self.mu_g = np.float32(self.mu * float(gain_rate))
+
+    def _start(self, x: np.ndarray) -> None:
+        self.gain = np.ones_like(x)
+        self.offset = np.zeros_like(x)
+
+    def _descend(self, x: np.ndarray, e: np.ndarray) -> None:
+        """One LMS step on the error ``e`` ``(H, W)`` of frame ``x``."""
+        self.offset -= self.mu * e
+        if self.mu_g:
+            xbar = np.float32(max(float(x.mean()), 1e-6))
+            self.gain -= (self.mu_g / xbar) * e * (x / xbar)
+
+    def _apply(self, x: np.ndarray) -> np.ndarray:
+        return self.gain * x + self.offset
+
+
+class _BlockMoments:
+    """Per-pixel mean and standard deviation of consecutive, non-overlapping blocks of ``size``
+    frames (running sums, reset after each block)."""
+
+    def __init__(self, like: np.ndarray, size: int) -> None:
+        self.size = size
+        self._sum = np.zeros_like(like)
+        self._sum2 = np.zeros_like(like)
+        self.count = 0
+
+    def add(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
+        """Add a frame; the block's ``(mean, std)`` (each ``(H, W)``) when it completes one."""
+        self._sum += x
+        self._sum2 += x * x
+        self.count += 1
+        if self.count < self.size:
+            return None
+        n = np.float32(self.count)
+        m = self._sum / n
+        s = np.sqrt(np.maximum(self._sum2 / n - m * m, 0.0))
+        self._sum[:] = 0.0
+        self._sum2[:] = 0.0
+        self.count = 0
+        return m, s
+
+
+def _floored(v: np.ndarray) -> np.ndarray:
+    """``v`` kept ≥ 5 % of its spatial mean (a gain-like map safe to divide by)."""
+    return np.maximum(v, np.float32(max(float(v.mean()), 1e-6) * 0.05))
 
 
 def _gain_offset_output(x: np.ndarray, gain: np.ndarray, offset: np.ndarray) -> np.ndarray:
@@ -115,7 +222,7 @@ def _gain_offset_output(x: np.ndarray, gain: np.ndarray, offset: np.ndarray) -> 
 # --------------------------------------------------------------------------------------------
 
 
-class Harris1999(StreamingNUC):
+class Harris1999(_ExponentialWindow):
     """Constant-statistics NUC (Harris & Chiang 1999).
 
     Each pixel sees, over time, a scene of the same mean and spread; its temporal mean ``m`` is
@@ -130,22 +237,17 @@ class Harris1999(StreamingNUC):
     """
 
     def __init__(self, *, window: int = 200) -> None:
-        super().__init__()
-        self.window = check_int(window, "window", minimum=2)
+        super().__init__(window=window)
 
     def _start(self, x: np.ndarray) -> None:
-        self.mean = x.copy()
+        super()._start(x)
         self.mad = np.zeros_like(x)
 
-    def _update(self, x: np.ndarray) -> None:
-        a = np.float32(max(1.0 / (self.n_seen + 1), 1.0 / self.window))
-        self.mean += a * (x - self.mean)
+    def _update_spread(self, a: np.float32, x: np.ndarray, d: np.ndarray) -> None:
         self.mad += a * (np.abs(x - self.mean) - self.mad)
 
     def _apply(self, x: np.ndarray) -> np.ndarray:
-        if self.n_seen < 2:
-            return x.copy()
-        d = np.maximum(self.mad, np.float32(max(float(self.mad.mean()), 1e-6) * 0.05))
+        d = _floored(self.mad)
         return (x - self.mean) / d * np.float32(d.mean()) + np.float32(self.mean.mean())
 
 
@@ -154,7 +256,7 @@ class Harris1999(StreamingNUC):
 # --------------------------------------------------------------------------------------------
 
 
-class Scribner(StreamingNUC):
+class Scribner(_LinearLMS):
     """Retina-like LMS neural network NUC (Scribner et al. 1991, 1993).
 
     ``y = g·x + o``; the desired output of a pixel is the mean of its ``(2W+1)²`` neighbourhood
@@ -175,28 +277,13 @@ class Scribner(StreamingNUC):
     def __init__(
         self, *, learning_rate: float = 0.05, gain_rate: float = 0.1, window: int = 1
     ) -> None:
-        super().__init__()
-        self.mu = np.float32(check_positive(learning_rate, "learning_rate", upper=1.0))
-        if not 0 <= float(gain_rate) < 10:
-            raise InvalidInputError(f"gain_rate: expected 0 <= gain_rate < 10, got {gain_rate!r}")
-        self.mu_g = np.float32(self.mu * float(gain_rate))
+        super().__init__(learning_rate=learning_rate, gain_rate=gain_rate)
         self.ksize = 2 * check_int(window, "window") + 1
 
-    def _start(self, x: np.ndarray) -> None:
-        self.gain = np.ones_like(x)
-        self.offset = np.zeros_like(x)
-
     def _update(self, x: np.ndarray) -> None:
-        y = self.gain * x + self.offset
+        y = self._apply(x)
         desired = cv2.blur(y, (self.ksize, self.ksize), borderType=cv2.BORDER_REFLECT)
-        e = y - desired
-        self.offset -= self.mu * e
-        if self.mu_g:
-            xbar = np.float32(max(float(x.mean()), 1e-6))
-            self.gain -= (self.mu_g / xbar) * e * (x / xbar)
-
-    def _apply(self, x: np.ndarray) -> np.ndarray:
-        return self.gain * x + self.offset
+        self._descend(x, y - desired)
 
 
 # --------------------------------------------------------------------------------------------
@@ -204,7 +291,7 @@ class Scribner(StreamingNUC):
 # --------------------------------------------------------------------------------------------
 
 
-class Pezoa2004(StreamingNUC):
+class Pezoa2004(_ExponentialWindow):
     """Enhanced constant-range NUC, ECR (Pezoa, Torres, Córdova, Reeves 2004).
 
     Constant range: every pixel sees, over time, irradiances spread uniformly over the same range
@@ -222,36 +309,32 @@ class Pezoa2004(StreamingNUC):
     """
 
     def __init__(self, *, window: int = 200) -> None:
-        super().__init__()
-        self.window = check_int(window, "window", minimum=2)
+        super().__init__(window=window)
 
     def _start(self, x: np.ndarray) -> None:
-        self.mean = x.copy()
+        super()._start(x)
         self.var = np.zeros_like(x)
 
-    def _update(self, x: np.ndarray) -> None:
-        a = np.float32(max(1.0 / (self.n_seen + 1), 1.0 / self.window))
-        d = x - self.mean
-        self.mean += a * d
+    def _update_spread(self, a: np.float32, x: np.ndarray, d: np.ndarray) -> None:
         self.var += a * (d * (x - self.mean) - self.var)
+
+    def _half_range(self) -> np.ndarray:
+        """``√3·s``, half the range of the uniform model, counts ``(H, W)``."""
+        return np.float32(np.sqrt(3.0)) * np.sqrt(np.maximum(self.var, 0.0))
 
     @property
     def low(self) -> np.ndarray:
         """Lower bound of each pixel's range, counts ``(H, W)``."""
-        return self.mean - np.float32(np.sqrt(3.0)) * np.sqrt(np.maximum(self.var, 0.0))
+        return self.mean - self._half_range()
 
     @property
     def high(self) -> np.ndarray:
         """Upper bound of each pixel's range, counts ``(H, W)``."""
-        return self.mean + np.float32(np.sqrt(3.0)) * np.sqrt(np.maximum(self.var, 0.0))
+        return self.mean + self._half_range()
 
     def _apply(self, x: np.ndarray) -> np.ndarray:
-        if self.n_seen < 2:
-            return x.copy()
         low = self.low
-        rng = self.high - low
-        floor = np.float32(max(float(rng.mean()), 1e-6) * 0.05)
-        return _gain_offset_output(x, np.maximum(rng, floor), low)
+        return _gain_offset_output(x, _floored(self.high - low), low)
 
 
 # --------------------------------------------------------------------------------------------
@@ -293,23 +376,17 @@ class TorresKalman(StreamingNUC):
         self.offset = np.zeros_like(x)
         self.p_gain = np.float32(np.inf)
         self.p_offset = np.float32(np.inf)
-        self._sum = np.zeros_like(x)
-        self._sum2 = np.zeros_like(x)
-        self._count = 0
+        self._moments = _BlockMoments(x, self.block)
         self.n_blocks = 0
 
+    def _ready(self) -> bool:
+        return self.n_blocks > 0
+
     def _update(self, x: np.ndarray) -> None:
-        self._sum += x
-        self._sum2 += x * x
-        self._count += 1
-        if self._count < self.block:
+        block = self._moments.add(x)
+        if block is None:
             return
-        n = np.float32(self._count)
-        m = self._sum / n
-        s = np.sqrt(np.maximum(self._sum2 / n - m * m, 0.0))
-        self._sum[:] = 0.0
-        self._sum2[:] = 0.0
-        self._count = 0
+        m, s = block
         sigma = np.float32(max(float(s.mean()), 1e-6))
         g_meas = np.maximum(s / sigma, np.float32(0.05))
         o_meas = m - g_meas * np.float32(m.mean())
@@ -330,8 +407,6 @@ class TorresKalman(StreamingNUC):
         self.n_blocks += 1
 
     def _apply(self, x: np.ndarray) -> np.ndarray:
-        if self.n_blocks == 0:
-            return x.copy()
         return _gain_offset_output(x, self.gain, self.offset)
 
 
@@ -348,7 +423,7 @@ def _translation(prev: np.ndarray, cur: np.ndarray) -> tuple[float, float] | Non
     return -dx, -dy
 
 
-class Zuo2011(StreamingNUC):
+class Zuo2011(_LinearLMS):
     """Interframe-registration LMS NUC (Zuo, Chen, Gu, Sui 2011).
 
     ``y = g·x + o``. Frame ``k`` and the previous frame are registered (a homography given with
@@ -379,17 +454,12 @@ class Zuo2011(StreamingNUC):
         threshold: float = 6.0,
         warmup: int = 30,
     ) -> None:
-        super().__init__()
-        self.mu = np.float32(check_positive(learning_rate, "learning_rate", upper=1.0))
-        if not 0 <= float(gain_rate) < 10:
-            raise InvalidInputError(f"gain_rate: expected 0 <= gain_rate < 10, got {gain_rate!r}")
-        self.mu_g = np.float32(self.mu * float(gain_rate))
+        super().__init__(learning_rate=learning_rate, gain_rate=gain_rate)
         self.threshold = np.float32(check_positive(threshold, "threshold"))
         self.warmup = check_int(warmup, "warmup", minimum=0)
 
     def _start(self, x: np.ndarray) -> None:
-        self.gain = np.ones_like(x)
-        self.offset = np.zeros_like(x)
+        super()._start(x)
         self._prev: np.ndarray | None = None
         self._pending: np.ndarray | None = None
         self.skipped = 0
@@ -399,8 +469,7 @@ class Zuo2011(StreamingNUC):
         frame's (estimated by phase correlation when None)."""
         x = self._frame(frame)
         self._pending = None if homography is None else np.asarray(homography, dtype=np.float64)
-        self._update(x)
-        self.n_seen += 1
+        self._learn(x)
 
     def process(self, frame: Any, *, homography: Any = None) -> np.ndarray:
         """Update with a frame (and its homography to the previous frame), then correct it."""
@@ -411,18 +480,14 @@ class Zuo2011(StreamingNUC):
         """Run over ``(N, H, W)`` frames; ``homographies`` (N, 3, 3) map each frame to a common
         pivot (as :func:`thermocal.registration.register_burst` gives) when known."""
         arr = as_nuc_frames(frames, min_frames=self.min_frames)
-        hs = None
-        if homographies is not None:
-            from thermocal.registration.warp import as_homographies
+        if homographies is None:
+            return self._run(arr)
+        from thermocal.registration.warp import as_homographies
 
-            hs = as_homographies(homographies, "homographies", n=arr.shape[0])
-        out = np.empty(arr.shape, dtype=np.float32)
-        for k in range(arr.shape[0]):
-            h = None
-            if hs is not None and k > 0:
-                h = np.linalg.inv(hs[k - 1]) @ hs[k]
-            out[k] = self.process(arr[k], homography=h)
-        return out
+        hs = as_homographies(homographies, "homographies", n=arr.shape[0])
+        return self._run(
+            arr, lambda k: {"homography": np.linalg.inv(hs[k - 1]) @ hs[k] if k > 0 else None}
+        )
 
     def _shift_matrix(self, prev_y: np.ndarray, y: np.ndarray) -> np.ndarray | None:
         a = prev_y - cv2.GaussianBlur(prev_y, (0, 0), 8.0)
@@ -433,12 +498,12 @@ class Zuo2011(StreamingNUC):
         return np.array([[1.0, 0.0, t[0]], [0.0, 1.0, t[1]], [0.0, 0.0, 1.0]])
 
     def _update(self, x: np.ndarray) -> None:
-        y = self.gain * x + self.offset
+        y = self._apply(x)
         prev = self._prev
         self._prev = x
         if prev is None:
             return
-        prev_y = self.gain * prev + self.offset
+        prev_y = self._apply(prev)
         h = self._pending if self._pending is not None else self._shift_matrix(prev_y, y)
         if h is None:
             self.skipped += 1
@@ -457,10 +522,4 @@ class Zuo2011(StreamingNUC):
         if self.n_seen >= self.warmup:
             mad = float(np.median(np.abs(e[ok])))
             e[np.abs(e) > self.threshold * max(mad, 1e-6)] = 0.0
-        self.offset -= self.mu * e
-        if self.mu_g:
-            xbar = np.float32(max(float(x.mean()), 1e-6))
-            self.gain -= (self.mu_g / xbar) * e * (x / xbar)
-
-    def _apply(self, x: np.ndarray) -> np.ndarray:
-        return self.gain * x + self.offset
+        self._descend(x, e)
