@@ -336,6 +336,21 @@ def test_bad_calibration_files(tmp_path):
         PolynomialCalibration.load(tmp_path / "other.h5")
 
 
+def test_calibration_file_with_damaged_metadata(fit_run, tmp_path):
+    session, _ = fit_run
+    path = fit_calibration(session, "two-point").save(tmp_path / "cal.h5")
+    with h5py.File(path) as f:
+        meta = json.loads(f.attrs["metadata"])
+    assert list(meta) == ["fpa_ref_c", "band_m", "info"]  # layout version 1, in this order
+    damaged = [({k: v for k, v in meta.items() if k != "band_m"}, r"lacks metadata \['band_m'\]"),
+               (meta | {"fpa_ref_c": "warm"}, "unreadable two-point calibration metadata")]
+    for broken, message in damaged:
+        with h5py.File(path, "a") as f:
+            f.attrs["metadata"] = json.dumps(broken)
+        with pytest.raises(FileFormatError, match=message):
+            load_any_calibration(path)
+
+
 def run_cli(args, capsys):
     try:
         main(args)

@@ -37,7 +37,6 @@ share the regressors, so each regression is solved for all pixels at once.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -63,7 +62,7 @@ from thermocal.calibration.dataset import (
     require_fpa_span,
     require_setpoints,
 )
-from thermocal.calibration.store import load_calibration, require_arrays, save_calibration
+from thermocal.calibration.store import FileLayout, StoredCalibrationMixin
 from thermocal.errors import FitError, InvalidInputError
 
 METHOD = "lin"
@@ -113,7 +112,7 @@ def fit_planck_curve(temp_k: Any, counts: Any) -> tuple[float, float, float, flo
 
 
 @dataclass(frozen=True, eq=False)
-class LinCalibration:
+class LinCalibration(StoredCalibrationMixin):
     """Fitted Lin et al. model; maps ``(H, W)`` float32, ``B`` (K) and ``F`` scalars.
 
     ``a`` (counts/°C²), ``b`` (counts/°C): eq. 1; ``m, n, p`` (counts per (°C/min)^i): eq. 2;
@@ -142,6 +141,15 @@ class LinCalibration:
     b1: np.ndarray | None = None
     level_counts: np.ndarray | None = None
     level_gain: np.ndarray | None = None
+
+    _layout = FileLayout(
+        methods=METHODS,
+        arrays=dict.fromkeys(("a", "b", "m", "n", "p", "r", "o"), np.float32) | {"bad": bool},
+        metadata=dict.fromkeys(("planck_b", "planck_f", "t_ref_c", "rate_smooth_s",
+                                "max_rate_c_per_min"), float),
+        method_arrays={METHOD_LEVEL: dict.fromkeys(("a1", "b1", "level_counts", "level_gain"),
+                                                   np.float32)},
+    )
 
     @property
     def method(self) -> str:
@@ -200,40 +208,6 @@ class LinCalibration:
             arg = self.r / np.where(np.abs(den) < 1e-3, np.float32(1e-3), den) + f
             out[k] = b / np.log(np.maximum(arg, np.float32(1.0 + 1e-6))) - np.float32(ZERO_C_K)
         return fill_bad_pixels(out, self.bad)
-
-    def save(self, path: str | Path) -> Path:
-        h, w = self.shape
-        names = ("a", "b", "m", "n", "p", "r", "o", "bad")
-        if self.a1 is not None:
-            names += _LEVEL_MAPS
-        meta = {"planck_b": self.planck_b, "planck_f": self.planck_f, "t_ref_c": self.t_ref_c,
-                "rate_smooth_s": self.rate_smooth_s,
-                "max_rate_c_per_min": self.max_rate_c_per_min, "info": self.info}
-        return save_calibration(
-            path, self.method, {k: getattr(self, k) for k in names}, resolution=(w, h),
-            fpa_range_c=self.fpa_range_c, camera_unit=self.info.get("camera_unit"), metadata=meta,
-        )
-
-    @classmethod
-    def load(cls, path: str | Path) -> LinCalibration:
-        stored = load_calibration(path)
-        if stored.method not in METHODS:
-            raise InvalidInputError(f"{path}: a {stored.method} calibration, not {METHOD}")
-        names = ("a", "b", "m", "n", "p", "r", "o", "bad")
-        if stored.method == METHOD_LEVEL:
-            names += _LEVEL_MAPS
-        require_arrays(stored, names, path)
-        m = stored.metadata
-        maps = {k: stored.arrays[k].astype(np.float32) for k in names if k != "bad"}
-        return cls(**maps, bad=stored.arrays["bad"].astype(bool),
-                   planck_b=float(m["planck_b"]), planck_f=float(m["planck_f"]),
-                   t_ref_c=float(m["t_ref_c"]), fpa_range_c=stored.fpa_range_c,
-                   rate_smooth_s=float(m["rate_smooth_s"]),
-                   max_rate_c_per_min=float(m["max_rate_c_per_min"]),
-                   info=dict(m.get("info", {})))
-
-
-_LEVEL_MAPS = ("a1", "b1", "level_counts", "level_gain")
 
 
 def _within_solve(

@@ -44,7 +44,7 @@ from thermocal.calibration.dataset import (
     require_setpoints,
     stability_mask,
 )
-from thermocal.calibration.store import load_calibration, require_arrays, save_calibration
+from thermocal.calibration.store import FileLayout, StoredCalibration, StoredCalibrationMixin
 from thermocal.camera.model import horner
 from thermocal.errors import FitError, InvalidInputError
 from thermocal.radiometry import BandRadiance
@@ -67,7 +67,7 @@ def scene_term(temp_c: Any, kind: str, band: BandRadiance) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class PolynomialCalibration:
+class PolynomialCalibration(StoredCalibrationMixin):
     """The fitted per-pixel polynomial model.
 
     Attributes
@@ -101,6 +101,13 @@ class PolynomialCalibration:
     info: dict[str, Any] = field(default_factory=dict)
 
     method = METHOD
+    _layout = FileLayout(
+        methods=(METHOD,),
+        arrays={"gain": np.float32, "offset": np.float32, "bad": bool,
+                "residual_rms": np.float32},
+        metadata={"t_ref_c": float, "scene_term": str, "band_m": tuple, "radial_centre": tuple},
+        optional_arrays=("radial_coefficients",), optional_metadata=("radial_centre",),
+    )
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -172,42 +179,11 @@ class PolynomialCalibration:
             info=self.info | {"radial_order": order},
         )
 
-    def save(self, path: str | Path) -> Path:
-        """Write the calibration file (HDF5, atomic)."""
-        h, w = self.shape
-        arrays = {"gain": self.gain, "offset": self.offset, "bad": self.bad,
-                  "residual_rms": self.residual_rms}
-        if self.radial_coefficients is not None:
-            arrays["radial_coefficients"] = self.radial_coefficients
-        meta = {"t_ref_c": self.t_ref_c, "scene_term": self.scene_term,
-                "band_m": list(self.band_m), "radial_centre": list(self.radial_centre),
-                "info": self.info}
-        return save_calibration(
-            path, METHOD, arrays, resolution=(w, h), fpa_range_c=self.fpa_range_c,
-            camera_unit=self.info.get("camera_unit"), metadata=meta,
-        )
-
     @classmethod
-    def load(cls, path: str | Path) -> PolynomialCalibration:
-        """Read a calibration file written by :meth:`save`."""
-        stored = load_calibration(path, method=METHOD)
-        require_arrays(stored, ("gain", "offset", "bad", "residual_rms"), path)
-        meta = stored.metadata
-        if meta.get("scene_term") not in SCENE_TERMS:
-            raise InvalidInputError(f"{path}: unknown scene term {meta.get('scene_term')!r}")
-        return cls(
-            gain=stored.arrays["gain"].astype(np.float32),
-            offset=stored.arrays["offset"].astype(np.float32),
-            bad=stored.arrays["bad"].astype(bool),
-            residual_rms=stored.arrays["residual_rms"].astype(np.float32),
-            t_ref_c=float(meta["t_ref_c"]),
-            scene_term=str(meta["scene_term"]),
-            fpa_range_c=stored.fpa_range_c,
-            band_m=tuple(meta["band_m"]),
-            radial_coefficients=stored.arrays.get("radial_coefficients"),
-            radial_centre=tuple(meta.get("radial_centre", (0.0, 0.0))),
-            info=dict(meta.get("info", {})),
-        )
+    def _check_stored(cls, stored: StoredCalibration, path: str | Path) -> None:
+        scene = stored.metadata.get("scene_term")
+        if scene not in SCENE_TERMS:
+            raise InvalidInputError(f"{path}: unknown scene term {scene!r}")
 
 
 def _invert_scene(s: np.ndarray, kind: str, band: BandRadiance) -> np.ndarray:

@@ -11,7 +11,6 @@ shutter lags), which is what Lin et al. improve on.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -24,7 +23,7 @@ from thermocal.calibration.base import (
     per_frame_series,
     warn_outside_range,
 )
-from thermocal.calibration.store import load_calibration, require_arrays, save_calibration
+from thermocal.calibration.store import FileLayout, StoredCalibrationMixin
 from thermocal.calibration.two_point import TwoPointCalibration, two_point
 from thermocal.errors import InvalidInputError
 
@@ -32,7 +31,7 @@ METHOD = "shutter"
 
 
 @dataclass(frozen=True, eq=False)
-class ShutterCalibration:
+class ShutterCalibration(StoredCalibrationMixin):
     """Per-pixel gain and reference offset ``(H, W)``, and the shutter offsets recorded so far.
 
     ``event_time_s`` ``(E,)`` and ``event_offset`` ``(E, H, W)``: the offsets from each shutter
@@ -51,6 +50,11 @@ class ShutterCalibration:
     info: dict[str, Any] = field(default_factory=dict)
 
     method = METHOD
+    _layout = FileLayout(
+        methods=(METHOD,), arrays={"gain": np.float32, "offset": np.float32, "bad": bool},
+        metadata={"fpa_ref_c": float, "interval_s": float, "band_m": tuple},
+        optional_arrays=("event_time_s", "event_offset"),
+    )
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -101,31 +105,6 @@ class ShutterCalibration:
             rad = (counts[k].astype(np.float32) - off) * inv_gain
             out[k] = band.temperature(np.clip(rad, lo, hi)) - np.float32(ZERO_C_K)
         return fill_bad_pixels(out, self.bad)
-
-    def save(self, path: str | Path) -> Path:
-        h, w = self.shape
-        arrays = {"gain": self.gain, "offset": self.offset, "bad": self.bad,
-                  "event_time_s": self.event_time_s}
-        if self.event_offset is not None:
-            arrays["event_offset"] = self.event_offset
-        meta = {"fpa_ref_c": self.fpa_ref_c, "interval_s": self.interval_s,
-                "band_m": list(self.band_m), "info": self.info}
-        return save_calibration(path, METHOD, arrays, resolution=(w, h),
-                                fpa_range_c=self.fpa_range_c,
-                                camera_unit=self.info.get("camera_unit"), metadata=meta)
-
-    @classmethod
-    def load(cls, path: str | Path) -> ShutterCalibration:
-        stored = load_calibration(path, method=METHOD)
-        require_arrays(stored, ("gain", "offset", "bad"), path)
-        m = stored.metadata
-        return cls(gain=stored.arrays["gain"].astype(np.float32),
-                   offset=stored.arrays["offset"].astype(np.float32),
-                   bad=stored.arrays["bad"].astype(bool), fpa_ref_c=float(m["fpa_ref_c"]),
-                   fpa_range_c=stored.fpa_range_c, interval_s=float(m["interval_s"]),
-                   event_time_s=stored.arrays.get("event_time_s", np.zeros(0)),
-                   event_offset=stored.arrays.get("event_offset"), band_m=tuple(m["band_m"]),
-                   info=dict(m.get("info", {})))
 
 
 def shutter(session: Any, *, interval_s: float = 180.0, **two_point_options: Any

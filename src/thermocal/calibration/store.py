@@ -13,14 +13,18 @@ attribute           meaning
 =================== ==========================================================================
 
 and one dataset per coefficient array. Writes are atomic (:func:`thermocal.io.atomic.atomic_path`).
+
+A calibration class states what it keeps in the file with a :class:`FileLayout` and gets
+``save``/``load`` from :class:`StoredCalibrationMixin`.
 """
 
 from __future__ import annotations
 
 import json
-from dataclasses import dataclass, field
+from collections.abc import Callable
+from dataclasses import dataclass, field, fields
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any, ClassVar, Self
 
 import h5py
 import numpy as np
@@ -162,3 +166,116 @@ def require_arrays(stored: StoredCalibration, names: tuple[str, ...], path: str 
                 f"{path}: dataset {n!r} has shape {stored.arrays[n].shape}, expected "
                 f"(..., {stored.shape[0]}, {stored.shape[1]})"
             )
+
+
+@dataclass(frozen=True)
+class FileLayout:
+    """What a calibration class keeps in its file beside the common header.
+
+    Attributes
+    ----------
+    methods : tuple of str
+        Method names the class reads; the first is the one named in messages.
+    arrays : dict of str to dtype
+        Datasets every file holds, in the order written; read back with ``astype(dtype)`` after
+        :func:`require_arrays`.
+    metadata : dict of str to callable
+        Metadata entries (attribute name → parser of the stored JSON value), in the order
+        written; ``info`` follows them, always.
+    optional_arrays : tuple of str
+        Datasets written when not None and read back as stored when present (otherwise the
+        field keeps its default).
+    optional_metadata : tuple of str
+        Entries of ``metadata`` a file may lack (the field keeps its default).
+    method_arrays : dict of str to dict
+        Further datasets (name → dtype) that only the files of one method hold.
+    fpa_range : str
+        The attribute written as ``fpa_range_c``; read back into the field ``fpa_range_c``.
+    """
+
+    methods: tuple[str, ...]
+    arrays: dict[str, Any]
+    metadata: dict[str, Callable[[Any], Any]]
+    optional_arrays: tuple[str, ...] = ()
+    optional_metadata: tuple[str, ...] = ()
+    method_arrays: dict[str, dict[str, Any]] = field(default_factory=dict)
+    fpa_range: str = "fpa_range_c"
+
+    def arrays_for(self, method: str) -> dict[str, Any]:
+        """The datasets (name → dtype) a file of ``method`` must hold."""
+        return self.arrays | self.method_arrays.get(method, {})
+
+
+class StoredCalibrationMixin:
+    """``save``/``load`` for a frozen calibration dataclass described by ``_layout``.
+
+    The class needs ``shape`` ``(H, W)``, ``method``, ``info`` (a dict; its ``camera_unit`` is
+    written to the header), a field ``fpa_range_c`` and a field for every name of its layout.
+    """
+
+    _layout: ClassVar[FileLayout]
+    if TYPE_CHECKING:  # provided by the dataclass
+        method: str
+        info: dict[str, Any]
+        shape: tuple[int, int]
+
+    def save(self, path: str | Path) -> Path:
+        """Write the calibration file (HDF5, atomic)."""
+        layout = self._layout
+        arrays = {name: getattr(self, name) for name in layout.arrays_for(self.method)}
+        for name in layout.optional_arrays:
+            if getattr(self, name) is not None:
+                arrays[name] = getattr(self, name)
+        h, w = self.shape
+        return save_calibration(
+            path, self.method, arrays, resolution=(w, h),
+            fpa_range_c=getattr(self, layout.fpa_range),
+            camera_unit=self.info.get("camera_unit"), metadata=self._metadata(),
+        )
+
+    @classmethod
+    def load(cls, path: str | Path) -> Self:
+        """Read a calibration file written by :meth:`save`."""
+        methods = cls._layout.methods
+        stored = load_calibration(path, method=methods[0] if len(methods) == 1 else None)
+        if stored.method not in methods:
+            raise InvalidInputError(f"{path}: a {stored.method} calibration, not {methods[0]}")
+        return cls(**cls._fields(stored, path))
+
+    def _metadata(self) -> dict[str, Any]:
+        """The ``metadata`` entries to write (JSON-serialisable)."""
+        meta = {name: getattr(self, name) for name in self._layout.metadata}
+        return meta | {"info": self.info}
+
+    @classmethod
+    def _check_stored(cls, stored: StoredCalibration, path: str | Path) -> None:
+        """Further checks of a file, after its datasets and before its metadata are read."""
+
+    @classmethod
+    def _fields(cls, stored: StoredCalibration, path: str | Path) -> dict[str, Any]:
+        """The constructor's keyword arguments from a file of one of the class's methods."""
+        layout = cls._layout
+        arrays = layout.arrays_for(stored.method)
+        require_arrays(stored, tuple(arrays), path)
+        cls._check_stored(stored, path)
+        kw: dict[str, Any] = {name: stored.arrays[name].astype(dtype)
+                              for name, dtype in arrays.items()}
+        kw |= {name: stored.arrays[name] for name in layout.optional_arrays
+               if name in stored.arrays}
+        meta = stored.metadata
+        missing = [name for name in layout.metadata
+                   if name not in meta and name not in layout.optional_metadata]
+        if missing:
+            raise FileFormatError(f"{path}: {stored.method} calibration lacks metadata {missing}")
+        try:
+            kw |= {name: parse(meta[name]) for name, parse in layout.metadata.items()
+                   if name in meta}
+            kw["info"] = dict(meta.get("info", {}))
+        except (TypeError, ValueError) as exc:
+            raise FileFormatError(
+                f"{path}: unreadable {stored.method} calibration metadata ({exc})"
+            ) from None
+        kw["fpa_range_c"] = stored.fpa_range_c
+        if any(f.name == "method" for f in fields(cls)):  # type: ignore[arg-type]
+            kw["method"] = stored.method
+        return kw

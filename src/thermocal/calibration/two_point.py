@@ -10,7 +10,6 @@ what the temperature-dependent methods (polynomial, wolf2016, lin) fix.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -34,8 +33,8 @@ from thermocal.calibration.dataset import (
     group_means,
     prepare_chamber,
 )
-from thermocal.calibration.store import load_calibration, require_arrays, save_calibration
-from thermocal.errors import FitError, InvalidInputError
+from thermocal.calibration.store import FileLayout, StoredCalibrationMixin
+from thermocal.errors import FitError
 from thermocal.radiometry import BandRadiance
 
 METHOD = "two-point"
@@ -43,7 +42,7 @@ METHODS = ("two-point", "one-point")
 
 
 @dataclass(frozen=True, eq=False)
-class TwoPointCalibration:
+class TwoPointCalibration(StoredCalibrationMixin):
     """Per-pixel gain (counts per W·m⁻²·sr⁻¹) and offset (counts), ``(H, W)`` float32.
 
     ``bad`` marks pixels whose fit is unusable (dead, hot, non-positive or outlying gain); their
@@ -60,6 +59,11 @@ class TwoPointCalibration:
     info: dict[str, Any] = field(default_factory=dict)
     method: str = METHOD
     fpa_range_c: tuple[float, float] | None = None
+
+    _layout = FileLayout(
+        methods=METHODS, arrays={"gain": np.float32, "offset": np.float32, "bad": bool},
+        metadata={"fpa_ref_c": float, "band_m": tuple}, fpa_range="fpa_range",
+    )
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -92,35 +96,6 @@ class TwoPointCalibration:
             np.clip(radiance, lo, hi, out=radiance)
             out[k] = band.temperature(radiance) - np.float32(ZERO_C_K)
         return fill_bad_pixels(out, self.bad)
-
-    def save(self, path: str | Path) -> Path:
-        """Write the calibration file (HDF5, atomic)."""
-        h, w = self.shape
-        meta = {"fpa_ref_c": self.fpa_ref_c, "band_m": list(self.band_m), "info": self.info}
-        return save_calibration(
-            path, self.method, {"gain": self.gain, "offset": self.offset, "bad": self.bad},
-            resolution=(w, h), fpa_range_c=self.fpa_range,
-            camera_unit=self.info.get("camera_unit"), metadata=meta,
-        )
-
-    @classmethod
-    def load(cls, path: str | Path) -> TwoPointCalibration:
-        """Read a calibration file written by :meth:`save`."""
-        stored = load_calibration(path)
-        if stored.method not in METHODS:
-            raise InvalidInputError(f"{path}: a {stored.method} calibration, not {METHOD}")
-        require_arrays(stored, ("gain", "offset", "bad"), path)
-        meta = stored.metadata
-        return cls(
-            gain=stored.arrays["gain"].astype(np.float32),
-            offset=stored.arrays["offset"].astype(np.float32),
-            bad=stored.arrays["bad"].astype(bool),
-            fpa_ref_c=float(meta["fpa_ref_c"]),
-            band_m=tuple(meta["band_m"]),
-            info=dict(meta.get("info", {})),
-            method=stored.method,
-            fpa_range_c=stored.fpa_range_c,
-        )
 
 
 def fit_two_point(

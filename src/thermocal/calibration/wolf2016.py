@@ -61,7 +61,7 @@ from thermocal.calibration.dataset import (
     require_setpoints,
     stability_mask,
 )
-from thermocal.calibration.store import load_calibration, require_arrays, save_calibration
+from thermocal.calibration.store import FileLayout, StoredCalibration, StoredCalibrationMixin
 from thermocal.errors import FitError, InvalidInputError
 
 METHOD = "wolf2016"
@@ -173,7 +173,7 @@ def identify_hammerstein_wiener(
 
 
 @dataclass(frozen=True, eq=False)
-class Wolf2016Calibration:
+class Wolf2016Calibration(StoredCalibrationMixin):
     """Fitted Wolf et al. (2016) model: ``S0`` (W·m⁻²·sr⁻¹ per count), ``S1``, ``S2`` (per °C)."""
 
     s0: np.ndarray
@@ -192,6 +192,12 @@ class Wolf2016Calibration:
     info: dict[str, Any] = field(default_factory=dict)
 
     method = METHOD
+    _layout = FileLayout(
+        methods=(METHOD,),
+        arrays={"s0": np.float32, "s1": np.float32, "s2": np.float32, "bad": bool},
+        metadata={"fpa_ref_c": float, "hw": list, "hw_order": int, "window": int, "eta": float,
+                  "warmup_frames": int, "update_interval_s": float, "band_m": tuple},
+    )
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -221,33 +227,13 @@ class Wolf2016Calibration:
             out[k] = stream.process(counts[k], fpa_c=float(fpa[k]), time_s=float(t[k]))
         return out
 
-    def save(self, path: str | Path) -> Path:
-        h, w = self.shape
-        meta = {"fpa_ref_c": self.fpa_ref_c, "hw": self.hw.to_list(), "hw_order": self.hw_order,
-                "window": self.window, "eta": self.eta, "warmup_frames": self.warmup_frames,
-                "update_interval_s": self.update_interval_s, "band_m": list(self.band_m),
-                "info": self.info}
-        return save_calibration(
-            path, METHOD, {"s0": self.s0, "s1": self.s1, "s2": self.s2, "bad": self.bad},
-            resolution=(w, h), fpa_range_c=self.fpa_range_c,
-            camera_unit=self.info.get("camera_unit"), metadata=meta,
-        )
+    def _metadata(self) -> dict[str, Any]:
+        return super()._metadata() | {"hw": self.hw.to_list()}  # same place in the JSON
 
     @classmethod
-    def load(cls, path: str | Path) -> Wolf2016Calibration:
-        stored = load_calibration(path, method=METHOD)
-        require_arrays(stored, ("s0", "s1", "s2", "bad"), path)
-        m = stored.metadata
-        order = int(m["hw_order"])
-        return cls(
-            s0=stored.arrays["s0"].astype(np.float32), s1=stored.arrays["s1"].astype(np.float32),
-            s2=stored.arrays["s2"].astype(np.float32), bad=stored.arrays["bad"].astype(bool),
-            fpa_ref_c=float(m["fpa_ref_c"]), hw=HammersteinWiener.from_list(m["hw"], order),
-            fpa_range_c=stored.fpa_range_c, hw_order=order, window=int(m["window"]),
-            eta=float(m["eta"]), warmup_frames=int(m["warmup_frames"]),
-            update_interval_s=float(m["update_interval_s"]), band_m=tuple(m["band_m"]),
-            info=dict(m.get("info", {})),
-        )
+    def _fields(cls, stored: StoredCalibration, path: str | Path) -> dict[str, Any]:
+        kw = super()._fields(stored, path)
+        return kw | {"hw": HammersteinWiener.from_list(kw["hw"], kw["hw_order"])}
 
 
 class Wolf2016Stream:
