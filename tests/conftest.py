@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from thermocal.camera.presets import make_camera
+from thermocal.scenes.real import find_shared_data
 
 
 @pytest.fixture(scope="session")
@@ -23,8 +24,8 @@ def rng():
 
 @pytest.fixture(scope="session")
 def shared_data() -> Path:
-    """``../shared/data`` beside the repository; tests that need it skip without it."""
-    path = Path(__file__).resolve().parents[1].parent / "shared" / "data"
-    if not path.is_dir():
-        pytest.skip("shared/data is not beside the repository")
+    """The real data: ``../shared/data`` beside the repository, else the package's copy."""
+    path = find_shared_data()
+    if path is None:
+        pytest.skip("no shared/data and no bundled copy")
     return path

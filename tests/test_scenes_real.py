@@ -257,8 +257,26 @@ def test_find_shared_data_walks_up_from_cwd(tmp_path, monkeypatch):
     monkeypatch.setattr(real, "__file__", str(elsewhere / "real.py"))
     monkeypatch.chdir(work)
     assert find_shared_data() == data.resolve()
-    # nothing anywhere: None (unless the machine has a shared/data above the temporary folder)
+    # nothing anywhere: the copy bundled with the package (unless the machine has a
+    # shared/data above the temporary folder)
     monkeypatch.chdir(elsewhere)
     (data / "scenes").rmdir()
     if not any(real._looks_like_shared_data(d / "shared" / "data") for d in tmp_path.parents):
+        assert find_shared_data() == real.bundled_shared_data()
+    monkeypatch.setattr(real, "bundled_shared_data", lambda: tmp_path / "nowhere")
+    if not any(real._looks_like_shared_data(d / "shared" / "data") for d in tmp_path.parents):
         assert find_shared_data() is None
+
+
+def test_bundled_copy_is_the_shared_data():
+    """The package's copy holds every shared file, byte for byte where the original is here."""
+    import thermocal.scenes.real as real
+
+    bundled = real.bundled_shared_data()
+    names = sorted(p.relative_to(bundled).as_posix() for p in bundled.rglob("*") if p.is_file())
+    assert "SOURCES.md" in names and "flirpy/frame_000000.fff" in names
+    assert len([n for n in names if n.startswith("scenes/")]) == len(SOURCES_RANGES)
+    outside = Path(__file__).resolve().parents[2] / "shared" / "data"
+    if outside.is_dir():
+        for name in names:
+            assert (outside / name).read_bytes() == (bundled / name).read_bytes(), name

@@ -24,6 +24,7 @@ import os
 import struct
 from collections.abc import Iterator
 from dataclasses import replace
+from importlib.resources import files
 from pathlib import Path
 from typing import Any
 
@@ -34,6 +35,7 @@ from thermocal.errors import FileFormatError, InvalidInputError
 from thermocal.radiometry import FlirPlanck
 
 __all__ = [
+    "bundled_shared_data",
     "find_shared_data",
     "list_shared_scenes",
     "load_scene",
@@ -155,8 +157,10 @@ def find_shared_data() -> Path | None:
     Looks, in order, at the environment variable ``THERMOCAL_DATA``; then, walking up from this
     source file and then from the current working directory, at ``<dir>/shared/data`` for every
     ancestor ``<dir>`` (this finds ``<repo root>/../shared/data`` as well as
-    ``<repo root>/shared/data``). A folder counts only if it holds ``SOURCES.md``, ``scenes/``
-    or ``flirpy/``.
+    ``<repo root>/shared/data``); then at the copy bundled with the package
+    (``thermocal/data/shared``: the same files, all under licenses that allow it, listed in its
+    ``SOURCES.md``), so that training, tests and benchmarks find the real scenes anywhere. A
+    folder counts only if it holds ``SOURCES.md``, ``scenes/`` or ``flirpy/``.
 
     Returns
     -------
@@ -173,7 +177,13 @@ def find_shared_data() -> Path | None:
             candidate = directory / "shared" / "data"
             if _looks_like_shared_data(candidate):
                 return candidate
-    return None
+    bundled = bundled_shared_data()
+    return bundled if _looks_like_shared_data(bundled) else None
+
+
+def bundled_shared_data() -> Path:
+    """The copy of ``shared/data`` shipped inside the package (``thermocal/data/shared``)."""
+    return Path(str(files("thermocal") / "data" / "shared")).resolve()
 
 
 def list_shared_scenes(data_dir: str | os.PathLike[str] | None = None) -> dict[str, Path]:
