@@ -167,8 +167,13 @@ def scores(est: np.ndarray, b: dict) -> dict:
     }
 
 
-def run_methods(bursts, model, norm, *, baselines: bool = True) -> dict[str, list[dict]]:
-    """Every method on every burst: name → list of per-burst scores."""
+KPN_ROW = "KPN + offset"
+
+
+def run_methods(bursts, model, norm, *, baselines: bool = True,
+                label: str = KPN_ROW) -> dict[str, list[dict]]:
+    """Every method on every burst: name → list of per-burst scores (the network's under
+    ``label``)."""
     from thermocal.nuc import correct_nonuniformity
 
     res: dict[str, list[dict]] = {}
@@ -186,7 +191,7 @@ def run_methods(bursts, model, norm, *, baselines: bool = True) -> dict[str, lis
                 homographies=b["hs"],
                 pivot=b["pivot"],
             )
-            res.setdefault("KPN + offset (shipped)", []).append(scores(e.temperature_c, b))
+            res.setdefault(label, []).append(scores(e.temperature_c, b))
         if not baselines:
             continue
         key = cam.shape
@@ -326,8 +331,10 @@ def main() -> None:
     n = model.config.n_frames
     t0 = time.time()
     bursts = eval_bursts(n, quick=args.quick, register=args.register)
+    label = f"{KPN_ROW} ({'shipped' if args.model is None else path.name})"
     res = run_methods(
-        bursts, model.to(resolve_device(args.device)), norm, baselines=not args.accuracy_only
+        bursts, model.to(resolve_device(args.device)), norm, baselines=not args.accuracy_only,
+        label=label,
     )
     model.cpu()
     rows = summarise(res)
@@ -368,7 +375,7 @@ def main() -> None:
     print("\nKPN per scene (MAE °C / bias-free MAE °C):\n")
     print("| scene | unit | FPA °C | MAE °C | bias °C | bias-free °C | affine-free °C |")
     print("|---|---|---|---|---|---|---|")
-    for b, s in zip(bursts, res["KPN + offset (shipped)"], strict=True):
+    for b, s in zip(bursts, res[label], strict=True):
         print(
             f"| {b['scene']} ({b['motion']}) | {b['unit']} | {b['fpa_c']:.1f} | "
             f"{s['mae']:.2f} | {s['bias']:+.2f} | {s['bias_free']:.2f} | "
@@ -397,7 +404,7 @@ def main() -> None:
                     "accuracy": rows,
                     "per_burst": [
                         {"scene": b["scene"], "unit": b["unit"], "fpa_c": b["fpa_c"], **s}
-                        for b, s in zip(bursts, res["KPN + offset (shipped)"], strict=True)
+                        for b, s in zip(bursts, res[label], strict=True)
                     ],
                     "speed": sp,
                     "training_samples_per_s": sps,

@@ -28,6 +28,7 @@ import math
 import os
 import platform
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -132,12 +133,11 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
         bursts = eval_bursts(n, quick=args.quick)
         for v in variants:
             model = models[(v, n)].cpu().eval()
-            path = (out_dir or Path("/tmp")) / f"fig7_{v}_n{n}.pt"
-            save_model(path, model, norm, cfg, {"fig7": True, "steps": steps})
-            model, norm_, _ = load_model(path)  # as `thermocal estimate` would run it
+            with tempfile.TemporaryDirectory() as tmp:
+                path = (out_dir or Path(tmp)) / f"fig7_{v}_n{n}.pt"
+                save_model(path, model, norm, cfg, {"fig7": True, "steps": steps})
+                model, norm_, _ = load_model(path)  # as `thermocal estimate` would run it
             model = model.to(device)
-            if out_dir is None:
-                path.unlink()
             s = summarise(run_methods(bursts, model, norm_, baselines=False))[0]
             rows.append(
                 {
@@ -165,6 +165,9 @@ def to_figure_json(rows: list[dict], note: str) -> dict:
     ns = sorted({r["n"] for r in rows})
     variants = sorted({r["variant"] for r in rows}, key=["kpn", "kpn-no-offset", "e2e"].index)
     pick = {(r["variant"], r["n"]): r for r in rows}
+    missing = [f"{v} N={n}" for v in variants for n in ns if (v, n) not in pick]
+    if missing:
+        raise SystemExit(f"no result for {', '.join(missing)}: merge files covering every pair")
     return {
         "n": ns,
         "mae_c": {v: [pick[(v, n)]["mae_c"] for n in ns] for v in variants},

@@ -349,6 +349,16 @@ def test_calibration_file_with_damaged_metadata(fit_run, tmp_path):
             f.attrs["metadata"] = json.dumps(broken)
         with pytest.raises(FileFormatError, match=message):
             load_any_calibration(path)
+    # wolf2016's Hammerstein-Wiener model: too few values, not numbers, a bad order
+    path = fit_calibration(session, "wolf2016").save(tmp_path / "wolf.h5")
+    with h5py.File(path) as f:
+        meta = json.loads(f.attrs["metadata"])
+    for broken in (meta | {"hw": meta["hw"][:2]}, meta | {"hw": ["a"] * len(meta["hw"])},
+                   meta | {"hw_order": -1}):
+        with h5py.File(path, "a") as f:
+            f.attrs["metadata"] = json.dumps(broken)
+        with pytest.raises(FileFormatError, match="damaged wolf2016|unreadable wolf2016"):
+            load_any_calibration(path)
 
 
 def run_cli(args, capsys):

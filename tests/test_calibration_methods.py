@@ -153,6 +153,29 @@ def test_wolf2016_output_settles_from_a_cold_start_on_a_ramp(wolf_fit_run, camer
     assert gap_to_warm(hw_start="steady")[100:].max() > 0.1
 
 
+def test_wolf2016_ramp_start_costs_nothing_at_a_constant_fpa(wolf_fit_run, camera):
+    """At a settled FPA (noisy, quantised sensor) the fitted start rate is ~0: no lasting offset."""
+    session, _ = wolf_fit_run
+    amb = ThermalParams().ambient_for_fpa_c(28.0)
+    plan = ChamberPlan(setpoints_c=(30.0,), frames_per_point=1, profile="constant",
+                       ambient_c=(amb, amb), interval_s=1.0, duration_s=400.0)
+    ev, truth = simulate(camera, [plan], seed=13)
+    wolf = fit_calibration(session, "wolf2016", fpa_ref_c=25.0,
+                           hw_setpoints_c=(15.0, 25.0, 35.0, 45.0))
+    good = ~camera.defects
+
+    def error(**options):
+        stream = wolf.stream(**options)
+        out = [stream.process(ev.frames[k], fpa_c=ev.fpa_c[k], time_s=ev.time_s[k])
+               for k in range(len(ev.frames))]
+        errs = [float(np.abs(o[good] - t).mean()) for o, t in zip(out, truth, strict=True)]
+        return np.array(errs)[100:]
+
+    ramp, steady = error(), error(hw_start="steady")
+    assert ramp.max() < steady.max() + 0.02
+    assert ramp.mean() < 0.1
+
+
 def test_hammerstein_wiener_starts_on_a_ramp():
     hw = HammersteinWiener((1.0, -0.3, 0.05), 0.95, (20.0, -19.8), 0.1, 40.0, 2.0)
     rate = 0.01  # °C/s

@@ -522,6 +522,11 @@ def test_train_init_starts_from_a_weights_file(tmp_path, capsys):
     code, err = run(["train", "--out", str(tmp_path / "c.pt"), "--init", str(first),
                      *[x if x != "4" else "8" for x in small]], capsys)
     assert code == 2 and "not the one to train" in err
+    code, err = run(["train", "--out", str(second), "--init", str(first), "--resume"], capsys)
+    assert code == 2 and "give one" in err
+    code, err = run(["train", "--out", str(tmp_path / "d.pt"), "--temp-mean-range-c", "-80:60",
+                     *small], capsys)
+    assert code == 2 and "clip range" in err
 
 
 def test_burst_module_and_mean_need_no_torch():

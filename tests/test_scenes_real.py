@@ -277,6 +277,7 @@ def test_bundled_copy_is_the_shared_data():
     assert "SOURCES.md" in names and "flirpy/frame_000000.fff" in names
     assert len([n for n in names if n.startswith("scenes/")]) == len(SOURCES_RANGES)
     outside = Path(__file__).resolve().parents[2] / "shared" / "data"
-    if outside.is_dir():
+    if outside.is_dir():  # the data files (not the notes) are unmodified copies
         for name in names:
-            assert (outside / name).read_bytes() == (bundled / name).read_bytes(), name
+            if name.startswith(("scenes/", "flirpy/")):
+                assert (outside / name).read_bytes() == (bundled / name).read_bytes(), name

@@ -38,7 +38,8 @@ MIN_OVERLAP = 0.1
 
 
 class Estimate:
-    """The result of :func:`estimate_burst`.
+    """A burst's pivot-frame temperature, from :func:`naive_mean` or the network
+    (:func:`thermocal.nn.infer.estimate_burst`).
 
     Attributes
     ----------

@@ -162,6 +162,6 @@ def run_demo(out_dir: str | Path, *, unit: int = DEMO_UNIT, size=(336, 256),
 
 
 def _fig7_results() -> dict | None:
-    """MAE against N from the network benchmark, shipped beside the weights (if present)."""
+    """MAE against N (``benchmarks/kpn_fig7.py``), shipped beside the weights (if present)."""
     path = Path(str(files("thermocal") / "nn" / "weights" / "fig7.json"))
     return json.loads(path.read_text()) if path.is_file() else None

@@ -27,7 +27,8 @@ def _check_output(path: Path, suffixes: tuple[str, ...]) -> None:
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Calibration file to write (.h5).")
 @click.option("--fpa-ref-c", type=float, default=None,
-              help="Reference FPA temperature, °C (two-point, one-point, shutter, wolf2016, lin).")
+              help="Reference FPA temperature, °C (two-point, one-point, shutter, wolf2016, lin, "
+                   "lin-level).")
 @click.option("--scene-term", type=click.Choice(["radiance", "t4", "linear"]), default="radiance",
               show_default=True, help="Scene term of the polynomial model.")
 @click.option("--radial", is_flag=True, help="Polynomial: keep only the radial fit (eq. 16–17).")

@@ -62,7 +62,7 @@ from thermocal.calibration.dataset import (
     stability_mask,
 )
 from thermocal.calibration.store import FileLayout, StoredCalibration, StoredCalibrationMixin
-from thermocal.errors import FitError, InvalidInputError
+from thermocal.errors import FileFormatError, FitError, InvalidInputError
 
 METHOD = "wolf2016"
 
@@ -233,7 +233,16 @@ class Wolf2016Calibration(StoredCalibrationMixin):
     @classmethod
     def _fields(cls, stored: StoredCalibration, path: str | Path) -> dict[str, Any]:
         kw = super()._fields(stored, path)
-        return kw | {"hw": HammersteinWiener.from_list(kw["hw"], kw["hw_order"])}
+        order, values = kw["hw_order"], kw["hw"]
+        try:
+            if int(order) < 1 or len(values) != int(order) + 6:
+                raise ValueError(f"{len(values)} values for order {order}")
+            hw = HammersteinWiener.from_list(values, int(order))
+        except (IndexError, TypeError, ValueError) as exc:
+            raise FileFormatError(
+                f"{path}: damaged wolf2016 calibration (Hammerstein-Wiener model: {exc})"
+            ) from None
+        return kw | {"hw": hw}
 
 
 class Wolf2016Stream:

@@ -188,6 +188,12 @@ class BurstConfig:
             raise InvalidInputError(f"motions must be walk and/or hover, got {self.motions}")
         if not self.units:
             raise InvalidInputError("units: give at least one camera unit")
+        lo, hi = self.temp_mean_range_c
+        if not self.temp_clip_c[0] <= lo < hi <= self.temp_clip_c[1]:
+            raise InvalidInputError(
+                f"temp_mean_range_c {lo:g}…{hi:g} °C must lie inside the clip range "
+                f"{self.temp_clip_c[0]:g}…{self.temp_clip_c[1]:g} °C"
+            )
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able form."""

@@ -416,13 +416,22 @@ def train(
     )
     pool = pool_fn()
     init_model = None
-    if init is not None and not state:
+    if init is not None and state:
+        raise InvalidInputError("--init starts a new run and --resume continues OUT.ckpt: give one")
+    if init is not None:
         init_model, norm, _ = load_model(init)
         if init_model.config != model_cfg:
             raise InvalidInputError(
                 f"{init}: its network ({init_model.config.to_dict()}) is not the one to train "
                 f"({model_cfg.to_dict()})"
             )
+        fresh = fit_normalisation(pool, burst_cfg, seed=train_cfg.seed, cameras=cameras)
+        if (fresh.counts_min < norm.counts_min - 500 or fresh.counts_max > norm.counts_max + 500
+                or fresh.fpa_min_c < norm.fpa_min_c or fresh.fpa_max_c > norm.fpa_max_c):
+            log(f"warning: the new data (counts {fresh.counts_min:.0f}…{fresh.counts_max:.0f}, "
+                f"FPA {fresh.fpa_min_c:g}…{fresh.fpa_max_c:g} °C) reach outside the range "
+                f"{init} was normalised for (counts {norm.counts_min:.0f}…"
+                f"{norm.counts_max:.0f}, FPA {norm.fpa_min_c:g}…{norm.fpa_max_c:g} °C)")
     elif state:
         norm = Normalisation(**state["norm"])
     else:
@@ -465,7 +474,14 @@ def train(
         history = state["history"]
         elapsed_before = state.get("elapsed_s", 0.0)
         torch.set_rng_state(state["torch_rng"])
-    if not state or not out.is_file():
+    if init_model is not None:
+        # a fine-tune keeps what it starts from unless an epoch beats it on the validation set
+        best, best_mae, _ = validate(model, val, norm)
+        log(f"start from {init}: val_loss {best:.5f} val_mae {best_mae:.3f} C")
+        save_model(out, model, norm, burst_cfg, {
+            **(meta or {}), "val_mae_c": best_mae, "val_loss": best, "step": 0, "epoch": 0,
+            "val_units": list(val_units)})
+    elif not state or not out.is_file():
         save_model(out, model, norm, burst_cfg, {**(meta or {}), "val_mae_c": None})
 
     def checkpoint() -> None:
