@@ -1,4 +1,5 @@
-"""Real radiometric scenes shipped inside the package (licenses in ``thermocal/data/README.md``)."""
+"""Real radiometric scenes shipped inside the package: two files of its copy of ``shared/data``
+(``thermocal/data/shared``; licenses in ``thermocal/data/README.md``)."""
 
 from __future__ import annotations
 
@@ -10,8 +11,8 @@ import numpy as np
 from thermocal.errors import InvalidInputError
 
 BUILTIN_SCENES = {
-    "aerial": "aerial_flirpy.tiff",
-    "floor-heating": "floor_heating_flir_e60.jpg",
+    "aerial": "flirpy/example_radiometric.tiff",
+    "floor-heating": "scenes/10_ir_fussbodenheizung.jpg",
 }
 
 
@@ -21,7 +22,7 @@ def builtin_scene_path(name: str) -> Path:
         raise InvalidInputError(
             f"unknown built-in scene {name!r}; choose from {', '.join(BUILTIN_SCENES)}"
         )
-    return Path(str(files("thermocal") / "data" / BUILTIN_SCENES[name]))
+    return Path(str(files("thermocal") / "data" / "shared" / BUILTIN_SCENES[name]))
 
 
 def load_builtin_scene(name: str) -> np.ndarray:
