@@ -125,6 +125,7 @@ def test_disk_full_keeps_finished_outputs_and_resumes(setup, tmp_path, monkeypat
     assert stop.value.code == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "No space left on device" in err
+    assert "rerun to resume" in err
     assert [p.name for p in (out / "temps").iterdir()] == ["frame_000003.tiff"]
     monkeypatch.setattr(tifffile, "imwrite", real_imwrite)
     main(argv)

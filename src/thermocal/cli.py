@@ -225,10 +225,8 @@ def main(argv: list[str] | None = None) -> None:
         # the machine, not the input: a full or read-only disk, a vanished file; outputs are
         # written atomically, so what finished is kept and nothing half-written is left
         where = f"{exc.filename}: " if exc.filename else ""
-        args = sys.argv[1:] if argv is None else argv
-        hint = ("finished maps are kept; rerun to resume" if "flight" in args
-                else "outputs are written whole or not at all")
-        click.echo(f"thermocal: error: {where}{exc.strerror or exc} ({hint})", err=True)
+        click.echo(f"thermocal: error: {where}{exc.strerror or exc} (outputs are written whole "
+                   "or not at all)", err=True)
         sys.exit(2)
     except KeyboardInterrupt:
         click.echo("thermocal: interrupted", err=True)

@@ -27,3 +27,7 @@ class RegistrationError(ThermocalError):
 
 class FitError(ThermocalError):
     """A fit that could not be made from the data given (too few points, singular system)."""
+
+
+class OutputError(ThermocalError):
+    """An output that could not be written (a full or read-only disk)."""

@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from thermocal.errors import InvalidInputError, RegistrationError
+from thermocal.errors import InvalidInputError, OutputError, RegistrationError
 from thermocal.io.atomic import atomic_path, ensure_output_dir, write_json_atomic
 from thermocal.io.recording import iter_recording, read_recording_header, write_temperature_tiff
 
@@ -222,10 +222,17 @@ def process_flight(
                     t = times.add("estimate", t)
                 else:
                     name = f"frame_{pivot:06d}"
-                    write_temperature_tiff(out / "temps" / f"{name}.tiff", temp)
-                    if options.preview_every and processed % options.preview_every == 0:
-                        _preview(out / "previews" / f"{name}.png", temp,
-                                 f"frame {pivot}, {options.method}")
+                    try:
+                        write_temperature_tiff(out / "temps" / f"{name}.tiff", temp)
+                        if options.preview_every and processed % options.preview_every == 0:
+                            _preview(out / "previews" / f"{name}.png", temp,
+                                     f"frame {pivot}, {options.method}")
+                    except OSError as exc:  # each output is atomic: the finished ones stand
+                        where = f"{exc.filename}: " if exc.filename else ""
+                        raise OutputError(
+                            f"{where}{exc.strerror or exc}; the maps finished so far are kept, "
+                            "rerun to resume"
+                        ) from None
                     entry["mean_c"] = float(temp.mean())
                     processed += 1
                     t = times.add("writing", t)
