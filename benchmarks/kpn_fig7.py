@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import os
 import platform
 import sys
@@ -39,7 +38,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from kpn import eval_bursts, run_methods, summarise  # noqa: E402
 
-from thermocal.nn.data import BurstConfig, ScenePool  # noqa: E402
+from thermocal.nn.data import BurstConfig, ScenePool, min_views  # noqa: E402
 from thermocal.nn.infer import shipped_model_path  # noqa: E402
 from thermocal.nn.loss import kpn_loss  # noqa: E402
 from thermocal.nn.model import KPN, ModelConfig  # noqa: E402
@@ -59,7 +58,7 @@ def sub_burst(batch: tuple[torch.Tensor, ...], n: int, n_max: int) -> tuple[torc
     p = n_max // 2
     sel = slice(p - n // 2, p - n // 2 + n)
     v = valid[:, sel]
-    mask = v.sum(dim=1, keepdim=True) >= max(1, math.ceil(n / 2))
+    mask = v.sum(dim=1, keepdim=True) >= min_views(n)
     return frames[:, sel].contiguous(), fpa, v.contiguous(), truth, mask
 
 

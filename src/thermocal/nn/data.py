@@ -53,6 +53,7 @@ __all__ = [
     "coverage_mask",
     "make_burst",
     "make_bursts",
+    "min_views",
 ]
 
 #: Camera units of the ``tau2`` preset used for training, validation (early stopping and the
@@ -240,8 +241,12 @@ def coverage_mask(valid: np.ndarray) -> np.ndarray:
     The mask ``M`` of eq. 12 (loss) and of the evaluation: where the burst really holds
     redundant views of the scene. ``valid`` is ``(N, H, W)``.
     """
-    n = valid.shape[0]
-    return valid.sum(axis=0) >= max(1, math.ceil(n / 2))
+    return valid.sum(axis=0) >= min_views(valid.shape[0])
+
+
+def min_views(n_frames: int) -> int:
+    """How many of a burst's ``n_frames`` must see a pivot pixel for it to count (half)."""
+    return max(1, math.ceil(n_frames / 2))
 
 
 class ScenePool:

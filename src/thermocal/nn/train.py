@@ -449,8 +449,8 @@ def train(
         )
         for i in range(train_cfg.val_bursts)
     ]
-    val = [
-        batch_tensors(val_bursts[i : i + train_cfg.batch], norm)
+    val = [  # on the training device once, not at every validation
+        tuple(t.to(device) for t in batch_tensors(val_bursts[i : i + train_cfg.batch], norm))
         for i in range(0, len(val_bursts), train_cfg.batch)
     ]
 
