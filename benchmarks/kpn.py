@@ -3,9 +3,12 @@
 The evaluation set is fixed and seeded and never trained on: the held-out real scenes of
 :data:`thermocal.nn.data.EVAL_SCENES` (the built-in aerial scene and a fixed subset of the shared
 JPEGs) flown over by the held-out camera units :data:`thermocal.nn.data.EVAL_UNITS` (the training
-used units 0-23, its validation units 50-53), with walk and hover trajectories (60-80 % overlap),
-an FPA temperature drawn over 15-45 °C, and the registration error of Oz et al. §IV-D on the true
-homographies (``--register``: the homographies found by ``register_burst`` instead).
+used units 0-23, its validation units 50-53), half by a walk (extreme views overlapping the pivot by
+60-80 %, as in training) and half by a hover (``simulate_flight``'s: views jittered by ±3 px and
+±1° around the pivot, which the training's drifting 60-80 % hover does not cover: the burst holds
+little parallax to tell the scene from the fixed pattern), an FPA temperature drawn over 15-45 °C,
+and the registration error of Oz et al. §IV-D on the true homographies (``--register``: the
+homographies found by ``register_burst`` instead).
 
 Tables:
 
@@ -19,7 +22,8 @@ Tables:
    (hardie2000 with the same homographies) followed by a global fit (the other unit's array-mean
    gain and offset); plus, for reference only, the same unit's own two-point calibration at the
    burst's FPA (not calibration-free);
-2. per-scene MAE of the KPN;
+2. MAE by trajectory (walk / hover) and mean error by distance from the sensor's centre for every
+   method, and per-scene MAE of the KPN;
 3. speed and size: one 336×256 burst of 7 frames, parameters, multiply-adds, training
    throughput (samples/s, a few steps of the shipped configuration);
 
@@ -55,6 +59,7 @@ from thermocal.nn.data import (
     ScenePool,
     coverage_mask,
     evaluation_scenes,
+    sensor_r2,
 )
 from thermocal.nn.infer import estimate_burst, run_network, shipped_model_path
 from thermocal.nn.model import ModelConfig, count_macs, count_parameters
@@ -71,16 +76,14 @@ def eval_bursts(n_frames: int, *, quick: bool, register: bool = False):
     """The fixed evaluation bursts: list of dicts (frames, truth, valid mask, fpa, unit, …)."""
     scenes = evaluation_scenes()
     per_scene = 1 if quick else 4
-    size = (168, 128) if quick else (336, 256)
+    size = (336, 256)  # whole sensor frames: a network with position terms needs them
     out = []
     for si, (name, scene) in enumerate(scenes.items()):
         for k in range(per_scene):
             seed = 1000 * si + k
             rng = np.random.default_rng([2026, seed])
             unit = EVAL_UNITS[(si + k) % len(EVAL_UNITS)]
-            cam = make_camera("tau2", unit=unit, size=(336, 256))
-            if quick:
-                cam = cam.crop(64, 84, size[1], size[0])
+            cam = make_camera("tau2", unit=unit, size=size)
             fpa = float(rng.uniform(15.0, 45.0))
             motion = ("walk", "hover")[(si + k) % 2]
             fl = simulate_flight(scene, cam, n_frames=n_frames, motion=motion, fpa_c=fpa, seed=seed)
@@ -125,12 +128,10 @@ class FamilyModel:
     its error is the floor of any calibration-free method: what the unit differs from the
     family (offset, gain, radial strengths), averaged over the burst by eq. 9."""
 
-    def __init__(self, units, window=None) -> None:
+    def __init__(self, units) -> None:
         from dataclasses import replace
 
         cams = [make_camera("tau2", unit=u, size=(336, 256)) for u in units]
-        if window is not None:
-            cams = [c.crop(*window) for c in cams]
         base = cams[0]
         self.model = replace(
             base,
@@ -153,17 +154,25 @@ class FamilyModel:
         return invert(self.model, frames, fpa, housing_c=fpa + self.housing_offset_c)
 
 
+def radial_bins(shape: tuple[int, int], n: int = 5) -> np.ndarray:
+    """Each pixel's quintile (``n``-tile) of distance from the sensor's centre, ``(H, W)`` int."""
+    r2 = sensor_r2(shape)
+    return np.searchsorted(np.quantile(r2, np.linspace(0, 1, n + 1)[1:-1]), r2)
+
+
 def scores(est: np.ndarray, b: dict) -> dict:
     m = b["mask"]
     err = est - b["truth"]
     bias = float(err[m].mean())
     fit = best_affine_fit(est, b["truth"], m)
+    bins = radial_bins(est.shape)
     return {
         "mae": mae(est, b["truth"], valid=m),
         "bias_free": float(np.mean(np.abs(err[m] - bias))),
         "affine_free": mae(fit, b["truth"], valid=m),
         "within_0_5": fraction_within(est, b["truth"], 0.5, valid=m),
         "bias": bias,
+        "bias_by_radius": [float(err[m & (bins == k)].mean()) for k in range(5)],
     }
 
 
@@ -197,8 +206,6 @@ def run_methods(bursts, model, norm, *, baselines: bool = True,
         key = cam.shape
         if key not in cal_cache:
             other = make_camera("tau2", unit=OTHER_UNIT, size=(336, 256))
-            if cam.shape != other.shape:
-                other = other.crop(64, 84, *cam.shape)
             cal_cache[key] = two_point_of(other, NOMINAL_FPA_C, NOMINAL_FPA_C - 1.5, 5)
         other_cal = cal_cache[key]
         piv = b["pivot"]
@@ -216,9 +223,7 @@ def run_methods(bursts, model, norm, *, baselines: bool = True,
         t_nuc = band.temperature(np.clip((nuc - o) / g, lo, hi)) - 273.15
         res.setdefault("hardie2000 NUC + global fit (other unit)", []).append(scores(t_nuc, b))
         if key not in fam_cache:
-            fam_cache[key] = FamilyModel(
-                TRAIN_UNITS, None if cam.shape == (256, 336) else (64, 84, *cam.shape)
-            )
+            fam_cache[key] = FamilyModel(TRAIN_UNITS)
         fam = naive_mean(
             b["frames"], fam_cache[key], fpa_c=b["fpa_read"], homographies=b["hs"], pivot=piv
         )
@@ -372,6 +377,18 @@ def main() -> None:
         "affine map onto the truth (an oracle): what is left of non-uniformity and noise once "
         "the unit's unknown global offset / gain are set aside)"
     )
+    print("\nMAE °C by trajectory:\n")
+    print("| method | walk (60-80 % overlap) | hover (±3 px jitter) |\n|---|---|---|")
+    for name, lst in res.items():
+        by = {m: [s["mae"] for b, s in zip(bursts, lst, strict=True) if b["motion"] == m]
+              for m in ("walk", "hover")}
+        print(f"| {name} | {np.mean(by['walk']):.2f} | {np.mean(by['hover']):.2f} |")
+    print("\nMean error °C by distance from the sensor's centre (fifths of the pixels, centre "
+          "to corners), over the bursts:\n")
+    print("| method | 1st | 2nd | 3rd | 4th | 5th (corners) |\n|---|---|---|---|---|---|")
+    for name, lst in res.items():
+        by_r = np.mean([s["bias_by_radius"] for s in lst], axis=0)
+        print(f"| {name} | " + " | ".join(f"{v:+.2f}" for v in by_r) + " |")
     print("\nKPN per scene (MAE °C / bias-free MAE °C):\n")
     print("| scene | unit | FPA °C | MAE °C | bias °C | bias-free °C | affine-free °C |")
     print("|---|---|---|---|---|---|---|")

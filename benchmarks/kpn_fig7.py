@@ -54,12 +54,12 @@ from thermocal.nn.train import (  # noqa: E402
 
 def sub_burst(batch: tuple[torch.Tensor, ...], n: int, n_max: int) -> tuple[torch.Tensor, ...]:
     """The ``n`` frames around the pivot of an ``n_max``-frame batch, with their coverage mask."""
-    frames, fpa, valid, truth, _ = batch
+    frames, fpa, valid, truth, _, r2 = batch
     p = n_max // 2
     sel = slice(p - n // 2, p - n // 2 + n)
     v = valid[:, sel]
     mask = v.sum(dim=1, keepdim=True) >= min_views(n)
-    return frames[:, sel].contiguous(), fpa, v.contiguous(), truth, mask
+    return frames[:, sel].contiguous(), fpa, v.contiguous(), truth, mask, r2
 
 
 def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
@@ -85,7 +85,8 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
                     "centre": base.centre and v == "kpn",
                 }
             )
-            models[(v, n)] = KPN(mc).to(device).train()
+            models[(v, n)] = KPN(mc, temp_range_c=(norm.temp_min_c, norm.temp_max_c))
+            models[(v, n)] = models[(v, n)].to(device).train()
             opts[(v, n)] = torch.optim.Adam(models[(v, n)].parameters(), lr=args.lr)
     stream = _Stream(pool_fn, cfg, norm, seed=42, batch=args.batch, start_batch=0, cameras=None)
     loader = torch.utils.data.DataLoader(
@@ -103,12 +104,12 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
         lr = args.lr * (0.25 if frac > 0.75 else 0.5 if frac > 0.5 else 1.0)
         batch = tuple(t.to(device, non_blocking=True) for t in next(it))
         for key, model in models.items():
-            frames, fpa, valid, truth, mask = sub_burst(batch, key[1], n_max)
+            frames, fpa, valid, truth, mask, r2 = sub_burst(batch, key[1], n_max)
             opt = opts[key]
             for g in opt.param_groups:
                 g["lr"] = lr
             opt.zero_grad(set_to_none=True)
-            loss = kpn_loss(model(frames, fpa, valid), truth, mask)
+            loss = kpn_loss(model(frames, fpa, valid, radial=r2), truth, mask)
             loss.backward()
             opt.step()
             losses[key].append(float(loss.detach()))

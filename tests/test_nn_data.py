@@ -23,6 +23,7 @@ from thermocal.nn.data import (
     make_burst,
     make_bursts,
     redraw_column_fpn,
+    sensor_r2,
 )
 from thermocal.scenes.procedural import procedural_scene
 
@@ -128,3 +129,15 @@ def test_bad_config():
         BurstConfig(motions=("uav",))
     with pytest.raises(InvalidInputError):
         ScenePool([], [])
+
+
+def test_burst_knows_where_its_pixels_lie_on_the_sensor(pool):
+    from thermocal.camera.presets import radial_map
+
+    full = radial_map((256, 336)) ** 2
+    assert np.array_equal(sensor_r2((256, 336), 10, 20, (32, 48)), full[10:42, 20:68])
+    # a crop as large as the sensor can only be the whole sensor
+    whole = BurstConfig(n_frames=3, crop=32, units=(0,), sensor_size=(32, 32))
+    b = make_burst(pool, whole, rng=np.random.default_rng(0))
+    assert np.array_equal(b.r2, radial_map((32, 32)) ** 2)
+    assert b.r2.max() == pytest.approx(0.5, rel=1e-5)  # the corners: (0.5² + 0.5²)

@@ -281,8 +281,14 @@ def test_naive_mean_with_the_units_own_calibration(tmp_path, camera, flight):
     assert load_any_calibration(tmp_path / "cal.h5").shape == (48, 64)
 
 
-def test_tiled_inference_matches_one_pass(flight, tiny_model):
+@pytest.mark.parametrize("radial", [0, 2])
+def test_tiled_inference_matches_one_pass(flight, tiny_model, radial):
     model, norm, _ = load_model(tiny_model)
+    if radial:  # a model that also sees where each tile lies on the sensor
+        torch.manual_seed(1)
+        model = KPN(ModelConfig(n_frames=3, mu=4, levels=1, kernel=3, radial=radial)).eval()
+        with torch.no_grad():
+            model.offset.delta_radial.normal_(0.0, 0.1)
     warped = flight.frames.astype(np.float32)
     valid = np.ones(warped.shape, dtype=bool)
     one = run_network(model, norm, warped, valid, 30.0, tile=512)
@@ -324,12 +330,15 @@ def test_train_command_smoke(tmp_path, capsys):
             "1",
             "--scenes",
             "3",
+            "--radiance",
         ],
         capsys,
     )
     assert code == 0, err
     model, norm, info = load_model(out)
     assert model.config.n_frames == 3 and norm.counts_max > norm.counts_min
+    assert model.config.radiance
+    assert model.to_temperature.temp_range_c == (norm.temp_min_c, norm.temp_max_c)
     assert info["meta"]["val_mae_c"] is not None
     assert out.with_suffix(".ckpt").is_file()
     # --resume continues from the checkpoint

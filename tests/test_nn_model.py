@@ -13,6 +13,7 @@ from thermocal.nn.model import (  # noqa: E402
     KPN,
     ModelConfig,
     OffsetBlock,
+    RadianceToTemperature,
     apply_kernels,
     count_macs,
     count_parameters,
@@ -173,3 +174,109 @@ def test_centred_kpn_starts_from_the_mean_and_ignores_invalid_pixels():
     assert float(out2[0, 0, 2, 2]) == pytest.approx(want, abs=1e-5)
     with pytest.raises(InvalidInputError):
         ModelConfig(variant="e2e", centre=True)
+
+
+@pytest.mark.parametrize("temp_range_c", [(-40.0, 100.0), (-20.0, 60.0)])
+def test_radiance_to_temperature_inverts_the_band_integral(temp_range_c):
+    from thermocal.radiometry import band_radiance
+
+    lo, hi = temp_range_c
+    layer = RadianceToTemperature(temp_range_c)
+    t_c = np.linspace(lo - 30.0, hi + 30.0, 777)
+    ends = band_radiance(np.array([lo, hi]) + 273.15)
+    x = (band_radiance(t_c + 273.15) - ends[0]) / (ends[1] - ends[0])
+    for dtype, tol_c in ((torch.float64, 1e-3), (torch.float32, 2e-3)):
+        got = layer(torch.tensor(x, dtype=dtype)).double().numpy() * (hi - lo) + lo
+        assert np.abs(got - t_c).max() < tol_c
+    # the two directions are inverse; the slope is dT/dL, larger where the scene is cold
+    t = torch.linspace(0.0, 1.0, 50, dtype=torch.float64, requires_grad=True)
+    assert torch.allclose(layer(layer.radiance(t)), t, atol=1e-9)
+    xr = layer.radiance(torch.tensor([0.0, 1.0], dtype=torch.float64)).requires_grad_(True)
+    layer(xr).sum().backward()
+    assert xr.grad[0] > 1.5 * xr.grad[1] > 0
+    with pytest.raises(InvalidInputError):
+        RadianceToTemperature((50.0, 10.0))
+
+
+def _ideal_camera_kpn(radial: int, beta: float):
+    """A radiance KPN set by hand for an ideal camera (gain 90 counts per W/(m² sr), offset 2500
+    counts, plus ``beta · R²``) seen without parallax, and its input: (model, frames, R², truth)."""
+    from thermocal.camera.presets import radial_map
+    from thermocal.radiometry import band_radiance
+
+    n, lo, hi, g, o = 3, -40.0, 100.0, 90.0, 2500.0
+    m = KPN(ModelConfig(n_frames=n, mu=4, levels=1, kernel=3, radiance=True, radial=radial),
+            temp_range_c=(lo, hi))
+    r2 = radial_map((16, 24)) ** 2
+    truth_c = np.linspace(-30.0, 90.0, 16 * 24).reshape(16, 24)
+    counts = g * band_radiance(truth_c + 273.15) + o + beta * r2
+    c_min, c_max = 700.0, 14700.0
+    frames = torch.tensor((counts - c_min) / (c_max - c_min)).float().expand(1, n, 16, 24)
+    # normalised radiance = a · normalised counts + b − (β / g) · R² (normalised)
+    ends = band_radiance(np.array([lo, hi]) + 273.15)
+    a = (c_max - c_min) / (g * (ends[1] - ends[0]))
+    b = ((c_min - o) / g - ends[0]) / (ends[1] - ends[0])
+    with torch.no_grad():
+        for p in [*m.unet.parameters(), *m.head.parameters()]:
+            p.zero_()
+        m.head.net[-1].bias.view(n, 9)[:, 4] = a / n
+        m.offset.delta.zero_()
+        m.offset.delta[:, 0] = b
+        if radial:
+            m.offset.delta_radial.zero_()
+            m.offset.delta_radial[:, 0, 0] = -beta / (g * (ends[1] - ends[0]))
+    return m.eval(), frames, torch.tensor(r2)[None, None], truth_c
+
+
+def _estimate_c(m, frames, r2):
+    with torch.no_grad():
+        out = m(frames, torch.zeros(1), radial=r2 if m.config.radial else None)
+    return out[0, 0].double().numpy() * 140.0 - 40.0
+
+
+def test_radiance_kpn_is_exact_for_an_ideal_camera():
+    """Counts affine in band radiance (an ideal camera) are turned into the exact temperature
+    by a radiance KPN whose kernels are a constant gain and whose offset is a constant; in
+    temperature no constant gain and offset would do (Planck's curve)."""
+    m, frames, r2, truth_c = _ideal_camera_kpn(radial=0, beta=0.0)
+    assert np.abs(_estimate_c(m, frames, r2) - truth_c).max() < 0.01
+    counts = frames[0, 0].double().numpy().ravel()
+    fit = np.polyval(np.polyfit(counts, truth_c.ravel(), 1), counts)
+    assert np.abs(fit - truth_c.ravel()).max() > 3.0
+
+
+def test_offset_block_radial_terms_known_answer():
+    blk = OffsetBlock(n_frames=2, degree=1, radial=2)
+    with torch.no_grad():
+        blk.delta.zero_()
+        blk.delta[:, 0] = 0.5  # constant
+        blk.delta_radial.zero_()
+        blk.delta_radial[:, 0, 0] = -0.2  # · R²
+        blk.delta_radial[:, 1, 1] = 0.1  # · t · R⁴  (feature index i·(ν+1) + j: i=0, j=1)
+    r2 = torch.rand(3, 1, 4, 5)
+    fpa = torch.tensor([0.0, 0.5, 1.0])
+    d = blk(torch.rand(3, 2), fpa, r2)
+    want = 0.5 - 0.2 * r2 + 0.1 * fpa.view(3, 1, 1, 1) * r2**2
+    assert d.shape == (3, 1, 4, 5) and torch.allclose(d, want, atol=1e-6)
+
+
+def test_radial_model_needs_the_pixels_positions():
+    m = KPN(ModelConfig(n_frames=3, mu=4, levels=1, kernel=3, radial=1))
+    with pytest.raises(InvalidInputError, match="sensor position"):
+        m(torch.rand(1, 3, 8, 8), torch.rand(1))
+    with pytest.raises(InvalidInputError, match="sensor position"):
+        m(torch.rand(1, 3, 8, 8), torch.rand(1), radial=torch.rand(1, 1, 4, 4))
+    assert m(torch.rand(1, 3, 8, 8), torch.rand(1), radial=torch.rand(1, 1, 8, 8)).shape == (
+        1, 1, 8, 8)
+    with pytest.raises(InvalidInputError):
+        ModelConfig(radial=-1)
+
+
+def test_radial_radiance_kpn_is_exact_for_a_camera_with_a_radial_offset():
+    """A hovering camera (no parallax) whose offset falls off radially (Oz eq. 16-17): the
+    radial offset block removes it exactly; without its radial terms the corners are off."""
+    m, frames, r2, truth_c = _ideal_camera_kpn(radial=1, beta=-100.0)
+    assert np.abs(_estimate_c(m, frames, r2) - truth_c).max() < 0.01
+    with torch.no_grad():
+        m.offset.delta_radial.zero_()
+    assert np.abs(_estimate_c(m, frames, r2) - truth_c).max() > 1.0

@@ -81,7 +81,10 @@ def estimate(
     registered: bool,
     calibration: Path | None,
 ) -> None:
-    """Estimate the scene temperature of a burst's pivot frame (Oz et al. KPN + offset)."""
+    """Estimate the scene temperature of a burst's pivot frame (Oz et al. KPN + offset).
+
+    FRAMES are whole sensor frames as the camera gave them (not crops): a model trained with
+    --radial uses where on the sensor each pixel lies."""
     from thermocal.burst import estimate_file
 
     estimate_file(
@@ -133,6 +136,21 @@ def estimate(
     show_default=True,
     help="KPN with offset block: apply the kernels to the frames minus the burst's "
     "mean level (the offset block carries the level).",
+)
+@click.option(
+    "--radiance/--no-radiance",
+    default=False,
+    show_default=True,
+    help="The kernels and the offset give band radiance, turned into temperature by the "
+    "inverse of Planck's band integral (an addition to the paper).",
+)
+@click.option(
+    "--radial",
+    type=click.IntRange(0, 4),
+    default=0,
+    show_default=True,
+    help="Degree in R² of position terms: the UNet sees where on the sensor a pixel lies and "
+    "the offset block gives a radial map (an addition to the paper; 0: none).",
 )
 @click.option("--crop", type=int, default=64, show_default=True, help="Training crop side, px.")
 @click.option("--batch", type=int, default=16, show_default=True)
@@ -219,6 +237,8 @@ def train(
     degree: int,
     fpa_input: bool,
     centre: bool,
+    radiance: bool,
+    radial: int,
     crop: int,
     batch: int,
     steps_per_epoch: int,
@@ -303,6 +323,8 @@ def train(
         variant=variant,
         fpa_input=fpa_input,
         centre=centre and variant == "kpn",
+        radiance=radiance,
+        radial=radial,
     )
     if crop % model_cfg.multiple:
         raise InvalidInputError(f"--crop must be a multiple of ξ^L = {model_cfg.multiple}")

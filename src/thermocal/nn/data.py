@@ -23,6 +23,7 @@ kept in :class:`Normalisation`, which travels with the weights.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import asdict, dataclass, field, replace
 from typing import Any
@@ -31,7 +32,7 @@ import cv2
 import numpy as np
 
 from thermocal.camera.model import CameraModel, render
-from thermocal.camera.presets import PRESETS, make_camera
+from thermocal.camera.presets import PRESETS, make_camera, radial_map
 from thermocal.camera.thermal import ThermalParams, fpa_sensor
 from thermocal.errors import InvalidInputError
 from thermocal.registration.warp import render_views, warp_to_pivot
@@ -223,6 +224,8 @@ class Burst:
         Camera unit.
     camera : CameraModel
         The sensor window that rendered the burst (with the re-drawn FPN).
+    r2 : (S, S) float32
+        Where the pivot's pixels lie on the sensor: ``R²`` of Oz et al. eq. 16 for the window.
     """
 
     frames: np.ndarray
@@ -233,6 +236,22 @@ class Burst:
     fpa_c: float
     unit: int
     camera: CameraModel = field(repr=False)
+    r2: np.ndarray = field(repr=False, default=None)
+
+
+@functools.lru_cache(maxsize=8)
+def _sensor_r2(shape: tuple[int, int]) -> np.ndarray:
+    r2 = radial_map(shape) ** 2
+    r2.flags.writeable = False
+    return r2
+
+
+def sensor_r2(shape: tuple[int, int], top: int = 0, left: int = 0,
+              size: tuple[int, int] | None = None) -> np.ndarray:
+    """``R²`` (Oz et al. eq. 16: axes −0.5 … 0.5 over the sensor, nominal centre) of the window
+    ``size = (H, W)`` at ``(top, left)`` of a sensor of ``shape = (H, W)``; float32, read-only."""
+    h, w = size or shape
+    return _sensor_r2(tuple(int(v) for v in shape))[top : top + h, left : left + w]
 
 
 def coverage_mask(valid: np.ndarray) -> np.ndarray:
@@ -482,6 +501,7 @@ def make_burst(
         fpa_c=fpa_read,
         unit=u,
         camera=cam,
+        r2=sensor_r2(full.shape, top, left, (s, s)),
     )
 
 

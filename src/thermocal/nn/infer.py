@@ -26,7 +26,7 @@ from thermocal.burst import (
     register,
 )
 from thermocal.errors import InvalidInputError
-from thermocal.nn.data import Normalisation
+from thermocal.nn.data import Normalisation, sensor_r2
 from thermocal.nn.model import KPN, frame_means
 
 __all__ = [
@@ -86,7 +86,9 @@ def run_network(
     of ``ξ^L``. The offset block's frame means are taken over each whole frame's valid pixels,
     so that every tile gets the same offset. Tiles of ``tile`` pixels overlap by ``margin``
     pixels on each side; only their centres are kept, so that the seams see the same context
-    as the interior. It runs where the model's parameters are (CPU or GPU).
+    as the interior. It runs where the model's parameters are (CPU or GPU). A model with
+    position terms (``radial > 0``) takes the frames to be whole sensor frames (``R²`` of Oz
+    et al. eq. 16 over ``H × W``).
     """
     n, h, w = warped.shape
     device = next(model.parameters()).device
@@ -94,6 +96,7 @@ def run_network(
     xt = torch.from_numpy(x)[None].to(device)
     vt = torch.from_numpy(valid)[None].to(device)
     means = frame_means(xt, vt)
+    r2 = torch.tensor(sensor_r2((h, w)))[None, None].to(device)
     fpa = torch.tensor([norm.fpa(float(fpa_c))], dtype=torch.float32, device=device)
     mult = model.config.multiple
     out = np.empty((h, w), dtype=np.float32)
@@ -111,13 +114,16 @@ def run_network(
                     ya, xa, yb, xb = 0, 0, h, w
                 sub = xt[:, :, ya:yb, xa:xb]
                 vsub = vt[:, :, ya:yb, xa:xb]
+                rsub = r2[:, :, ya:yb, xa:xb]
                 ph = (-sub.shape[2]) % mult
                 pw = (-sub.shape[3]) % mult
                 if ph or pw:
                     sub = torch.nn.functional.pad(sub, (0, pw, 0, ph))
                     vsub = torch.nn.functional.pad(vsub, (0, pw, 0, ph))
+                    rsub = torch.nn.functional.pad(rsub, (0, pw, 0, ph), mode="replicate")
                 sub = sub.contiguous(memory_format=torch.channels_last)
-                est = model(sub, fpa, vsub, means=means)[0, 0].cpu().numpy()
+                radial = rsub if model.config.radial else None
+                est = model(sub, fpa, vsub, means=means, radial=radial)[0, 0].cpu().numpy()
                 out[y0:y1, x0:x1] = est[y0 - ya : y1 - ya, x0 - xa : x1 - xa]
                 if h <= tile and w <= tile:
                     break

@@ -12,6 +12,9 @@ gray levels registered onto the pivot (eq. 21), the FPA temperature ``(B,)`` nor
   ``K × K`` patch of that frame around the pixel, summed over frames.
 * :class:`OffsetBlock`: eq. 10, a polynomial of degree ν in each frame's mean gray level and in
   the FPA temperature, averaged over frames.
+* :class:`RadianceToTemperature`: with ``radiance=True`` (an addition to the paper) the kernels
+  and the offset give band radiance, turned into temperature by the inverse of Planck's band
+  integral.
 * :class:`KPN`: the whole model; ``variant="kpn"`` (with the offset block), ``"kpn-no-offset"``
   and ``"e2e"`` (the same UNet with a head that predicts the temperature directly).
 """
@@ -20,11 +23,13 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass
 
+import numpy as np
 import torch
 import torch.nn.functional as F
 from torch import nn
 
 from thermocal.errors import InvalidInputError
+from thermocal.radiometry import TAU2_BAND_M, band_radiance
 
 __all__ = [
     "KPN",
@@ -32,6 +37,7 @@ __all__ = [
     "KernelHead",
     "ModelConfig",
     "OffsetBlock",
+    "RadianceToTemperature",
     "UNet",
     "apply_kernels",
     "count_macs",
@@ -73,6 +79,23 @@ class ModelConfig:
         only the contrast. An addition to the paper: with raw levels (≈ 0.4 after eq. 21) every
         relative error of a predicted kernel sum is multiplied by the level, not by the scene's
         contrast. With ``fpa_input`` the UNet is also given ``μ`` as a constant plane.
+    radiance : bool
+        The network's linear output (eq. 11's kernels plus eq. 10's offset, or the E2E head) is
+        the scene's band radiance, normalised like eq. 20 over the same temperature range, and
+        the exact inverse of the band integral turns it into the normalised temperature. An
+        addition to the paper, from the camera physics: raw counts are affine in band radiance
+        (a gain and an offset per pixel), so a linear combination of gray levels is a radiance
+        and the FPA's offset drift adds to it; in temperature the kernels would have to follow
+        Planck's curve pixel by pixel (dL/dT changes 2.3-fold between −20 and 60 °C).
+    radial : int
+        Degree ``ρ`` in ``R²`` of position terms (0: none, the paper). ``R²`` is the pivot
+        pixel's squared distance from the sensor's centre (Oz et al. eq. 16, axes −0.5 … 0.5).
+        The UNet is also given the ``R²`` plane, and the offset block's polynomial gets the
+        factors ``R^(2k)``, ``k = 1 … ρ``, so that it gives a radial offset map rather than one
+        number. An addition to the paper: a convolutional network trained on crops cannot tell
+        where on the sensor a pixel lies, so without it the radial offset and vignetting of
+        eq. 16-17 (degrees between the centre and the corners) are left to the burst's
+        parallax, and a camera that hovers has none.
     """
 
     n_frames: int = 7
@@ -84,6 +107,8 @@ class ModelConfig:
     variant: str = "kpn"
     fpa_input: bool = False
     centre: bool = False
+    radiance: bool = False
+    radial: int = 0
 
     def __post_init__(self) -> None:
         if self.variant not in VARIANTS:
@@ -96,6 +121,8 @@ class ModelConfig:
             raise InvalidInputError(f"kernel size must be odd and >= 1, got {self.kernel}")
         if self.degree < 0:
             raise InvalidInputError(f"offset degree must be >= 0, got {self.degree}")
+        if self.radial < 0:
+            raise InvalidInputError(f"radial degree must be >= 0, got {self.radial}")
 
     @property
     def multiple(self) -> int:
@@ -211,42 +238,115 @@ class OffsetBlock(nn.Module):
     the FPA (ambient) temperature ``t`` of eq. 10 each frame has ``(ν+1)²`` coefficients here,
     one matrix ``(N, (ν+1)²)``: a single matrix product gives all the frames' offsets.
     Inputs are normalised (eq. 20-21), so the powers stay in ``[0, 1]``. Starts at zero.
+
+    With ``radial = ρ > 0`` (:class:`ModelConfig`) a second matrix ``(N, (ν+1)², ρ)`` gives the
+    coefficients of ``R^(2k)``, ``k = 1 … ρ``: the offset becomes a radial map.
     """
 
-    def __init__(self, n_frames: int, degree: int) -> None:
+    def __init__(self, n_frames: int, degree: int, radial: int = 0) -> None:
         super().__init__()
-        self.degree = degree
+        self.degree, self.radial = degree, radial
         self.delta = nn.Parameter(torch.zeros(n_frames, (degree + 1) ** 2))
+        self.delta_radial = (
+            nn.Parameter(torch.zeros(n_frames, (degree + 1) ** 2, radial)) if radial else None
+        )
 
-    def forward(self, means: torch.Tensor, fpa: torch.Tensor) -> torch.Tensor:
-        """``means (B, N)``, ``fpa (B,)`` → offset ``(B, 1, 1, 1)``."""
+    def forward(
+        self, means: torch.Tensor, fpa: torch.Tensor, r2: torch.Tensor | None = None
+    ) -> torch.Tensor:
+        """``means (B, N)``, ``fpa (B,)`` [, ``r2 (B, 1, H, W)``] → offset ``(B, 1, 1, 1)``
+        (``(B, 1, H, W)`` with radial terms)."""
         p = torch.arange(self.degree + 1, dtype=means.dtype, device=means.device)
         m_pow = means[..., None] ** p  # (B, N, ν+1)
         t_pow = fpa[:, None] ** p  # (B, ν+1)
         feats = (m_pow[..., :, None] * t_pow[:, None, None, :]).flatten(2)  # (B, N, (ν+1)²)
-        d = (feats * self.delta).sum(dim=2).mean(dim=1)
-        return d.view(-1, 1, 1, 1)
+        d = (feats * self.delta).sum(dim=2).mean(dim=1).view(-1, 1, 1, 1)
+        if self.delta_radial is None:
+            return d
+        coef = torch.einsum("bnf,nfk->bk", feats, self.delta_radial) / feats.shape[1]  # (B, ρ)
+        for k in range(self.radial):
+            d = d + coef[:, k].view(-1, 1, 1, 1) * r2 ** (k + 1)
+        return d
+
+
+class RadianceToTemperature(nn.Module):
+    """Normalised band radiance → normalised temperature (eq. 20), both over ``temp_range_c``.
+
+    ``x̄ = (L(T) − L(t_min)) / (L(t_max) − L(t_min))`` with ``L`` the band integral of Planck's
+    law (:func:`thermocal.radiometry.band_radiance`, Tau2 band by default) is inverted exactly
+    by a table on a 0.02 K grid, ``margin_c`` beyond the range on both sides, with linear
+    interpolation (error < 1e-4 K; outside the table the output is clamped). The table is built
+    from the range, never stored in a weights file. Parameter-free; differentiable in ``x̄``.
+    """
+
+    def __init__(
+        self,
+        temp_range_c: tuple[float, float] = (-40.0, 100.0),
+        band_m: tuple[float, float] = TAU2_BAND_M,
+        *,
+        margin_c: float = 60.0,
+        step_c: float = 0.02,
+    ) -> None:
+        super().__init__()
+        lo, hi = (float(v) for v in temp_range_c)
+        if not hi > lo:
+            raise InvalidInputError(f"temperature range must increase, got {temp_range_c}")
+        t_c = np.arange(max(lo - margin_c, -200.0), hi + margin_c + step_c, step_c)
+        ends = band_radiance(np.array([lo, hi]) + 273.15, band_m)
+        x = (band_radiance(t_c + 273.15, band_m) - ends[0]) / (ends[1] - ends[0])
+        self.temp_range_c = (lo, hi)
+        self.register_buffer("x_grid", torch.tensor(x, dtype=torch.float32), persistent=False)
+        self.register_buffer(
+            "t_grid", torch.tensor((t_c - lo) / (hi - lo), dtype=torch.float32), persistent=False
+        )
+
+    def forward(self, x: torch.Tensor) -> torch.Tensor:
+        """Normalised radiance, any shape → normalised temperature, same shape."""
+        return _interp(x, self.x_grid, self.t_grid)
+
+    def radiance(self, t: torch.Tensor) -> torch.Tensor:
+        """The other direction: normalised temperature → normalised radiance."""
+        return _interp(t, self.t_grid, self.x_grid)
+
+
+def _interp(x: torch.Tensor, xg: torch.Tensor, yg: torch.Tensor) -> torch.Tensor:
+    """Piecewise-linear ``y(x)`` through ``(xg, yg)`` (``xg`` increasing), clamped at the ends;
+    differentiable in ``x``. torch has no 1-D interpolation: searchsorted + one segment."""
+    xg, yg = xg.to(x.dtype), yg.to(x.dtype)
+    x = x.clamp(xg[0], xg[-1])
+    i = torch.searchsorted(xg, x.detach().contiguous()).clamp(1, len(xg) - 1)
+    x0, x1, y0, y1 = xg[i - 1], xg[i], yg[i - 1], yg[i]
+    return y0 + (x - x0) * ((y1 - y0) / (x1 - x0))
 
 
 class KPN(nn.Module):
     """The temperature estimation network: UNet → kernels (eq. 11) + offset block (eq. 10).
 
-    ``forward(frames, fpa, valid)`` takes registered normalised frames ``(B, N, H, W)`` (0 where
-    a frame does not see the pixel), the normalised FPA temperature ``(B,)`` and optionally the
-    validity masks ``(B, N, H, W)`` (for the frame means of the offset block; default: every
-    pixel), and returns the normalised temperature of the pivot ``(B, 1, H, W)``. ``H, W`` must
-    be multiples of ``ξ^L``.
+    ``forward(frames, fpa, valid, radial=r2)`` takes registered normalised frames
+    ``(B, N, H, W)`` (0 where a frame does not see the pixel), the normalised FPA temperature
+    ``(B,)``, optionally the validity masks ``(B, N, H, W)`` (for the frame means of the offset
+    block; default: every pixel) and, for a model with ``radial > 0``, the pivot pixels'
+    sensor position ``R² (B, 1, H, W)``, and returns the normalised temperature of the pivot
+    ``(B, 1, H, W)``. ``H, W`` must be multiples of ``ξ^L``. ``temp_range_c`` is eq. 20's
+    temperature range (the normalisation's); only ``radiance=True`` uses it.
     """
 
-    def __init__(self, config: ModelConfig, *, init: bool = True) -> None:
+    def __init__(
+        self,
+        config: ModelConfig,
+        *,
+        init: bool = True,
+        temp_range_c: tuple[float, float] = (-40.0, 100.0),
+    ) -> None:
         super().__init__()
         self.config = config
         c = config
-        extra = int(c.fpa_input) * (2 if c.centre else 1)
+        extra = int(c.fpa_input) * (2 if c.centre else 1) + int(c.radial > 0)
         self.unet = UNet(c.n_frames + extra, c.mu, c.xi, c.levels)
         c_out = 1 if c.variant == "e2e" else c.n_frames * c.kernel**2
         self.head = KernelHead(c.mu, c_out)
-        self.offset = OffsetBlock(c.n_frames, c.degree) if c.variant == "kpn" else None
+        self.offset = OffsetBlock(c.n_frames, c.degree, c.radial) if c.variant == "kpn" else None
+        self.to_temperature = RadianceToTemperature(temp_range_c) if c.radiance else None
         if init:  # skipped when weights are loaded next (orthogonal init of big layers is slow)
             self.reset_parameters()
 
@@ -281,6 +381,7 @@ class KPN(nn.Module):
         valid: torch.Tensor | None = None,
         *,
         means: torch.Tensor | None = None,
+        radial: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """See the class docstring; ``means (B, N)`` overrides the frame means (tiling)."""
         c = self.config
@@ -291,6 +392,11 @@ class KPN(nn.Module):
         b, _, h, w = frames.shape
         if h % c.multiple or w % c.multiple:
             raise InvalidInputError(f"frame sides must be multiples of {c.multiple}, got {h}x{w}")
+        if c.radial and (radial is None or radial.shape != (b, 1, h, w)):
+            got = None if radial is None else tuple(radial.shape)
+            raise InvalidInputError(
+                f"this model needs the pixels' sensor position R² {(b, 1, h, w)}, got {got}"
+            )
         if means is None:
             means = frame_means(frames, valid)
         planes = []
@@ -303,15 +409,18 @@ class KPN(nn.Module):
                 planes.append(level.expand(b, 1, h, w))
         if c.fpa_input:
             planes.insert(0, fpa.view(b, 1, 1, 1).expand(b, 1, h, w).to(frames.dtype))
+        if c.radial:
+            planes.append(radial.to(frames.dtype))
         x = torch.cat([frames, *planes], dim=1) if planes else frames
         feats = self.unet(x)
         out = self.head(feats)
         if c.variant == "e2e":
-            return out + means.mean(dim=1).view(b, 1, 1, 1)
-        out = apply_kernels(frames, out, c.kernel)
-        if self.offset is not None:
-            out = out + self.offset(means, fpa)
-        return out
+            out = out + means.mean(dim=1).view(b, 1, 1, 1)
+        else:
+            out = apply_kernels(frames, out, c.kernel)
+            if self.offset is not None:
+                out = out + self.offset(means, fpa, radial)
+        return out if self.to_temperature is None else self.to_temperature(out)
 
 
 def frame_means(frames: torch.Tensor, valid: torch.Tensor | None) -> torch.Tensor:
@@ -342,7 +451,8 @@ def count_macs(model: KPN, height: int, width: int) -> int:
     model.eval()
     try:
         with torch.no_grad():
-            model(torch.zeros(1, c.n_frames, height, width), torch.zeros(1))
+            model(torch.zeros(1, c.n_frames, height, width), torch.zeros(1),
+                  radial=torch.zeros(1, 1, height, width) if c.radial else None)
     finally:
         for h in handles:
             h.remove()

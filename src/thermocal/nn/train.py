@@ -121,22 +121,23 @@ class TrainResult:
 # --------------------------------------------------------------------------------------------
 # tensors
 # --------------------------------------------------------------------------------------------
-def batch_tensors(
-    bursts: list[Burst], norm: Normalisation
-) -> tuple[torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor, torch.Tensor]:
+def batch_tensors(bursts: list[Burst], norm: Normalisation) -> tuple[torch.Tensor, ...]:
     """Stack bursts into ``frames (B,N,H,W)``, ``fpa (B,)``, ``valid (B,N,H,W)``,
-    ``truth (B,1,H,W)`` (all normalised, float32) and the loss mask ``(B,1,H,W)`` bool."""
+    ``truth (B,1,H,W)`` (all normalised, float32), the loss mask ``(B,1,H,W)`` bool and the
+    pivot pixels' sensor position ``R² (B,1,H,W)`` float32."""
     frames = np.stack([np.where(b.valid, norm.counts(b.frames), 0.0) for b in bursts])
     valid = np.stack([b.valid for b in bursts])
     truth = np.stack([norm.temp(b.truth_c) for b in bursts])[:, None]
     mask = np.stack([coverage_mask(b.valid) for b in bursts])[:, None]
     fpa = np.array([norm.fpa(b.fpa_c) for b in bursts])
+    r2 = np.stack([b.r2 for b in bursts])[:, None]
     return (
         torch.from_numpy(frames.astype(np.float32)),
         torch.from_numpy(fpa.astype(np.float32)),
         torch.from_numpy(valid),
         torch.from_numpy(truth.astype(np.float32)),
         torch.from_numpy(mask),
+        torch.from_numpy(r2.astype(np.float32)),
     )
 
 
@@ -266,7 +267,7 @@ def load_model(path: str | os.PathLike[str]) -> tuple[KPN, Normalisation, dict[s
     try:
         config = ModelConfig(**payload["config"])
         norm = Normalisation(**payload["normalisation"])
-        model = KPN(config, init=False)
+        model = KPN(config, init=False, temp_range_c=(norm.temp_min_c, norm.temp_max_c))
         model.load_state_dict(payload["state_dict"])
     except (KeyError, TypeError, RuntimeError, InvalidInputError) as exc:
         first = str(exc).strip().splitlines()[0]
@@ -316,8 +317,8 @@ def validate(
     with torch.no_grad():
         device = next(model.parameters()).device
         for batch in val:
-            frames, fpa, valid, truth, mask = (t.to(device) for t in batch)
-            est = model(frames, fpa, valid)
+            frames, fpa, valid, truth, mask, r2 = (t.to(device) for t in batch)
+            est = model(frames, fpa, valid, radial=r2)
             losses.append(float(kpn_loss(est, truth, mask)))
             m = mask.to(est.dtype)
             err = (est - truth) * m
@@ -454,7 +455,7 @@ def train(
         for i in range(0, len(val_bursts), train_cfg.batch)
     ]
 
-    model = KPN(model_cfg)
+    model = KPN(model_cfg, temp_range_c=(norm.temp_min_c, norm.temp_max_c))
     if init_model is not None:
         model.load_state_dict(init_model.state_dict())
     model = model.to(device)
@@ -541,11 +542,11 @@ def train(
             out_of_time = False
             for _ in range(train_cfg.steps_per_epoch):
                 ts = time.monotonic()
-                frames, fpa, valid, truth, mask = (
+                frames, fpa, valid, truth, mask, r2 = (
                     t.to(device, non_blocking=True) for t in next(it)
                 )
                 opt.zero_grad(set_to_none=True)
-                loss = kpn_loss(model(frames, fpa, valid), truth, mask)
+                loss = kpn_loss(model(frames, fpa, valid, radial=r2), truth, mask)
                 loss.backward()
                 opt.step()
                 t_train += time.monotonic() - ts
