@@ -53,7 +53,8 @@ from thermocal.nn.train import (  # noqa: E402
 
 
 def sub_burst(batch: tuple[torch.Tensor, ...], n: int, n_max: int) -> tuple[torch.Tensor, ...]:
-    """The ``n`` frames around the pivot of an ``n_max``-frame batch, with their coverage mask."""
+    """The ``n`` frames around the pivot of an ``n_max``-frame batch, with their coverage mask
+    (the batch's other tensors unchanged)."""
     frames, fpa, valid, truth, _, r2 = batch
     p = n_max // 2
     sel = slice(p - n // 2, p - n // 2 + n)
@@ -109,7 +110,7 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
             for g in opt.param_groups:
                 g["lr"] = lr
             opt.zero_grad(set_to_none=True)
-            loss = kpn_loss(model(frames, fpa, valid, radial=r2), truth, mask)
+            loss = kpn_loss(model(frames, fpa, valid, r2=r2), truth, mask)
             loss.backward()
             opt.step()
             losses[key].append(float(loss.detach()))

@@ -136,8 +136,17 @@ def test_burst_knows_where_its_pixels_lie_on_the_sensor(pool):
 
     full = radial_map((256, 336)) ** 2
     assert np.array_equal(sensor_r2((256, 336), 10, 20, (32, 48)), full[10:42, 20:68])
-    # a crop as large as the sensor can only be the whole sensor
-    whole = BurstConfig(n_frames=3, crop=32, units=(0,), sensor_size=(32, 32))
-    b = make_burst(pool, whole, rng=np.random.default_rng(0))
-    assert np.array_equal(b.r2, radial_map((32, 32)) ** 2)
-    assert b.r2.max() == pytest.approx(0.5, rel=1e-5)  # the corners: (0.5² + 0.5²)
+    with pytest.raises(InvalidInputError, match="leaves the sensor"):
+        sensor_r2((256, 336), 230, 20, (32, 48))
+    # on a 48 x 40 (W x H) sensor, find each burst's window from its camera's gain (the column
+    # FPN is redrawn: a factor per column) and compare its R² with the window's
+    cfg = BurstConfig(n_frames=3, crop=32, units=(0,), sensor_size=(48, 40))
+    full = UnitCache("tau2", (48, 40)).get(0)
+    for seed in range(3):
+        b = make_burst(pool, cfg, rng=np.random.default_rng(seed))
+        hits = [(t, le) for t in range(9) for le in range(17)
+                if np.allclose(np.std(b.camera.gain[0] / full.gain[0][t:t + 32, le:le + 32],
+                                      axis=0), 0.0, atol=1e-6)]
+        assert len(hits) == 1
+        assert np.array_equal(b.r2, (radial_map((40, 48)) ** 2)[hits[0][0]:hits[0][0] + 32,
+                                                                hits[0][1]:hits[0][1] + 32])

@@ -230,7 +230,7 @@ def _ideal_camera_kpn(radial: int, beta: float):
 
 def _estimate_c(m, frames, r2):
     with torch.no_grad():
-        out = m(frames, torch.zeros(1), radial=r2 if m.config.radial else None)
+        out = m(frames, torch.zeros(1), r2=r2 if m.config.radial else None)
     return out[0, 0].double().numpy() * 140.0 - 40.0
 
 
@@ -265,8 +265,8 @@ def test_radial_model_needs_the_pixels_positions():
     with pytest.raises(InvalidInputError, match="sensor position"):
         m(torch.rand(1, 3, 8, 8), torch.rand(1))
     with pytest.raises(InvalidInputError, match="sensor position"):
-        m(torch.rand(1, 3, 8, 8), torch.rand(1), radial=torch.rand(1, 1, 4, 4))
-    assert m(torch.rand(1, 3, 8, 8), torch.rand(1), radial=torch.rand(1, 1, 8, 8)).shape == (
+        m(torch.rand(1, 3, 8, 8), torch.rand(1), r2=torch.rand(1, 1, 4, 4))
+    assert m(torch.rand(1, 3, 8, 8), torch.rand(1), r2=torch.rand(1, 1, 8, 8)).shape == (
         1, 1, 8, 8)
     with pytest.raises(InvalidInputError):
         ModelConfig(radial=-1)

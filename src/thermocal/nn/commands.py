@@ -139,7 +139,7 @@ def estimate(
 )
 @click.option(
     "--radiance/--no-radiance",
-    default=False,
+    default=True,
     show_default=True,
     help="The kernels and the offset give band radiance, turned into temperature by the "
     "inverse of Planck's band integral (an addition to the paper).",
@@ -147,10 +147,10 @@ def estimate(
 @click.option(
     "--radial",
     type=click.IntRange(0, 4),
-    default=0,
+    default=2,
     show_default=True,
     help="Degree in R² of position terms: the UNet sees where on the sensor a pixel lies and "
-    "the offset block gives a radial map (an addition to the paper; 0: none).",
+    "the offset block gives a radial map (an addition to the paper; 0: none, as the paper).",
 )
 @click.option("--crop", type=int, default=64, show_default=True, help="Training crop side, px.")
 @click.option("--batch", type=int, default=16, show_default=True)
@@ -266,6 +266,7 @@ def train(
     # spinning thread burns the core the other one needs (3x slower steps, measured).
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
+    from thermocal.camera.presets import PRESETS
     from thermocal.nn.data import BurstConfig, ScenePool
     from thermocal.nn.model import ModelConfig
     from thermocal.nn.train import TrainConfig
@@ -295,6 +296,7 @@ def train(
     fpa_range = _parse_range(fpa_range_c, "--fpa-range-c") if fpa_range_c else (10.0, 50.0)
     cameras = None
     sensor_size = (336, 256)
+    band_m = PRESETS["tau2"].band_m
     meta = {"command": " ".join(sys.argv[1:]) if sys.argv else ""}
     if chamber is not None:
         try:
@@ -308,6 +310,7 @@ def train(
         cameras = {0: camera}
         units, val_units = (0,), (0,)
         sensor_size = (camera.shape[1], camera.shape[0])
+        band_m = camera.band.band_m
         meta["chamber"] = str(chamber)
         if fpa_range_c is None and "fpa_range_c" in camera.info:
             fpa_range = tuple(float(v) for v in camera.info["fpa_range_c"])
@@ -325,6 +328,7 @@ def train(
         centre=centre and variant == "kpn",
         radiance=radiance,
         radial=radial,
+        band_m=band_m,
     )
     if crop % model_cfg.multiple:
         raise InvalidInputError(f"--crop must be a multiple of ξ^L = {model_cfg.multiple}")

@@ -55,6 +55,7 @@ __all__ = [
     "make_burst",
     "make_bursts",
     "min_views",
+    "sensor_r2",
 ]
 
 #: Camera units of the ``tau2`` preset used for training, validation (early stopping and the
@@ -236,7 +237,7 @@ class Burst:
     fpa_c: float
     unit: int
     camera: CameraModel = field(repr=False)
-    r2: np.ndarray = field(repr=False, default=None)
+    r2: np.ndarray = field(repr=False)
 
 
 @functools.lru_cache(maxsize=8)
@@ -251,6 +252,8 @@ def sensor_r2(shape: tuple[int, int], top: int = 0, left: int = 0,
     """``R²`` (Oz et al. eq. 16: axes −0.5 … 0.5 over the sensor, nominal centre) of the window
     ``size = (H, W)`` at ``(top, left)`` of a sensor of ``shape = (H, W)``; float32, read-only."""
     h, w = size or shape
+    if not (0 <= top and 0 <= left and top + h <= shape[0] and left + w <= shape[1]):
+        raise InvalidInputError(f"window {h}x{w} at ({top}, {left}) leaves the sensor {shape}")
     return _sensor_r2(tuple(int(v) for v in shape))[top : top + h, left : left + w]
 
 

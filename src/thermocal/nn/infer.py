@@ -96,7 +96,7 @@ def run_network(
     xt = torch.from_numpy(x)[None].to(device)
     vt = torch.from_numpy(valid)[None].to(device)
     means = frame_means(xt, vt)
-    r2 = torch.tensor(sensor_r2((h, w)))[None, None].to(device)
+    r2 = torch.tensor(sensor_r2((h, w)))[None, None].to(device) if model.config.radial else None
     fpa = torch.tensor([norm.fpa(float(fpa_c))], dtype=torch.float32, device=device)
     mult = model.config.multiple
     out = np.empty((h, w), dtype=np.float32)
@@ -114,16 +114,16 @@ def run_network(
                     ya, xa, yb, xb = 0, 0, h, w
                 sub = xt[:, :, ya:yb, xa:xb]
                 vsub = vt[:, :, ya:yb, xa:xb]
-                rsub = r2[:, :, ya:yb, xa:xb]
+                rsub = None if r2 is None else r2[:, :, ya:yb, xa:xb]
                 ph = (-sub.shape[2]) % mult
                 pw = (-sub.shape[3]) % mult
                 if ph or pw:
                     sub = torch.nn.functional.pad(sub, (0, pw, 0, ph))
                     vsub = torch.nn.functional.pad(vsub, (0, pw, 0, ph))
-                    rsub = torch.nn.functional.pad(rsub, (0, pw, 0, ph), mode="replicate")
+                    if rsub is not None:
+                        rsub = torch.nn.functional.pad(rsub, (0, pw, 0, ph), mode="replicate")
                 sub = sub.contiguous(memory_format=torch.channels_last)
-                radial = rsub if model.config.radial else None
-                est = model(sub, fpa, vsub, means=means, radial=radial)[0, 0].cpu().numpy()
+                est = model(sub, fpa, vsub, means=means, r2=rsub)[0, 0].cpu().numpy()
                 out[y0:y1, x0:x1] = est[y0 - ya : y1 - ya, x0 - xa : x1 - xa]
                 if h <= tile and w <= tile:
                     break

@@ -11,7 +11,8 @@ gray levels registered onto the pivot (eq. 21), the FPA temperature ``(B,)`` nor
 * :func:`apply_kernels`: eq. 11, the per-pixel ``K × K`` kernel of every frame applied to the
   ``K × K`` patch of that frame around the pixel, summed over frames.
 * :class:`OffsetBlock`: eq. 10, a polynomial of degree ν in each frame's mean gray level and in
-  the FPA temperature, averaged over frames.
+  the FPA temperature, averaged over frames; with ``radial > 0`` (an addition to the paper) also
+  in the pixel's ``R²`` on the sensor, a radial offset map (the UNet then sees ``R²`` too).
 * :class:`RadianceToTemperature`: with ``radiance=True`` (an addition to the paper) the kernels
   and the offset give band radiance, turned into temperature by the inverse of Planck's band
   integral.
@@ -87,6 +88,8 @@ class ModelConfig:
         (a gain and an offset per pixel), so a linear combination of gray levels is a radiance
         and the FPA's offset drift adds to it; in temperature the kernels would have to follow
         Planck's curve pixel by pixel (dL/dT changes 2.3-fold between −20 and 60 °C).
+    band_m : (float, float)
+        The camera's spectral band ``(λ1, λ2)``, m, for ``radiance`` (default: the Tau2's).
     radial : int
         Degree ``ρ`` in ``R²`` of position terms (0: none, the paper). ``R²`` is the pivot
         pixel's squared distance from the sensor's centre (Oz et al. eq. 16, axes −0.5 … 0.5).
@@ -109,6 +112,7 @@ class ModelConfig:
     centre: bool = False
     radiance: bool = False
     radial: int = 0
+    band_m: tuple[float, float] = TAU2_BAND_M
 
     def __post_init__(self) -> None:
         if self.variant not in VARIANTS:
@@ -123,6 +127,10 @@ class ModelConfig:
             raise InvalidInputError(f"offset degree must be >= 0, got {self.degree}")
         if self.radial < 0:
             raise InvalidInputError(f"radial degree must be >= 0, got {self.radial}")
+        band = tuple(float(v) for v in self.band_m)  # a list when read back from JSON
+        if len(band) != 2 or not 0.0 < band[0] < band[1]:
+            raise InvalidInputError(f"band_m must be (λ1, λ2) in m, increasing; got {band}")
+        object.__setattr__(self, "band_m", band)
 
     @property
     def multiple(self) -> int:
@@ -263,6 +271,8 @@ class OffsetBlock(nn.Module):
         d = (feats * self.delta).sum(dim=2).mean(dim=1).view(-1, 1, 1, 1)
         if self.delta_radial is None:
             return d
+        if r2 is None:
+            raise InvalidInputError("the radial offset block needs the pixels' R² (B, 1, H, W)")
         coef = torch.einsum("bnf,nfk->bk", feats, self.delta_radial) / feats.shape[1]  # (B, ρ)
         for k in range(self.radial):
             d = d + coef[:, k].view(-1, 1, 1, 1) * r2 ** (k + 1)
@@ -275,8 +285,11 @@ class RadianceToTemperature(nn.Module):
     ``x̄ = (L(T) − L(t_min)) / (L(t_max) − L(t_min))`` with ``L`` the band integral of Planck's
     law (:func:`thermocal.radiometry.band_radiance`, Tau2 band by default) is inverted exactly
     by a table on a 0.02 K grid, ``margin_c`` beyond the range on both sides, with linear
-    interpolation (error < 1e-4 K; outside the table the output is clamped). The table is built
-    from the range, never stored in a weights file. Parameter-free; differentiable in ``x̄``.
+    interpolation (error < 1e-4 K; beyond the table, its end segments extended, so that the
+    gradient never vanishes). The band must be that of the camera that made
+    the training data (:class:`ModelConfig` ``band_m``).
+    The table is built from the range, never stored in a weights file. Parameter-free;
+    differentiable in ``x̄``.
     """
 
     def __init__(
@@ -310,10 +323,10 @@ class RadianceToTemperature(nn.Module):
 
 
 def _interp(x: torch.Tensor, xg: torch.Tensor, yg: torch.Tensor) -> torch.Tensor:
-    """Piecewise-linear ``y(x)`` through ``(xg, yg)`` (``xg`` increasing), clamped at the ends;
-    differentiable in ``x``. torch has no 1-D interpolation: searchsorted + one segment."""
+    """Piecewise-linear ``y(x)`` through ``(xg, yg)`` (``xg`` increasing), extended by the end
+    segments; differentiable in ``x``. torch has no 1-D interpolation: searchsorted + one
+    segment."""
     xg, yg = xg.to(x.dtype), yg.to(x.dtype)
-    x = x.clamp(xg[0], xg[-1])
     i = torch.searchsorted(xg, x.detach().contiguous()).clamp(1, len(xg) - 1)
     x0, x1, y0, y1 = xg[i - 1], xg[i], yg[i - 1], yg[i]
     return y0 + (x - x0) * ((y1 - y0) / (x1 - x0))
@@ -322,7 +335,7 @@ def _interp(x: torch.Tensor, xg: torch.Tensor, yg: torch.Tensor) -> torch.Tensor
 class KPN(nn.Module):
     """The temperature estimation network: UNet → kernels (eq. 11) + offset block (eq. 10).
 
-    ``forward(frames, fpa, valid, radial=r2)`` takes registered normalised frames
+    ``forward(frames, fpa, valid, r2=r2)`` takes registered normalised frames
     ``(B, N, H, W)`` (0 where a frame does not see the pixel), the normalised FPA temperature
     ``(B,)``, optionally the validity masks ``(B, N, H, W)`` (for the frame means of the offset
     block; default: every pixel) and, for a model with ``radial > 0``, the pivot pixels'
@@ -346,7 +359,9 @@ class KPN(nn.Module):
         c_out = 1 if c.variant == "e2e" else c.n_frames * c.kernel**2
         self.head = KernelHead(c.mu, c_out)
         self.offset = OffsetBlock(c.n_frames, c.degree, c.radial) if c.variant == "kpn" else None
-        self.to_temperature = RadianceToTemperature(temp_range_c) if c.radiance else None
+        self.to_temperature = (
+            RadianceToTemperature(temp_range_c, c.band_m) if c.radiance else None
+        )
         if init:  # skipped when weights are loaded next (orthogonal init of big layers is slow)
             self.reset_parameters()
 
@@ -355,8 +370,9 @@ class KPN(nn.Module):
 
         One addition: the bias of the last kernel-head conv puts ``1/N`` on the centre tap of
         every frame's kernel, so that the untrained KPN starts from the plain average of the
-        registered frames (eq. 9 with unit gain) instead of from zero; the E2E head starts from
-        the mean of the frames in the same way through its offset. This only shortens training.
+        registered frames (eq. 9 with unit gain; with ``radiance``, that average read as a
+        radiance) instead of from zero; the E2E head starts from the mean of the frames in the
+        same way through its offset. This only shortens training.
         """
         for m in self.modules():
             if isinstance(m, nn.Conv2d):
@@ -370,6 +386,8 @@ class KPN(nn.Module):
                 bias[:, (c.kernel**2) // 2] = 1.0 / c.n_frames
         if self.offset is not None:
             nn.init.zeros_(self.offset.delta)
+            if self.offset.delta_radial is not None:
+                nn.init.zeros_(self.offset.delta_radial)
             if c.centre:  # start from d = μ (the level the centring took away): δ_{n,1,0} = 1
                 with torch.no_grad():
                     self.offset.delta[:, c.degree + 1] = 1.0
@@ -381,7 +399,7 @@ class KPN(nn.Module):
         valid: torch.Tensor | None = None,
         *,
         means: torch.Tensor | None = None,
-        radial: torch.Tensor | None = None,
+        r2: torch.Tensor | None = None,
     ) -> torch.Tensor:
         """See the class docstring; ``means (B, N)`` overrides the frame means (tiling)."""
         c = self.config
@@ -392,8 +410,8 @@ class KPN(nn.Module):
         b, _, h, w = frames.shape
         if h % c.multiple or w % c.multiple:
             raise InvalidInputError(f"frame sides must be multiples of {c.multiple}, got {h}x{w}")
-        if c.radial and (radial is None or radial.shape != (b, 1, h, w)):
-            got = None if radial is None else tuple(radial.shape)
+        if c.radial and (r2 is None or r2.shape != (b, 1, h, w)):
+            got = None if r2 is None else tuple(r2.shape)
             raise InvalidInputError(
                 f"this model needs the pixels' sensor position R² {(b, 1, h, w)}, got {got}"
             )
@@ -410,7 +428,7 @@ class KPN(nn.Module):
         if c.fpa_input:
             planes.insert(0, fpa.view(b, 1, 1, 1).expand(b, 1, h, w).to(frames.dtype))
         if c.radial:
-            planes.append(radial.to(frames.dtype))
+            planes.append(r2.to(frames.dtype))
         x = torch.cat([frames, *planes], dim=1) if planes else frames
         feats = self.unet(x)
         out = self.head(feats)
@@ -419,7 +437,7 @@ class KPN(nn.Module):
         else:
             out = apply_kernels(frames, out, c.kernel)
             if self.offset is not None:
-                out = out + self.offset(means, fpa, radial)
+                out = out + self.offset(means, fpa, r2)
         return out if self.to_temperature is None else self.to_temperature(out)
 
 
@@ -452,7 +470,7 @@ def count_macs(model: KPN, height: int, width: int) -> int:
     try:
         with torch.no_grad():
             model(torch.zeros(1, c.n_frames, height, width), torch.zeros(1),
-                  radial=torch.zeros(1, 1, height, width) if c.radial else None)
+                  r2=torch.zeros(1, 1, height, width) if c.radial else None)
     finally:
         for h in handles:
             h.remove()

@@ -318,7 +318,7 @@ def validate(
         device = next(model.parameters()).device
         for batch in val:
             frames, fpa, valid, truth, mask, r2 = (t.to(device) for t in batch)
-            est = model(frames, fpa, valid, radial=r2)
+            est = model(frames, fpa, valid, r2=r2)
             losses.append(float(kpn_loss(est, truth, mask)))
             m = mask.to(est.dtype)
             err = (est - truth) * m
@@ -546,7 +546,7 @@ def train(
                     t.to(device, non_blocking=True) for t in next(it)
                 )
                 opt.zero_grad(set_to_none=True)
-                loss = kpn_loss(model(frames, fpa, valid, radial=r2), truth, mask)
+                loss = kpn_loss(model(frames, fpa, valid, r2=r2), truth, mask)
                 loss.backward()
                 opt.step()
                 t_train += time.monotonic() - ts
