@@ -286,10 +286,9 @@ class RadianceToTemperature(nn.Module):
     law (:func:`thermocal.radiometry.band_radiance`, Tau2 band by default) is inverted exactly
     by a table on a 0.02 K grid, ``margin_c`` beyond the range on both sides, with linear
     interpolation (error < 1e-4 K; beyond the table, its end segments extended, so that the
-    gradient never vanishes). The band must be that of the camera that made
-    the training data (:class:`ModelConfig` ``band_m``).
-    The table is built from the range, never stored in a weights file. Parameter-free;
-    differentiable in ``x̄``.
+    gradient never vanishes). The band must be that of the camera that made the training data
+    (:class:`ModelConfig` ``band_m``). The table is built from the range, never stored in a
+    weights file. Parameter-free; differentiable in ``x̄``.
     """
 
     def __init__(
