@@ -21,7 +21,8 @@ Tables:
    at a nominal FPA of 30 °C (pivot frame alone, and eq. 9 registered mean), and scene-based NUC
    (hardie2000 with the same homographies) followed by a global fit (the other unit's array-mean
    gain and offset); plus, for reference only, the same unit's own two-point calibration at the
-   burst's FPA (not calibration-free);
+   burst's FPA (not calibration-free); with ``--chamber`` (a model trained from unit A's
+   chamber file, the real-camera path), the eq. 9 mean through that file's radial model;
 2. MAE by trajectory (walk / hover) and mean error by distance from the sensor's centre for every
    method, and per-scene MAE of the KPN;
 3. speed and size: one 336×256 burst of 7 frames, parameters, multiply-adds, training
@@ -31,7 +32,7 @@ Fig. 7 (MAE against N for the three variants) is ``benchmarks/kpn_fig7.py``.
 
     .venv/bin/python benchmarks/kpn.py [--quick] [--json OUT.json] [--model MODEL.pt]
                                        [--register] [--accuracy-only] [--device cuda]
-                                       [--units 3,8,12,17,21]
+                                       [--units 3,8,12,17,21] [--chamber UNIT_A.h5]
 """
 
 from __future__ import annotations
@@ -126,26 +127,34 @@ def two_point_of(cam, fpa_c: float, housing_c: float, seed: int):
     return fit_two_point(lo, hi, 10.0, 50.0, fpa_ref_c=fpa_c)
 
 
-class FamilyModel:
-    """The average of the training units' camera models (gain, offset, housing maps), inverted
-    exactly: a perfect calibration-free calibration of the camera *family*. On a held-out unit
-    its error is the floor of any calibration-free method: what the unit differs from the
-    family (offset, gain, radial strengths), averaged over the burst by eq. 9."""
+class ExactModel:
+    """A camera model inverted exactly, for the eq. 9 mean (``naive_mean``) through it.
 
-    def __init__(self, units) -> None:
+    :meth:`family` is the average of the training units' models: a perfect calibration-free
+    calibration of the camera *family*; on a held-out unit its error is the floor of any
+    calibration-free method (what the unit differs from the family: offset, gain, radial
+    strengths, averaged over the burst by eq. 9). With a model fitted on unit A's chamber file
+    (``--chamber``) it is the floor of a network trained from that file.
+    """
+
+    def __init__(self, model, housing_offset_c: float = -1.5) -> None:
+        self.model = model
+        self.housing_offset_c = housing_offset_c  # the camera settled: housing = FPA − 1.5 °C
+
+    @classmethod
+    def family(cls, units) -> ExactModel:
         from dataclasses import replace
 
         cams = [make_camera("tau2", unit=u, size=(336, 256)) for u in units]
         base = cams[0]
-        self.model = replace(
+        return cls(replace(
             base,
             gain=np.mean([c.gain for c in cams], axis=0).astype(np.float32),
             offset=np.mean([c.offset for c in cams], axis=0).astype(np.float32),
             housing=np.mean([c.housing for c in cams], axis=0).astype(np.float32),
             defects=np.zeros(base.shape, bool),
             defect_counts=np.zeros(base.shape, np.uint16),
-        )
-        self.housing_offset_c = -1.5  # the camera settled: housing = FPA − 1.5 °C
+        ))
 
     @property
     def shape(self):
@@ -156,6 +165,10 @@ class FamilyModel:
 
         fpa = np.broadcast_to(np.asarray(fpa_c, dtype=np.float64), (len(frames),))
         return invert(self.model, frames, fpa, housing_c=fpa + self.housing_offset_c)
+
+
+FAMILY_ROW = "(floor) exact model of the average training unit (eq. 9 mean)"
+CHAMBER_ROW = "(floor) unit A's chamber model, exact (eq. 9 mean)"
 
 
 @functools.lru_cache(maxsize=2)
@@ -187,10 +200,11 @@ def scores(est: np.ndarray, b: dict) -> dict:
 KPN_ROW = "KPN + offset"
 
 
-def run_methods(bursts, model, norm, *, baselines: bool = True,
-                label: str = KPN_ROW) -> dict[str, list[dict]]:
+def run_methods(bursts, model, norm, *, baselines: bool = True, label: str = KPN_ROW,
+                references: dict[str, ExactModel] | None = None) -> dict[str, list[dict]]:
     """Every method on every burst: name → list of per-burst scores (the network's under
-    ``label``)."""
+    ``label``; an eq. 9 mean through each of ``references``, and with ``baselines`` through the
+    family model)."""
     from thermocal.nuc import correct_nonuniformity
 
     res: dict[str, list[dict]] = {}
@@ -198,7 +212,7 @@ def run_methods(bursts, model, norm, *, baselines: bool = True,
     if baselines:  # every burst is a whole 336×256 sensor
         other = make_camera("tau2", unit=OTHER_UNIT, size=(336, 256))
         other_cal = two_point_of(other, NOMINAL_FPA_C, NOMINAL_FPA_C - 1.5, 5)
-        family = FamilyModel(TRAIN_UNITS)
+        references = {FAMILY_ROW: ExactModel.family(TRAIN_UNITS)} | (references or {})
     for b in bursts:
         cam = b["camera"]
         if model is not None:
@@ -211,9 +225,14 @@ def run_methods(bursts, model, norm, *, baselines: bool = True,
                 pivot=b["pivot"],
             )
             res.setdefault(label, []).append(scores(e.temperature_c, b))
+        piv = b["pivot"]
+        for name, ref in (references or {}).items():
+            m9r = naive_mean(
+                b["frames"], ref, fpa_c=b["fpa_read"], homographies=b["hs"], pivot=piv
+            )
+            res.setdefault(name, []).append(scores(m9r.temperature_c, b))
         if not baselines:
             continue
-        piv = b["pivot"]
         t_piv = other_cal.apply(b["frames"][piv : piv + 1])[0]
         res.setdefault("two-point, other unit, FPA 30 °C (pivot frame)", []).append(
             scores(t_piv, b)
@@ -227,12 +246,6 @@ def run_methods(bursts, model, norm, *, baselines: bool = True,
         lo, hi = band.radiance_range
         t_nuc = band.temperature(np.clip((nuc - o) / g, lo, hi)) - 273.15
         res.setdefault("hardie2000 NUC + global fit (other unit)", []).append(scores(t_nuc, b))
-        fam = naive_mean(
-            b["frames"], family, fpa_c=b["fpa_read"], homographies=b["hs"], pivot=piv
-        )
-        res.setdefault("(floor) exact model of the average training unit (eq. 9 mean)", []).append(
-            scores(fam.temperature_c, b)
-        )
         own = two_point_of(cam, float(np.mean(b["fpa_true"])), float(np.mean(b["housing"])), 6)
         m9o = naive_mean(b["frames"], own, homographies=b["hs"], pivot=piv)
         res.setdefault("(reference) own two-point at the burst FPA (eq. 9 mean)", []).append(
@@ -338,8 +351,20 @@ def main() -> None:
         help="comma-separated camera units instead of the held-out ones (a diagnosis, e.g. "
         "training units: not the evaluation set)",
     )
+    ap.add_argument(
+        "--chamber",
+        type=Path,
+        default=None,
+        help="the chamber file of unit A the model was trained from (thermocal train --chamber):"
+        " adds that file's radial camera model, inverted exactly, as the floor",
+    )
     args = ap.parse_args()
     torch.set_num_threads(2)
+    references = {}
+    if args.chamber is not None:
+        from thermocal.calibration import camera_model_from_chamber
+
+        references[CHAMBER_ROW] = ExactModel(camera_model_from_chamber(args.chamber))
     path = args.model or shipped_model_path("kpn")
     model, norm, info = load_model(path)
     n = model.config.n_frames
@@ -349,7 +374,7 @@ def main() -> None:
     label = f"{KPN_ROW} ({'shipped' if args.model is None else path.name})"
     res = run_methods(
         bursts, model.to(resolve_device(args.device)), norm, baselines=not args.accuracy_only,
-        label=label,
+        label=label, references=references,
     )
     model.cpu()
     rows = summarise(res)

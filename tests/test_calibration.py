@@ -278,6 +278,18 @@ def test_camera_model_from_chamber_matches_the_true_unit(fit_run, camera):
         assert np.median(err) < 8.0 and err.max() < 20.0
 
 
+def test_camera_model_from_chamber_keeps_the_spread_of_the_fpn_it_drops(fit_run, camera):
+    """The radial model drops the pixel and column FPN; its size is measured, per preset unit."""
+    from thermocal.camera.presets import PRESETS
+
+    p = PRESETS["tau2"]
+    fpn = camera_model_from_chamber(fit_run[0], radial=True).info["pixel_fpn"]
+    assert fpn["offset_sigma_counts"] == pytest.approx(p.offset_pixel_sigma, rel=0.15)
+    assert fpn["gain_sigma"] == pytest.approx(p.gain_pixel_sigma, rel=0.25)
+    assert fpn["column_offset_sigma_counts"] == pytest.approx(p.column_offset_sigma, rel=0.5)
+    assert "pixel_fpn" not in camera_model_from_chamber(fit_run[0], radial=False).info
+
+
 def test_camera_model_from_chamber_radial_is_the_low_frequency_part(fit_run, camera):
     session, _ = fit_run
     model = camera_model_from_chamber(session, radial=True)

@@ -20,6 +20,7 @@ from thermocal.nn.data import (
     ScenePool,
     UnitCache,
     coverage_mask,
+    draw_pixel_fpn,
     make_burst,
     make_bursts,
     redraw_column_fpn,
@@ -96,6 +97,27 @@ def test_column_fpn_is_redrawn(cfg):
     assert ratio.std() > 0.01
     assert 0.85 < ratio.min() and ratio.max() < 1.15
     assert np.array_equal(new.offset[1:], cam.offset[1:])
+
+
+def test_fpn_drawn_on_a_chamber_model_keeps_its_mean_responsivity():
+    """A smooth model fitted on a chamber file already holds the unit's mean column factor
+    (≈ 0.955): the FPN drawn on it must not lower the responsivity again, and its pixel part
+    has the spread measured on the chamber file."""
+    from dataclasses import replace
+
+    smooth = replace(UnitCache("tau2", (64, 48)).get(0), info={
+        "pixel_fpn": {"offset_sigma_counts": 30.0, "gain_sigma": 0.015}})
+    rng = np.random.default_rng(2)
+    draws = [draw_pixel_fpn(redraw_column_fpn(smooth, 0, rng), rng) for _ in range(40)]
+    ratio = np.mean([float((d.gain[0] / smooth.gain[0]).mean()) for d in draws])
+    assert ratio == pytest.approx(1.0, abs=0.005)
+    one = draw_pixel_fpn(smooth, rng)
+    d_off = one.offset[0] - smooth.offset[0]
+    assert np.std(d_off) == pytest.approx(30.0, rel=0.1)
+    assert np.std(one.gain[0] / smooth.gain[0] - 1.0) == pytest.approx(0.015, rel=0.1)
+    assert np.array_equal(one.offset[1:], smooth.offset[1:])
+    unit = UnitCache("tau2", (64, 48)).get(0)
+    assert draw_pixel_fpn(unit, rng) is unit  # a preset unit has FPN of its own
 
 
 def test_held_out_sets_are_disjoint():

@@ -26,9 +26,11 @@ __all__ = [
     "check_burst",
     "check_overlap",
     "estimate_file",
+    "fill_stuck_pixels",
     "fpa_value",
     "naive_mean",
     "register",
+    "stuck_pixels",
 ]
 
 #: A frame with more than this fraction of its pixels at 0 or at the largest count is saturated.
@@ -85,6 +87,43 @@ def check_burst(
         if covered == 0 or float(f.max()) == float(f[f > 0].min() if registered else f.min()):
             raise InvalidInputError(f"{name}: frame {k} is constant (a dead or blank frame)")
     return arr
+
+
+def stuck_pixels(frames: np.ndarray, *, min_counts: float = 100.0, k: float = 10.0) -> np.ndarray:
+    """Defective pixels of a raw burst: those that stand out of their 3×3 neighbourhood in every
+    frame, ``(H, W)`` bool.
+
+    A stuck hot or dead pixel stays at its place on the sensor while the scene moves under it, so
+    it differs from the median of its neighbours in every frame; a small hot object moves away.
+    A pixel is flagged in a frame when it differs from that median by more than ``min_counts``
+    and ``k`` robust standard deviations of the frame's differences. Bursts of fewer than 3
+    frames give no defects (one cannot tell them from the scene).
+    """
+    import cv2  # a 3×3 median of float32 frames
+
+    arr = np.asarray(frames)
+    out = np.zeros(arr.shape[1:], dtype=bool)
+    if arr.shape[0] < 3:
+        return out
+    out[:] = True
+    for f in arr.astype(np.float32):
+        d = np.abs(f - cv2.medianBlur(f, 3))
+        out &= d > max(min_counts, k * 1.4826 * float(np.median(d)))
+    return out
+
+
+def fill_stuck_pixels(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A copy of a raw burst ``(N, H, W)`` with its :func:`stuck_pixels` replaced by the median
+    of their good 3×3 neighbours, and their mask ``(H, W)``; the dtype is kept."""
+    from thermocal.calibration.base import fill_bad_pixels
+
+    bad = stuck_pixels(frames)
+    if not bad.any():
+        return frames.copy(), bad
+    filled = fill_bad_pixels(frames.astype(np.float32), bad)
+    if np.issubdtype(frames.dtype, np.integer):
+        filled = np.rint(filled)
+    return filled.astype(frames.dtype), bad
 
 
 def register(
@@ -163,13 +202,18 @@ def naive_mean(
     pivot: int | None = None,
     registered: bool = False,
     homographies: Any = None,
+    fill_defects: bool = True,
 ) -> Estimate:
     """Eq. 9: the registered average of the per-frame temperatures given by a calibration.
 
     Every frame goes through ``calibration.apply(frames, fpa_c=…)`` (°C), is warped onto the
-    pivot, and the valid values of each pivot pixel are averaged.
+    pivot, and the valid values of each pivot pixel are averaged. With ``fill_defects`` (and
+    frames not yet registered) the burst's stuck pixels are first replaced by their neighbours'
+    median (:func:`fill_stuck_pixels`), as for the network.
     """
     arr = check_burst(frames, registered=registered)
+    if fill_defects and not registered:
+        arr, _ = fill_stuck_pixels(arr)
     if calibration.shape != arr.shape[1:]:
         raise ResolutionMismatchError(
             f"frames are {arr.shape[2]}x{arr.shape[1]} but the calibration is "

@@ -369,6 +369,38 @@ def _read(data: ChamberData, idx: np.ndarray) -> tuple[np.ndarray, list[np.ndarr
     return idx, out
 
 
+def _robust_sigma(x: np.ndarray) -> float:
+    """1.4826 × the median absolute deviation of the finite values of ``x``."""
+    x = x[np.isfinite(x)]
+    return float(1.4826 * np.median(np.abs(x - np.median(x))))
+
+
+def fpn_spread(cal: PolynomialCalibration, smooth: PolynomialCalibration) -> dict[str, float]:
+    """How far a unit's per-pixel maps stray from their radial fit ``smooth``: its FPN.
+
+    Split into a per-column part (the median over each column) and the per-pixel rest, of the
+    offset at ``t_ref_c`` (counts) and of the responsivity (relative to the radial fit). Robust
+    standard deviations (MAD) over the good pixels: a few defects do not count.
+
+    Returns
+    -------
+    dict
+        ``offset_sigma_counts``, ``gain_sigma`` (pixel part), ``column_offset_sigma_counts``,
+        ``column_gain_sigma`` (column part).
+    """
+    good = ~cal.bad
+    d = np.where(good, cal.offset[0] - smooth.offset[0], np.nan)
+    q = np.where(good, cal.gain[0] / smooth.gain[0], np.nan)
+    d_col = np.nanmedian(d, axis=0)
+    q_col = np.nanmedian(q, axis=0)
+    return {
+        "offset_sigma_counts": _robust_sigma(d - d_col),
+        "gain_sigma": _robust_sigma(q / q_col - 1.0),
+        "column_offset_sigma_counts": _robust_sigma(d_col),
+        "column_gain_sigma": _robust_sigma(q_col),
+    }
+
+
 def camera_model_from_chamber(
     session: Any,
     *,
@@ -385,7 +417,10 @@ def camera_model_from_chamber(
     separable from chamber data of a uniform blackbody), the temporal noise is estimated from
     consecutive frames (:func:`estimate_noise_sigma`), defects are the pixels the fit marked bad
     (stuck at their fitted level). With ``radial=True`` the per-pixel maps are replaced by their
-    radial fit (Oz et al. §IV-C): a unit-independent, low-frequency model without defects.
+    radial fit (Oz et al. §IV-C): a unit-independent, low-frequency model without defects; the
+    spread of the pixel FPN it drops is kept in ``info["pixel_fpn"]`` (:func:`fpn_spread`), so that
+    training can draw random FPN of this camera's size (Oz et al.: "Random FPN and Gaussian noise
+    were added to the model during training").
 
     Parameters
     ----------
@@ -401,8 +436,11 @@ def camera_model_from_chamber(
     cal = polynomial(data, scene="radiance", t_ref_c=t_ref_c, band_m=band_m, chunk=chunk)
     sigma = estimate_noise_sigma(data)
     bit_depth = data.session.bit_depth
+    fpn = None
     if radial:
-        cal = cal.radial(order=radial_order)
+        smooth = cal.radial(order=radial_order)
+        fpn = fpn_spread(cal, smooth)
+        cal = smooth
     defects = cal.bad.copy()
     defect_counts = np.zeros(cal.shape, dtype=np.uint16)
     defect_counts[defects] = np.clip(np.rint(cal.offset[0][defects]), 0, 2**bit_depth - 1)
@@ -415,6 +453,8 @@ def camera_model_from_chamber(
         "fpa_range_c": list(cal.fpa_range_c),
         "median_residual_counts": cal.info.get("median_residual_counts"),
     }
+    if fpn is not None:
+        info["pixel_fpn"] = fpn
     return CameraModel(
         gain=gain,
         offset=cal.offset.copy(),

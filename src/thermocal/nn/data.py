@@ -151,7 +151,8 @@ class BurstConfig:
         Map pixels per source-scene pixel, drawn log-uniformly.
     redraw_column_fpn : bool
         Re-draw the unit's column FPN (eq. 19: gain ``U[0.9, 1.01]`` per column, and the additive
-        column term) for every burst.
+        column term) for every burst, and draw pixel FPN for a camera fitted on a chamber file
+        (:func:`draw_pixel_fpn`).
     augment : bool
         Flips and 90° rotations, re-drawn levels and contrast (off for validation).
     preset : str
@@ -410,7 +411,8 @@ def redraw_column_fpn(camera: CameraModel, left: int, rng: np.random.Generator) 
     Eq. 19: the multiplicative column factor ``U[u_min, u_max]`` and the additive column offset
     of the preset are drawn again, replacing the unit's own. A camera without column FPN of its
     own (a radial model fitted on a chamber file, Oz et al. §IV-C) gets it on top, with the
-    ``tau2`` preset's ranges.
+    ``tau2`` preset's ranges, divided by the mean of the factor's range: the radial fit already
+    holds the unit's average column factor, which must not be counted twice.
     """
     info = camera.info
     p = info.get("preset_parameters") or asdict(PRESETS["tau2"])
@@ -419,13 +421,32 @@ def redraw_column_fpn(camera: CameraModel, left: int, rng: np.random.Generator) 
         old_gain = np.asarray(info["column_gain"], dtype=np.float32)[left : left + w]
         old_off = np.asarray(info["column_offset"], dtype=np.float32)[left : left + w]
     else:
-        old_gain, old_off = np.ones(w, np.float32), np.zeros(w, np.float32)
+        old_gain = np.full(w, np.mean(p["column_gain_range"]), np.float32)
+        old_off = np.zeros(w, np.float32)
     new_gain = rng.uniform(*p["column_gain_range"], size=w).astype(np.float32)
     new_off = (p["column_offset_sigma"] * rng.standard_normal(w)).astype(np.float32)
     gain = camera.gain * (new_gain / old_gain)[None, None, :]
     offset = camera.offset.copy()
     offset[0] += (new_off - old_off)[None, :]
     return replace(camera, gain=gain.astype(np.float32), offset=offset)
+
+
+def draw_pixel_fpn(camera: CameraModel, rng: np.random.Generator) -> CameraModel:
+    """``camera`` with random pixel FPN on top, if it is a smooth model fitted on a chamber file.
+
+    A radial model (:func:`~thermocal.calibration.polynomial.camera_model_from_chamber`) has no
+    pixel FPN; the spread it dropped is in ``camera.info["pixel_fpn"]``. Each call draws a new
+    pattern of that spread: responsivity × (1 + σ_g·z) and offset + σ_o·z′, z, z′ ~ N(0, 1) per
+    pixel. Any other camera is returned as it is (a preset unit has FPN of its own).
+    """
+    fpn = camera.info.get("pixel_fpn")
+    if not fpn:
+        return camera
+    shape = camera.shape
+    gain_factor = 1.0 + np.float32(fpn["gain_sigma"]) * rng.standard_normal(shape, np.float32)
+    offset = camera.offset.copy()
+    offset[0] += np.float32(fpn["offset_sigma_counts"]) * rng.standard_normal(shape, np.float32)
+    return replace(camera, gain=(camera.gain * gain_factor).astype(np.float32), offset=offset)
 
 
 def make_burst(
@@ -479,7 +500,7 @@ def make_burst(
     top, left = int(rng.integers(0, sh - s + 1)), int(rng.integers(0, sw - s + 1))
     cam = full.crop(top, left, s, s)
     if cfg.redraw_column_fpn:
-        cam = redraw_column_fpn(cam, left, rng)
+        cam = draw_pixel_fpn(redraw_column_fpn(cam, left, rng), rng)
     fpa_true = float(rng.uniform(*cfg.fpa_range_c)) if fpa_c is None else float(fpa_c)
     housing = fpa_true - _THERMAL.fpa_self_heating_c
     raw = render(cam, truth, fpa_true, housing_c=housing, rng=rng)

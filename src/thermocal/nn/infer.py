@@ -21,6 +21,7 @@ from thermocal.burst import (
     check_burst,
     check_overlap,
     estimate_file,
+    fill_stuck_pixels,
     fpa_value,
     naive_mean,
     register,
@@ -141,6 +142,7 @@ def estimate_burst(
     pivot: int | None = None,
     registered: bool = False,
     homographies: Any = None,
+    fill_defects: bool = True,
 ) -> Estimate:
     """Temperature of the pivot frame of a burst, °C.
 
@@ -158,6 +160,10 @@ def estimate_burst(
         The frames are already registered onto the pivot.
     homographies : (N, 3, 3), optional
         Known frame → pivot homographies (skips registration).
+    fill_defects : bool
+        Replace the burst's stuck pixels (:func:`~thermocal.burst.stuck_pixels`) by their
+        neighbours' median before registration (not for ``registered`` frames, where they no
+        longer stay in place): otherwise each leaves a short streak along the motion.
 
     Raises
     ------
@@ -174,6 +180,8 @@ def estimate_burst(
             f"of {n_model} frames"
         )
     fpa = fpa_value(fpa_c, arr.shape[0])
+    if fill_defects and not registered:
+        arr, _ = fill_stuck_pixels(arr)
     warped, valid, hs, p = register(
         arr, pivot=pivot, registered=registered, homographies=homographies
     )

@@ -1,0 +1,84 @@
+"""Stuck pixels of a raw burst: found from the burst alone, replaced before registration."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from thermocal.burst import fill_stuck_pixels, naive_mean, stuck_pixels
+from thermocal.calibration.two_point import fit_two_point
+from thermocal.camera.model import render
+from thermocal.camera.presets import make_camera
+from thermocal.scenes.procedural import procedural_scene
+from thermocal.simulate.flight import simulate_flight
+
+DEFECTS = [(5, 7, 16383), (20, 30, 16383), (40, 60, 16383), (12, 50, 300), (33, 9, 1500)]
+
+
+@pytest.fixture(scope="module")
+def camera():
+    """A 64×48 unit with five known defects (three hot, two dead) and no others."""
+    cam = make_camera("tau2", unit=101, size=(64, 48))
+    defects = np.zeros(cam.shape, bool)
+    counts = np.zeros(cam.shape, np.uint16)
+    for r, c, v in DEFECTS:
+        defects[r, c], counts[r, c] = True, v
+    return replace(cam, defects=defects, defect_counts=counts)
+
+
+@pytest.fixture(scope="module")
+def scene():
+    """An urban map with single-pixel hot spots (a small hot object is not a defect)."""
+    s = procedural_scene((200, 200), rng=np.random.default_rng(2), kind="urban")
+    s[::17, ::13] = 90.0
+    return s
+
+
+@pytest.mark.parametrize("motion", ["walk", "hover"])
+def test_stuck_pixels_are_the_units_defects(camera, scene, motion):
+    fl = simulate_flight(scene, camera, n_frames=5, motion=motion, fpa_c=30.0, seed=4)
+    found = stuck_pixels(fl.frames)
+    assert np.array_equal(found, camera.defects)
+
+
+def test_too_short_a_burst_gives_no_defects(camera, scene):
+    fl = simulate_flight(scene, camera, n_frames=3, motion="walk", fpa_c=30.0, seed=4)
+    assert not stuck_pixels(fl.frames[:2]).any()
+    assert stuck_pixels(fl.frames).sum() == len(DEFECTS)
+
+
+def test_fill_stuck_pixels_replaces_them_alone(camera, scene):
+    fl = simulate_flight(scene, camera, n_frames=5, motion="walk", fpa_c=30.0, seed=4)
+    before = fl.frames.copy()
+    filled, bad = fill_stuck_pixels(fl.frames)
+    assert np.array_equal(fl.frames, before)  # the input is not changed
+    assert filled.dtype == fl.frames.dtype and np.array_equal(bad, camera.defects)
+    assert np.array_equal(filled[:, ~bad], fl.frames[:, ~bad])
+    for r, c, _ in DEFECTS:  # the median of the 8 neighbours (none of them is a defect)
+        around = fl.frames[:, r - 1 : r + 2, c - 1 : c + 2].reshape(len(filled), 9).astype(float)
+        expected = np.median(np.delete(around, 4, axis=1), axis=1)
+        assert np.all(np.abs(filled[:, r, c] - expected) <= 0.5)
+
+
+def test_eq9_mean_leaves_no_defect_trail(camera):
+    """Through a two-point calibration of the unit made before its pixels failed (so that it
+    does not know the defects), each defect leaves a trail along the motion unless it is
+    replaced first."""
+    scene = procedural_scene((200, 200), rng=np.random.default_rng(2), kind="urban")
+    fl = simulate_flight(scene, camera, n_frames=5, motion="walk", fpa_c=30.0, seed=4)
+    rng = np.random.default_rng(0)
+    fpa, housing = float(fl.fpa_true_c.mean()), float(fl.housing_c.mean())
+    healthy = replace(camera, defects=np.zeros(camera.shape, bool))
+    lo = render(healthy, np.full(8, 10.0), fpa, housing_c=housing, rng=rng)
+    hi = render(healthy, np.full(8, 50.0), fpa, housing_c=housing, rng=rng)
+    cal = fit_two_point(lo, hi, 10.0, 50.0, fpa_ref_c=fpa)
+    truth = fl.truth_c[fl.pivot]
+    errs = {}
+    for fill in (False, True):
+        est = naive_mean(fl.frames, cal, homographies=fl.homographies, fill_defects=fill)
+        inner = est.coverage == 5
+        errs[fill] = np.abs(est.temperature_c - truth)[inner]
+    assert errs[False].max() > 10.0  # a hot pixel's share of a 5-frame mean
+    assert errs[True].max() < 5.0 and errs[True].mean() < errs[False].mean()
