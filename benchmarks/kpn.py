@@ -8,7 +8,8 @@ used units 0-23, its validation units 50-53), half by a walk (extreme views over
 ±1° around the pivot, which the training's drifting 60-80 % hover does not cover: the burst holds
 little parallax to tell the scene from the fixed pattern), an FPA temperature drawn over 15-45 °C,
 and the registration error of Oz et al. §IV-D on the true homographies (``--register``: the
-homographies found by ``register_burst`` instead).
+homographies found by ``register_burst`` instead). Every method gets the burst with its stuck
+pixels replaced (:func:`thermocal.burst.fill_stuck_pixels`, as ``thermocal estimate`` does).
 
 Tables:
 
@@ -50,7 +51,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from thermocal.burst import naive_mean
+from thermocal.burst import fill_stuck_pixels, naive_mean
 from thermocal.calibration.two_point import fit_two_point
 from thermocal.camera.model import render
 from thermocal.camera.presets import make_camera
@@ -204,7 +205,7 @@ def run_methods(bursts, model, norm, *, baselines: bool = True, label: str = KPN
                 references: dict[str, ExactModel] | None = None) -> dict[str, list[dict]]:
     """Every method on every burst: name → list of per-burst scores (the network's under
     ``label``; an eq. 9 mean through each of ``references``, and with ``baselines`` through the
-    family model)."""
+    family model). Every method gets the burst with its stuck pixels replaced."""
     from thermocal.nuc import correct_nonuniformity
 
     res: dict[str, list[dict]] = {}
@@ -215,9 +216,11 @@ def run_methods(bursts, model, norm, *, baselines: bool = True, label: str = KPN
         references = {FAMILY_ROW: ExactModel.family(TRAIN_UNITS)} | (references or {})
     for b in bursts:
         cam = b["camera"]
+        # the burst's stuck pixels replaced once, for every method (as thermocal.burst.prepare)
+        frames, _ = fill_stuck_pixels(b["frames"], b["hs"])
         if model is not None:
             e = estimate_burst(
-                b["frames"],
+                frames,
                 b["fpa_read"],
                 model=model,
                 norm=norm,
@@ -228,26 +231,26 @@ def run_methods(bursts, model, norm, *, baselines: bool = True, label: str = KPN
         piv = b["pivot"]
         for name, ref in (references or {}).items():
             m9r = naive_mean(
-                b["frames"], ref, fpa_c=b["fpa_read"], homographies=b["hs"], pivot=piv
+                frames, ref, fpa_c=b["fpa_read"], homographies=b["hs"], pivot=piv
             )
             res.setdefault(name, []).append(scores(m9r.temperature_c, b))
         if not baselines:
             continue
-        t_piv = other_cal.apply(b["frames"][piv : piv + 1])[0]
+        t_piv = other_cal.apply(frames[piv : piv + 1])[0]
         res.setdefault("two-point, other unit, FPA 30 °C (pivot frame)", []).append(
             scores(t_piv, b)
         )
-        m9 = naive_mean(b["frames"], other_cal, homographies=b["hs"], pivot=piv)
+        m9 = naive_mean(frames, other_cal, homographies=b["hs"], pivot=piv)
         res.setdefault("two-point, other unit, FPA 30 °C (eq. 9 mean)", []).append(
             scores(m9.temperature_c, b)
         )
-        nuc = correct_nonuniformity(b["frames"], method="hardie2000", homographies=b["hs"])[piv]
+        nuc = correct_nonuniformity(frames, method="hardie2000", homographies=b["hs"])[piv]
         g, o = float(other_cal.gain.mean()), float(other_cal.offset.mean())
         lo, hi = band.radiance_range
         t_nuc = band.temperature(np.clip((nuc - o) / g, lo, hi)) - 273.15
         res.setdefault("hardie2000 NUC + global fit (other unit)", []).append(scores(t_nuc, b))
         own = two_point_of(cam, float(np.mean(b["fpa_true"])), float(np.mean(b["housing"])), 6)
-        m9o = naive_mean(b["frames"], own, homographies=b["hs"], pivot=piv)
+        m9o = naive_mean(frames, own, homographies=b["hs"], pivot=piv)
         res.setdefault("(reference) own two-point at the burst FPA (eq. 9 mean)", []).append(
             scores(m9o.temperature_c, b)
         )
@@ -396,7 +399,8 @@ def main() -> None:
         f" (training units {info['data'].get('units', '?')[:1]}…"
         f"{info['data'].get('units', '?')[-1:]}); FPA 15-45 °C; registration: "
         f"{'register_burst' if args.register else 'true homographies + Oz error'}; "
-        f"metrics on pixels seen by ≥ half the frames; {eval_s:.0f} s\n"
+        f"stuck pixels replaced for every method; metrics on pixels seen by ≥ half the frames; "
+        f"{eval_s:.0f} s\n"
     )
     print(
         "| method | MAE °C | median MAE °C | within 0.5 °C | mean abs bias °C | "

@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from thermocal.burst import fill_stuck_pixels, naive_mean, stuck_pixels
+from thermocal.burst import fill_stuck_pixels, naive_mean, scene_motion_px, stuck_pixels
 from thermocal.calibration.two_point import fit_two_point
 from thermocal.camera.model import render
 from thermocal.camera.presets import make_camera
@@ -41,6 +41,33 @@ def test_stuck_pixels_are_the_units_defects(camera, scene, motion):
     fl = simulate_flight(scene, camera, n_frames=5, motion=motion, fpa_c=30.0, seed=4)
     found = stuck_pixels(fl.frames)
     assert np.array_equal(found, camera.defects)
+
+
+def test_a_static_scene_keeps_its_point_sources(camera, scene):
+    """A camera that does not move: the scene's single-pixel hot spots and thin lines stand out of
+    their neighbourhood in every frame too, and only the homographies tell them from defects."""
+    truth = scene[40:88, 40:104].copy()
+    truth[10, :] = 60.0  # a one-pixel-wide warm line
+    rng = np.random.default_rng(3)
+    frames = render(camera, np.repeat(truth[None], 5, axis=0), 30.0, housing_c=28.5, rng=rng)
+    still = np.repeat(np.eye(3)[None], 5, axis=0)
+    without = stuck_pixels(frames)
+    assert (without & ~camera.defects).sum() > 10  # the scene's spots and line look stuck ...
+    assert np.array_equal(stuck_pixels(frames, still), np.zeros(camera.shape, bool))  # ... not
+    moved = still.copy()
+    moved[:, 0, 2] = [-4.0, -2.0, 0.0, 2.0, 4.0]  # a 2 px-per-frame pan
+    assert scene_motion_px(moved, camera.shape).min() == pytest.approx(4.0)
+    assert scene_motion_px(still, camera.shape).max() == 0.0
+
+
+def test_stuck_pixels_take_any_array_and_keep_its_dtype(camera, scene):
+    fl = simulate_flight(scene, camera, n_frames=5, motion="walk", fpa_c=30.0, seed=4)
+    as_float = fl.frames.astype(np.float64) + 0.25
+    filled, bad = fill_stuck_pixels(as_float, fl.homographies)
+    assert filled.dtype == np.float64 and np.array_equal(bad, camera.defects)
+    assert np.array_equal(filled[:, ~bad], as_float[:, ~bad])  # bit for bit
+    listed, bad_l = fill_stuck_pixels(fl.frames.tolist())
+    assert np.array_equal(bad_l, bad) and listed.dtype == np.asarray(fl.frames.tolist()).dtype
 
 
 def test_too_short_a_burst_gives_no_defects(camera, scene):

@@ -105,6 +105,7 @@ def test_fpn_drawn_on_a_chamber_model_keeps_its_mean_responsivity():
     has the spread measured on the chamber file."""
     from dataclasses import replace
 
+    # stands in for a model fitted on a chamber file: no column FPN of its own in its info
     smooth = replace(UnitCache("tau2", (64, 48)).get(0), info={
         "pixel_fpn": {"offset_sigma_counts": 30.0, "gain_sigma": 0.015}})
     rng = np.random.default_rng(2)

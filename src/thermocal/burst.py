@@ -29,7 +29,9 @@ __all__ = [
     "fill_stuck_pixels",
     "fpa_value",
     "naive_mean",
+    "prepare",
     "register",
+    "scene_motion_px",
     "stuck_pixels",
 ]
 
@@ -89,15 +91,40 @@ def check_burst(
     return arr
 
 
-def stuck_pixels(frames: np.ndarray, *, min_counts: float = 100.0, k: float = 10.0) -> np.ndarray:
-    """Defective pixels of a raw burst: those that stand out of their 3×3 neighbourhood in every
-    frame, ``(H, W)`` bool.
+def scene_motion_px(homographies: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """How far the scene moves under each sensor pixel during a burst, px, ``(H, W)`` float32.
 
-    A stuck hot or dead pixel stays at its place on the sensor while the scene moves under it, so
-    it differs from the median of its neighbours in every frame; a small hot object moves away.
-    A pixel is flagged in a frame when it differs from that median by more than ``min_counts``
-    and ``k`` robust standard deviations of the frame's differences. Bursts of fewer than 3
-    frames give no defects (one cannot tell them from the scene).
+    ``homographies`` map each frame's pixels onto the pivot frame: pixel ``p`` of frame ``k`` sees
+    the scene point the pivot sees at ``H_k p``, so the largest ``|H_k p − p|`` over the frames is
+    how far the scene slid under ``p``.
+    """
+    h, w = shape
+    ys, xs = np.mgrid[0:h, 0:w].astype(np.float64)
+    pts = np.stack([xs.ravel(), ys.ravel(), np.ones(h * w)])
+    out = np.zeros(h * w)
+    for hk in np.asarray(homographies, dtype=np.float64):
+        q = hk @ pts
+        out = np.maximum(out, np.hypot(q[0] / q[2] - pts[0], q[1] / q[2] - pts[1]))
+    return out.reshape(h, w).astype(np.float32)
+
+
+def stuck_pixels(
+    frames: Any,
+    homographies: Any = None,
+    *,
+    min_counts: float = 100.0,
+    k: float = 10.0,
+    min_motion_px: float = 2.0,
+) -> np.ndarray:
+    """Defective pixels of a raw burst, ``(H, W)`` bool.
+
+    A stuck hot or dead pixel stays at its place on the sensor while the scene moves under it,
+    so it differs from the median of its 3×3 neighbours in every frame, where a small hot object
+    moves away. A pixel is flagged when, in every frame, it differs from that median by more than
+    ``min_counts`` and ``k`` robust standard deviations of the frame's differences, and (given
+    the frame → pivot ``homographies``) the scene slid at least ``min_motion_px`` under it
+    (:func:`scene_motion_px`): a static scene's point sources and thin lines are not defects.
+    Without homographies the scene is taken to move. Bursts of fewer than 3 frames give none.
     """
     import cv2  # a 3×3 median of float32 frames
 
@@ -106,24 +133,55 @@ def stuck_pixels(frames: np.ndarray, *, min_counts: float = 100.0, k: float = 10
     if arr.shape[0] < 3:
         return out
     out[:] = True
-    for f in arr.astype(np.float32):
+    for f in arr:
+        f = f.astype(np.float32)
         d = np.abs(f - cv2.medianBlur(f, 3))
         out &= d > max(min_counts, k * 1.4826 * float(np.median(d)))
+    if homographies is not None and out.any():
+        out &= scene_motion_px(homographies, out.shape) >= min_motion_px
     return out
 
 
-def fill_stuck_pixels(frames: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def fill_stuck_pixels(frames: Any, homographies: Any = None) -> tuple[np.ndarray, np.ndarray]:
     """A copy of a raw burst ``(N, H, W)`` with its :func:`stuck_pixels` replaced by the median
-    of their good 3×3 neighbours, and their mask ``(H, W)``; the dtype is kept."""
+    of their good 3×3 neighbours (rounded for integer frames), and their mask ``(H, W)``. Every
+    other pixel and the dtype are kept."""
     from thermocal.calibration.base import fill_bad_pixels
 
-    bad = stuck_pixels(frames)
-    if not bad.any():
-        return frames.copy(), bad
-    filled = fill_bad_pixels(frames.astype(np.float32), bad)
-    if np.issubdtype(frames.dtype, np.integer):
-        filled = np.rint(filled)
-    return filled.astype(frames.dtype), bad
+    arr = np.asarray(frames)
+    out = arr.copy()
+    bad = stuck_pixels(arr, homographies)
+    if bad.any():
+        filled = fill_bad_pixels(arr.astype(np.float32), bad)[:, bad]
+        if np.issubdtype(arr.dtype, np.integer):
+            filled = np.rint(filled)
+        out[:, bad] = filled.astype(arr.dtype)
+    return out, bad
+
+
+def prepare(
+    frames: np.ndarray,
+    *,
+    pivot: int | None = None,
+    registered: bool = False,
+    homographies: Any = None,
+    fill_defects: bool = True,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
+    """:func:`register` a checked raw burst, then replace its stuck pixels (``fill_defects``;
+    not for ``registered`` frames, where they no longer stay in place).
+
+    Returns ``(frames, warped, valid, homographies, pivot)``: the raw frames with their stuck
+    pixels replaced, and the registration of those frames.
+    """
+    warped, valid, hs, p = register(
+        frames, pivot=pivot, registered=registered, homographies=homographies
+    )
+    if fill_defects and not registered:
+        filled, bad = fill_stuck_pixels(frames, hs)
+        if bad.any():
+            frames = filled
+            warped, _ = warp_to_pivot(filled, hs)
+    return frames, warped, valid, hs, p
 
 
 def register(
@@ -207,21 +265,20 @@ def naive_mean(
     """Eq. 9: the registered average of the per-frame temperatures given by a calibration.
 
     Every frame goes through ``calibration.apply(frames, fpa_c=…)`` (°C), is warped onto the
-    pivot, and the valid values of each pivot pixel are averaged. With ``fill_defects`` (and
-    frames not yet registered) the burst's stuck pixels are first replaced by their neighbours'
-    median (:func:`fill_stuck_pixels`), as for the network.
+    pivot, and the valid values of each pivot pixel are averaged. With ``fill_defects`` the
+    burst's stuck pixels are first replaced by their neighbours' median (:func:`prepare`), as
+    for the network.
     """
     arr = check_burst(frames, registered=registered)
-    if fill_defects and not registered:
-        arr, _ = fill_stuck_pixels(arr)
     if calibration.shape != arr.shape[1:]:
         raise ResolutionMismatchError(
             f"frames are {arr.shape[2]}x{arr.shape[1]} but the calibration is "
             f"{calibration.shape[1]}x{calibration.shape[0]}"
         )
-    temps = calibration.apply(arr, fpa_c=fpa_c)
-    _, valid, hs, p = register(arr, pivot=pivot, registered=registered, homographies=homographies)
+    arr, _, valid, hs, p = prepare(arr, pivot=pivot, registered=registered,
+                                   homographies=homographies, fill_defects=fill_defects)
     check_overlap(valid, p)
+    temps = calibration.apply(arr, fpa_c=fpa_c)
     warped_t, valid_t = warp_to_pivot(temps, hs)
     valid_t &= valid
     count = valid_t.sum(axis=0)

@@ -19,6 +19,7 @@ defects) used to make the network's training data (:func:`camera_model_from_cham
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -369,36 +370,33 @@ def _read(data: ChamberData, idx: np.ndarray) -> tuple[np.ndarray, list[np.ndarr
     return idx, out
 
 
-def _robust_sigma(x: np.ndarray) -> float:
-    """1.4826 × the median absolute deviation of the finite values of ``x``."""
-    x = x[np.isfinite(x)]
-    return float(1.4826 * np.median(np.abs(x - np.median(x))))
-
-
 def fpn_spread(cal: PolynomialCalibration, smooth: PolynomialCalibration) -> dict[str, float]:
-    """How far a unit's per-pixel maps stray from their radial fit ``smooth``: its FPN.
+    """How far a unit's per-pixel maps stray from their radial fit ``smooth``: its pixel FPN.
 
-    Split into a per-column part (the median over each column) and the per-pixel rest, of the
-    offset at ``t_ref_c`` (counts) and of the responsivity (relative to the radial fit). Robust
-    standard deviations (MAD) over the good pixels: a few defects do not count.
+    The per-column part (each column's median) is set aside (eq. 19 draws column FPN of its own);
+    what is left are robust standard deviations (1.4826 × MAD over the good pixels, so that a few
+    defects do not count) of the offset at ``t_ref_c`` and of the responsivity relative to the
+    radial fit.
 
     Returns
     -------
     dict
-        ``offset_sigma_counts``, ``gain_sigma`` (pixel part), ``column_offset_sigma_counts``,
-        ``column_gain_sigma`` (column part).
+        ``offset_sigma_counts`` (counts) and ``gain_sigma`` (relative).
     """
     good = ~cal.bad
     d = np.where(good, cal.offset[0] - smooth.offset[0], np.nan)
     q = np.where(good, cal.gain[0] / smooth.gain[0], np.nan)
-    d_col = np.nanmedian(d, axis=0)
-    q_col = np.nanmedian(q, axis=0)
-    return {
-        "offset_sigma_counts": _robust_sigma(d - d_col),
-        "gain_sigma": _robust_sigma(q / q_col - 1.0),
-        "column_offset_sigma_counts": _robust_sigma(d_col),
-        "column_gain_sigma": _robust_sigma(q_col),
-    }
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # columns of bad pixels alone: NaN
+        d -= np.nanmedian(d, axis=0)
+        q = q / np.nanmedian(q, axis=0) - 1.0
+    out = {}
+    for name, x in (("offset_sigma_counts", d), ("gain_sigma", q)):
+        x = x[np.isfinite(x)]
+        if x.size < 2:
+            raise InvalidInputError("the chamber fit has too few good pixels to measure its FPN")
+        out[name] = float(1.4826 * np.median(np.abs(x - np.median(x))))
+    return out
 
 
 def camera_model_from_chamber(

@@ -11,10 +11,12 @@ place of their fitted degradation model:
    (middle) frame by 60-80 %;
 3. a sub-window of the sensor of a camera unit drawn from the *training units* renders every view
    at an FPA temperature drawn over the operating range (the camera settled at that ambient), with
-   the column FPN of eq. 19 re-drawn for the burst and temporal noise σ² = 5 counts² per frame;
+   the column FPN of eq. 19 re-drawn for the burst (and, for a model fitted on a chamber file,
+   pixel FPN of the spread measured there) and temporal noise σ² = 5 counts² per frame;
 4. the true frame → pivot homographies get the registration error of §IV-D (±2 px, N(0, 5e-5) on
-   h31, h32) and the frames are warped onto the pivot with it: the network's input, with validity
-   masks (a pivot pixel that a frame does not see is 0 and flagged False);
+   h31, h32), the burst's stuck pixels are replaced by their neighbours (as at inference) and the
+   frames are warped onto the pivot: the network's input, with validity masks (a pivot pixel that
+   a frame does not see is 0 and flagged False);
 5. the target is the scene in the pivot's view.
 
 Normalisation (eq. 20-21) maps temperatures and counts linearly onto ``[0, 1]`` with constants
@@ -31,6 +33,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from thermocal.burst import fill_stuck_pixels
 from thermocal.camera.model import CameraModel, render
 from thermocal.camera.presets import PRESETS, make_camera, radial_map
 from thermocal.camera.thermal import ThermalParams, fpa_sensor
@@ -515,7 +518,8 @@ def make_burst(
         perspective_sigma=cfg.perspective_sigma,
         pivot=pivot,
     )
-    warped, valid = warp_to_pivot(raw, h_reg)
+    filled, _ = fill_stuck_pixels(raw, h_reg)  # as inference does (thermocal.burst.prepare)
+    warped, valid = warp_to_pivot(filled, h_reg)
     return Burst(
         frames=warped,
         valid=valid,

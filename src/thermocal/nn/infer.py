@@ -21,9 +21,9 @@ from thermocal.burst import (
     check_burst,
     check_overlap,
     estimate_file,
-    fill_stuck_pixels,
     fpa_value,
     naive_mean,
+    prepare,
     register,
 )
 from thermocal.errors import InvalidInputError
@@ -162,8 +162,8 @@ def estimate_burst(
         Known frame → pivot homographies (skips registration).
     fill_defects : bool
         Replace the burst's stuck pixels (:func:`~thermocal.burst.stuck_pixels`) by their
-        neighbours' median before registration (not for ``registered`` frames, where they no
-        longer stay in place): otherwise each leaves a short streak along the motion.
+        neighbours' median before warping (:func:`~thermocal.burst.prepare`; not for
+        ``registered`` frames): otherwise each leaves a short trail along the motion.
 
     Raises
     ------
@@ -180,11 +180,8 @@ def estimate_burst(
             f"of {n_model} frames"
         )
     fpa = fpa_value(fpa_c, arr.shape[0])
-    if fill_defects and not registered:
-        arr, _ = fill_stuck_pixels(arr)
-    warped, valid, hs, p = register(
-        arr, pivot=pivot, registered=registered, homographies=homographies
-    )
+    _, warped, valid, hs, p = prepare(arr, pivot=pivot, registered=registered,
+                                      homographies=homographies, fill_defects=fill_defects)
     check_overlap(valid, p)
     temp = run_network(model, norm, _to_model_order(warped, p), _to_model_order(valid, p), fpa)
     return Estimate(temp, valid.sum(axis=0), hs, p)
