@@ -36,7 +36,7 @@ import torch
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 
-from kpn import eval_bursts, run_methods, summarise  # noqa: E402
+from kpn import FAMILY_ROW, ExactModel, eval_bursts, run_methods, summarise  # noqa: E402
 
 from thermocal.nn.data import BurstConfig, ScenePool, min_views  # noqa: E402
 from thermocal.nn.infer import shipped_model_path  # noqa: E402
@@ -130,8 +130,15 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
     out_dir = Path(args.out_dir) if args.out_dir else None
     rows = []
     torch.set_num_threads(args.eval_threads)
+    family = ExactModel.family(cfg.units)
     for n in ns:
         bursts = eval_bursts(n, quick=args.quick)
+        floor = summarise(run_methods(bursts, None, None, baselines=False,
+                                      references={FAMILY_ROW: family}))[0]
+        rows.append({"n": n, "variant": FLOOR, **{k: floor[k] for k in (
+            "mae_c", "bias_free_mae_c", "affine_free_mae_c", "within_0_5")}})
+        print(f"N={n} {FLOOR}: MAE {floor['mae_c']:.3f} °C, bias-free "
+              f"{floor['bias_free_mae_c']:.3f}", flush=True)
         for v in variants:
             model = models[(v, n)].cpu().eval()
             with tempfile.TemporaryDirectory() as tmp:
@@ -161,10 +168,16 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
     return rows
 
 
+#: The rows of the eq. 9 mean through the exact model of the average training unit.
+FLOOR = "family-floor"
+
+
 def to_figure_json(rows: list[dict], note: str) -> dict:
-    """The ``fig7.json`` layout the demo reads: ``{"n": [...], "mae_c": {variant: [...]}}``."""
+    """The ``fig7.json`` layout the demo reads: ``{"n": [...], "mae_c": {variant: [...]}}``;
+    the family model's floor, where measured, under ``"floor"``."""
     ns = sorted({r["n"] for r in rows})
-    variants = sorted({r["variant"] for r in rows}, key=["kpn", "kpn-no-offset", "e2e"].index)
+    order = ["kpn", "kpn-no-offset", "e2e"]
+    variants = sorted({r["variant"] for r in rows} & set(order), key=order.index)
     pick = {(r["variant"], r["n"]): r for r in rows}
     missing = [f"{v} N={n}" for v in variants for n in ns if (v, n) not in pick]
     if missing:
@@ -174,6 +187,9 @@ def to_figure_json(rows: list[dict], note: str) -> dict:
         "mae_c": {v: [pick[(v, n)]["mae_c"] for n in ns] for v in variants},
         "bias_free_mae_c": {v: [pick[(v, n)]["bias_free_mae_c"] for n in ns] for v in variants},
         "within_0_5": {v: [pick[(v, n)]["within_0_5"] for n in ns] for v in variants},
+        **({"floor": {k: [pick[(FLOOR, n)][k] if (FLOOR, n) in pick else None for n in ns]
+                      for k in ("mae_c", "bias_free_mae_c")}}
+           if any(r["variant"] == FLOOR for r in rows) else {}),
         "rows": rows,
         "note": note,
     }

@@ -112,7 +112,9 @@ def error_cdf_figure(estimates_c: dict[str, np.ndarray], truth_c: np.ndarray, *,
 def mae_vs_frames_figure(results: dict):
     """MAE against the number of frames N per network variant (Oz et al. Fig. 7).
 
-    ``results = {"n": [1, 3, …], "mae_c": {variant: [...]}, "note": "..."}``.
+    ``results = {"n": [1, 3, …], "mae_c": {variant: [...]}, "note": "..."}``, optionally with
+    ``"floor": {"mae_c": [...]}`` (the eq. 9 mean through the exact average training unit),
+    drawn dashed.
     """
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6.0, 4.0))
@@ -120,6 +122,10 @@ def mae_vs_frames_figure(results: dict):
     for name, values in results["mae_c"].items():
         ax.plot(results["n"], values, marker="o", label=name)
         values_all.extend(values)
+    floor = (results.get("floor") or {}).get("mae_c")
+    if floor and all(v is not None for v in floor):
+        ax.plot(results["n"], floor, "k--", marker=".", label="exact family model (eq. 9)")
+        values_all.extend(floor)
     if values_all and min(values_all) > 0 and max(values_all) > 4 * min(values_all):
         from matplotlib.ticker import FormatStrFormatter
 
