@@ -227,7 +227,8 @@ def main() -> None:
     rows = train_sweep(args, base.config)
     dev = torch.cuda.get_device_name() if resolve_device(args.device).type == "cuda" else "CPU"
     note = (
-        f"each model trained {args.minutes:g} min on shared bursts (batch {args.batch}, "
+        f"the models trained side by side for {args.minutes:g} min, {rows[-1]['steps']} steps "
+        f"each, on shared bursts (batch {args.batch}, "
         f"crop {args.crop}, lr {args.lr:g}) on {dev} ({os.cpu_count()} cores, "
         f"{platform.machine()}); evaluated on the held-out set of benchmarks/kpn.py"
         f"{' (quick)' if args.quick else ''}: MAE °C on pixels seen by >= half the frames"
