@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -24,6 +25,7 @@ from thermocal.nn.data import (
     make_burst,
     make_bursts,
     redraw_column_fpn,
+    redraw_pixel_fpn,
     sensor_r2,
 )
 from thermocal.scenes.procedural import procedural_scene
@@ -119,6 +121,35 @@ def test_fpn_drawn_on_a_chamber_model_keeps_its_mean_responsivity():
     assert np.array_equal(one.offset[1:], smooth.offset[1:])
     unit = UnitCache("tau2", (64, 48)).get(0)
     assert draw_pixel_fpn(unit, rng) is unit  # a preset unit has FPN of its own
+
+
+def test_pixel_fpn_of_a_preset_unit_is_redrawn():
+    """The unit's own pixel patterns are replaced by a new draw of the preset's spreads; the rest
+    of the camera (radial maps, column FPN, tempcos) stays."""
+    full = UnitCache("tau2", (64, 48)).get(3)
+    cam = full.crop(8, 16, 32, 40)
+    new = redraw_pixel_fpn(cam, 8, 16, np.random.default_rng(4))
+    old_off = full.info["pixel_offset"][8:40, 16:56]
+    old_gain = full.info["pixel_gain"][8:40, 16:56]
+    smooth_off = cam.offset[0] - old_off  # the unit without its pixel offset pattern
+    new_off = new.offset[0] - smooth_off
+    assert np.std(new_off) == pytest.approx(30.0, rel=0.1)
+    assert abs(np.corrcoef(new_off.ravel(), old_off.ravel())[0, 1]) < 0.1
+    new_gain = new.gain[0] / (cam.gain[0] / old_gain)
+    assert np.std(new_gain - 1.0) == pytest.approx(0.015, rel=0.1)
+    assert np.allclose(new.gain[1] / new.gain[0], cam.gain[1] / cam.gain[0], rtol=1e-5)
+    assert np.array_equal(new.offset[1:], cam.offset[1:])
+    chamber_like = replace(cam, info={})
+    assert redraw_pixel_fpn(chamber_like, 8, 16, np.random.default_rng(4)) is chamber_like
+
+
+def test_redrawn_pixel_fpn_is_an_option_of_the_stream(pool):
+    cfg = BurstConfig(n_frames=3, crop=32, units=(3,))
+    same = [make_burst(pool, cfg, rng=np.random.default_rng(9)) for _ in range(2)]
+    assert np.array_equal(same[0].frames, same[1].frames)  # off: the unit's own pattern
+    redrawn = make_burst(pool, replace(cfg, redraw_pixel_fpn=True), rng=np.random.default_rng(9))
+    assert not np.array_equal(redrawn.camera.offset[0], same[0].camera.offset[0])
+    assert np.array_equal(redrawn.truth_c, same[0].truth_c)
 
 
 def test_held_out_sets_are_disjoint():

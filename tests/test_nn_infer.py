@@ -348,6 +348,7 @@ def test_train_command_smoke(tmp_path, capsys):
             "1",
             "--scenes",
             "3",
+            "--redraw-pixel-fpn",
         ],
         capsys,
     )
@@ -355,6 +356,7 @@ def test_train_command_smoke(tmp_path, capsys):
     model, norm, info = load_model(out)
     assert model.config.n_frames == 3 and norm.counts_max > norm.counts_min
     assert model.config.radiance and model.config.radial == 2  # the defaults
+    assert info["data"]["redraw_pixel_fpn"] is True
     assert info["meta"]["val_mae_c"] is not None
     assert out.with_suffix(".ckpt").is_file()
     # --resume continues from the checkpoint

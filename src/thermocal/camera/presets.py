@@ -112,11 +112,9 @@ def make_camera(
     column_gain = pix.uniform(*p.column_gain_range, size=width).astype(np.float32)
     column_offset = (p.column_offset_sigma * pix.standard_normal(width)).astype(np.float32)
 
+    pixel_gain = 1.0 + p.gain_pixel_sigma * pix.standard_normal(shape, dtype=np.float32)
     responsivity = (
-        unit_gain
-        * (1.0 - strength[0] * p.vignetting * r2)
-        * (1.0 + p.gain_pixel_sigma * pix.standard_normal(shape, dtype=np.float32))
-        * column_gain[None, :]
+        unit_gain * (1.0 - strength[0] * p.vignetting * r2) * pixel_gain * column_gain[None, :]
     )
     gain = np.stack(
         [responsivity] + [responsivity * np.float32(a * s) for a, s in zip(
@@ -124,11 +122,9 @@ def make_camera(
     ).astype(np.float32)
 
     offset = np.empty((4, *shape), dtype=np.float32)
+    pixel_offset = p.offset_pixel_sigma * pix.standard_normal(shape, dtype=np.float32)
     offset[0] = (
-        unit_offset
-        + strength[1] * p.offset_radial * r2
-        + p.offset_pixel_sigma * pix.standard_normal(shape, dtype=np.float32)
-        + column_offset[None, :]
+        unit_offset + strength[1] * p.offset_radial * r2 + pixel_offset + column_offset[None, :]
     )
     offset[1] = tempco_scale[0] * p.offset_tempco[0] + p.offset_tempco_radial * strength[1] * r2
     offset[2] = tempco_scale[1] * p.offset_tempco[1]
@@ -161,6 +157,8 @@ def make_camera(
         "radial_strength": [float(s) for s in strength],
         "column_gain": column_gain,
         "column_offset": column_offset,
+        "pixel_gain": pixel_gain,
+        "pixel_offset": pixel_offset,
         "preset_parameters": asdict(p),
     }
     return CameraModel(

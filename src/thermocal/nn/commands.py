@@ -210,6 +210,12 @@ def estimate(
     help="Range of the training maps' mean temperature, °C (default -15:60).",
 )
 @click.option(
+    "--redraw-pixel-fpn",
+    is_flag=True,
+    help="Give every training burst a new pixel FPN of the preset's spread instead of its "
+    "unit's own (the validation units keep theirs).",
+)
+@click.option(
     "--init",
     "init",
     type=click.Path(path_type=Path),
@@ -255,6 +261,7 @@ def train(
     threads: int,
     workers: int,
     temp_mean_range_c: str | None,
+    redraw_pixel_fpn: bool,
     init: Path | None,
     device: str,
 ) -> None:
@@ -339,6 +346,8 @@ def train(
     extra = {}
     if temp_mean_range_c:
         extra["temp_mean_range_c"] = _parse_range(temp_mean_range_c, "--temp-mean-range-c")
+    if redraw_pixel_fpn:
+        extra["redraw_pixel_fpn"] = True
     burst_cfg = BurstConfig(
         n_frames=n_frames,
         crop=crop,

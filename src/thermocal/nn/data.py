@@ -156,6 +156,9 @@ class BurstConfig:
         Re-draw the unit's column FPN (eq. 19: gain ``U[0.9, 1.01]`` per column, and the additive
         column term) for every burst, and draw pixel FPN for a camera fitted on a chamber file
         (:func:`draw_pixel_fpn`).
+    redraw_pixel_fpn : bool
+        Replace a preset unit's pixel FPN by a new draw for every burst
+        (:func:`redraw_pixel_fpn`); the validation units keep theirs.
     augment : bool
         Flips and 90° rotations, re-drawn levels and contrast (off for validation).
     preset : str
@@ -178,6 +181,7 @@ class BurstConfig:
     temp_clip_c: tuple[float, float] = (-40.0, 100.0)
     map_scale_range: tuple[float, float] = (0.5, 2.0)
     redraw_column_fpn: bool = True
+    redraw_pixel_fpn: bool = False
     augment: bool = True
     preset: str = "tau2"
     units: tuple[int, ...] = TRAIN_UNITS
@@ -452,6 +456,30 @@ def draw_pixel_fpn(camera: CameraModel, rng: np.random.Generator) -> CameraModel
     return replace(camera, gain=(camera.gain * gain_factor).astype(np.float32), offset=offset)
 
 
+def redraw_pixel_fpn(
+    camera: CameraModel, top: int, left: int, rng: np.random.Generator
+) -> CameraModel:
+    """The sensor window ``camera`` (at ``top, left`` of a preset unit) with new pixel FPN.
+
+    The unit's own pixel patterns (``info["pixel_gain"]``, ``info["pixel_offset"]``) are replaced
+    by a new draw of the preset's spreads: every burst then shows the network a pattern it has
+    not seen, as Oz et al. add random FPN to their model. A camera without its own patterns is
+    returned as it is.
+    """
+    info = camera.info
+    if "pixel_gain" not in info:
+        return camera
+    p = info["preset_parameters"]
+    h, w = camera.shape
+    window = (slice(top, top + h), slice(left, left + w))
+    new_gain = 1.0 + np.float32(p["gain_pixel_sigma"]) * rng.standard_normal((h, w), np.float32)
+    new_off = np.float32(p["offset_pixel_sigma"]) * rng.standard_normal((h, w), np.float32)
+    offset = camera.offset.copy()
+    offset[0] += new_off - info["pixel_offset"][window]
+    gain = camera.gain * (new_gain / info["pixel_gain"][window])[None]
+    return replace(camera, gain=gain.astype(np.float32), offset=offset)
+
+
 def make_burst(
     pool: ScenePool,
     cfg: BurstConfig,
@@ -504,6 +532,8 @@ def make_burst(
     cam = full.crop(top, left, s, s)
     if cfg.redraw_column_fpn:
         cam = draw_pixel_fpn(redraw_column_fpn(cam, left, rng), rng)
+    if cfg.redraw_pixel_fpn:
+        cam = redraw_pixel_fpn(cam, top, left, rng)
     fpa_true = float(rng.uniform(*cfg.fpa_range_c)) if fpa_c is None else float(fpa_c)
     housing = fpa_true - _THERMAL.fpa_self_heating_c
     raw = render(cam, truth, fpa_true, housing_c=housing, rng=rng)

@@ -438,7 +438,9 @@ def train(
     else:
         norm = fit_normalisation(pool, burst_cfg, seed=train_cfg.seed, cameras=cameras)
 
-    val_cfg = BurstConfig(**{**asdict(burst_cfg), "units": tuple(val_units)})
+    val_cfg = BurstConfig(
+        **{**asdict(burst_cfg), "units": tuple(val_units), "redraw_pixel_fpn": False}
+    )
     val_pool = val_pool_fn()
     val_units_cache = _unit_cache(val_cfg, cameras)
     val_bursts = [
