@@ -226,12 +226,14 @@ def run_methods(bursts, model, norm, *, baselines: bool = True, label: str = KPN
                 norm=norm,
                 homographies=b["hs"],
                 pivot=b["pivot"],
+                fill_defects=False,  # filled above
             )
             res.setdefault(label, []).append(scores(e.temperature_c, b))
         piv = b["pivot"]
         for name, ref in (references or {}).items():
             m9r = naive_mean(
-                frames, ref, fpa_c=b["fpa_read"], homographies=b["hs"], pivot=piv
+                frames, ref, fpa_c=b["fpa_read"], homographies=b["hs"], pivot=piv,
+                fill_defects=False,
             )
             res.setdefault(name, []).append(scores(m9r.temperature_c, b))
         if not baselines:
@@ -240,7 +242,8 @@ def run_methods(bursts, model, norm, *, baselines: bool = True, label: str = KPN
         res.setdefault("two-point, other unit, FPA 30 °C (pivot frame)", []).append(
             scores(t_piv, b)
         )
-        m9 = naive_mean(frames, other_cal, homographies=b["hs"], pivot=piv)
+        m9 = naive_mean(frames, other_cal, homographies=b["hs"], pivot=piv,
+                        fill_defects=False)
         res.setdefault("two-point, other unit, FPA 30 °C (eq. 9 mean)", []).append(
             scores(m9.temperature_c, b)
         )
@@ -250,7 +253,7 @@ def run_methods(bursts, model, norm, *, baselines: bool = True, label: str = KPN
         t_nuc = band.temperature(np.clip((nuc - o) / g, lo, hi)) - 273.15
         res.setdefault("hardie2000 NUC + global fit (other unit)", []).append(scores(t_nuc, b))
         own = two_point_of(cam, float(np.mean(b["fpa_true"])), float(np.mean(b["housing"])), 6)
-        m9o = naive_mean(frames, own, homographies=b["hs"], pivot=piv)
+        m9o = naive_mean(frames, own, homographies=b["hs"], pivot=piv, fill_defects=False)
         res.setdefault("(reference) own two-point at the burst FPA (eq. 9 mean)", []).append(
             scores(m9o.temperature_c, b)
         )

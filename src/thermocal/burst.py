@@ -167,21 +167,44 @@ def prepare(
     homographies: Any = None,
     fill_defects: bool = True,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
-    """:func:`register` a checked raw burst, then replace its stuck pixels (``fill_defects``;
-    not for ``registered`` frames, where they no longer stay in place).
+    """:func:`register` a checked raw burst, replacing its stuck pixels (``fill_defects``; not
+    for ``registered`` frames, where they no longer stay in place) before the frames are warped.
 
     Returns ``(frames, warped, valid, homographies, pivot)``: the raw frames with their stuck
     pixels replaced, and the registration of those frames.
     """
-    warped, valid, hs, p = register(
-        frames, pivot=pivot, registered=registered, homographies=homographies
-    )
-    if fill_defects and not registered:
-        filled, bad = fill_stuck_pixels(frames, hs)
-        if bad.any():
-            frames = filled
-            warped, _ = warp_to_pivot(filled, hs)
+    if registered or not fill_defects:
+        return (frames, *register(frames, pivot=pivot, registered=registered,
+                                  homographies=homographies))
+    hs, p = _homographies(frames, _pivot_index(pivot, frames.shape[0]), homographies)
+    frames, _ = fill_stuck_pixels(frames, hs)
+    warped, valid = warp_to_pivot(frames, hs)
     return frames, warped, valid, hs, p
+
+
+def _pivot_index(pivot: int | None, n: int) -> int:
+    """The pivot frame's index (default the middle one), checked against ``n`` frames."""
+    if pivot is None:
+        pivot = n // 2
+    if not 0 <= pivot < n:
+        raise InvalidInputError(f"pivot {pivot} is not a frame index (0 … {n - 1})")
+    return pivot
+
+
+def _homographies(frames: np.ndarray, pivot: int, homographies: Any) -> tuple[np.ndarray, int]:
+    """Frame → pivot homographies: ``homographies`` checked, or found by ``register_burst``."""
+    n = frames.shape[0]
+    if homographies is not None:
+        return as_homographies(homographies, n=n), pivot
+    try:
+        from thermocal.registration import register_burst
+    except ImportError:
+        raise RegistrationError(
+            "burst registration is not available in this installation; register the frames "
+            "yourself and pass --registered"
+        ) from None
+    reg = register_burst(frames, pivot=pivot)
+    return as_homographies(reg.homographies, n=n), int(reg.pivot)
 
 
 def register(
@@ -198,31 +221,16 @@ def register(
     Otherwise :func:`thermocal.registration.register_burst` finds the homographies.
     """
     n = frames.shape[0]
-    if pivot is None:
-        pivot = n // 2
-    if not 0 <= pivot < n:
-        raise InvalidInputError(f"pivot {pivot} is not a frame index (0 … {n - 1})")
-    if homographies is not None:
-        hs = as_homographies(homographies, n=n)
-        warped, valid = warp_to_pivot(frames, hs)
-        return warped, valid, hs, pivot
-    if registered:
+    pivot = _pivot_index(pivot, n)
+    if registered and homographies is None:
         hs = np.repeat(np.eye(3)[None], n, axis=0)
         warped = frames.astype(np.float32)
         valid = frames > 0
         valid[pivot] = True
         return warped, valid, hs, pivot
-    try:
-        from thermocal.registration import register_burst
-    except ImportError:
-        raise RegistrationError(
-            "burst registration is not available in this installation; register the frames "
-            "yourself and pass --registered"
-        ) from None
-    reg = register_burst(frames, pivot=pivot)
-    hs = as_homographies(reg.homographies, n=n)
+    hs, pivot = _homographies(frames, pivot, homographies)
     warped, valid = warp_to_pivot(frames, hs)
-    return warped, valid, hs, int(reg.pivot)
+    return warped, valid, hs, pivot
 
 
 def check_overlap(valid: np.ndarray, pivot: int) -> None:

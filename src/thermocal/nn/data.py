@@ -449,11 +449,7 @@ def draw_pixel_fpn(camera: CameraModel, rng: np.random.Generator) -> CameraModel
     fpn = camera.info.get("pixel_fpn")
     if not fpn:
         return camera
-    shape = camera.shape
-    gain_factor = 1.0 + np.float32(fpn["gain_sigma"]) * rng.standard_normal(shape, np.float32)
-    offset = camera.offset.copy()
-    offset[0] += np.float32(fpn["offset_sigma_counts"]) * rng.standard_normal(shape, np.float32)
-    return replace(camera, gain=(camera.gain * gain_factor).astype(np.float32), offset=offset)
+    return _new_pixel_fpn(camera, fpn["gain_sigma"], fpn["offset_sigma_counts"], rng)
 
 
 def redraw_pixel_fpn(
@@ -472,11 +468,28 @@ def redraw_pixel_fpn(
     p = info["preset_parameters"]
     h, w = camera.shape
     window = (slice(top, top + h), slice(left, left + w))
-    new_gain = 1.0 + np.float32(p["gain_pixel_sigma"]) * rng.standard_normal((h, w), np.float32)
-    new_off = np.float32(p["offset_pixel_sigma"]) * rng.standard_normal((h, w), np.float32)
+    return _new_pixel_fpn(camera, p["gain_pixel_sigma"], p["offset_pixel_sigma"], rng,
+                          old_gain=info["pixel_gain"][window],
+                          old_offset=info["pixel_offset"][window])
+
+
+def _new_pixel_fpn(
+    camera: CameraModel,
+    gain_sigma: float,
+    offset_sigma: float,
+    rng: np.random.Generator,
+    *,
+    old_gain: np.ndarray | float = 1.0,
+    old_offset: np.ndarray | float = 0.0,
+) -> CameraModel:
+    """``camera`` with its pixel FPN ``old_gain`` (factor on the responsivity) and
+    ``old_offset`` (counts) replaced by a new draw: ``1 + gain_sigma·z``, ``offset_sigma·z′``."""
+    shape = camera.shape
+    new_gain = 1.0 + np.float32(gain_sigma) * rng.standard_normal(shape, np.float32)
+    new_off = np.float32(offset_sigma) * rng.standard_normal(shape, np.float32)
     offset = camera.offset.copy()
-    offset[0] += new_off - info["pixel_offset"][window]
-    gain = camera.gain * (new_gain / info["pixel_gain"][window])[None]
+    offset[0] += new_off - old_offset
+    gain = camera.gain * (new_gain / old_gain)[None]
     return replace(camera, gain=gain.astype(np.float32), offset=offset)
 
 
