@@ -9,7 +9,8 @@ burst generation, not the network, bounds the training speed. Each model then ru
 held-out evaluation set of ``benchmarks/kpn.py`` made with N frames (held-out real scenes, held-out
 camera units 100-104, full 336×256 frames).
 
-Optimisation: Adam at ``--lr``, halved at 50 % and 75 % of the budget (a fixed schedule: the
+Optimisation: Adam at ``--lr``, halved at 50 % and 75 % of the budget (``--minutes``, or
+``--steps`` where that comes first; a fixed schedule: the
 models share one budget, so none stops early); the loss of eq. 12 over the pixels seen by at least
 half of the model's N frames. Network sizes are the shipped model's unless given.
 
@@ -100,8 +101,12 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
     t0, steps, budget = time.monotonic(), 0, 60.0 * args.minutes
     losses = {k: [] for k in models}
     it = iter(loader)
-    while time.monotonic() - t0 < budget:
-        frac = (time.monotonic() - t0) / budget
+
+    def done() -> float:  # the fraction of the budget (minutes, or --steps where given) spent
+        return max((time.monotonic() - t0) / budget, steps / args.steps if args.steps else 0.0)
+
+    while done() < 1.0:
+        frac = done()
         lr = args.lr * (0.25 if frac > 0.75 else 0.5 if frac > 0.5 else 1.0)
         batch = tuple(t.to(device, non_blocking=True) for t in next(it))
         for key, model in models.items():
@@ -156,6 +161,7 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
                     "affine_free_mae_c": s["affine_free_mae_c"],
                     "within_0_5": s["within_0_5"],
                     "steps": steps,
+                    "minutes": round(wall / 60, 2),
                     "batch": args.batch,
                     "train_loss_last100": float(np.mean(losses[(v, n)][-100:])),
                 }
@@ -198,6 +204,8 @@ def to_figure_json(rows: list[dict], note: str) -> dict:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--minutes", type=float, default=5.0)
+    ap.add_argument("--steps", type=int, default=None,
+                    help="stop after this many steps if the --minutes run out later")
     ap.add_argument("--ns", default="1,3,5,7,9,11")
     ap.add_argument("--variants", default="kpn,kpn-no-offset,e2e")
     ap.add_argument("--device", default="auto")
@@ -227,8 +235,8 @@ def main() -> None:
     rows = train_sweep(args, base.config)
     dev = torch.cuda.get_device_name() if resolve_device(args.device).type == "cuda" else "CPU"
     note = (
-        f"the models trained side by side for {args.minutes:g} min, {rows[-1]['steps']} steps "
-        f"each, on shared bursts (batch {args.batch}, "
+        f"the models trained side by side for {rows[-1]['minutes']:g} min, "
+        f"{rows[-1]['steps']} steps each, on shared bursts (batch {args.batch}, "
         f"crop {args.crop}, lr {args.lr:g}) on {dev} ({os.cpu_count()} cores, "
         f"{platform.machine()}); evaluated on the held-out set of benchmarks/kpn.py"
         f"{' (quick)' if args.quick else ''}: MAE °C on pixels seen by >= half the frames"

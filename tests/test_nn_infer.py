@@ -20,7 +20,7 @@ from thermocal.nn import infer  # noqa: E402
 from thermocal.nn.data import BurstConfig, Normalisation  # noqa: E402
 from thermocal.nn.infer import estimate_burst, naive_mean, run_network  # noqa: E402
 from thermocal.nn.model import KPN, ModelConfig  # noqa: E402
-from thermocal.nn.train import load_model, save_model  # noqa: E402
+from thermocal.nn.train import TrainConfig, load_model, save_model, step_lr  # noqa: E402
 from thermocal.scenes.procedural import procedural_scene  # noqa: E402
 from thermocal.simulate.flight import simulate_flight, write_flight  # noqa: E402
 
@@ -377,6 +377,34 @@ def test_train_command_smoke(tmp_path, capsys):
     )
     assert code == 0, err
     assert json.loads(json.dumps(info["data"]))["n_frames"] == 3
+
+
+def test_step_lr_halves_at_half_and_three_quarters_of_the_first_budget_to_run_out():
+    cfg = TrainConfig(lr=1e-3, steps_per_epoch=10, max_epochs=100, max_steps=400)
+    assert [step_lr(cfg, s, 0.0) for s in (0, 199, 200, 299, 300, 399)] == [
+        1e-3, 1e-3, 5e-4, 5e-4, 2.5e-4, 2.5e-4]
+    # epochs run out first (100 steps), then minutes (30 s of 1 min)
+    assert step_lr(TrainConfig(lr=1.0, steps_per_epoch=10, max_epochs=10), 50, 0.0) == 0.5
+    assert step_lr(TrainConfig(lr=1.0, max_epochs=10**6, max_minutes=1.0), 0, 30.0) == 0.5
+    assert step_lr(TrainConfig(lr=1.0, max_epochs=10**6, max_minutes=1.0), 0, 45.0) == 0.25
+
+
+def test_train_step_schedule_runs_its_budget_without_early_stop(tmp_path, capsys):
+    out = tmp_path / "m.pt"
+    code, err = run(
+        ["train", "--out", str(out), "--frames", "3", "--mu", "4", "--levels", "1", "--kernel",
+         "3", "--crop", "32", "--batch", "2", "--steps-per-epoch", "1", "--steps", "4",
+         "--val-bursts", "2", "--units", "0-1", "--workers", "0", "--threads", "1", "--scenes",
+         "3", "--lr", "1e-3", "--lr-schedule", "step"],
+        capsys,
+    )
+    assert code == 0, err
+    history = torch.load(out.with_suffix(".ckpt"), weights_only=False)["history"]
+    # the rate of each epoch's (single) step: steps 0, 1 at 1e-3, 2 at 5e-4, 3 at 2.5e-4
+    assert [h["lr"] for h in history] == [1e-3, 1e-3, 5e-4, 2.5e-4]
+    assert "stopped: max_steps" in err
+    code, err = run(["train", "--out", str(out), "--lr-schedule", "cosine"], capsys)
+    assert code == 2 and "lr-schedule" in err
 
 
 def test_train_bad_options(tmp_path, capsys):

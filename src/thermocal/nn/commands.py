@@ -199,6 +199,15 @@ def estimate(
     default=None,
     help="Wall-clock budget; the run saves and stops cleanly when it runs out.",
 )
+@click.option(
+    "--lr-schedule",
+    type=click.Choice(["plateau", "step"]),
+    default="plateau",
+    show_default=True,
+    help="plateau: halve the learning rate after 3 epochs without improvement, stop after 8 "
+    "(Oz et al.); step: halve it at 50 % and 75 % of the budget (--steps, --max-minutes or "
+    "--max-epochs, the first to run out), no early stop.",
+)
 @click.option("--resume", is_flag=True, help="Continue from OUT.ckpt.")
 @click.option("--threads", type=int, default=2, show_default=True)
 @click.option(
@@ -257,6 +266,7 @@ def train(
     n_scenes: int,
     chamber: Path | None,
     max_minutes: float | None,
+    lr_schedule: str,
     resume: bool,
     threads: int,
     workers: int,
@@ -361,6 +371,7 @@ def train(
         steps_per_epoch=steps_per_epoch,
         max_epochs=max_epochs,
         lr=lr,
+        lr_schedule=lr_schedule,
         seed=seed,
         val_bursts=val_bursts,
         max_minutes=max_minutes,

@@ -72,7 +72,11 @@ class TrainConfig:
     lr : float
         Adam learning rate.
     lr_patience, stop_patience : int
-        Epochs without improvement before halving the learning rate / stopping.
+        Epochs without improvement before halving the learning rate / stopping (``"plateau"``).
+    lr_schedule : str
+        ``"plateau"`` (the paper's: halve on a validation plateau, stop early) or ``"step"``
+        (halve at 50 % and 75 % of the budget, the first of ``max_steps``, ``max_minutes`` and
+        ``max_epochs`` to run out; no early stop, the best validated weights are kept).
     seed : int
         Seed of torch and of the data streams.
     val_bursts : int
@@ -95,6 +99,7 @@ class TrainConfig:
     lr: float = 1e-4
     lr_patience: int = 3
     stop_patience: int = 8
+    lr_schedule: str = "plateau"
     seed: int = 42
     val_bursts: int = 64
     max_minutes: float | None = None
@@ -330,6 +335,18 @@ def validate(
     return float(np.mean(losses)), abs_sum / max(n_pix, 1), rel_sum / max(n_pix, 1)
 
 
+def step_lr(cfg: TrainConfig, step: int, elapsed_s: float) -> float:
+    """The learning rate of the ``"step"`` schedule: ``lr``, halved once half of the budget is
+    spent and again at three quarters (the budget: the first of ``max_steps``, ``max_minutes``
+    of this call and ``max_epochs · steps_per_epoch`` to run out)."""
+    spent = step / (cfg.max_epochs * cfg.steps_per_epoch)
+    if cfg.max_steps is not None:
+        spent = max(spent, step / cfg.max_steps)
+    if cfg.max_minutes is not None:
+        spent = max(spent, elapsed_s / (60.0 * cfg.max_minutes))
+    return cfg.lr * (0.25 if spent >= 0.75 else 0.5 if spent >= 0.5 else 1.0)
+
+
 def train(
     out: str | os.PathLike[str],
     model_cfg: ModelConfig,
@@ -401,6 +418,8 @@ def train(
                 "threads": train_cfg.threads,
             }
         )
+    if train_cfg.lr_schedule not in ("plateau", "step"):
+        raise InvalidInputError(f"lr_schedule must be plateau or step, got {train_cfg.lr_schedule}")
     if model_cfg.n_frames != burst_cfg.n_frames:
         raise InvalidInputError(
             f"model has N = {model_cfg.n_frames} but the data N = {burst_cfg.n_frames}"
@@ -544,6 +563,9 @@ def train(
             out_of_time = False
             for _ in range(train_cfg.steps_per_epoch):
                 ts = time.monotonic()
+                if train_cfg.lr_schedule == "step":
+                    for g in opt.param_groups:
+                        g["lr"] = step_lr(train_cfg, step, time.monotonic() - t0)
                 frames, fpa, valid, truth, mask, r2 = (
                     t.to(device, non_blocking=True) for t in next(it)
                 )
@@ -572,7 +594,8 @@ def train(
                     break
             epoch += 1
             val_loss, val_mae, val_rel = validate(model, val, norm)
-            sched.step(val_loss)
+            if train_cfg.lr_schedule == "plateau":
+                sched.step(val_loss)
             lr = opt.param_groups[0]["lr"]
             history.append(
                 {
@@ -618,7 +641,7 @@ def train(
             if train_cfg.max_steps is not None and step >= train_cfg.max_steps:
                 stopped = "max_steps"
                 break
-            if bad >= train_cfg.stop_patience:
+            if bad >= train_cfg.stop_patience and train_cfg.lr_schedule == "plateau":
                 stopped = "early_stop"
                 break
     del it, loader
