@@ -10,7 +10,7 @@ held-out evaluation set of ``benchmarks/kpn.py`` made with N frames (held-out re
 camera units 100-104, full 336×256 frames).
 
 Optimisation: Adam at ``--lr``, halved at 50 % and 75 % of the budget (``--minutes``, or
-``--steps`` where that comes first; a fixed schedule: the
+``--steps`` where that comes first: ``thermocal train --lr-schedule step``; a fixed schedule: the
 models share one budget, so none stops early); the loss of eq. 12 over the pixels seen by at least
 half of the model's N frames. Network sizes are the shipped model's unless given.
 
@@ -44,12 +44,14 @@ from thermocal.nn.infer import shipped_model_path  # noqa: E402
 from thermocal.nn.loss import kpn_loss  # noqa: E402
 from thermocal.nn.model import KPN, ModelConfig  # noqa: E402
 from thermocal.nn.train import (  # noqa: E402
+    TrainConfig,
     _seed_everything,
     _Stream,
     fit_normalisation,
     load_model,
     resolve_device,
     save_model,
+    step_lr,
 )
 
 
@@ -102,12 +104,11 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
     losses = {k: [] for k in models}
     it = iter(loader)
 
-    def done() -> float:  # the fraction of the budget (minutes, or --steps where given) spent
-        return max((time.monotonic() - t0) / budget, steps / args.steps if args.steps else 0.0)
-
-    while done() < 1.0:
-        frac = done()
-        lr = args.lr * (0.25 if frac > 0.75 else 0.5 if frac > 0.5 else 1.0)
+    # thermocal train --lr-schedule step's rate, over the first of --minutes and --steps to run out
+    schedule = TrainConfig(lr=args.lr, steps_per_epoch=1, max_epochs=2**62,
+                           max_minutes=args.minutes, max_steps=args.steps)
+    while time.monotonic() - t0 < budget and (args.steps is None or steps < args.steps):
+        lr = step_lr(schedule, steps, time.monotonic() - t0)
         batch = tuple(t.to(device, non_blocking=True) for t in next(it))
         for key, model in models.items():
             frames, fpa, valid, truth, mask, r2 = sub_burst(batch, key[1], n_max)

@@ -17,7 +17,7 @@ from thermocal.cli import main  # noqa: E402
 from thermocal.errors import InvalidInputError, RegistrationError  # noqa: E402
 from thermocal.io.recording import Recording, write_recording  # noqa: E402
 from thermocal.nn import infer  # noqa: E402
-from thermocal.nn.data import BurstConfig, Normalisation  # noqa: E402
+from thermocal.nn.data import BurstConfig, Normalisation, ScenePool  # noqa: E402
 from thermocal.nn.infer import estimate_burst, naive_mean, run_network  # noqa: E402
 from thermocal.nn.model import KPN, ModelConfig  # noqa: E402
 from thermocal.nn.train import TrainConfig, load_model, save_model, step_lr  # noqa: E402
@@ -389,22 +389,34 @@ def test_step_lr_halves_at_half_and_three_quarters_of_the_first_budget_to_run_ou
     assert step_lr(TrainConfig(lr=1.0, max_epochs=10**6, max_minutes=1.0), 0, 45.0) == 0.25
 
 
-def test_train_step_schedule_runs_its_budget_without_early_stop(tmp_path, capsys):
-    out = tmp_path / "m.pt"
-    code, err = run(
-        ["train", "--out", str(out), "--frames", "3", "--mu", "4", "--levels", "1", "--kernel",
-         "3", "--crop", "32", "--batch", "2", "--steps-per-epoch", "1", "--steps", "4",
-         "--val-bursts", "2", "--units", "0-1", "--workers", "0", "--threads", "1", "--scenes",
-         "3", "--lr", "1e-3", "--lr-schedule", "step"],
-        capsys,
-    )
-    assert code == 0, err
-    history = torch.load(out.with_suffix(".ckpt"), weights_only=False)["history"]
-    # the rate of each epoch's (single) step: steps 0, 1 at 1e-3, 2 at 5e-4, 3 at 2.5e-4
-    assert [h["lr"] for h in history] == [1e-3, 1e-3, 5e-4, 2.5e-4]
-    assert "stopped: max_steps" in err
-    code, err = run(["train", "--out", str(out), "--lr-schedule", "cosine"], capsys)
-    assert code == 2 and "lr-schedule" in err
+def test_step_schedule_follows_its_budget_not_the_validation(tmp_path, monkeypatch):
+    from dataclasses import replace
+
+    from thermocal.nn import train as train_module
+
+    # a validation loss that never improves: the plateau schedule would halve and stop at once
+    monkeypatch.setattr(train_module, "validate", lambda *args: (1.0, 1.0, 1.0))
+    model_cfg = ModelConfig(n_frames=3, mu=4, levels=1, kernel=3)
+    burst_cfg = BurstConfig(n_frames=3, crop=32, units=(0, 1))
+    cfg = TrainConfig(batch=2, steps_per_epoch=1, max_steps=4, lr=1e-3, lr_schedule="step",
+                      lr_patience=0, stop_patience=1, val_bursts=2, workers=0, threads=1)
+
+    def fit(name, cfg, **kw):
+        return train_module.train(
+            tmp_path / name, model_cfg, burst_cfg, cfg, log=lambda line: None, progress=False,
+            pool_fn=lambda: ScenePool.training(seed=1, n_procedural=2),
+            val_pool_fn=lambda: ScenePool.training(seed=2, n_procedural=2), **kw)
+
+    res = fit("s.pt", cfg)
+    assert res.stopped == "max_steps" and res.steps == 4
+    # each (one-step) epoch's rate: steps 0, 1 at lr, 2 at lr/2, 3 at lr/4
+    assert [h["lr"] for h in res.history] == [1e-3, 1e-3, 5e-4, 2.5e-4]
+    # resumed with a longer budget, the rate goes on along the first call's schedule
+    res = fit("s.pt", replace(cfg, max_steps=6), resume=True)
+    assert res.steps == 6 and [h["lr"] for h in res.history] == [1e-3, 1e-3, 5e-4] + [2.5e-4] * 3
+    res = fit("p.pt", replace(cfg, lr_schedule="plateau"))
+    assert res.stopped == "early_stop" and res.steps == 2
+    assert [h["lr"] for h in res.history] == [1e-3, 5e-4]
 
 
 def test_train_bad_options(tmp_path, capsys):
@@ -412,6 +424,8 @@ def test_train_bad_options(tmp_path, capsys):
     assert code == 2 and "multiple" in err
     code, err = run(["train", "--out", str(tmp_path / "m.pt"), "--units", "x"], capsys)
     assert code == 2 and "units" in err
+    code, err = run(["train", "--out", str(tmp_path / "m.pt"), "--lr-schedule", "cosine"], capsys)
+    assert code == 2 and "lr-schedule" in err
     with pytest.raises(InvalidInputError):
         infer.shipped_model_path("mean")
 

@@ -109,19 +109,3 @@ def test_shipped_kpn_leaves_no_trail_of_stuck_pixels(shipped):
     assert err[True][0] < 0.5 * err[False][0], err  # the trails are gone ...
     assert err[True][0] < 2 * err[True][1], err  # ... down to the error elsewhere
 
-
-def test_shipped_fig7_results_have_the_layout_the_demo_draws():
-    import json
-    from importlib.resources import files
-
-    from thermocal.plotting import mae_vs_frames_figure
-
-    res = json.loads((files("thermocal.nn") / "weights" / "fig7.json").read_text())
-    assert res["n"] == [1, 3, 5, 7, 9, 11]
-    assert set(res["mae_c"]) == {"kpn", "kpn-no-offset", "e2e"}
-    for key in ("mae_c", "bias_free_mae_c", "within_0_5"):
-        for values in res[key].values():
-            assert len(values) == len(res["n"]) and all(np.isfinite(v) and v >= 0 for v in values)
-    assert len(res["floor"]["mae_c"]) == len(res["n"]) and res["note"]
-    fig = mae_vs_frames_figure(res)
-    assert len(fig.axes[0].lines) == 4  # three variants and the family model

@@ -204,9 +204,10 @@ def estimate(
     type=click.Choice(["plateau", "step"]),
     default="plateau",
     show_default=True,
-    help="plateau: halve the learning rate after 3 epochs without improvement, stop after 8 "
-    "(Oz et al.); step: halve it at 50 % and 75 % of the budget (--steps, --max-minutes or "
-    "--max-epochs, the first to run out), no early stop.",
+    help="plateau (Oz et al.): halve the learning rate once more than 3 epochs in a row have "
+    "not improved the validation loss, stop after 8; step: halve it at 50 % and 75 % of the "
+    "budget (--steps, --max-minutes or --max-epochs, the first to run out), no early stop. "
+    "--resume keeps the checkpoint's schedule and its budget for the rate.",
 )
 @click.option("--resume", is_flag=True, help="Continue from OUT.ckpt.")
 @click.option("--threads", type=int, default=2, show_default=True)

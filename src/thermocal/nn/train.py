@@ -72,11 +72,13 @@ class TrainConfig:
     lr : float
         Adam learning rate.
     lr_patience, stop_patience : int
-        Epochs without improvement before halving the learning rate / stopping (``"plateau"``).
+        ``"plateau"``: epochs in a row without improvement tolerated before the learning rate is
+        halved (PyTorch's ``patience``: halved at the next one) / after which the run stops.
     lr_schedule : str
         ``"plateau"`` (the paper's: halve on a validation plateau, stop early) or ``"step"``
         (halve at 50 % and 75 % of the budget, the first of ``max_steps``, ``max_minutes`` and
-        ``max_epochs`` to run out; no early stop, the best validated weights are kept).
+        ``max_epochs`` to run out; no early stop, the best validated weights are kept). A
+        resumed run keeps its first call's schedule and budget for the rate (:func:`step_lr`).
     seed : int
         Seed of torch and of the data streams.
     val_bursts : int
@@ -336,9 +338,10 @@ def validate(
 
 
 def step_lr(cfg: TrainConfig, step: int, elapsed_s: float) -> float:
-    """The learning rate of the ``"step"`` schedule: ``lr``, halved once half of the budget is
-    spent and again at three quarters (the budget: the first of ``max_steps``, ``max_minutes``
-    of this call and ``max_epochs · steps_per_epoch`` to run out)."""
+    """The learning rate of the ``"step"`` schedule after ``step`` batches and ``elapsed_s``
+    seconds of training: ``lr``, halved once half of the budget is spent and again at three
+    quarters (the budget: the first of ``max_steps``, ``max_minutes`` and
+    ``max_epochs · steps_per_epoch`` to run out)."""
     spent = step / (cfg.max_epochs * cfg.steps_per_epoch)
     if cfg.max_steps is not None:
         spent = max(spent, step / cfg.max_steps)
@@ -420,6 +423,11 @@ def train(
         )
     if train_cfg.lr_schedule not in ("plateau", "step"):
         raise InvalidInputError(f"lr_schedule must be plateau or step, got {train_cfg.lr_schedule}")
+    # the step schedule's budget is the first call's: a resumed run continues its schedule (the
+    # new call's budget only says when this call stops)
+    schedule_cfg = (
+        TrainConfig(**state.get("schedule_cfg", state["train_cfg"])) if state else train_cfg
+    )
     if model_cfg.n_frames != burst_cfg.n_frames:
         raise InvalidInputError(
             f"model has N = {model_cfg.n_frames} but the data N = {burst_cfg.n_frames}"
@@ -521,6 +529,7 @@ def train(
             "model_cfg": model_cfg.to_dict(),
             "burst_cfg": burst_cfg.to_dict(),
             "train_cfg": asdict(train_cfg),
+            "schedule_cfg": asdict(schedule_cfg),
             "torch_rng": torch.get_rng_state(),
             "elapsed_s": elapsed_before + time.monotonic() - t0,
         }
@@ -565,7 +574,9 @@ def train(
                 ts = time.monotonic()
                 if train_cfg.lr_schedule == "step":
                     for g in opt.param_groups:
-                        g["lr"] = step_lr(train_cfg, step, time.monotonic() - t0)
+                        g["lr"] = step_lr(
+                            schedule_cfg, step, elapsed_before + time.monotonic() - t0
+                        )
                 frames, fpa, valid, truth, mask, r2 = (
                     t.to(device, non_blocking=True) for t in next(it)
                 )
