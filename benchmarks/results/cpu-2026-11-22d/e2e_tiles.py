@@ -1,0 +1,23 @@
+"""E2E at full frame vs tiles of the training crop size (diagnosis)."""
+import sys
+import numpy as np
+import torch
+sys.path.insert(0, "benchmarks")
+from kpn import eval_bursts
+from thermocal.burst import fill_stuck_pixels
+from thermocal.registration.warp import warp_to_pivot
+from thermocal.nn.infer import fpa_value, run_network
+from thermocal.nn.train import load_model
+torch.set_num_threads(2)
+model, norm, _ = load_model(sys.argv[1])
+n = model.config.n_frames
+bursts = eval_bursts(n, quick=False)
+for tile, margin in ((512, 32), (128, 32), (64, 16), (64, 0)):
+    errs = []
+    for b in bursts:
+        frames, _ = fill_stuck_pixels(b["frames"], b["hs"])
+        warped, valid = warp_to_pivot(frames, b["hs"])
+        t = run_network(model, norm, warped, valid, fpa_value(b["fpa_read"], n), tile=tile, margin=margin)
+        m = b["mask"]
+        errs.append(np.abs(t - b["truth"])[m].mean())
+    print(f"tile {tile} margin {margin}: MAE {np.mean(errs):.3f}", flush=True)
