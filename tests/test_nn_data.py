@@ -152,6 +152,27 @@ def test_redrawn_pixel_fpn_is_an_option_of_the_stream(pool):
     assert np.array_equal(redrawn.truth_c, same[0].truth_c)
 
 
+def test_walk_frames_keep_the_middle_of_a_longer_walk(pool):
+    cfg = BurstConfig(n_frames=3, crop=32, units=(0,), motions=("walk",))
+    # as long as the burst: the very same burst as without the option
+    a = make_burst(pool, cfg, rng=np.random.default_rng(4))
+    b = make_burst(pool, replace(cfg, walk_frames=3), rng=np.random.default_rng(4))
+    assert np.array_equal(a.frames, b.frames) and np.array_equal(a.homographies, b.homographies)
+
+    def spread_px(walk_frames):  # mean largest shift of a view from the pivot
+        bursts = [make_burst(pool, replace(cfg, walk_frames=walk_frames),
+                             rng=np.random.default_rng(k)) for k in range(12)]
+        return np.mean([np.abs(x.homographies[:, :2, 2]).max() for x in bursts])
+
+    longer = make_burst(pool, replace(cfg, walk_frames=9), rng=np.random.default_rng(4))
+    assert longer.frames.shape == a.frames.shape
+    assert spread_px(9) < 0.6 * spread_px(None)  # 2 of 8 steps instead of 2 of 2
+    with pytest.raises(InvalidInputError):
+        replace(cfg, walk_frames=1)  # shorter than the burst
+    with pytest.raises(InvalidInputError):
+        replace(cfg, walk_frames=4)  # pivots would not line up
+
+
 def test_held_out_sets_are_disjoint():
     assert not set(TRAIN_UNITS) & set(EVAL_UNITS)
     assert not set(TRAIN_UNITS) & set(VAL_UNITS)

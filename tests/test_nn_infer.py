@@ -349,6 +349,8 @@ def test_train_command_smoke(tmp_path, capsys):
             "--scenes",
             "3",
             "--redraw-pixel-fpn",
+            "--walk-frames",
+            "5",
         ],
         capsys,
     )
@@ -356,7 +358,7 @@ def test_train_command_smoke(tmp_path, capsys):
     model, norm, info = load_model(out)
     assert model.config.n_frames == 3 and norm.counts_max > norm.counts_min
     assert model.config.radiance and model.config.radial == 2  # the defaults
-    assert info["data"]["redraw_pixel_fpn"] is True
+    assert info["data"]["redraw_pixel_fpn"] is True and info["data"]["walk_frames"] == 5
     assert info["meta"]["val_mae_c"] is not None
     assert out.with_suffix(".ckpt").is_file()
     # --resume continues from the checkpoint
@@ -426,6 +428,8 @@ def test_train_bad_options(tmp_path, capsys):
     assert code == 2 and "units" in err
     code, err = run(["train", "--out", str(tmp_path / "m.pt"), "--lr-schedule", "cosine"], capsys)
     assert code == 2 and "lr-schedule" in err
+    code, err = run(["train", "--out", str(tmp_path / "m.pt"), "--walk-frames", "4"], capsys)
+    assert code == 2 and "walk_frames" in err
     with pytest.raises(InvalidInputError):
         infer.shipped_model_path("mean")
 

@@ -226,6 +226,13 @@ def estimate(
     "unit's own (the validation units keep theirs).",
 )
 @click.option(
+    "--walk-frames",
+    type=int,
+    default=None,
+    help="Draw each training trajectory for this many frames and keep the --frames around its "
+    "pivot (less motion per burst; the validation bursts keep --frames).",
+)
+@click.option(
     "--init",
     "init",
     type=click.Path(path_type=Path),
@@ -273,6 +280,7 @@ def train(
     workers: int,
     temp_mean_range_c: str | None,
     redraw_pixel_fpn: bool,
+    walk_frames: int | None,
     init: Path | None,
     device: str,
 ) -> None:
@@ -359,6 +367,8 @@ def train(
         extra["temp_mean_range_c"] = _parse_range(temp_mean_range_c, "--temp-mean-range-c")
     if redraw_pixel_fpn:
         extra["redraw_pixel_fpn"] = True
+    if walk_frames is not None:
+        extra["walk_frames"] = walk_frames
     burst_cfg = BurstConfig(
         n_frames=n_frames,
         crop=crop,

@@ -140,6 +140,10 @@ class BurstConfig:
         Trajectories drawn from: ``"walk"`` and/or ``"hover"``.
     overlap : (float, float)
         Overlap range of the extreme views with the pivot.
+    walk_frames : int or None
+        Draw each trajectory for this many frames (odd, ≥ ``n_frames``) and keep the
+        ``n_frames`` around its pivot: less motion than an ``n_frames`` walk, whose extremes
+        overlap the pivot by ``overlap``. ``None``: ``n_frames``.
     translation_px, perspective_sigma : float
         Registration error: uniform ±``translation_px`` and N(0, σ²) on h31, h32.
     fpa_range_c : (float, float)
@@ -173,6 +177,7 @@ class BurstConfig:
     crop: int = 64
     motions: tuple[str, ...] = ("walk", "hover")
     overlap: tuple[float, float] = (0.6, 0.8)
+    walk_frames: int | None = None
     translation_px: float = 2.0
     perspective_sigma: float = trajectory.PERSPECTIVE_SIGMA
     fpa_range_c: tuple[float, float] = (10.0, 50.0)
@@ -199,6 +204,13 @@ class BurstConfig:
             raise InvalidInputError(f"motions must be walk and/or hover, got {self.motions}")
         if not self.units:
             raise InvalidInputError("units: give at least one camera unit")
+        if self.walk_frames is not None and (
+            self.walk_frames < self.n_frames or self.walk_frames % 2 != self.n_frames % 2
+        ):
+            raise InvalidInputError(
+                f"walk_frames must be >= n_frames ({self.n_frames}) and of its parity (the "
+                f"pivots line up), got {self.walk_frames}"
+            )
         lo, hi = self.temp_mean_range_c
         if not self.temp_clip_c[0] <= lo < hi <= self.temp_clip_c[1]:
             raise InvalidInputError(
@@ -527,14 +539,10 @@ def make_burst(
     big = _source_map(scene, map_shape, cfg, rng)
     if cfg.augment:
         big = _relevel(big, cfg, rng)
-    if motion == "walk":
-        to_map = trajectory.walk_homographies(
-            n, (s, s), map_shape[::-1], rng=rng, overlap=cfg.overlap
-        )
-    else:
-        to_map = trajectory.hover_homographies(
-            n, (s, s), map_shape[::-1], rng=rng, overlap=cfg.overlap
-        )
+    m = cfg.walk_frames or n
+    draw = trajectory.walk_homographies if motion == "walk" else trajectory.hover_homographies
+    to_map = draw(m, (s, s), map_shape[::-1], rng=rng, overlap=cfg.overlap)
+    to_map = to_map[m // 2 - n // 2 : m // 2 - n // 2 + n]
     pivot = n // 2
     truth = render_views(big, to_map, (s, s))
 

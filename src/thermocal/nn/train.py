@@ -466,7 +466,8 @@ def train(
         norm = fit_normalisation(pool, burst_cfg, seed=train_cfg.seed, cameras=cameras)
 
     val_cfg = BurstConfig(
-        **{**asdict(burst_cfg), "units": tuple(val_units), "redraw_pixel_fpn": False}
+        **{**asdict(burst_cfg), "units": tuple(val_units), "redraw_pixel_fpn": False,
+           "walk_frames": None}
     )
     val_pool = val_pool_fn()
     val_units_cache = _unit_cache(val_cfg, cameras)
