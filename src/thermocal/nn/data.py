@@ -141,7 +141,7 @@ class BurstConfig:
     overlap : (float, float)
         Overlap range of the extreme views with the pivot.
     walk_frames : int or None
-        Draw each trajectory for this many frames (odd, ≥ ``n_frames``) and keep the
+        Draw each trajectory for this many frames (≥ ``n_frames``, of its parity) and keep the
         ``n_frames`` around its pivot: less motion than an ``n_frames`` walk, whose extremes
         overlap the pivot by ``overlap``. ``None``: ``n_frames``.
     translation_px, perspective_sigma : float
