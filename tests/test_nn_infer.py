@@ -18,7 +18,12 @@ from thermocal.errors import InvalidInputError, RegistrationError  # noqa: E402
 from thermocal.io.recording import Recording, write_recording  # noqa: E402
 from thermocal.nn import infer  # noqa: E402
 from thermocal.nn.data import BurstConfig, Normalisation, ScenePool  # noqa: E402
-from thermocal.nn.infer import estimate_burst, naive_mean, run_network  # noqa: E402
+from thermocal.nn.infer import (  # noqa: E402
+    estimate_burst,
+    inference_tiling,
+    naive_mean,
+    run_network,
+)
 from thermocal.nn.model import KPN, ModelConfig  # noqa: E402
 from thermocal.nn.train import TrainConfig, load_model, save_model, step_lr  # noqa: E402
 from thermocal.scenes.procedural import procedural_scene  # noqa: E402
@@ -628,3 +633,23 @@ def test_burst_module_and_mean_need_no_torch():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
+
+
+def test_e2e_runs_in_tiles_of_its_training_crop(tmp_path, flight):
+    norm = Normalisation()
+    torch.manual_seed(0)
+    e2e = KPN(ModelConfig(n_frames=3, mu=4, levels=1, kernel=3, variant="e2e")).eval()
+    kpn = KPN(ModelConfig(n_frames=3, mu=4, levels=1, kernel=3)).eval()
+    e2e_path = save_model(tmp_path / "e.pt", e2e, norm, BurstConfig(n_frames=3, crop=32))
+    kpn_path = save_model(tmp_path / "k.pt", kpn, norm, BurstConfig(n_frames=3, crop=32))
+    e2e_back, _, _ = load_model(e2e_path)
+    kpn_back, _, _ = load_model(kpn_path)
+    assert e2e_back.train_crop == kpn_back.train_crop == 32
+    assert inference_tiling(e2e_back) == (32, 8)
+    assert inference_tiling(kpn_back) == (512, 32)  # whole frames: the same error, faster
+    assert inference_tiling(e2e) == (512, 32)  # no training crop known
+    warped = flight.frames.astype(np.float32)[:, :48, :64]
+    valid = np.ones(warped.shape, dtype=bool)
+    default = run_network(e2e_back, norm, warped, valid, 30.0)
+    assert np.array_equal(default, run_network(e2e_back, norm, warped, valid, 30.0, tile=32,
+                                               margin=8))

@@ -36,6 +36,7 @@ __all__ = [
     "check_burst",
     "estimate_burst",
     "estimate_file",
+    "inference_tiling",
     "naive_mean",
     "register",
     "shipped_model_path",
@@ -71,6 +72,21 @@ def _to_model_order(x: np.ndarray, pivot: int) -> np.ndarray:
     return x[order]
 
 
+def inference_tiling(model: KPN) -> tuple[int, int]:
+    """``(tile, margin)`` in px that :func:`run_network` uses by default for ``model``.
+
+    E2E runs in tiles of its training crop overlapping by a quarter of it: it predicts the
+    temperature itself from the levels in its whole view and does not carry over from its crops
+    to larger ones (one trained on 64-px crops: 3.97 °C on whole 336×256 frames, 2.09 °C in
+    64-px tiles; ``benchmarks/results/cpu-2026-11-22d/``). The KPN variants give the same error
+    whole or tiled (0.574 / 0.573 °C) and run whole frames up to 512 px, which is faster.
+    """
+    crop = model.train_crop
+    if model.config.variant == "e2e" and crop:
+        return crop, crop // 4
+    return 512, 32
+
+
 def run_network(
     model: KPN,
     norm: Normalisation,
@@ -78,19 +94,23 @@ def run_network(
     valid: np.ndarray,
     fpa_c: float,
     *,
-    tile: int = 512,
-    margin: int = 32,
+    tile: int | None = None,
+    margin: int | None = None,
 ) -> np.ndarray:
     """The network on registered frames ``(N, H, W)`` (counts), tiled; returns °C ``(H, W)``.
 
     The frames are zero outside their valid masks (as in training) and zero-padded to a multiple
     of ``ξ^L``. The offset block's frame means are taken over each whole frame's valid pixels,
     so that every tile gets the same offset. Tiles of ``tile`` pixels overlap by ``margin``
-    pixels on each side; only their centres are kept, so that the seams see the same context
-    as the interior. It runs where the model's parameters are (CPU or GPU). A model with
-    position terms (``radial > 0``) takes the frames to be whole sensor frames (``R²`` of Oz
-    et al. eq. 16 over ``H × W``).
+    pixels on each side (default: :func:`inference_tiling`); only their centres are kept, so
+    that the seams see the same context as the interior. It runs where the model's parameters
+    are (CPU or GPU). A model with position terms (``radial > 0``) takes the frames to be whole
+    sensor frames (``R²`` of Oz et al. eq. 16 over ``H × W``).
     """
+    if tile is None or margin is None:
+        default_tile, default_margin = inference_tiling(model)
+        tile = default_tile if tile is None else tile
+        margin = default_margin if margin is None else margin
     n, h, w = warped.shape
     device = next(model.parameters()).device
     x = np.where(valid, norm.counts(warped), 0.0).astype(np.float32)

@@ -340,7 +340,9 @@ class KPN(nn.Module):
     block; default: every pixel) and, for a model with ``radial > 0``, the pivot pixels'
     sensor position ``R² (B, 1, H, W)``, and returns the normalised temperature of the pivot
     ``(B, 1, H, W)``. ``H, W`` must be multiples of ``ξ^L``. ``temp_range_c`` is eq. 20's
-    temperature range (the normalisation's); only ``radiance=True`` uses it.
+    temperature range (the normalisation's); only ``radiance=True`` uses it. ``train_crop`` is
+    the side of the training crops, px (:func:`~thermocal.nn.train.load_model` sets it from the
+    weights file): :func:`~thermocal.nn.infer.run_network` runs an E2E model in tiles of it.
     """
 
     def __init__(
@@ -349,9 +351,11 @@ class KPN(nn.Module):
         *,
         init: bool = True,
         temp_range_c: tuple[float, float] = (-40.0, 100.0),
+        train_crop: int | None = None,
     ) -> None:
         super().__init__()
         self.config = config
+        self.train_crop = train_crop
         c = config
         extra = int(c.fpa_input) * (2 if c.centre else 1) + int(c.radial > 0)
         self.unet = UNet(c.n_frames + extra, c.mu, c.xi, c.levels)

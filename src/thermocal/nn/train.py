@@ -274,7 +274,9 @@ def load_model(path: str | os.PathLike[str]) -> tuple[KPN, Normalisation, dict[s
     try:
         config = ModelConfig(**payload["config"])
         norm = Normalisation(**payload["normalisation"])
-        model = KPN(config, init=False, temp_range_c=(norm.temp_min_c, norm.temp_max_c))
+        crop = payload.get("data", {}).get("crop")
+        model = KPN(config, init=False, temp_range_c=(norm.temp_min_c, norm.temp_max_c),
+                    train_crop=int(crop) if crop else None)
         model.load_state_dict(payload["state_dict"])
     except (KeyError, TypeError, RuntimeError, InvalidInputError) as exc:
         first = str(exc).strip().splitlines()[0]
@@ -485,7 +487,8 @@ def train(
         for i in range(0, len(val_bursts), train_cfg.batch)
     ]
 
-    model = KPN(model_cfg, temp_range_c=(norm.temp_min_c, norm.temp_max_c))
+    model = KPN(model_cfg, temp_range_c=(norm.temp_min_c, norm.temp_max_c),
+                train_crop=burst_cfg.crop)
     if init_model is not None:
         model.load_state_dict(init_model.state_dict())
     model = model.to(device)
