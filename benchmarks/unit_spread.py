@@ -16,7 +16,7 @@ A burst's MAE is at least the absolute value of its mean error, so the second fi
 what a calibration-free method can reach on average over units (the pixel-level errors of FPN,
 noise and the radial pattern come on top). ::
 
-    .venv/bin/python benchmarks/unit_spread.py [--units 100-299] [--json OUT.json]
+    .venv/bin/python benchmarks/unit_spread.py [--units 100-299] [--quick] [--json OUT.json]
 """
 
 from __future__ import annotations
@@ -85,8 +85,11 @@ def parse_units(text: str) -> tuple[int, ...]:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--units", default="100-299", help="the population of units, A-B")
+    ap.add_argument("--quick", action="store_true", help="a population of 40 units (100-139)")
     ap.add_argument("--json", type=Path)
     args = ap.parse_args()
+    if args.quick:
+        args.units = "100-139"
     family = family_model(TRAIN_UNITS)
     population = [u for u in parse_units(args.units) if u not in TRAIN_UNITS]
     held = shifts_c(EVAL_UNITS, family)

@@ -22,7 +22,7 @@ import click
 
 from thermocal.errors import InvalidInputError
 
-BENCHMARKS = ("simulator", "calibration", "registration", "nuc", "kpn", "flight")
+BENCHMARKS = ("simulator", "calibration", "registration", "nuc", "kpn", "unit_spread", "flight")
 
 
 def machine() -> str:
@@ -105,7 +105,7 @@ def markdown_report(runs: dict, *, quick: bool, host: str) -> str:
 @click.option("--only", type=click.Choice(BENCHMARKS), multiple=True,
               help="Run only these benchmarks (repeatable).")
 def bench(quick: bool, json_out: Path | None, md_out: Path | None, only: tuple[str, ...]) -> None:
-    """Run the calibration, registration, NUC, network and simulator benchmarks."""
+    """Run the calibration, registration, NUC, network, unit-spread and simulator benchmarks."""
     from thermocal.io.atomic import atomic_path, write_json_atomic
 
     folder = find_benchmarks(Path.cwd())
