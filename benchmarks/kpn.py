@@ -184,10 +184,12 @@ def radial_bins(shape: tuple[int, int], n: int = 5) -> np.ndarray:
 SPLIT_SIGMA_PX = 6.0
 
 
-def split_error(err: np.ndarray, mask: np.ndarray, sigma: float = SPLIT_SIGMA_PX):
-    """The error ``(H, W)`` less its mean over ``mask``, split into a smooth part (a Gaussian
-    of ``sigma`` px, normalised over the mask: radial patterns, the scene's low frequencies)
-    and the rest (pixel FPN left, noise, blurred detail); returns their MAE over the mask."""
+def split_error(err: np.ndarray, mask: np.ndarray,
+                sigma: float = SPLIT_SIGMA_PX) -> tuple[float, float]:
+    """``(smooth, fine)`` MAE, °C, of the error ``err (H, W)`` °C less its mean over ``mask
+    (H, W) bool``: the smooth part is a Gaussian of ``sigma`` px of it, normalised over the mask
+    (radial patterns, the scene's low frequencies; not zero-mean in general), the fine part the
+    rest (pixel FPN left, noise, blurred detail). MAEs do not add up to the bias-free MAE."""
     from scipy.ndimage import gaussian_filter
 
     e = np.where(mask, err - err[mask].mean(), 0.0)

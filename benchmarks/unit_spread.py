@@ -13,8 +13,11 @@ family model of ``benchmarks/kpn.py``), divided by the family's responsivity, in
    the population's median: min over c of mean |shift − c|).
 
 A burst's MAE is at least the absolute value of its mean error, so the second figure bounds
-what a calibration-free method can reach on average over units (the pixel-level errors of FPN,
-noise and the radial pattern come on top). ::
+what a calibration-free method can reach on average over units, if the burst tells it nothing
+about the unit's shift (true of the unit scalars, gain, offset and FPA coefficients, which move
+every pixel alike, unless the scene's temperatures are known; the radial strengths leave a
+pattern a burst could show) — in expectation over units, not for each unit. The pixel-level
+errors of FPN, noise and the radial pattern come on top. ::
 
     .venv/bin/python benchmarks/unit_spread.py [--units 100-299] [--quick] [--json OUT.json]
 """
@@ -39,8 +42,9 @@ SIZE = (336, 256)
 FPAS_C = (15.0, 30.0, 45.0)
 SCENES_C = (-20.0, 5.0, 30.0)
 HOUSING_OFFSET_C = -1.5  # the camera settled: housing = FPA − 1.5 °C, as benchmarks/kpn.py
-#: The preset with every unit's radial strengths at 1 and its optical centre in the middle; the
-#: generator draws the same numbers, so each unit keeps its gain, offset and FPA coefficients.
+#: The preset with every unit's radial strengths nominal (1) and its optical centre in the middle;
+#: the generator draws the same numbers (``uniform(a, a)`` consumes its draws), so each unit
+#: keeps its gain, offset and FPA coefficients.
 SCALARS_ONLY = replace(PRESETS["tau2"], radial_strength_range=(1.0, 1.0), centre_jitter=0.0)
 
 
@@ -56,7 +60,8 @@ def family_model(units):
 
 
 def frame_mean(cam, scene_c: float, fpa_c: float) -> float:
-    """Mean expected counts of a uniform scene, without defects."""
+    """Mean expected counts of a uniform scene, without ``cam``'s defects (the family model keeps
+    training unit 0's defect map: a negligible difference)."""
     counts = expected_counts(cam, np.full((1, SIZE[1], SIZE[0]), scene_c, np.float32), fpa_c,
                              housing_c=fpa_c + HOUSING_OFFSET_C)[0]
     return float(counts[~cam.defects].mean())
@@ -95,7 +100,7 @@ def main() -> None:
     held = shifts_c(EVAL_UNITS, family)
     pop = shifts_c(population, family)
     floor = np.mean(np.abs(pop - np.median(pop, axis=0)), axis=0)
-    # The same units with the family's radial strengths and optical centre (the same draws of
+    # The same units with nominal radial strengths and optical centre (the same draws of
     # everything else): what is left are the unit-level scalars (gain, offset, the FPA
     # coefficients), which change every pixel alike and are invisible in any burst; the radial
     # strengths leave a pattern that a burst could show.
@@ -120,7 +125,7 @@ def main() -> None:
           f"estimate can leave over the population's units, min over c of mean |shift − c|; "
           f"over the whole grid {floor.min():.2f}-{floor.max():.2f} °C, mean {floor.mean():.2f};"
           f" from the unit scalars alone (gain, offset, FPA coefficients; radial strengths and "
-          f"centre set to the family's) {scalar_floor.min():.2f}-{scalar_floor.max():.2f} °C, "
+          f"centre nominal) {scalar_floor.min():.2f}-{scalar_floor.max():.2f} °C, "
           f"mean {scalar_floor.mean():.2f}; the five held-out units' mean absolute shift "
           f"{np.abs(held).mean(axis=0).min():.2f}-{np.abs(held).mean(axis=0).max():.2f} °C)")
     if args.json:

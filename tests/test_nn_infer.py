@@ -635,7 +635,7 @@ def test_burst_module_and_mean_need_no_torch():
     assert out.stdout.strip() == "False"
 
 
-def test_e2e_runs_in_tiles_of_its_training_crop(tmp_path, flight):
+def test_e2e_runs_in_tiles_of_its_training_crop(tmp_path):
     norm = Normalisation()
     torch.manual_seed(0)
     e2e = KPN(ModelConfig(n_frames=3, mu=4, levels=1, kernel=3, variant="e2e")).eval()
@@ -648,8 +648,14 @@ def test_e2e_runs_in_tiles_of_its_training_crop(tmp_path, flight):
     assert inference_tiling(e2e_back) == (32, 8)
     assert inference_tiling(kpn_back) == (512, 32)  # whole frames: the same error, faster
     assert inference_tiling(e2e) == (512, 32)  # no training crop known
-    warped = flight.frames.astype(np.float32)[:, :48, :64]
+    seen = []
+    for m in (e2e_back, kpn_back):
+        m.register_forward_pre_hook(lambda _m, args: seen.append(tuple(args[0].shape[-2:])))
+    warped = np.random.default_rng(0).uniform(6000, 9000, (3, 48, 72)).astype(np.float32)
     valid = np.ones(warped.shape, dtype=bool)
-    default = run_network(e2e_back, norm, warped, valid, 30.0)
-    assert np.array_equal(default, run_network(e2e_back, norm, warped, valid, 30.0, tile=32,
-                                               margin=8))
+    run_network(e2e_back, norm, warped, valid, 30.0)
+    assert len(seen) > 1 and set(seen) == {(32, 32)}  # whole crops, also at the borders
+    seen.clear()
+    run_network(kpn_back, norm, warped, valid, 30.0)
+    run_network(e2e_back, norm, warped, valid, 30.0, tile=512)
+    assert seen == [(48, 72), (48, 72)]  # the KPN variants run whole frames

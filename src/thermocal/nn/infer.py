@@ -101,9 +101,10 @@ def run_network(
 
     The frames are zero outside their valid masks (as in training) and zero-padded to a multiple
     of ``ξ^L``. The offset block's frame means are taken over each whole frame's valid pixels,
-    so that every tile gets the same offset. Tiles of ``tile`` pixels overlap by ``margin``
-    pixels on each side (default: :func:`inference_tiling`); only their centres are kept, so
-    that the seams see the same context as the interior. It runs where the model's parameters
+    so that every tile gets the same offset. Tiles of ``tile`` pixels (shifted inwards at the
+    borders, so that every tile is whole) overlap by at least ``margin`` pixels on each side
+    (default: :func:`inference_tiling`); only their centres are kept, so that the seams see the
+    same context as the interior. It runs where the model's parameters
     are (CPU or GPU). A model with position terms (``radial > 0``) takes the frames to be whole
     sensor frames (``R²`` of Oz et al. eq. 16 over ``H × W``).
     """
@@ -129,8 +130,10 @@ def run_network(
                 y1, x1 = min(y0 + step, h), min(x0 + step, w)
                 if h <= tile and w <= tile:
                     y0, x0, y1, x1 = 0, 0, h, w
-                ya, xa = max(y0 - margin, 0), max(x0 - margin, 0)
-                yb, xb = min(y1 + margin, h), min(x1 + margin, w)
+                # full tiles also at the borders (shifted inwards): the network sees the
+                # context size it is run at everywhere
+                ya, xa = max(min(y0 - margin, h - tile), 0), max(min(x0 - margin, w - tile), 0)
+                yb, xb = min(ya + tile, h), min(xa + tile, w)
                 if h <= tile and w <= tile:
                     ya, xa, yb, xb = 0, 0, h, w
                 sub = xt[:, :, ya:yb, xa:xb]
