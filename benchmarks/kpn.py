@@ -310,11 +310,12 @@ def speed(model, norm, *, threads: int = 2) -> dict:
     n = model.config.n_frames
     warped = rng.uniform(6000, 9000, (n, 256, 336)).astype(np.float32)
     valid = np.ones(warped.shape, dtype=bool)
-    run_network(model, norm, warped, valid, 30.0)
+    r2f = np.repeat(sensor_r2(warped.shape[1:])[None], n, 0) if model.config.radial_frames else None
+    run_network(model, norm, warped, valid, 30.0, r2_frames=r2f)
     times = []
     for _ in range(5):
         t = time.perf_counter()
-        run_network(model, norm, warped, valid, 30.0)
+        run_network(model, norm, warped, valid, 30.0, r2_frames=r2f)
         times.append(time.perf_counter() - t)
     return {
         "network_ms_336x256": 1000 * statistics.median(times),

@@ -15,7 +15,8 @@ models share one budget, so none stops early); the loss of eq. 12 over the pixel
 half of the model's N frames. Network sizes are the shipped model's unless given.
 
     .venv/bin/python benchmarks/kpn_fig7.py --minutes 7 --device auto --workers 4 \\
-        --variants kpn,kpn-no-offset,e2e --ns 1,3,5,7,9,11 --json fig7.json [--out-dir DIR]
+        --variants kpn,kpn-no-offset,e2e --ns 1,3,5,7,9,11 --json fig7.json [--out-dir DIR] \\
+        [--sensor-motion] [--radial-frames]
 
 Several processes (say one per variant) can share a GPU; ``--merge A.json B.json --json OUT``
 joins their results into the file that ships beside the weights (``nn/weights/fig7.json``).
@@ -30,6 +31,7 @@ import platform
 import sys
 import tempfile
 import time
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -63,6 +65,8 @@ def sub_burst(batch: tuple[torch.Tensor, ...], n: int, n_max: int) -> tuple[torc
     sel = slice(p - n // 2, p - n // 2 + n)
     v = valid[:, sel]
     mask = v.sum(dim=1, keepdim=True) >= min_views(n)
+    if r2.shape[1] == n_max:  # each frame's sensor position: the sub-burst's own
+        r2 = r2[:, sel].contiguous()
     return frames[:, sel].contiguous(), fpa, v.contiguous(), truth, mask, r2
 
 
@@ -75,7 +79,7 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
     if any(n % 2 == 0 for n in ns):
         raise SystemExit("N must be odd (a pivot in the middle)")
     n_max = max(ns)
-    cfg = BurstConfig(n_frames=n_max, crop=args.crop)
+    cfg = BurstConfig(n_frames=n_max, crop=args.crop, sensor_motion=args.sensor_motion)
     pool_fn = lambda: ScenePool.training(seed=42, n_procedural=24)  # noqa: E731
     norm = fit_normalisation(pool_fn(), cfg, seed=42)
     models, opts = {}, {}
@@ -92,7 +96,8 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
             models[(v, n)] = KPN(mc, temp_range_c=(norm.temp_min_c, norm.temp_max_c))
             models[(v, n)] = models[(v, n)].to(device).train()
             opts[(v, n)] = torch.optim.Adam(models[(v, n)].parameters(), lr=args.lr)
-    stream = _Stream(pool_fn, cfg, norm, seed=42, batch=args.batch, start_batch=0, cameras=None)
+    stream = _Stream(pool_fn, cfg, norm, seed=42, batch=args.batch, start_batch=0, cameras=None,
+                     frame_positions=base.radial_frames)
     loader = torch.utils.data.DataLoader(
         stream,
         batch_size=None,
@@ -218,6 +223,10 @@ def main() -> None:
     ap.add_argument("--lr", type=float, default=1e-3)
     ap.add_argument("--crop", type=int, default=64)
     ap.add_argument("--quick", action="store_true", help="the small evaluation set")
+    ap.add_argument("--sensor-motion", action="store_true",
+                    help="thermocal train --sensor-motion: frames displaced as on the whole sensor")
+    ap.add_argument("--radial-frames", action="store_true",
+                    help="thermocal train --radial-frames: each frame's sensor position")
     ap.add_argument("--out-dir", default=None, help="keep the trained models here")
     ap.add_argument("--json", type=Path, required=True)
     ap.add_argument(
@@ -234,7 +243,7 @@ def main() -> None:
         args.json.write_text(json.dumps(to_figure_json(rows, " / ".join(sorted(notes))), indent=2))
         return
     base, _, _ = load_model(shipped_model_path("kpn"))
-    rows = train_sweep(args, base.config)
+    rows = train_sweep(args, replace(base.config, radial_frames=args.radial_frames))
     dev = torch.cuda.get_device_name() if resolve_device(args.device).type == "cuda" else "CPU"
     note = (
         f"the models trained side by side for {rows[-1]['minutes']:g} min, "

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from thermocal.camera.model import invert
+from thermocal.camera.presets import make_camera
 from thermocal.errors import InvalidInputError
 from thermocal.nn.data import (
     EVAL_SCENES,
@@ -27,6 +28,7 @@ from thermocal.nn.data import (
     redraw_column_fpn,
     redraw_pixel_fpn,
     sensor_r2,
+    window_offsets,
 )
 from thermocal.scenes.procedural import procedural_scene
 
@@ -225,3 +227,60 @@ def test_burst_knows_where_its_pixels_lie_on_the_sensor(pool):
         assert len(hits) == 1
         assert np.array_equal(b.r2, (radial_map((40, 48)) ** 2)[hits[0][0]:hits[0][0] + 32,
                                                                 hits[0][1]:hits[0][1] + 32])
+
+
+def _radial_only_camera(size: tuple[int, int], per_r2: float) -> UnitCache:
+    """A unit cache holding unit 0: no FPN, noise or housing term, an offset of ``per_r2``·R²
+    counts (R² of :func:`sensor_r2`): each pixel's counts tell where on the sensor it is."""
+    w, h = size
+    base = make_camera("tau2", unit=0, size=size)
+    offset = np.zeros_like(base.offset)
+    offset[0] = 4000.0 + per_r2 * sensor_r2((h, w))
+    gain = np.broadcast_to(base.gain.mean(axis=(1, 2))[:, None, None], base.gain.shape)
+    cam = replace(base, gain=gain.astype(np.float32), offset=offset,
+                  housing=np.zeros_like(base.housing), transient=np.zeros_like(base.transient),
+                  defects=np.zeros_like(base.defects),
+                  defect_counts=np.zeros_like(base.defect_counts), noise_sigma=0.0)
+    cache = UnitCache("tau2", size)
+    cache._units[0] = cam
+    return cache
+
+
+@pytest.mark.parametrize("sensor_motion", [False, True])
+def test_frame_r2_tells_where_each_frame_saw_each_pixel(sensor_motion):
+    size = (128, 96)
+    units = _radial_only_camera(size, 2000.0)
+    flat = ScenePool([np.full((64, 64), 20.0, np.float32)], ["uniform"])
+    cfg = BurstConfig(n_frames=5, crop=32, units=(0,), sensor_size=size, augment=False,
+                      redraw_column_fpn=False, motions=("walk",), translation_px=0.0,
+                      perspective_sigma=0.0, sensor_motion=sensor_motion)
+    b = make_burst(flat, cfg, rng=np.random.default_rng(3), units=units)
+    assert b.r2_frames.shape == b.frames.shape and np.array_equal(b.r2_frames[2], b.r2)
+    # a uniform scene: the counts are 4000 + (scene) + 2000·R² of the sensor pixel that saw it
+    inner = b.valid.all(axis=0)
+    inner[:2], inner[-2:], inner[:, :2], inner[:, -2:] = False, False, False, False
+    level = b.frames - 2000.0 * b.r2_frames
+    assert np.ptp(level[:, inner]) < 3.0  # counts; bilinear sampling of a smooth map
+    # the frames saw the pivot's pixels elsewhere (4× farther away with sensor motion)
+    spread = np.abs(b.r2_frames - b.r2[None])[:, inner].max()
+    assert spread > (0.1 if sensor_motion else 0.02)
+    assert np.ptp((b.frames - 2000.0 * b.r2[None])[:, inner]) > 100.0  # the pivot's R²: wrong
+
+
+def test_sensor_motion_moves_the_windows_as_whole_sensor_frames():
+    # a pure translation: frame 0 sees the pivot window's centre 6 px left and 3 px up
+    hs = np.repeat(np.eye(3)[None], 3, 0)
+    hs[0, :2, 2] = (6.0, 3.0)  # frame 0 → pivot: x + 6, y + 3
+    moves = window_offsets(hs, 32, (128, 96), pivot=1)
+    # whole 128×96 frames would be displaced by 4× and 3× as much: the window moves the rest
+    assert moves.tolist() == [[-6, -18], [0, 0], [0, 0]]
+    far = hs.copy()
+    far[0, :2, 2] = (40.0, 40.0)  # the windows would not fit on the sensor: moves shrunk
+    moves = window_offsets(far, 32, (128, 96), pivot=1)
+    assert np.ptp(moves[:, 0]) <= 96 - 32 and np.ptp(moves[:, 1]) <= 128 - 32
+    cfg = BurstConfig(n_frames=3, crop=32, units=(0,), sensor_size=(128, 96))
+    pool = ScenePool([np.random.default_rng(0).normal(20, 3, (80, 80)).astype(np.float32)], ["x"])
+    a = make_burst(pool, cfg, rng=np.random.default_rng(9))
+    b = make_burst(pool, replace(cfg, sensor_motion=True), rng=np.random.default_rng(9))
+    assert np.array_equal(a.truth_c, b.truth_c)  # the same scene and trajectory, other pixels
+    assert not np.array_equal(a.raw[0], b.raw[0])

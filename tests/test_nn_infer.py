@@ -17,7 +17,13 @@ from thermocal.cli import main  # noqa: E402
 from thermocal.errors import InvalidInputError, RegistrationError  # noqa: E402
 from thermocal.io.recording import Recording, write_recording  # noqa: E402
 from thermocal.nn import infer  # noqa: E402
-from thermocal.nn.data import BurstConfig, Normalisation, ScenePool  # noqa: E402
+from thermocal.nn.data import (  # noqa: E402
+    BurstConfig,
+    Normalisation,
+    ScenePool,
+    frame_r2,
+    sensor_r2,
+)
 from thermocal.nn.infer import (  # noqa: E402
     estimate_burst,
     inference_tiling,
@@ -26,6 +32,7 @@ from thermocal.nn.infer import (  # noqa: E402
 )
 from thermocal.nn.model import KPN, ModelConfig  # noqa: E402
 from thermocal.nn.train import TrainConfig, load_model, save_model, step_lr  # noqa: E402
+from thermocal.registration.warp import warp_to_pivot  # noqa: E402
 from thermocal.scenes.procedural import procedural_scene  # noqa: E402
 from thermocal.simulate.flight import simulate_flight, write_flight  # noqa: E402
 
@@ -659,3 +666,34 @@ def test_e2e_runs_in_tiles_of_its_training_crop(tmp_path):
     run_network(kpn_back, norm, warped, valid, 30.0)
     run_network(e2e_back, norm, warped, valid, 30.0, tile=512)
     assert seen == [(48, 72), (48, 72)]  # the KPN variants run whole frames
+
+
+def test_train_and_estimate_with_each_frames_sensor_position(tmp_path, capsys, flight):
+    """--sensor-motion --radial-frames: trained, saved, and run by estimate_burst with each
+    frame's R² found from the burst's homographies."""
+    out = tmp_path / "rf.pt"
+    small = ["--frames", "3", "--mu", "4", "--levels", "1", "--kernel", "3", "--crop", "32",
+             "--batch", "2", "--steps-per-epoch", "2", "--max-epochs", "1", "--val-bursts", "2",
+             "--units", "0-1", "--workers", "0", "--threads", "1", "--scenes", "3"]
+    code, err = run(["train", "--out", str(out), *small, "--sensor-motion", "--radial-frames"],
+                    capsys)
+    assert code == 0, err
+    model, norm, info = load_model(out)
+    assert model.config.radial_frames and info["data"]["sensor_motion"] is True
+    with torch.no_grad():
+        model.offset.delta_radial.normal_(0.0, 0.5)  # make the positions matter
+    est = estimate_burst(flight.frames, 30.0, model=model, norm=norm,
+                         homographies=flight.homographies, fill_defects=False)
+    warped, valid = warp_to_pivot(flight.frames, flight.homographies)
+    h, w = valid.shape[1:]
+    r2f = frame_r2(sensor_r2((h, w)), flight.homographies, valid)
+    by_hand = run_network(model, norm, warped, valid, 30.0, r2_frames=r2f)
+    assert np.allclose(est.temperature_c, by_hand, atol=1e-3)
+    pivot_only = run_network(model, norm, warped, valid, 30.0,
+                             r2_frames=np.repeat(sensor_r2((h, w))[None], 3, 0))
+    assert np.abs(pivot_only - by_hand).max() > 1e-3  # the walk's frames saw it elsewhere
+    with pytest.raises(InvalidInputError, match="each frame's sensor position"):
+        run_network(model, norm, warped, valid, 30.0)
+    code, err = run(["train", "--out", str(tmp_path / "x.pt"), *small, "--radial", "0",
+                     "--radial-frames"], capsys)
+    assert code == 2 and "radial" in err and "Traceback" not in err

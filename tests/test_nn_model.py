@@ -280,3 +280,40 @@ def test_radial_radiance_kpn_is_exact_for_a_camera_with_a_radial_offset():
     with torch.no_grad():
         m.offset.delta_radial.zero_()
     assert np.abs(_estimate_c(m, frames, r2) - truth_c).max() > 1.0
+
+
+def test_offset_block_evaluates_each_frame_at_its_own_position():
+    """With one R² plane per frame, frame n's radial terms are taken at its own R²; with the
+    same plane for every frame it is the pivot-only block."""
+    torch.manual_seed(0)
+    blk = OffsetBlock(3, degree=1, radial=2)
+    with torch.no_grad():
+        blk.delta_radial.normal_()
+    means, fpa = torch.rand(2, 3), torch.rand(2)
+    r2 = torch.rand(2, 1, 4, 5)
+    same = blk(means, fpa, r2.expand(2, 3, 4, 5))
+    assert torch.allclose(same, blk(means, fpa, r2), atol=1e-6)
+    per = torch.rand(2, 3, 4, 5)
+    d = blk(means, fpa, per)
+    # by hand: the constant part plus mean over n of Σ_k coef_nk · R²_n^(k+1)
+    p = torch.arange(2, dtype=torch.float32)
+    feats = ((means[..., None] ** p)[..., :, None] * (fpa[:, None] ** p)[:, None, None, :]
+             ).flatten(2)
+    const = (feats * blk.delta).sum(dim=2).mean(dim=1).view(-1, 1, 1, 1)
+    coef = torch.einsum("bnf,nfk->bnk", feats, blk.delta_radial)
+    want = const + sum((coef[:, :, k, None, None] * per ** (k + 1)).mean(dim=1, keepdim=True)
+                       for k in range(2))
+    assert torch.allclose(d, want, atol=1e-5) and not torch.allclose(d, same, atol=1e-3)
+
+
+def test_radial_frames_model_takes_one_position_plane_per_frame():
+    cfg = ModelConfig(n_frames=3, mu=4, levels=1, kernel=3, radial=1, radial_frames=True)
+    assert cfg.position_planes == 3 and ModelConfig(radial=1).position_planes == 1
+    m = KPN(cfg)
+    with pytest.raises(InvalidInputError, match=r"\(1, 3, 8, 8\)"):
+        m(torch.rand(1, 3, 8, 8), torch.rand(1), r2=torch.rand(1, 1, 8, 8))
+    assert m(torch.rand(1, 3, 8, 8), torch.rand(1), r2=torch.rand(1, 3, 8, 8)).shape == (
+        1, 1, 8, 8)
+    assert count_macs(m, 8, 8) > 0
+    with pytest.raises(InvalidInputError, match="radial"):
+        ModelConfig(radial=0, radial_frames=True)

@@ -233,6 +233,19 @@ def estimate(
     "pivot (less motion per burst; the validation bursts keep --frames).",
 )
 @click.option(
+    "--sensor-motion",
+    is_flag=True,
+    help="Displace the training frames on the sensor as whole-sensor frames of the same overlap "
+    "are (each frame rendered by its own sensor window), not by crop-sized amounts; the "
+    "validation bursts too.",
+)
+@click.option(
+    "--radial-frames",
+    is_flag=True,
+    help="With --radial: the position terms take where on the sensor each frame saw each pixel "
+    "(N planes), not the pivot's position alone.",
+)
+@click.option(
     "--init",
     "init",
     type=click.Path(path_type=Path),
@@ -281,6 +294,8 @@ def train(
     temp_mean_range_c: str | None,
     redraw_pixel_fpn: bool,
     walk_frames: int | None,
+    sensor_motion: bool,
+    radial_frames: bool,
     init: Path | None,
     device: str,
 ) -> None:
@@ -355,6 +370,7 @@ def train(
         radiance=radiance,
         radial=radial,
         band_m=band_m,
+        radial_frames=radial_frames,
     )
     if crop % model_cfg.multiple:
         raise InvalidInputError(f"--crop must be a multiple of ξ^L = {model_cfg.multiple}")
@@ -369,6 +385,8 @@ def train(
         extra["redraw_pixel_fpn"] = True
     if walk_frames is not None:
         extra["walk_frames"] = walk_frames
+    if sensor_motion:
+        extra["sensor_motion"] = True
     burst_cfg = BurstConfig(
         n_frames=n_frames,
         crop=crop,

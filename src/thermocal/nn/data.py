@@ -55,10 +55,12 @@ __all__ = [
     "ScenePool",
     "UnitCache",
     "coverage_mask",
+    "frame_r2",
     "make_burst",
     "make_bursts",
     "min_views",
     "sensor_r2",
+    "window_offsets",
 ]
 
 #: Camera units of the ``tau2`` preset used for training, validation (early stopping and the
@@ -171,6 +173,15 @@ class BurstConfig:
         Camera units drawn from.
     sensor_size : (int, int)
         ``(W, H)`` of the full sensor; each burst uses a random ``crop × crop`` window of it.
+    sensor_motion : bool
+        Displace the frames on the sensor as whole-sensor frames of the same overlap are: each
+        frame is rendered by the sensor window that sees the pivot window's scene where a
+        ``sensor_size`` frame would (the trajectory's displacements scaled by sensor side /
+        crop per axis, less where the windows would leave the sensor; :func:`window_offsets`).
+        Off (the paper's crops): every frame is rendered by the pivot's window, so a scene
+        point moves across the sensor by crop-sized amounts only, and the radial offset and
+        vignetting it meets in the other frames are those of nearby pixels. With it, stuck
+        pixels are left out of the rendering (inference replaces them before the network).
     """
 
     n_frames: int = 7
@@ -191,6 +202,7 @@ class BurstConfig:
     preset: str = "tau2"
     units: tuple[int, ...] = TRAIN_UNITS
     sensor_size: tuple[int, int] = (336, 256)
+    sensor_motion: bool = False
 
     def __post_init__(self) -> None:
         if self.n_frames < 1:
@@ -247,6 +259,10 @@ class Burst:
         The sensor window that rendered the burst (with the re-drawn FPN).
     r2 : (S, S) float32
         Where the pivot's pixels lie on the sensor: ``R²`` of Oz et al. eq. 16 for the window.
+    r2_frames : (N, S, S) float32
+        Where on the sensor each frame saw each pivot pixel: ``R²`` of the frame's pixels warped
+        onto the pivot like the frames (:func:`frame_r2`); the pivot's ``r2`` where a frame does
+        not see the pixel.
     """
 
     frames: np.ndarray
@@ -258,6 +274,7 @@ class Burst:
     unit: int
     camera: CameraModel = field(repr=False)
     r2: np.ndarray = field(repr=False)
+    r2_frames: np.ndarray = field(repr=False)
 
 
 @functools.lru_cache(maxsize=8)
@@ -505,6 +522,49 @@ def _new_pixel_fpn(
     return replace(camera, gain=gain.astype(np.float32), offset=offset)
 
 
+def frame_r2(r2: np.ndarray, homographies: np.ndarray, valid: np.ndarray) -> np.ndarray:
+    """Where on the sensor each frame saw each pivot pixel, ``(N, H, W)`` float32.
+
+    ``r2`` is ``R²`` (Oz et al. eq. 16) of the frames' sensor windows: ``(H, W)`` when every
+    frame comes from the same window (whole frames, or the paper's crops), ``(N, H, W)`` each
+    its own. It is warped onto the pivot like the frames (``homographies`` frame → pivot,
+    ``(N, 3, 3)``); where a frame does not see a pivot pixel (``valid (N, H, W)`` False), the
+    pivot's own ``R²`` (the middle frame's window) stands in.
+    """
+    n = valid.shape[0]
+    planes = np.broadcast_to(np.asarray(r2, dtype=np.float32), valid.shape)
+    warped, _ = warp_to_pivot(np.ascontiguousarray(planes), homographies)
+    return np.where(valid, warped, planes[n // 2][None]).astype(np.float32)
+
+
+def window_offsets(
+    homographies: np.ndarray, crop: int, sensor_size: tuple[int, int], pivot: int
+) -> np.ndarray:
+    """Each frame's sensor window relative to the pivot's, ``(N, 2)`` int (rows, columns), for
+    :attr:`BurstConfig.sensor_motion`.
+
+    Frame ``i`` sees the pivot window's centre ``c`` at ``q_i = H_i⁻¹ c`` within its window
+    (``homographies`` frame → pivot, ``(N, 3, 3)``), a displacement ``δ_i = q_i − c`` scaled to
+    the crop. A whole ``sensor_size`` frame of the same overlap would see it displaced by
+    ``f·δ_i``, ``f`` = sensor side / ``crop`` per axis; the frame's window is therefore moved by
+    ``(f − 1)·δ_i``, so that the scene inside it stays where the crop trajectory put it while
+    the sensor pixels under it are those of a whole-sensor burst. Where the windows would not
+    fit on the sensor together, the moves along that axis are shrunk until they do.
+    """
+    c = (crop - 1) / 2.0
+    centre = np.array([c, c, 1.0])
+    q = np.stack([np.linalg.solve(h, centre) for h in homographies])
+    delta = q[:, 1::-1] / q[:, 2:3] - c  # (rows, columns)
+    w, h = sensor_size
+    moves = delta * (np.array([h, w], dtype=float) / crop - 1.0)
+    moves -= moves[pivot]
+    for axis, side in enumerate((h, w)):
+        span = np.ptp(moves[:, axis])
+        if span > side - crop:
+            moves[:, axis] *= (side - crop) / span
+    return np.rint(moves).astype(int)
+
+
 def make_burst(
     pool: ScenePool,
     cfg: BurstConfig,
@@ -549,18 +609,32 @@ def make_burst(
     u = int(cfg.units[int(rng.integers(len(cfg.units)))]) if unit is None else int(unit)
     full = units.get(u)
     sh, sw = full.shape
-    top, left = int(rng.integers(0, sh - s + 1)), int(rng.integers(0, sw - s + 1))
-    cam = full.crop(top, left, s, s)
+    h_true = trajectory.to_pivot(to_map, pivot)
+    if cfg.sensor_motion:  # the frames' windows, relative to the pivot's: (N, 2) rows, columns
+        moves = window_offsets(h_true, s, (sw, sh), pivot)
+    else:
+        moves = np.zeros((n, 2), dtype=int)
+    lo, hi = moves.min(axis=0), moves.max(axis=0)
+    top = int(rng.integers(-lo[0], sh - s - hi[0] + 1))
+    left = int(rng.integers(-lo[1], sw - s - hi[1] + 1))
+    # the union of the windows, with its FPN re-drawn once: a sensor pixel keeps its pattern
+    # in every frame that it renders
+    cam = full.crop(top + lo[0], left + lo[1], s + hi[0] - lo[0], s + hi[1] - lo[1])
     if cfg.redraw_column_fpn:
-        cam = draw_pixel_fpn(redraw_column_fpn(cam, left, rng), rng)
+        cam = draw_pixel_fpn(redraw_column_fpn(cam, left + lo[1], rng), rng)
     if cfg.redraw_pixel_fpn:
-        cam = redraw_pixel_fpn(cam, top, left, rng)
+        cam = redraw_pixel_fpn(cam, top + lo[0], left + lo[1], rng)
     fpa_true = float(rng.uniform(*cfg.fpa_range_c)) if fpa_c is None else float(fpa_c)
     housing = fpa_true - _THERMAL.fpa_self_heating_c
-    raw = render(cam, truth, fpa_true, housing_c=housing, rng=rng)
+    if cfg.sensor_motion:
+        windows = [_without_defects(cam.crop(dy - lo[0], dx - lo[1], s, s)) for dy, dx in moves]
+        raw = np.concatenate([render(w, truth[i : i + 1], fpa_true, housing_c=housing, rng=rng)
+                              for i, w in enumerate(windows)])
+        cam = windows[pivot]
+    else:
+        raw = render(cam, truth, fpa_true, housing_c=housing, rng=rng)
     fpa_read = float(fpa_sensor(np.array([fpa_true]), _THERMAL, rng=rng)[0])
 
-    h_true = trajectory.to_pivot(to_map, pivot)
     h_reg = trajectory.perturb_homographies(
         h_true,
         rng=rng,
@@ -571,6 +645,7 @@ def make_burst(
     )
     filled, _ = fill_stuck_pixels(raw, h_reg)  # as inference does (thermocal.burst.prepare)
     warped, valid = warp_to_pivot(filled, h_reg)
+    r2_windows = np.stack([sensor_r2(full.shape, top + dy, left + dx, (s, s)) for dy, dx in moves])
     return Burst(
         frames=warped,
         valid=valid,
@@ -580,8 +655,14 @@ def make_burst(
         fpa_c=fpa_read,
         unit=u,
         camera=cam,
-        r2=sensor_r2(full.shape, top, left, (s, s)),
+        r2=r2_windows[pivot],
+        r2_frames=frame_r2(r2_windows, h_reg, valid),
     )
+
+
+def _without_defects(camera: CameraModel) -> CameraModel:
+    return replace(camera, defects=np.zeros_like(camera.defects),
+                   defect_counts=np.zeros_like(camera.defect_counts))
 
 
 def make_bursts(

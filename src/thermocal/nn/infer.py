@@ -27,7 +27,7 @@ from thermocal.burst import (
     register,
 )
 from thermocal.errors import InvalidInputError
-from thermocal.nn.data import Normalisation, sensor_r2
+from thermocal.nn.data import Normalisation, frame_r2, sensor_r2
 from thermocal.nn.model import KPN, frame_means
 
 __all__ = [
@@ -96,6 +96,7 @@ def run_network(
     *,
     tile: int | None = None,
     margin: int | None = None,
+    r2_frames: np.ndarray | None = None,
 ) -> np.ndarray:
     """The network on registered frames ``(N, H, W)`` (counts), tiled; returns °C ``(H, W)``.
 
@@ -106,7 +107,9 @@ def run_network(
     (default: :func:`inference_tiling`); only their centres are kept, so that the seams see the
     same context as the interior. It runs where the model's parameters
     are (CPU or GPU). A model with position terms (``radial > 0``) takes the frames to be whole
-    sensor frames (``R²`` of Oz et al. eq. 16 over ``H × W``).
+    sensor frames (``R²`` of Oz et al. eq. 16 over ``H × W``); one with ``radial_frames`` also
+    needs ``r2_frames (N, H, W)``, where each frame saw each pivot pixel
+    (:func:`~thermocal.nn.data.frame_r2`).
     """
     if tile is None or margin is None:
         default_tile, default_margin = inference_tiling(model)
@@ -118,7 +121,15 @@ def run_network(
     xt = torch.from_numpy(x)[None].to(device)
     vt = torch.from_numpy(valid)[None].to(device)
     means = frame_means(xt, vt)
-    r2 = torch.tensor(sensor_r2((h, w)))[None, None].to(device) if model.config.radial else None
+    r2 = None
+    if model.config.radial_frames:
+        if r2_frames is None or np.shape(r2_frames) != (n, h, w):
+            raise InvalidInputError(
+                f"this model needs each frame's sensor position R² ({n}, {h}, {w}) (r2_frames)"
+            )
+        r2 = torch.from_numpy(np.asarray(r2_frames, dtype=np.float32))[None].to(device)
+    elif model.config.radial:
+        r2 = torch.tensor(sensor_r2((h, w)))[None, None].to(device)
     fpa = torch.tensor([norm.fpa(float(fpa_c))], dtype=torch.float32, device=device)
     mult = model.config.multiple
     out = np.empty((h, w), dtype=np.float32)
@@ -206,5 +217,9 @@ def estimate_burst(
     _, warped, valid, hs, p = prepare(arr, pivot=pivot, registered=registered,
                                       homographies=homographies, fill_defects=fill_defects)
     check_overlap(valid, p)
-    temp = run_network(model, norm, _to_model_order(warped, p), _to_model_order(valid, p), fpa)
+    r2f = None
+    if model.config.radial_frames:
+        r2f = _to_model_order(frame_r2(sensor_r2(valid.shape[1:]), hs, valid), p)
+    temp = run_network(model, norm, _to_model_order(warped, p), _to_model_order(valid, p), fpa,
+                       r2_frames=r2f)
     return Estimate(temp, valid.sum(axis=0), hs, p)

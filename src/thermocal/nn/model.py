@@ -99,6 +99,13 @@ class ModelConfig:
         where on the sensor a pixel lies, so without it the radial offset and vignetting of
         eq. 16-17 (degrees between the centre and the corners) are left to the burst's
         parallax, and a camera that hovers has none.
+    radial_frames : bool
+        With ``radial``: the position terms take, for each frame, where on the sensor it saw
+        each pivot pixel (``R²`` of its pixels warped onto the pivot, ``N`` planes;
+        :func:`~thermocal.nn.data.frame_r2`) instead of the pivot's position alone, and the
+        offset block's radial polynomial of frame ``n`` is evaluated at frame ``n``'s ``R²``.
+        An addition: in a walk the other frames see a scene point far from where the pivot
+        does, under another radial offset and vignetting.
     """
 
     n_frames: int = 7
@@ -113,6 +120,7 @@ class ModelConfig:
     radiance: bool = False
     radial: int = 0
     band_m: tuple[float, float] = TAU2_BAND_M
+    radial_frames: bool = False
 
     def __post_init__(self) -> None:
         if self.variant not in VARIANTS:
@@ -127,6 +135,8 @@ class ModelConfig:
             raise InvalidInputError(f"offset degree must be >= 0, got {self.degree}")
         if self.radial < 0:
             raise InvalidInputError(f"radial degree must be >= 0, got {self.radial}")
+        if self.radial_frames and not self.radial:
+            raise InvalidInputError("radial_frames needs position terms (radial > 0)")
         band = tuple(float(v) for v in self.band_m)  # a list when read back from JSON
         if len(band) != 2 or not 0.0 < band[0] < band[1]:
             raise InvalidInputError(f"band_m must be (λ1, λ2) in m, increasing; got {band}")
@@ -136,6 +146,13 @@ class ModelConfig:
     def multiple(self) -> int:
         """Frame sides must be a multiple of this (``ξ^L``)."""
         return self.xi**self.levels
+
+    @property
+    def position_planes(self) -> int:
+        """``R²`` planes the model takes: 0 (no position terms), 1 (the pivot's), ``N``."""
+        if not self.radial:
+            return 0
+        return self.n_frames if self.radial_frames else 1
 
     def to_dict(self) -> dict:
         """JSON-able form."""
@@ -248,7 +265,8 @@ class OffsetBlock(nn.Module):
     Inputs are normalised (eq. 20-21), so the powers stay in ``[0, 1]``. Starts at zero.
 
     With ``radial = ρ > 0`` (:class:`ModelConfig`) a second matrix ``(N, (ν+1)², ρ)`` gives the
-    coefficients of ``R^(2k)``, ``k = 1 … ρ``: the offset becomes a radial map.
+    coefficients of ``R^(2k)``, ``k = 1 … ρ``: the offset becomes a radial map. ``R²`` is the
+    pivot's (one plane) or each frame's own (``N`` planes, frame ``n``'s terms at its ``R²``).
     """
 
     def __init__(self, n_frames: int, degree: int, radial: int = 0) -> None:
@@ -262,8 +280,8 @@ class OffsetBlock(nn.Module):
     def forward(
         self, means: torch.Tensor, fpa: torch.Tensor, r2: torch.Tensor | None = None
     ) -> torch.Tensor:
-        """``means (B, N)``, ``fpa (B,)`` [, ``r2 (B, 1, H, W)``] → offset ``(B, 1, 1, 1)``
-        (``(B, 1, H, W)`` with radial terms)."""
+        """``means (B, N)``, ``fpa (B,)`` [, ``r2 (B, 1 or N, H, W)``] → offset
+        ``(B, 1, 1, 1)`` (``(B, 1, H, W)`` with radial terms)."""
         p = torch.arange(self.degree + 1, dtype=means.dtype, device=means.device)
         m_pow = means[..., None] ** p  # (B, N, ν+1)
         t_pow = fpa[:, None] ** p  # (B, ν+1)
@@ -272,10 +290,15 @@ class OffsetBlock(nn.Module):
         if self.delta_radial is None:
             return d
         if r2 is None:
-            raise InvalidInputError("the radial offset block needs the pixels' R² (B, 1, H, W)")
-        coef = torch.einsum("bnf,nfk->bk", feats, self.delta_radial) / feats.shape[1]  # (B, ρ)
+            raise InvalidInputError("the radial offset block needs the pixels' R² (B, 1|N, H, W)")
+        if r2.shape[1] == 1:  # the pivot's R² for every frame: sum the frames' coefficients
+            coef = torch.einsum("bnf,nfk->bk", feats, self.delta_radial) / feats.shape[1]
+            for k in range(self.radial):
+                d = d + coef[:, k].view(-1, 1, 1, 1) * r2 ** (k + 1)
+            return d
+        coef = torch.einsum("bnf,nfk->bnk", feats, self.delta_radial)  # (B, N, ρ)
         for k in range(self.radial):
-            d = d + coef[:, k].view(-1, 1, 1, 1) * r2 ** (k + 1)
+            d = d + (coef[:, :, k, None, None] * r2 ** (k + 1)).mean(dim=1, keepdim=True)
         return d
 
 
@@ -338,7 +361,8 @@ class KPN(nn.Module):
     ``(B, N, H, W)`` (0 where a frame does not see the pixel), the normalised FPA temperature
     ``(B,)``, optionally the validity masks ``(B, N, H, W)`` (for the frame means of the offset
     block; default: every pixel) and, for a model with ``radial > 0``, the pivot pixels'
-    sensor position ``R² (B, 1, H, W)``, and returns the normalised temperature of the pivot
+    sensor position ``R² (B, 1, H, W)`` (with ``radial_frames``, each frame's: ``(B, N, H, W)``),
+    and returns the normalised temperature of the pivot
     ``(B, 1, H, W)``. ``H, W`` must be multiples of ``ξ^L``. ``temp_range_c`` is eq. 20's
     temperature range (the normalisation's); only ``radiance=True`` uses it. ``train_crop`` is
     the side of the training crops, px (:func:`~thermocal.nn.train.load_model` sets it from the
@@ -357,7 +381,7 @@ class KPN(nn.Module):
         self.config = config
         self.train_crop = train_crop
         c = config
-        extra = int(c.fpa_input) * (2 if c.centre else 1) + int(c.radial > 0)
+        extra = int(c.fpa_input) * (2 if c.centre else 1) + c.position_planes
         self.unet = UNet(c.n_frames + extra, c.mu, c.xi, c.levels)
         c_out = 1 if c.variant == "e2e" else c.n_frames * c.kernel**2
         self.head = KernelHead(c.mu, c_out)
@@ -413,10 +437,11 @@ class KPN(nn.Module):
         b, _, h, w = frames.shape
         if h % c.multiple or w % c.multiple:
             raise InvalidInputError(f"frame sides must be multiples of {c.multiple}, got {h}x{w}")
-        if c.radial and (r2 is None or r2.shape != (b, 1, h, w)):
+        want = (b, c.position_planes, h, w)
+        if c.radial and (r2 is None or tuple(r2.shape) != want):
             got = None if r2 is None else tuple(r2.shape)
             raise InvalidInputError(
-                f"this model needs the pixels' sensor position R² {(b, 1, h, w)}, got {got}"
+                f"this model needs the pixels' sensor position R² {want}, got {got}"
             )
         if means is None:
             means = frame_means(frames, valid)
@@ -473,7 +498,7 @@ def count_macs(model: KPN, height: int, width: int) -> int:
     try:
         with torch.no_grad():
             model(torch.zeros(1, c.n_frames, height, width), torch.zeros(1),
-                  r2=torch.zeros(1, 1, height, width) if c.radial else None)
+                  r2=torch.zeros(1, c.position_planes, height, width) if c.radial else None)
     finally:
         for h in handles:
             h.remove()

@@ -128,16 +128,19 @@ class TrainResult:
 # --------------------------------------------------------------------------------------------
 # tensors
 # --------------------------------------------------------------------------------------------
-def batch_tensors(bursts: list[Burst], norm: Normalisation) -> tuple[torch.Tensor, ...]:
+def batch_tensors(
+    bursts: list[Burst], norm: Normalisation, *, frame_positions: bool = False
+) -> tuple[torch.Tensor, ...]:
     """Stack bursts into ``frames (B,N,H,W)``, ``fpa (B,)``, ``valid (B,N,H,W)``,
     ``truth (B,1,H,W)`` (all normalised, float32), the loss mask ``(B,1,H,W)`` bool and the
-    pivot pixels' sensor position ``R² (B,1,H,W)`` float32."""
+    pivot pixels' sensor position ``R² (B,1,H,W)`` float32 (with ``frame_positions``, each
+    frame's, ``(B,N,H,W)``: :attr:`ModelConfig.radial_frames`)."""
     frames = np.stack([np.where(b.valid, norm.counts(b.frames), 0.0) for b in bursts])
     valid = np.stack([b.valid for b in bursts])
     truth = np.stack([norm.temp(b.truth_c) for b in bursts])[:, None]
     mask = np.stack([coverage_mask(b.valid) for b in bursts])[:, None]
     fpa = np.array([norm.fpa(b.fpa_c) for b in bursts])
-    r2 = np.stack([b.r2 for b in bursts])[:, None]
+    r2 = np.stack([b.r2_frames if frame_positions else b.r2[None] for b in bursts])
     return (
         torch.from_numpy(frames.astype(np.float32)),
         torch.from_numpy(fpa.astype(np.float32)),
@@ -162,10 +165,11 @@ class _Stream(torch.utils.data.IterableDataset):
         batch: int,
         start_batch: int,
         cameras: dict[int, CameraModel] | None,
+        frame_positions: bool = False,
     ) -> None:
         self.pool_fn, self.cfg, self.norm = pool_fn, cfg, norm
         self.seed, self.batch, self.start = seed, batch, start_batch
-        self.cameras = cameras
+        self.cameras, self.frame_positions = cameras, frame_positions
 
     def __iter__(self) -> Iterator[tuple[torch.Tensor, ...]]:
         pool = self.pool_fn()
@@ -179,7 +183,7 @@ class _Stream(torch.utils.data.IterableDataset):
                 make_burst(pool, self.cfg, rng=np.random.default_rng([self.seed, i]), units=units)
                 for i in range(k * self.batch, (k + 1) * self.batch)
             ]
-            yield batch_tensors(bursts, self.norm)
+            yield batch_tensors(bursts, self.norm, frame_positions=self.frame_positions)
             k += stride
 
 
@@ -483,7 +487,8 @@ def train(
         for i in range(train_cfg.val_bursts)
     ]
     val = [  # on the training device once, not at every validation
-        tuple(t.to(device) for t in batch_tensors(val_bursts[i : i + train_cfg.batch], norm))
+        tuple(t.to(device) for t in batch_tensors(val_bursts[i : i + train_cfg.batch], norm,
+                                                  frame_positions=model_cfg.radial_frames))
         for i in range(0, len(val_bursts), train_cfg.batch)
     ]
 
@@ -548,6 +553,7 @@ def train(
         batch=train_cfg.batch,
         start_batch=step,
         cameras=cameras,
+        frame_positions=model_cfg.radial_frames,
     )
     loader = torch.utils.data.DataLoader(
         stream,
