@@ -57,15 +57,16 @@ from thermocal.nn.train import (  # noqa: E402
 )
 
 
-def sub_burst(batch: tuple[torch.Tensor, ...], n: int, n_max: int) -> tuple[torch.Tensor, ...]:
+def sub_burst(batch: tuple[torch.Tensor, ...], n: int, n_max: int,
+              frame_positions: bool = False) -> tuple[torch.Tensor, ...]:
     """The ``n`` frames around the pivot of an ``n_max``-frame batch, with their coverage mask
-    (the batch's other tensors unchanged)."""
+    and, with ``frame_positions``, their ``R²`` planes (the batch's other tensors unchanged)."""
     frames, fpa, valid, truth, _, r2 = batch
     p = n_max // 2
     sel = slice(p - n // 2, p - n // 2 + n)
     v = valid[:, sel]
     mask = v.sum(dim=1, keepdim=True) >= min_views(n)
-    if r2.shape[1] == n_max:  # each frame's sensor position: the sub-burst's own
+    if frame_positions:  # each frame's sensor position: the sub-burst's own
         r2 = r2[:, sel].contiguous()
     return frames[:, sel].contiguous(), fpa, v.contiguous(), truth, mask, r2
 
@@ -116,7 +117,8 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
         lr = step_lr(schedule, steps, time.monotonic() - t0)
         batch = tuple(t.to(device, non_blocking=True) for t in next(it))
         for key, model in models.items():
-            frames, fpa, valid, truth, mask, r2 = sub_burst(batch, key[1], n_max)
+            frames, fpa, valid, truth, mask, r2 = sub_burst(batch, key[1], n_max,
+                                                            base.radial_frames)
             opt = opts[key]
             for g in opt.param_groups:
                 g["lr"] = lr

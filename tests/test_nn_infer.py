@@ -694,6 +694,23 @@ def test_train_and_estimate_with_each_frames_sensor_position(tmp_path, capsys, f
     assert np.abs(pivot_only - by_hand).max() > 1e-3  # the walk's frames saw it elsewhere
     with pytest.raises(InvalidInputError, match="each frame's sensor position"):
         run_network(model, norm, warped, valid, 30.0)
+    # another pivot: the frames, masks and positions all go into the model's order
+    hs0 = np.linalg.inv(flight.homographies[0]) @ flight.homographies
+    est0 = estimate_burst(flight.frames, 30.0, model=model, norm=norm, pivot=0,
+                          homographies=hs0, fill_defects=False)
+    w0, v0 = warp_to_pivot(flight.frames, hs0)
+    order = [1, 0, 2]  # the pivot into the middle
+    r0 = frame_r2(sensor_r2((h, w)), hs0, v0)
+    hand0 = run_network(model, norm, w0[order], v0[order], 30.0, r2_frames=r0[order])
+    assert np.allclose(est0.temperature_c, hand0, atol=1e-3)
+    assert not np.allclose(est0.temperature_c,
+                           run_network(model, norm, w0[order], v0[order], 30.0, r2_frames=r0),
+                           atol=1e-2)
+    with pytest.raises(InvalidInputError, match="not --registered"):
+        estimate_burst(warped, 30.0, model=model, norm=norm, registered=True)
+    plain = KPN(ModelConfig(n_frames=3, mu=4, levels=1, kernel=3, radial=1)).eval()
+    with pytest.raises(InvalidInputError, match="without radial_frames"):
+        run_network(plain, norm, warped, valid, 30.0, r2_frames=r2f)
     code, err = run(["train", "--out", str(tmp_path / "x.pt"), *small, "--radial", "0",
                      "--radial-frames"], capsys)
     assert code == 2 and "radial" in err and "Traceback" not in err

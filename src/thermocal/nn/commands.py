@@ -387,6 +387,9 @@ def train(
         extra["walk_frames"] = walk_frames
     if sensor_motion:
         extra["sensor_motion"] = True
+    elif radial_frames:
+        click.echo("warning: --radial-frames without --sensor-motion: the training frames move "
+                   "by crop-sized amounts, far less than whole-sensor bursts do", err=True)
     burst_cfg = BurstConfig(
         n_frames=n_frames,
         crop=crop,

@@ -522,19 +522,21 @@ def _new_pixel_fpn(
     return replace(camera, gain=gain.astype(np.float32), offset=offset)
 
 
-def frame_r2(r2: np.ndarray, homographies: np.ndarray, valid: np.ndarray) -> np.ndarray:
+def frame_r2(r2: np.ndarray, homographies: np.ndarray, valid: np.ndarray,
+             pivot: int | None = None) -> np.ndarray:
     """Where on the sensor each frame saw each pivot pixel, ``(N, H, W)`` float32.
 
     ``r2`` is ``R²`` (Oz et al. eq. 16) of the frames' sensor windows: ``(H, W)`` when every
     frame comes from the same window (whole frames, or the paper's crops), ``(N, H, W)`` each
     its own. It is warped onto the pivot like the frames (``homographies`` frame → pivot,
     ``(N, 3, 3)``); where a frame does not see a pivot pixel (``valid (N, H, W)`` False), the
-    pivot's own ``R²`` (the middle frame's window) stands in.
+    pivot's own ``R²`` (frame ``pivot``'s window, default the middle one) stands in.
     """
     n = valid.shape[0]
     planes = np.broadcast_to(np.asarray(r2, dtype=np.float32), valid.shape)
     warped, _ = warp_to_pivot(np.ascontiguousarray(planes), homographies)
-    return np.where(valid, warped, planes[n // 2][None]).astype(np.float32)
+    own = planes[n // 2 if pivot is None else pivot]
+    return np.where(valid, warped, own[None]).astype(np.float32)
 
 
 def window_offsets(
@@ -562,7 +564,11 @@ def window_offsets(
         span = np.ptp(moves[:, axis])
         if span > side - crop:
             moves[:, axis] *= (side - crop) / span
-    return np.rint(moves).astype(int)
+    out = np.rint(moves).astype(int)
+    for axis, side in enumerate((h, w)):  # rounding must not widen a shrunk span
+        lo = out[:, axis].min()
+        out[:, axis] = np.clip(out[:, axis], lo, lo + side - crop)
+    return out
 
 
 def make_burst(
@@ -656,7 +662,7 @@ def make_burst(
         unit=u,
         camera=cam,
         r2=r2_windows[pivot],
-        r2_frames=frame_r2(r2_windows, h_reg, valid),
+        r2_frames=frame_r2(r2_windows, h_reg, valid, pivot),
     )
 
 

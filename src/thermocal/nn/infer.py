@@ -122,6 +122,8 @@ def run_network(
     vt = torch.from_numpy(valid)[None].to(device)
     means = frame_means(xt, vt)
     r2 = None
+    if r2_frames is not None and not model.config.radial_frames:
+        raise InvalidInputError("r2_frames given to a model without radial_frames")
     if model.config.radial_frames:
         if r2_frames is None or np.shape(r2_frames) != (n, h, w):
             raise InvalidInputError(
@@ -214,6 +216,11 @@ def estimate_burst(
             f"of {n_model} frames"
         )
     fpa = fpa_value(fpa_c, arr.shape[0])
+    if model.config.radial_frames and registered and homographies is None:
+        raise InvalidInputError(
+            "this model needs where on the sensor each frame saw the scene: give the burst as "
+            "recorded (not --registered) or its homographies"
+        )
     _, warped, valid, hs, p = prepare(arr, pivot=pivot, registered=registered,
                                       homographies=homographies, fill_defects=fill_defects)
     check_overlap(valid, p)
