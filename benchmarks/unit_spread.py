@@ -28,15 +28,20 @@ import argparse
 import json
 import os
 import platform
+import sys
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 
-from thermocal.camera.model import expected_counts
-from thermocal.camera.presets import PRESETS, CameraPreset, make_camera
-from thermocal.nn.data import EVAL_UNITS, TRAIN_UNITS
-from thermocal.progress import progress_bar
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from kpn import ExactModel  # noqa: E402
+
+from thermocal.camera.model import expected_counts  # noqa: E402
+from thermocal.camera.presets import PRESETS, CameraPreset, make_camera  # noqa: E402
+from thermocal.nn.commands import _parse_units  # noqa: E402
+from thermocal.nn.data import EVAL_UNITS, TRAIN_UNITS  # noqa: E402
+from thermocal.progress import progress_bar  # noqa: E402
 
 SIZE = (336, 256)
 FPAS_C = (15.0, 30.0, 45.0)
@@ -48,20 +53,8 @@ HOUSING_OFFSET_C = -1.5  # the camera settled: housing = FPA − 1.5 °C, as ben
 SCALARS_ONLY = replace(PRESETS["tau2"], radial_strength_range=(1.0, 1.0), centre_jitter=0.0)
 
 
-def family_model(units):
-    """The average of ``units``' models (per-pixel gain, offset, housing term)."""
-    cams = [make_camera("tau2", unit=u, size=SIZE) for u in units]
-    return replace(
-        cams[0],
-        gain=np.mean([c.gain for c in cams], axis=0).astype(np.float32),
-        offset=np.mean([c.offset for c in cams], axis=0).astype(np.float32),
-        housing=np.mean([c.housing for c in cams], axis=0).astype(np.float32),
-    )
-
-
 def frame_mean(cam, scene_c: float, fpa_c: float) -> float:
-    """Mean expected counts of a uniform scene, without ``cam``'s defects (the family model keeps
-    training unit 0's defect map: a negligible difference)."""
+    """Mean expected counts of a uniform scene, without ``cam``'s defects."""
     counts = expected_counts(cam, np.full((1, SIZE[1], SIZE[0]), scene_c, np.float32), fpa_c,
                              housing_c=fpa_c + HOUSING_OFFSET_C)[0]
     return float(counts[~cam.defects].mean())
@@ -82,11 +75,6 @@ def shifts_c(units, family, preset: CameraPreset = PRESETS["tau2"]) -> np.ndarra
     return out
 
 
-def parse_units(text: str) -> tuple[int, ...]:
-    a, _, b = text.partition("-")
-    return tuple(range(int(a), int(b or a) + 1))
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--units", default="100-299", help="the population of units, A-B")
@@ -95,8 +83,8 @@ def main() -> None:
     args = ap.parse_args()
     if args.quick:
         args.units = "100-139"
-    family = family_model(TRAIN_UNITS)
-    population = [u for u in parse_units(args.units) if u not in TRAIN_UNITS]
+    family = ExactModel.family(TRAIN_UNITS).model  # benchmarks/kpn.py's family model
+    population = [u for u in _parse_units(args.units) if u not in TRAIN_UNITS]
     held = shifts_c(EVAL_UNITS, family)
     pop = shifts_c(population, family)
     floor = np.mean(np.abs(pop - np.median(pop, axis=0)), axis=0)

@@ -291,13 +291,10 @@ class OffsetBlock(nn.Module):
             return d
         if r2 is None:
             raise InvalidInputError("the radial offset block needs the pixels' R² (B, 1|N, H, W)")
-        if r2.shape[1] == 1:  # the pivot's R² for every frame: sum the frames' coefficients
-            coef = torch.einsum("bnf,nfk->bk", feats, self.delta_radial) / feats.shape[1]
-            for k in range(self.radial):
-                d = d + coef[:, k].view(-1, 1, 1, 1) * r2 ** (k + 1)
-            return d
         coef = torch.einsum("bnf,nfk->bnk", feats, self.delta_radial)  # (B, N, ρ)
-        for k in range(self.radial):
+        if r2.shape[1] == 1:  # the pivot's R² for every frame: one map, the mean coefficients
+            coef = coef.mean(dim=1, keepdim=True)
+        for k in range(self.radial):  # frame n's terms at its R², averaged over the frames
             d = d + (coef[:, :, k, None, None] * r2 ** (k + 1)).mean(dim=1, keepdim=True)
         return d
 
