@@ -78,9 +78,10 @@ OTHER_UNIT = 7  # the unit whose two-point calibration the calibration-free base
 
 
 def eval_bursts(n_frames: int, *, quick: bool, register: bool = False,
-                units: tuple[int, ...] = EVAL_UNITS):
+                units: tuple[int, ...] = EVAL_UNITS, preset="tau2"):
     """The fixed evaluation bursts: list of dicts (frames, truth, valid mask, fpa, unit, …);
-    ``units`` replaces the held-out camera units (a diagnosis only)."""
+    ``units`` replaces the held-out camera units and ``preset`` (a name or a
+    :class:`~thermocal.camera.presets.CameraPreset`) the camera family (diagnoses only)."""
     scenes = evaluation_scenes()
     per_scene = 1 if quick else 4
     size = (336, 256)  # whole sensor frames: a network with position terms needs them
@@ -90,7 +91,7 @@ def eval_bursts(n_frames: int, *, quick: bool, register: bool = False,
             seed = 1000 * si + k
             rng = np.random.default_rng([2026, seed])
             unit = units[(si + k) % len(units)]
-            cam = make_camera("tau2", unit=unit, size=size)
+            cam = make_camera(preset, unit=unit, size=size)
             fpa = float(rng.uniform(15.0, 45.0))
             motion = ("walk", "hover")[(si + k) % 2]
             fl = simulate_flight(scene, cam, n_frames=n_frames, motion=motion, fpa_c=fpa, seed=seed)
@@ -220,6 +221,15 @@ def scores(est: np.ndarray, b: dict) -> dict:
     }
 
 
+def network_estimate(b: dict, frames: np.ndarray, model, norm, homographies=None):
+    """The network's :class:`~thermocal.nn.infer.Estimate` for the evaluation burst ``b`` from
+    ``frames`` (its frames with their stuck pixels replaced, or a diagnosis' substitute) and
+    ``homographies`` (default: the burst's)."""
+    return estimate_burst(frames, b["fpa_read"], model=model, norm=norm,
+                          homographies=b["hs"] if homographies is None else homographies,
+                          pivot=b["pivot"], fill_defects=False)
+
+
 KPN_ROW = "KPN + offset"
 #: Row names of the network variants.
 VARIANT_ROWS = {"kpn": KPN_ROW, "kpn-no-offset": "KPN (no offset block)", "e2e": "E2E"}
@@ -243,15 +253,7 @@ def run_methods(bursts, model, norm, *, baselines: bool = True, label: str = KPN
         # the burst's stuck pixels replaced once, for every method (as thermocal.burst.prepare)
         frames, _ = fill_stuck_pixels(b["frames"], b["hs"])
         if model is not None:
-            e = estimate_burst(
-                frames,
-                b["fpa_read"],
-                model=model,
-                norm=norm,
-                homographies=b["hs"],
-                pivot=b["pivot"],
-                fill_defects=False,  # filled above
-            )
+            e = network_estimate(b, frames, model, norm)
             res.setdefault(label, []).append(scores(e.temperature_c, b))
         piv = b["pivot"]
         for name, ref in (references or {}).items():

@@ -8,10 +8,10 @@ import numpy as np
 import torch
 
 sys.path.insert(0, "benchmarks")
-from kpn import eval_bursts, scores  # noqa: E402
+from kpn import eval_bursts, network_estimate, scores  # noqa: E402
 
 from thermocal.burst import fill_stuck_pixels  # noqa: E402
-from thermocal.nn.infer import estimate_burst, shipped_model_path  # noqa: E402
+from thermocal.nn.infer import shipped_model_path  # noqa: E402
 from thermocal.nn.train import load_model  # noqa: E402
 
 torch.set_num_threads(2)
@@ -27,8 +27,7 @@ for b in bursts:
                                  np.repeat(np.eye(3)[None], n, 0)),
     }
     for name, (fr, hs) in inputs.items():
-        e = estimate_burst(fr, b["fpa_read"], model=model, norm=norm, homographies=hs, pivot=p,
-                           fill_defects=False)
+        e = network_estimate(b, fr, model, norm, homographies=hs)
         rows[name].append(scores(e.temperature_c, b))
 
 

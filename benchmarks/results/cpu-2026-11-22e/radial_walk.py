@@ -8,10 +8,10 @@ import numpy as np
 import torch
 
 sys.path.insert(0, "benchmarks")
-from kpn import eval_bursts, radial_bins  # noqa: E402
+from kpn import eval_bursts, network_estimate, radial_bins, scores  # noqa: E402
 
 from thermocal.burst import fill_stuck_pixels  # noqa: E402
-from thermocal.nn.infer import estimate_burst, shipped_model_path  # noqa: E402
+from thermocal.nn.infer import shipped_model_path  # noqa: E402
 from thermocal.nn.train import load_model  # noqa: E402
 
 torch.set_num_threads(2)
@@ -20,13 +20,11 @@ n = model.config.n_frames
 by_motion = {"walk": [], "hover": []}
 by_cover = {}
 for b in eval_bursts(n, quick=False):
-    frames, _ = fill_stuck_pixels(b["frames"], b["hs"])
-    e = estimate_burst(frames, b["fpa_read"], model=model, norm=norm, homographies=b["hs"],
-                       pivot=b["pivot"], fill_defects=False)
-    err, m = e.temperature_c - b["truth"], b["mask"]
-    rb = radial_bins(err.shape)
-    by_motion[b["motion"]].append([err[m & (rb == r)].mean() for r in range(5)])
+    e = network_estimate(b, fill_stuck_pixels(b["frames"], b["hs"])[0], model, norm)
+    by_motion[b["motion"]].append(scores(e.temperature_c, b)["bias_by_radius"])
     if b["motion"] == "walk":
+        err, m = e.temperature_c - b["truth"], b["mask"]
+        rb = radial_bins(err.shape)
         bias = err[m].mean()
         for c in range(1, n + 1):
             for r in range(5):
