@@ -185,17 +185,23 @@ def radial_bins(shape: tuple[int, int], n: int = 5) -> np.ndarray:
 SPLIT_SIGMA_PX = 6.0
 
 
+def masked_smooth(x: np.ndarray, mask: np.ndarray, sigma: float) -> np.ndarray:
+    """A Gaussian of ``sigma`` px of ``x (H, W)`` over the pixels of ``mask (H, W) bool`` only
+    (normalised by the mask's own Gaussian), ``(H, W)`` float."""
+    from scipy.ndimage import gaussian_filter
+
+    return gaussian_filter(np.where(mask, x, 0.0), sigma) / np.maximum(
+        gaussian_filter(mask.astype(float), sigma), 1e-9)
+
+
 def split_error(err: np.ndarray, mask: np.ndarray,
                 sigma: float = SPLIT_SIGMA_PX) -> tuple[float, float]:
     """``(smooth, fine)`` MAE, °C, of the error ``err (H, W)`` °C less its mean over ``mask
     (H, W) bool``: the smooth part is a Gaussian of ``sigma`` px of it, normalised over the mask
     (radial patterns, the scene's low frequencies; not zero-mean in general), the fine part the
     rest (pixel FPN left, noise, blurred detail). MAEs do not add up to the bias-free MAE."""
-    from scipy.ndimage import gaussian_filter
-
     e = np.where(mask, err - err[mask].mean(), 0.0)
-    smooth = gaussian_filter(e, sigma) / np.maximum(gaussian_filter(mask.astype(float), sigma),
-                                                   1e-9)
+    smooth = masked_smooth(e, mask, sigma)
     return float(np.mean(np.abs(smooth[mask]))), float(np.mean(np.abs((e - smooth)[mask])))
 
 
