@@ -1,12 +1,11 @@
 """Does a KPN know its training family's low frequencies? (diagnosis) On the held-out set: the
-network's estimate, the exact average training unit's eq. 9 mean (``FAMILY_ROW`` of
-``benchmarks/kpn.py``), and the two fused: the family mean's Gaussian of σ px (over the mask)
-plus the rest of the network's estimate; and the network's estimate shifted to the family
-mean's burst mean; and the classical pipeline given the same prior: the scene-based NUC
-baseline of ``benchmarks/kpn.py`` (hardie2000 + another unit's global fit) above σ, the family
-mean below. The family model is what the network was trained from (the chamber path's
-counterpart: unit A's fitted model), not the held-out unit's calibration.
-From the repository root: python THIS [MODEL.pt]"""
+network's estimate; the exact average training unit's eq. 9 mean (``FAMILY_ROW`` of
+``benchmarks/kpn.py``); the network's estimate shifted to the family mean's burst mean; and,
+joined by ``kpn.fuse``, the family mean's Gaussian low-pass of σ px (over the mask) plus the
+high-pass of the network's estimate, or of the scene-based NUC baseline of ``benchmarks/kpn.py``
+(hardie2000 + another unit's global fit). The family model is what the network was trained
+from (the chamber path's counterpart: unit A's fitted model), not the held-out unit's
+calibration. From the repository root: python THIS [MODEL.pt]"""
 
 import sys
 
@@ -15,19 +14,16 @@ import torch
 
 sys.path.insert(0, "benchmarks")
 from kpn import (  # noqa: E402
-    NOMINAL_FPA_C,
-    OTHER_UNIT,
     ExactModel,
     eval_bursts,
-    masked_smooth,
+    fuse,
     network_estimate,
     nuc_global_fit,
+    other_unit_calibration,
     scores,
-    two_point_of,
 )
 
 from thermocal.burst import fill_stuck_pixels, naive_mean  # noqa: E402
-from thermocal.camera.presets import make_camera  # noqa: E402
 from thermocal.nn.data import TRAIN_UNITS  # noqa: E402
 from thermocal.nn.infer import shipped_model_path  # noqa: E402
 from thermocal.nn.train import load_model  # noqa: E402
@@ -36,8 +32,7 @@ SIGMAS_PX = (3, 6, 12, 24, 48)
 torch.set_num_threads(2)
 model, norm, _ = load_model(sys.argv[1] if len(sys.argv) > 1 else shipped_model_path("kpn"))
 family = ExactModel.family(TRAIN_UNITS)
-other_cal = two_point_of(make_camera("tau2", unit=OTHER_UNIT), NOMINAL_FPA_C,
-                         NOMINAL_FPA_C - 1.5, 5)  # as run_methods' baselines
+other_cal = other_unit_calibration()
 rows: dict[str, list[dict]] = {}
 for b in eval_bursts(model.config.n_frames, quick=False):
     frames, m = fill_stuck_pixels(b["frames"], b["hs"])[0], b["mask"]
@@ -51,10 +46,13 @@ for b in eval_bursts(model.config.n_frames, quick=False):
     nuc = nuc_global_fit(frames, b["hs"], b["pivot"], other_cal)
     for s in SIGMAS_PX:
         for name, est in (("network", net), ("hardie2000 NUC", nuc)):
-            fused = masked_smooth(fam, m, s) + est - masked_smooth(est, m, s)
-            rows.setdefault(f"family below σ = {s} px, {name} above", []).append(scores(fused, b))
-print("| estimate | MAE °C | mean abs bias °C | bias-free °C | smooth part °C | fine part °C |")
-print("|---|---|---|---|---|---|")
+            rows.setdefault(f"family low-pass σ = {s} px + {name} high-pass", []).append(
+                scores(fuse(fam, est, m, s), b))
+net_mae = np.array([r["mae"] for r in rows["network"]])
+print("| estimate | MAE °C | mean abs bias °C | bias-free °C | smooth part °C | fine part °C | "
+      "bursts better than the network |")
+print("|---|---|---|---|---|---|---|")
 for name, lst in rows.items():
+    wins = int((np.array([r["mae"] for r in lst]) < net_mae).sum())
     print(f"| {name} | " + " | ".join(f"{np.mean([abs(r[k]) for r in lst]):.2f}" for k in (
-        "mae", "bias", "bias_free", "smooth", "fine")) + " |")
+        "mae", "bias", "bias_free", "smooth", "fine")) + f" | {wins} of {len(lst)} |")
