@@ -68,6 +68,7 @@ from thermocal.nn.data import (
     ScenePool,
     coverage_mask,
     evaluation_scenes,
+    nominal_camera,
     sensor_r2,
 )
 from thermocal.nn.infer import estimate_burst, run_network, shipped_model_path
@@ -150,18 +151,7 @@ class ExactModel:
 
     @classmethod
     def family(cls, units) -> ExactModel:
-        from dataclasses import replace
-
-        cams = [make_camera("tau2", unit=u, size=(336, 256)) for u in units]
-        base = cams[0]
-        return cls(replace(
-            base,
-            gain=np.mean([c.gain for c in cams], axis=0).astype(np.float32),
-            offset=np.mean([c.offset for c in cams], axis=0).astype(np.float32),
-            housing=np.mean([c.housing for c in cams], axis=0).astype(np.float32),
-            defects=np.zeros(base.shape, bool),
-            defect_counts=np.zeros(base.shape, np.uint16),
-        ))
+        return cls(nominal_camera([make_camera("tau2", unit=u, size=(336, 256)) for u in units]))
 
     @property
     def shape(self):

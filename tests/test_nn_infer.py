@@ -714,3 +714,113 @@ def test_train_and_estimate_with_each_frames_sensor_position(tmp_path, capsys, f
     code, err = run(["train", "--out", str(tmp_path / "x.pt"), *small, "--radial", "0",
                      "--radial-frames"], capsys)
     assert code == 2 and "radial" in err and "Traceback" not in err
+
+
+def test_calibrated_bursts_recover_the_scene_through_their_own_units_model():
+    """Physics: a unit that *is* the nominal model (one training unit, its column FPN kept)
+    gives calibrated frames equal to the scene up to noise; the untrained calibrated KPN is
+    eq. 9 through that model."""
+    from dataclasses import replace
+
+    from thermocal.nn.data import UnitCache, make_burst
+    from thermocal.nn.train import batch_tensors
+
+    cfg = BurstConfig(n_frames=3, crop=32, units=(5,), sensor_size=(64, 48), calibrated=True,
+                      redraw_column_fpn=False)
+    units = UnitCache(cfg.preset, cfg.sensor_size)
+    b = make_burst(ScenePool.training(seed=1, n_procedural=2), cfg,
+                   rng=np.random.default_rng(3), units=units)
+    assert b.frames_c is not None and b.frames_c.shape == b.frames.shape
+    ok = ~units.get(5).crop(0, 0, 48, 64).defects.any()  # no stuck pixel in this small unit
+    pivot = b.frames_c[1]  # the pivot's own frame: no warping
+    err = np.abs(pivot - b.truth_c)
+    assert np.median(err) < 0.1, np.median(err)  # temporal noise σ² = 5 counts² only
+    assert ok or np.percentile(err, 99) < 2.0
+    norm = Normalisation()
+    mc = ModelConfig(n_frames=3, mu=4, levels=1, kernel=3, radiance=True, calibrated=True)
+    model = KPN(mc, temp_range_c=(norm.temp_min_c, norm.temp_max_c)).eval()
+    frames, fpa, valid, truth, mask, _ = batch_tensors([b], norm, band_m=mc.band_m)
+    assert torch.allclose(frames[0], torch.from_numpy(
+        np.where(b.valid, norm.radiance(b.frames_c, mc.band_m), 0.0).astype(np.float32)))
+    with torch.no_grad():
+        model.head.net[-1].weight.zero_()  # kernels: exactly the initial 1/N centre taps
+        out = norm.temp_inverse(model(frames, fpa, valid)[0, 0].numpy())
+        eq9 = norm.temp_inverse(model.to_temperature(frames[0].mean(0)).numpy())
+    m = b.valid.all(axis=0)  # (the registration error blurs edges: compared with eq. 9)
+    assert m.sum() > 100 and np.abs(out - eq9)[m].max() < 1e-3
+    # the same burst uncalibrated: another input, not the scene
+    raw = batch_tensors([replace(b, frames_c=None)], norm)[0]
+    assert not torch.allclose(raw, frames)
+
+
+def test_train_and_estimate_a_calibrated_model(tmp_path, capsys, flight, camera):
+    """--calibrated: trained, saved (the preset's nominal camera remade at load), run by
+    estimate_burst on the frames calibrated before warping; registered bursts are refused."""
+    from thermocal.nn.data import UnitCache, calibrate_frames
+
+    out = tmp_path / "cal.pt"
+    small = ["--frames", "3", "--mu", "4", "--levels", "1", "--kernel", "3", "--crop", "32",
+             "--batch", "2", "--steps-per-epoch", "2", "--max-epochs", "1", "--val-bursts", "2",
+             "--units", "0-1", "--workers", "0", "--threads", "1", "--scenes", "3", "--radiance"]
+    code, err = run(["train", "--out", str(out), *small, "--calibrated"], capsys)
+    assert code == 0, err
+    model, norm, info = load_model(out)
+    assert model.config.calibrated and info["data"]["calibrated"] is True
+    want = UnitCache("tau2", (336, 256)).nominal((0, 1))
+    assert np.array_equal(model.nominal.offset, want.offset)
+    assert np.array_equal(model.nominal.gain, want.gain)
+    # the flight's frames are 64x48: a nominal camera of the flight's size
+    small_model = KPN(model.config, init=False, temp_range_c=(norm.temp_min_c, norm.temp_max_c))
+    small_model.load_state_dict(model.state_dict())
+    small_model.nominal = UnitCache("tau2", (64, 48)).nominal((0, 1))
+    small_model.eval()
+    est = estimate_burst(flight.frames, 30.0, model=small_model, norm=norm,
+                         homographies=flight.homographies, fill_defects=False)
+    temps = calibrate_frames(small_model.nominal, flight.frames, 30.0)
+    warped_c, valid = warp_to_pivot(temps, flight.homographies)
+    by_hand = run_network(small_model, norm, warped_c, valid, 30.0)
+    assert np.allclose(est.temperature_c, by_hand, atol=1e-3)
+    raw_warped, _ = warp_to_pivot(flight.frames, flight.homographies)
+    assert not np.allclose(run_network(small_model, norm, raw_warped, valid, 30.0), by_hand,
+                           atol=1.0)  # counts are not what it takes
+    with pytest.raises(InvalidInputError, match="not --registered"):
+        estimate_burst(raw_warped, 30.0, model=small_model, norm=norm, registered=True)
+    # the whole-sensor model on 64x48 frames: a one-line error on the command line
+    tiff = tmp_path / "f.tiff"
+    write_recording(tiff, Recording(frames=flight.frames, fpa_c=flight.fpa_c))
+    code, err = run(["estimate", str(tiff), "--model", str(out), "--out",
+                     str(tmp_path / "t.tiff")], capsys)
+    assert code == 2 and "336x256" in err and "Traceback" not in err
+    assert not (tmp_path / "t.tiff").exists()
+
+
+def test_a_calibrated_chamber_model_keeps_its_camera(tmp_path):
+    """A nominal camera that no preset remakes (a chamber fit) is stored in the weights file."""
+    from dataclasses import replace
+
+    cam = make_camera("tau2", unit=3, size=(48, 32))
+    fitted = replace(cam, info={"fitted_from": "chamber"})
+    from thermocal.nn.data import nominal_camera
+
+    nominal = nominal_camera([fitted])
+    assert nominal.info["preset"] is None
+    model = KPN(ModelConfig(n_frames=3, mu=4, levels=1, kernel=3, calibrated=True))
+    model.nominal = nominal
+    path = tmp_path / "c.pt"
+    save_model(path, model, Normalisation(),
+               BurstConfig(n_frames=3, crop=16, units=(0,), sensor_size=(48, 32),
+                           calibrated=True))
+    loaded, _, _ = load_model(path)
+    for k in ("gain", "offset", "housing", "transient"):
+        assert np.array_equal(getattr(loaded.nominal, k), getattr(cam, k)), k
+    assert loaded.nominal.t_ref_c == cam.t_ref_c and not loaded.nominal.defects.any()
+
+
+def test_train_refuses_a_calibrated_network_on_raw_bursts(tmp_path):
+    from thermocal.nn.train import train
+
+    with pytest.raises(InvalidInputError, match="calibrated"):
+        train(tmp_path / "m.pt", ModelConfig(n_frames=3, mu=4, levels=1, kernel=3,
+                                             calibrated=True),
+              BurstConfig(n_frames=3, crop=16, units=(0,), sensor_size=(32, 24)),
+              TrainConfig(max_steps=1), val_units=(1,))

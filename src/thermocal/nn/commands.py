@@ -246,6 +246,13 @@ def estimate(
     "(N planes), not the pivot's position alone.",
 )
 @click.option(
+    "--calibrated",
+    is_flag=True,
+    help="Give the network each frame through the camera model it is trained from (the "
+    "training units' average, or the --chamber fit), not raw counts: it learns what that model "
+    "gets wrong for the unit at hand. The model's camera travels with the weights.",
+)
+@click.option(
     "--init",
     "init",
     type=click.Path(path_type=Path),
@@ -296,6 +303,7 @@ def train(
     walk_frames: int | None,
     sensor_motion: bool,
     radial_frames: bool,
+    calibrated: bool,
     init: Path | None,
     device: str,
 ) -> None:
@@ -371,6 +379,7 @@ def train(
         radial=radial,
         band_m=band_m,
         radial_frames=radial_frames,
+        calibrated=calibrated,
     )
     if crop % model_cfg.multiple:
         raise InvalidInputError(f"--crop must be a multiple of ξ^L = {model_cfg.multiple}")
@@ -385,6 +394,8 @@ def train(
         extra["redraw_pixel_fpn"] = True
     if walk_frames is not None:
         extra["walk_frames"] = walk_frames
+    if calibrated:
+        extra["calibrated"] = True
     if sensor_motion:
         extra["sensor_motion"] = True
     elif radial_frames:

@@ -34,10 +34,11 @@ import cv2
 import numpy as np
 
 from thermocal.burst import fill_stuck_pixels
-from thermocal.camera.model import CameraModel, render
+from thermocal.camera.model import CameraModel, invert, render
 from thermocal.camera.presets import PRESETS, make_camera, radial_map
 from thermocal.camera.thermal import ThermalParams, fpa_sensor
 from thermocal.errors import InvalidInputError
+from thermocal.radiometry import band_radiance
 from thermocal.registration.warp import render_views, warp_to_pivot
 from thermocal.scenes import trajectory
 from thermocal.scenes.maps import random_augment
@@ -53,12 +54,15 @@ __all__ = [
     "BurstConfig",
     "Normalisation",
     "ScenePool",
+    "calibrate_frames",
     "UnitCache",
     "coverage_mask",
     "frame_r2",
+    "input_frames",
     "make_burst",
     "make_bursts",
     "min_views",
+    "nominal_camera",
     "sensor_r2",
     "window_offsets",
 ]
@@ -123,9 +127,23 @@ class Normalisation:
         """Normalised FPA temperature (eq. 20 applied to the camera's temperature)."""
         return (fpa_c - self.fpa_min_c) / (self.fpa_max_c - self.fpa_min_c)
 
+    def radiance(self, t_c: np.ndarray, band_m: tuple[float, float]) -> np.ndarray:
+        """Band radiance of ``t_c`` (°C, any shape), normalised over the temperature range:
+        ``(L(T) − L(t_min)) / (L(t_max) − L(t_min))``, what
+        :class:`~thermocal.nn.model.RadianceToTemperature` inverts (table on a 0.02 K grid)."""
+        t_grid, x_grid = _radiance_table(self.temp_min_c, self.temp_max_c, tuple(band_m))
+        return np.interp(t_c, t_grid, x_grid).astype(np.float32)
+
     def to_dict(self) -> dict[str, float]:
         """Plain floats, for the weights file."""
         return {k: float(v) for k, v in asdict(self).items()}
+
+
+@functools.lru_cache(maxsize=4)
+def _radiance_table(lo: float, hi: float, band_m: tuple[float, float]) -> tuple[np.ndarray, ...]:
+    t_c = np.arange(max(lo - 60.0, -200.0), hi + 60.02, 0.02)
+    ends = band_radiance(np.array([lo, hi]) + 273.15, band_m)
+    return t_c, (band_radiance(t_c + 273.15, band_m) - ends[0]) / (ends[1] - ends[0])
 
 
 @dataclass(frozen=True)
@@ -182,6 +200,11 @@ class BurstConfig:
         point moves across the sensor by crop-sized amounts only, and the radial offset and
         vignetting it meets in the other frames are those of nearby pixels. With it, stuck
         pixels are left out of the rendering (inference replaces them before the network).
+    calibrated : bool
+        Also give every burst its frames through the exact inverse of the *nominal* camera
+        (:func:`nominal_camera` of ``units``: the training units' average), calibrated on the
+        sensor before warping (:attr:`Burst.frames_c`): the input of a
+        :attr:`~thermocal.nn.model.ModelConfig.calibrated` network.
     """
 
     n_frames: int = 7
@@ -203,6 +226,7 @@ class BurstConfig:
     units: tuple[int, ...] = TRAIN_UNITS
     sensor_size: tuple[int, int] = (336, 256)
     sensor_motion: bool = False
+    calibrated: bool = False
 
     def __post_init__(self) -> None:
         if self.n_frames < 1:
@@ -263,6 +287,9 @@ class Burst:
         Where on the sensor each frame saw each pivot pixel: ``R²`` of the frame's pixels warped
         onto the pivot like the frames (:func:`frame_r2`); the pivot's ``r2`` where a frame does
         not see the pixel.
+    frames_c : (N, S, S) float32 or None
+        With :attr:`BurstConfig.calibrated`: the frames through the nominal camera
+        (:func:`calibrate_frames`), warped like ``frames``, °C; else None.
     """
 
     frames: np.ndarray
@@ -275,6 +302,7 @@ class Burst:
     camera: CameraModel = field(repr=False)
     r2: np.ndarray = field(repr=False)
     r2_frames: np.ndarray = field(repr=False)
+    frames_c: np.ndarray | None = field(default=None, repr=False)
 
 
 @functools.lru_cache(maxsize=8)
@@ -403,12 +431,60 @@ class UnitCache:
         self.preset = preset
         self.sensor_size = tuple(sensor_size)
         self._units: dict[int, CameraModel] = {}
+        self._nominal: dict[tuple[int, ...], CameraModel] = {}
 
     def get(self, unit: int) -> CameraModel:
         """Unit ``unit`` of the preset at the full sensor size."""
         if unit not in self._units:
             self._units[unit] = make_camera(self.preset, unit=unit, size=self.sensor_size)
         return self._units[unit]
+
+    def nominal(self, units: tuple[int, ...]) -> CameraModel:
+        """:func:`nominal_camera` of ``units``, made once."""
+        key = tuple(int(u) for u in units)
+        if key not in self._nominal:
+            self._nominal[key] = nominal_camera([self.get(u) for u in key])
+        return self._nominal[key]
+
+
+def input_frames(frames: np.ndarray, valid: np.ndarray, norm: Normalisation, *,
+                 calibrated: bool = False, band_m: tuple[float, float] | None = None) -> np.ndarray:
+    """The network's input planes from registered frames ``(N, H, W)``, float32, 0 where not
+    ``valid``: raw counts by eq. 21, or for a ``calibrated`` model frames in °C in the units of
+    its linear output: eq. 20's normalised temperature, or with ``band_m`` (a ``radiance``
+    model) the normalised band radiance (:meth:`Normalisation.radiance`)."""
+    if not calibrated:
+        x = norm.counts(frames)
+    elif band_m is None:
+        x = norm.temp(frames)
+    else:
+        x = norm.radiance(frames, band_m)
+    return np.where(valid, x, 0.0).astype(np.float32)
+
+
+def nominal_camera(cameras: list[CameraModel]) -> CameraModel:
+    """The average of camera units of one family: gain, offset and housing maps averaged (their
+    unit-to-unit and pixel spread averages out), the first unit's transient and physics, no
+    defects. What a user knows of a camera family before calibrating the unit at hand."""
+    base = cameras[0]
+    return replace(
+        base,
+        gain=np.mean([c.gain for c in cameras], axis=0).astype(np.float32),
+        offset=np.mean([c.offset for c in cameras], axis=0).astype(np.float32),
+        housing=np.mean([c.housing for c in cameras], axis=0).astype(np.float32),
+        defects=np.zeros(base.shape, bool),
+        defect_counts=np.zeros(base.shape, np.uint16),
+        # a preset's units are remade from their numbers; others (a chamber fit) are not
+        info={"preset": base.info.get("preset") if all("preset" in c.info for c in cameras)
+              else None, "units": [c.info.get("unit") for c in cameras]},
+    )
+
+
+def calibrate_frames(nominal: CameraModel, counts: np.ndarray, fpa_c: float) -> np.ndarray:
+    """Raw frames ``(N, H, W)`` seen by the sensor window of ``nominal`` → scene temperature
+    ``(N, H, W)`` °C, float32, through that model's exact inverse at the reported FPA
+    temperature ``fpa_c`` (°C; the camera settled: housing = FPA − its self-heating)."""
+    return invert(nominal, counts, fpa_c, housing_c=fpa_c - _THERMAL.fpa_self_heating_c)
 
 
 def _source_map(
@@ -651,6 +727,12 @@ def make_burst(
     )
     filled, _ = fill_stuck_pixels(raw, h_reg)  # as inference does (thermocal.burst.prepare)
     warped, valid = warp_to_pivot(filled, h_reg)
+    frames_c = None
+    if cfg.calibrated:  # each frame through the nominal model of the window that rendered it
+        nominal = units.nominal(cfg.units)
+        temps = [calibrate_frames(nominal.crop(top + dy, left + dx, s, s), filled[i : i + 1],
+                                  fpa_read) for i, (dy, dx) in enumerate(moves)]
+        frames_c, _ = warp_to_pivot(np.concatenate(temps), h_reg)
     r2_windows = np.stack([sensor_r2(full.shape, top + dy, left + dx, (s, s)) for dy, dx in moves])
     return Burst(
         frames=warped,
@@ -663,6 +745,7 @@ def make_burst(
         camera=cam,
         r2=r2_windows[pivot],
         r2_frames=frame_r2(r2_windows, h_reg, valid, pivot),
+        frames_c=frames_c,
     )
 
 

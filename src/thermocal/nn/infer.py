@@ -27,8 +27,9 @@ from thermocal.burst import (
     register,
 )
 from thermocal.errors import InvalidInputError
-from thermocal.nn.data import Normalisation, frame_r2, sensor_r2
+from thermocal.nn.data import Normalisation, calibrate_frames, frame_r2, input_frames, sensor_r2
 from thermocal.nn.model import KPN, frame_means
+from thermocal.registration.warp import warp_to_pivot
 
 __all__ = [
     "SHIPPED_MODELS",
@@ -98,7 +99,9 @@ def run_network(
     margin: int | None = None,
     r2_frames: np.ndarray | None = None,
 ) -> np.ndarray:
-    """The network on registered frames ``(N, H, W)`` (counts), tiled; returns °C ``(H, W)``.
+    """The network on registered frames ``(N, H, W)`` (counts; for a
+    :attr:`~thermocal.nn.model.ModelConfig.calibrated` model, °C through its nominal camera:
+    :func:`calibrated_warp`), tiled; returns °C ``(H, W)``.
 
     The frames are zero outside their valid masks (as in training) and zero-padded to a multiple
     of ``ξ^L``. The offset block's frame means are taken over each whole frame's valid pixels,
@@ -117,7 +120,9 @@ def run_network(
         margin = default_margin if margin is None else margin
     n, h, w = warped.shape
     device = next(model.parameters()).device
-    x = np.where(valid, norm.counts(warped), 0.0).astype(np.float32)
+    c = model.config
+    x = input_frames(warped, valid, norm, calibrated=c.calibrated,
+                     band_m=c.band_m if c.radiance else None)
     xt = torch.from_numpy(x)[None].to(device)
     vt = torch.from_numpy(valid)[None].to(device)
     means = frame_means(xt, vt)
@@ -167,6 +172,18 @@ def run_network(
             if h <= tile and w <= tile:
                 break
     return norm.temp_inverse(out).astype(np.float32)
+
+
+def calibrated_warp(model: KPN, frames: np.ndarray, homographies: np.ndarray,
+                    fpa_c: float) -> np.ndarray:
+    """Whole-sensor raw frames ``(N, H, W)`` (stuck pixels replaced) through a calibrated
+    model's nominal camera (:func:`~thermocal.nn.data.calibrate_frames`), warped onto the
+    pivot by ``homographies`` ``(N, 3, 3)``: the frames :func:`run_network` takes, °C."""
+    if model.nominal is None:
+        raise InvalidInputError("this calibrated model has no nominal camera (load it with "
+                                "thermocal.nn.train.load_model)")
+    warped, _ = warp_to_pivot(calibrate_frames(model.nominal, frames, fpa_c), homographies)
+    return warped
 
 
 def estimate_burst(
@@ -221,9 +238,16 @@ def estimate_burst(
             "this model needs where on the sensor each frame saw the scene: give the burst as "
             "recorded (not --registered) or its homographies"
         )
-    _, warped, valid, hs, p = prepare(arr, pivot=pivot, registered=registered,
-                                      homographies=homographies, fill_defects=fill_defects)
+    if model.config.calibrated and registered:
+        raise InvalidInputError(
+            "this model calibrates each frame where it lies on the sensor, before registration: "
+            "give the burst as recorded (not --registered)"
+        )
+    filled, warped, valid, hs, p = prepare(arr, pivot=pivot, registered=registered,
+                                           homographies=homographies, fill_defects=fill_defects)
     check_overlap(valid, p)
+    if model.config.calibrated:
+        warped = calibrated_warp(model, filled, hs, fpa)
     r2f = None
     if model.config.radial_frames:
         r2f = _to_model_order(frame_r2(sensor_r2(valid.shape[1:]), hs, valid), p)

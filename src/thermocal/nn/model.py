@@ -106,6 +106,15 @@ class ModelConfig:
         offset block's radial polynomial of frame ``n`` is evaluated at frame ``n``'s ``R²``.
         An addition: in a walk the other frames see a scene point far from where the pivot
         does, under another radial offset and vignetting.
+    calibrated : bool
+        The frames reach the network through the exact inverse of the *nominal* camera model it
+        was trained from (the average of the preset's training units, or the model fitted on the
+        chamber file; :func:`~thermocal.nn.data.calibrate_frames`, on the sensor before
+        warping), in the units of its linear output (normalised band radiance with
+        ``radiance``, else eq. 20's normalised temperature), instead of as raw counts (eq. 21).
+        An addition to the paper: the untrained network then starts from eq. 9 through that
+        model, and learns only what the model gets wrong for the unit at hand (its offset and
+        gain, its FPN). :attr:`KPN.nominal` holds the model at inference.
     """
 
     n_frames: int = 7
@@ -121,6 +130,7 @@ class ModelConfig:
     radial: int = 0
     band_m: tuple[float, float] = TAU2_BAND_M
     radial_frames: bool = False
+    calibrated: bool = False
 
     def __post_init__(self) -> None:
         if self.variant not in VARIANTS:
@@ -364,6 +374,9 @@ class KPN(nn.Module):
     temperature range (the normalisation's); only ``radiance=True`` uses it. ``train_crop`` is
     the side of the training crops, px (:func:`~thermocal.nn.train.load_model` sets it from the
     weights file): :func:`~thermocal.nn.infer.run_network` runs an E2E model in tiles of it.
+    ``nominal`` is, for a ``calibrated`` model, the whole-sensor camera model that its input
+    goes through (a :class:`~thermocal.camera.model.CameraModel`, not a parameter; set by
+    :func:`~thermocal.nn.train.load_model`).
     """
 
     def __init__(
@@ -377,6 +390,7 @@ class KPN(nn.Module):
         super().__init__()
         self.config = config
         self.train_crop = train_crop
+        self.nominal = None
         c = config
         extra = int(c.fpa_input) * (2 if c.centre else 1) + c.position_planes
         self.unet = UNet(c.n_frames + extra, c.mu, c.xi, c.levels)

@@ -14,6 +14,7 @@ constants (eq. 20-21); it is written atomically.
 
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
@@ -37,10 +38,12 @@ from thermocal.nn.data import (
     ScenePool,
     UnitCache,
     coverage_mask,
+    input_frames,
     make_burst,
 )
 from thermocal.nn.loss import kpn_loss
 from thermocal.nn.model import KPN, ModelConfig
+from thermocal.radiometry import band_table
 
 __all__ = [
     "FORMAT",
@@ -55,6 +58,8 @@ __all__ = [
 
 FORMAT = "thermocal-kpn"
 VERSION = 1
+#: The maps of a calibrated model's nominal camera that a weights file keeps (chamber fits).
+NOMINAL_MAPS = ("gain", "offset", "housing", "transient")
 
 
 @dataclass(frozen=True)
@@ -129,13 +134,20 @@ class TrainResult:
 # tensors
 # --------------------------------------------------------------------------------------------
 def batch_tensors(
-    bursts: list[Burst], norm: Normalisation, *, frame_positions: bool = False
+    bursts: list[Burst], norm: Normalisation, *, frame_positions: bool = False,
+    band_m: tuple[float, float] | None = None,
 ) -> tuple[torch.Tensor, ...]:
     """Stack bursts into ``frames (B,N,H,W)``, ``fpa (B,)``, ``valid (B,N,H,W)``,
     ``truth (B,1,H,W)`` (all normalised, float32), the loss mask ``(B,1,H,W)`` bool and the
     pivot pixels' sensor position ``R² (B,1,H,W)`` float32 (with ``frame_positions``, each
-    frame's, ``(B,N,H,W)``: :attr:`ModelConfig.radial_frames`)."""
-    frames = np.stack([np.where(b.valid, norm.counts(b.frames), 0.0) for b in bursts])
+    frame's, ``(B,N,H,W)``: :attr:`ModelConfig.radial_frames`). Bursts made with
+    :attr:`BurstConfig.calibrated` give their calibrated frames (:func:`input_frames`; ``band_m``
+    for a ``radiance`` model)."""
+    frames = np.stack([
+        input_frames(b.frames if b.frames_c is None else b.frames_c, b.valid, norm,
+                     calibrated=b.frames_c is not None, band_m=band_m)
+        for b in bursts
+    ])
     valid = np.stack([b.valid for b in bursts])
     truth = np.stack([norm.temp(b.truth_c) for b in bursts])[:, None]
     mask = np.stack([coverage_mask(b.valid) for b in bursts])[:, None]
@@ -166,10 +178,11 @@ class _Stream(torch.utils.data.IterableDataset):
         start_batch: int,
         cameras: dict[int, CameraModel] | None,
         frame_positions: bool = False,
+        band_m: tuple[float, float] | None = None,
     ) -> None:
         self.pool_fn, self.cfg, self.norm = pool_fn, cfg, norm
         self.seed, self.batch, self.start = seed, batch, start_batch
-        self.cameras, self.frame_positions = cameras, frame_positions
+        self.cameras, self.frame_positions, self.band_m = cameras, frame_positions, band_m
 
     def __iter__(self) -> Iterator[tuple[torch.Tensor, ...]]:
         pool = self.pool_fn()
@@ -183,7 +196,8 @@ class _Stream(torch.utils.data.IterableDataset):
                 make_burst(pool, self.cfg, rng=np.random.default_rng([self.seed, i]), units=units)
                 for i in range(k * self.batch, (k + 1) * self.batch)
             ]
-            yield batch_tensors(bursts, self.norm, frame_positions=self.frame_positions)
+            yield batch_tensors(bursts, self.norm, frame_positions=self.frame_positions,
+                                band_m=self.band_m)
             k += stride
 
 
@@ -248,6 +262,14 @@ def save_model(
         "meta": json.loads(json.dumps(meta or {}, default=float)),
         "state_dict": {k: v.detach().cpu().clone() for k, v in model.state_dict().items()},
     }
+    nominal = model.nominal if model.config.calibrated else None
+    if nominal is not None and nominal.info.get("preset") is None:  # not remade from a preset
+        payload["nominal"] = {
+            **{k: torch.from_numpy(np.ascontiguousarray(getattr(nominal, k)))
+               for k in NOMINAL_MAPS},
+            "noise_sigma": float(nominal.noise_sigma), "t_ref_c": float(nominal.t_ref_c),
+            "bit_depth": int(nominal.bit_depth),
+        }
     with atomic_path(out) as tmp:
         torch.save(payload, tmp)
     return out
@@ -282,12 +304,37 @@ def load_model(path: str | os.PathLike[str]) -> tuple[KPN, Normalisation, dict[s
         model = KPN(config, init=False, temp_range_c=(norm.temp_min_c, norm.temp_max_c),
                     train_crop=int(crop) if crop else None)
         model.load_state_dict(payload["state_dict"])
-    except (KeyError, TypeError, RuntimeError, InvalidInputError) as exc:
+        if config.calibrated:
+            model.nominal = _nominal_of(payload, config)
+    except (KeyError, TypeError, RuntimeError, InvalidInputError, ValueError) as exc:
         first = str(exc).strip().splitlines()[0]
         raise FileFormatError(f"{p}: damaged weights file ({first[:120]})") from None
     model.eval()
     model.to(memory_format=torch.channels_last)  # faster CPU convolutions (oneDNN), same values
     return model, norm, {"data": payload.get("data", {}), "meta": payload.get("meta", {})}
+
+
+def _nominal_of(payload: dict[str, Any], config: ModelConfig) -> CameraModel:
+    """The nominal camera of a calibrated model's weights file: stored, or remade from the
+    preset units it was trained on."""
+    if "nominal" in payload:
+        d = payload["nominal"]
+        maps = {k: d[k].numpy() for k in NOMINAL_MAPS}
+        return CameraModel(
+            **maps, defects=np.zeros(maps["housing"].shape, bool),
+            defect_counts=np.zeros(maps["housing"].shape, np.uint16),
+            noise_sigma=d["noise_sigma"], t_ref_c=d["t_ref_c"], bit_depth=d["bit_depth"],
+            band=band_table(tuple(config.band_m)), info={"preset": None},
+        )
+    data = payload["data"]
+    return _nominal_camera_of_preset(data["preset"], tuple(data["sensor_size"]),
+                                     tuple(data["units"]))
+
+
+@functools.lru_cache(maxsize=2)
+def _nominal_camera_of_preset(preset: str, sensor_size: tuple[int, int],
+                              units: tuple[int, ...]) -> CameraModel:
+    return UnitCache(preset, sensor_size).nominal(units)
 
 
 # --------------------------------------------------------------------------------------------
@@ -440,6 +487,9 @@ def train(
         )
     if cameras is None and set(val_units) & set(burst_cfg.units):
         raise InvalidInputError("validation units must not be training units")
+    if model_cfg.calibrated != burst_cfg.calibrated:
+        raise InvalidInputError("a calibrated network needs calibrated bursts, and only it")
+    band_m = model_cfg.band_m if model_cfg.radiance else None  # the calibrated input's units
 
     device = resolve_device(train_cfg.device)
     torch.set_num_threads(train_cfg.threads)
@@ -488,12 +538,15 @@ def train(
     ]
     val = [  # on the training device once, not at every validation
         tuple(t.to(device) for t in batch_tensors(val_bursts[i : i + train_cfg.batch], norm,
-                                                  frame_positions=model_cfg.radial_frames))
+                                                  frame_positions=model_cfg.radial_frames,
+                                                  band_m=band_m))
         for i in range(0, len(val_bursts), train_cfg.batch)
     ]
 
     model = KPN(model_cfg, temp_range_c=(norm.temp_min_c, norm.temp_max_c),
                 train_crop=burst_cfg.crop)
+    if model_cfg.calibrated:  # what its input goes through, saved with it
+        model.nominal = _unit_cache(burst_cfg, cameras).nominal(burst_cfg.units)
     if init_model is not None:
         model.load_state_dict(init_model.state_dict())
     model = model.to(device)
@@ -554,6 +607,7 @@ def train(
         start_batch=step,
         cameras=cameras,
         frame_positions=model_cfg.radial_frames,
+        band_m=band_m,
     )
     loader = torch.utils.data.DataLoader(
         stream,
