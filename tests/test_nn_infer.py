@@ -14,7 +14,7 @@ from thermocal.calibration.two_point import fit_two_point  # noqa: E402
 from thermocal.camera.model import render  # noqa: E402
 from thermocal.camera.presets import make_camera  # noqa: E402
 from thermocal.cli import main  # noqa: E402
-from thermocal.errors import InvalidInputError, RegistrationError  # noqa: E402
+from thermocal.errors import InvalidInputError, RegistrationError, ThermocalError  # noqa: E402
 from thermocal.io.recording import Recording, write_recording  # noqa: E402
 from thermocal.nn import infer  # noqa: E402
 from thermocal.nn.data import (  # noqa: E402
@@ -785,13 +785,10 @@ def test_train_and_estimate_a_calibrated_model(tmp_path, capsys, flight, camera)
                            atol=1.0)  # counts are not what it takes
     with pytest.raises(InvalidInputError, match="not --registered"):
         estimate_burst(raw_warped, 30.0, model=small_model, norm=norm, registered=True)
-    # the whole-sensor model on 64x48 frames: a one-line error on the command line
-    tiff = tmp_path / "f.tiff"
-    write_recording(tiff, Recording(frames=flight.frames, fpa_c=flight.fpa_c))
-    code, err = run(["estimate", str(tiff), "--model", str(out), "--out",
-                     str(tmp_path / "t.tiff")], capsys)
-    assert code == 2 and "336x256" in err and "Traceback" not in err
-    assert not (tmp_path / "t.tiff").exists()
+    # the preset's nominal camera is made again for the 64x48 frames
+    est_big = estimate_burst(flight.frames, 30.0, model=model, norm=norm,
+                             homographies=flight.homographies, fill_defects=False)
+    assert np.allclose(est_big.temperature_c, est.temperature_c, atol=1e-3)
 
 
 def test_a_calibrated_chamber_model_keeps_its_camera(tmp_path):
@@ -810,10 +807,19 @@ def test_a_calibrated_chamber_model_keeps_its_camera(tmp_path):
     save_model(path, model, Normalisation(),
                BurstConfig(n_frames=3, crop=16, units=(0,), sensor_size=(48, 32),
                            calibrated=True))
-    loaded, _, _ = load_model(path)
+    loaded, norm, _ = load_model(path)
     for k in ("gain", "offset", "housing", "transient"):
         assert np.array_equal(getattr(loaded.nominal, k), getattr(cam, k)), k
     assert loaded.nominal.t_ref_c == cam.t_ref_c and not loaded.nominal.defects.any()
+    rng = np.random.default_rng(0)
+    still = np.eye(3)[None].repeat(3, 0)
+    frames = rng.integers(7000, 9000, (3, 32, 48)).astype(np.uint16)
+    est = estimate_burst(frames, 30.0, model=loaded, norm=norm, homographies=still,
+                         fill_defects=False)
+    assert est.temperature_c.shape == (32, 48)
+    with pytest.raises(ThermocalError, match="48x32"):  # its own size only
+        estimate_burst(frames[:, :24, :32], 30.0, model=loaded, norm=norm, homographies=still,
+                       fill_defects=False)
 
 
 def test_train_refuses_a_calibrated_network_on_raw_bursts(tmp_path):

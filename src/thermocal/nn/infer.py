@@ -27,7 +27,14 @@ from thermocal.burst import (
     register,
 )
 from thermocal.errors import InvalidInputError
-from thermocal.nn.data import Normalisation, calibrate_frames, frame_r2, input_frames, sensor_r2
+from thermocal.nn.data import (
+    Normalisation,
+    calibrate_frames,
+    frame_r2,
+    input_frames,
+    preset_nominal,
+    sensor_r2,
+)
 from thermocal.nn.model import KPN, frame_means
 from thermocal.registration.warp import warp_to_pivot
 
@@ -178,11 +185,19 @@ def calibrated_warp(model: KPN, frames: np.ndarray, homographies: np.ndarray,
                     fpa_c: float) -> np.ndarray:
     """Whole-sensor raw frames ``(N, H, W)`` (stuck pixels replaced) through a calibrated
     model's nominal camera (:func:`~thermocal.nn.data.calibrate_frames`), warped onto the
-    pivot by ``homographies`` ``(N, 3, 3)``: the frames :func:`run_network` takes, °C."""
-    if model.nominal is None:
+    pivot by ``homographies`` ``(N, 3, 3)``: the frames :func:`run_network` takes, °C.
+
+    A nominal camera made from a preset's units is made again for another frame size (the
+    preset's sensor of that size); one fitted on a chamber file fits its own size only.
+    """
+    nominal = model.nominal
+    if nominal is None:
         raise InvalidInputError("this calibrated model has no nominal camera (load it with "
                                 "thermocal.nn.train.load_model)")
-    warped, _ = warp_to_pivot(calibrate_frames(model.nominal, frames, fpa_c), homographies)
+    h, w = frames.shape[1:]
+    if nominal.shape != (h, w) and nominal.info.get("preset"):
+        nominal = preset_nominal(nominal.info["preset"], (w, h), tuple(nominal.info["units"]))
+    warped, _ = warp_to_pivot(calibrate_frames(nominal, frames, fpa_c), homographies)
     return warped
 
 

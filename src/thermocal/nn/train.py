@@ -14,7 +14,6 @@ constants (eq. 20-21); it is written atomically.
 
 from __future__ import annotations
 
-import functools
 import json
 import math
 import os
@@ -40,6 +39,7 @@ from thermocal.nn.data import (
     coverage_mask,
     input_frames,
     make_burst,
+    preset_nominal,
 )
 from thermocal.nn.loss import kpn_loss
 from thermocal.nn.model import KPN, ModelConfig
@@ -327,14 +327,7 @@ def _nominal_of(payload: dict[str, Any], config: ModelConfig) -> CameraModel:
             band=band_table(tuple(config.band_m)), info={"preset": None},
         )
     data = payload["data"]
-    return _nominal_camera_of_preset(data["preset"], tuple(data["sensor_size"]),
-                                     tuple(data["units"]))
-
-
-@functools.lru_cache(maxsize=2)
-def _nominal_camera_of_preset(preset: str, sensor_size: tuple[int, int],
-                              units: tuple[int, ...]) -> CameraModel:
-    return UnitCache(preset, sensor_size).nominal(units)
+    return preset_nominal(data["preset"], tuple(data["sensor_size"]), tuple(data["units"]))
 
 
 # --------------------------------------------------------------------------------------------
