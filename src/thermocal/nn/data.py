@@ -135,7 +135,8 @@ class Normalisation:
         :func:`~thermocal.radiometry.band_table`: relative error < 1e-5)."""
         band = band_table(tuple(band_m))
         lo, hi = band.radiance(np.array([self.temp_min_c, self.temp_max_c]) + 273.15)
-        t_k = np.asarray(t_c, dtype=np.float32) + np.float32(273.15)
+        t_k = np.clip(np.asarray(t_c, dtype=np.float32) + np.float32(273.15),
+                      np.float32(band.t_min_k), np.float32(band.t_max_k))
         return ((band.radiance(t_k) - np.float32(lo)) / np.float32(hi - lo)).astype(np.float32)
 
     def to_dict(self) -> dict[str, float]:
