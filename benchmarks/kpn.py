@@ -180,10 +180,10 @@ SPLIT_SIGMA_PX = 6.0
 #: The classical pipeline given the camera model the network was trained from (not
 #: calibration-free, as the family row): the eq. 9 mean through that model, low-passed by a
 #: Gaussian of SPLIT_SIGMA_PX, plus the scene-based NUC baseline's high-pass (:func:`fuse`).
-HYBRID_ROW = (f"(not calibration-free) the exact average training unit's eq. 9 mean, low-pass "
-              f"σ = {SPLIT_SIGMA_PX:.0f} px, + hardie2000 NUC's high-pass")
-HYBRID_CHAMBER_ROW = (f"(not calibration-free) unit A's chamber model's eq. 9 mean, low-pass "
-                      f"σ = {SPLIT_SIGMA_PX:.0f} px, + hardie2000 NUC's high-pass")
+HYBRID_ROW = ("(classical, the network's camera model) the exact average training unit's eq. 9 "
+              f"mean, low-pass σ = {SPLIT_SIGMA_PX:.0f} px, + hardie2000 NUC's high-pass")
+HYBRID_CHAMBER_ROW = ("(classical, the network's camera model) unit A's chamber model's eq. 9 "
+                      f"mean, low-pass σ = {SPLIT_SIGMA_PX:.0f} px, + hardie2000 NUC's high-pass")
 
 
 def masked_smooth(x: np.ndarray, mask: np.ndarray, sigma: float) -> np.ndarray:

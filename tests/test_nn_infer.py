@@ -509,6 +509,9 @@ def test_train_from_a_chamber_file(tmp_path, capsys):
     model, norm, info = load_model(out)
     assert info["meta"]["chamber"] == str(chamber)
     assert info["data"]["sensor_size"] == [32, 24]
+    # --calibrated (the default): the fitted model is stored with the weights, at its size
+    assert model.config.calibrated and model.nominal.shape == (24, 32)
+    assert model.nominal.info["preset"] is None and model.nominal.offset.std() > 0
     lo, hi = info["data"]["fpa_range_c"]
     assert 14.0 < lo < hi < 48.0  # the FPA range the chamber covered (not the preset 10-50)
 
@@ -675,8 +678,8 @@ def test_train_and_estimate_with_each_frames_sensor_position(tmp_path, capsys, f
     small = ["--frames", "3", "--mu", "4", "--levels", "1", "--kernel", "3", "--crop", "32",
              "--batch", "2", "--steps-per-epoch", "2", "--max-epochs", "1", "--val-bursts", "2",
              "--units", "0-1", "--workers", "0", "--threads", "1", "--scenes", "3"]
-    code, err = run(["train", "--out", str(out), *small, "--sensor-motion", "--radial-frames"],
-                    capsys)
+    code, err = run(["train", "--out", str(out), *small, "--sensor-motion", "--radial-frames",
+                     "--no-calibrated"], capsys)  # run_network by hand on raw counts below
     assert code == 0, err
     model, norm, info = load_model(out)
     assert model.config.radial_frames and info["data"]["sensor_motion"] is True
@@ -762,7 +765,7 @@ def test_train_and_estimate_a_calibrated_model(tmp_path, capsys, flight, camera)
     small = ["--frames", "3", "--mu", "4", "--levels", "1", "--kernel", "3", "--crop", "32",
              "--batch", "2", "--steps-per-epoch", "2", "--max-epochs", "1", "--val-bursts", "2",
              "--units", "0-1", "--workers", "0", "--threads", "1", "--scenes", "3", "--radiance"]
-    code, err = run(["train", "--out", str(out), *small, "--calibrated"], capsys)
+    code, err = run(["train", "--out", str(out), *small], capsys)  # --calibrated: the default
     assert code == 0, err
     model, norm, info = load_model(out)
     assert model.config.calibrated and info["data"]["calibrated"] is True

@@ -246,11 +246,13 @@ def estimate(
     "(N planes), not the pivot's position alone.",
 )
 @click.option(
-    "--calibrated",
-    is_flag=True,
+    "--calibrated/--no-calibrated",
+    default=True,
+    show_default=True,
     help="Give the network each frame through the camera model it is trained from (the "
     "training units' average, or the --chamber fit), not raw counts: it learns what that model "
-    "gets wrong for the unit at hand. The model's camera travels with the weights.",
+    "gets wrong for the unit at hand (an addition to the paper; the model travels with the "
+    "weights).",
 )
 @click.option(
     "--init",
