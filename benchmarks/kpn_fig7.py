@@ -16,7 +16,7 @@ half of the model's N frames. Network sizes are the shipped model's unless given
 
     .venv/bin/python benchmarks/kpn_fig7.py --minutes 7 --device auto --workers 4 \\
         --variants kpn,kpn-no-offset,e2e --ns 1,3,5,7,9,11 --json fig7.json [--out-dir DIR] \\
-        [--sensor-motion] [--radial-frames]
+        [--sensor-motion] [--radial-frames] [--no-calibrated]
 
 Several processes (say one per variant) can share a GPU; ``--merge A.json B.json --json OUT``
 joins their results into the file that ships beside the weights (``nn/weights/fig7.json``).
@@ -80,7 +80,8 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
     if any(n % 2 == 0 for n in ns):
         raise SystemExit("N must be odd (a pivot in the middle)")
     n_max = max(ns)
-    cfg = BurstConfig(n_frames=n_max, crop=args.crop, sensor_motion=args.sensor_motion)
+    cfg = BurstConfig(n_frames=n_max, crop=args.crop, sensor_motion=args.sensor_motion,
+                      calibrated=base.calibrated)
     pool_fn = lambda: ScenePool.training(seed=42, n_procedural=24)  # noqa: E731
     norm = fit_normalisation(pool_fn(), cfg, seed=42)
     models, opts = {}, {}
@@ -98,7 +99,8 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
             models[(v, n)] = models[(v, n)].to(device).train()
             opts[(v, n)] = torch.optim.Adam(models[(v, n)].parameters(), lr=args.lr)
     stream = _Stream(pool_fn, cfg, norm, seed=42, batch=args.batch, start_batch=0, cameras=None,
-                     frame_positions=base.radial_frames)
+                     frame_positions=base.radial_frames,
+                     band_m=base.band_m if base.radiance else None)
     loader = torch.utils.data.DataLoader(
         stream,
         batch_size=None,
@@ -229,6 +231,9 @@ def main() -> None:
                     help="thermocal train --sensor-motion: frames displaced as on the whole sensor")
     ap.add_argument("--radial-frames", action="store_true",
                     help="thermocal train --radial-frames: each frame's sensor position")
+    ap.add_argument("--no-calibrated", action="store_true",
+                    help="thermocal train --no-calibrated: raw counts in (the models before "
+                    "2026-11-23)")
     ap.add_argument("--out-dir", default=None, help="keep the trained models here")
     ap.add_argument("--json", type=Path, required=True)
     ap.add_argument(
@@ -245,12 +250,14 @@ def main() -> None:
         args.json.write_text(json.dumps(to_figure_json(rows, " / ".join(sorted(notes))), indent=2))
         return
     base, _, _ = load_model(shipped_model_path("kpn"))
-    rows = train_sweep(args, replace(base.config, radial_frames=args.radial_frames))
+    rows = train_sweep(args, replace(base.config, radial_frames=args.radial_frames,
+                                     calibrated=not args.no_calibrated))
     dev = torch.cuda.get_device_name() if resolve_device(args.device).type == "cuda" else "CPU"
     note = (
         f"the models trained side by side for {rows[-1]['minutes']:g} min, "
         f"{rows[-1]['steps']} steps each, on shared bursts (batch {args.batch}, "
-        f"crop {args.crop}, lr {args.lr:g}) on {dev} ({os.cpu_count()} cores, "
+        f"crop {args.crop}, lr {args.lr:g}{', raw counts in' if args.no_calibrated else ''}) "
+        f"on {dev} ({os.cpu_count()} cores, "
         f"{platform.machine()}); evaluated on the held-out set of benchmarks/kpn.py"
         f"{' (quick)' if args.quick else ''}: MAE °C on pixels seen by >= half the frames"
     )
