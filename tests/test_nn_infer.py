@@ -512,6 +512,9 @@ def test_train_from_a_chamber_file(tmp_path, capsys):
     # --calibrated (the default): the fitted model is stored with the weights, at its size
     assert model.config.calibrated and model.nominal.shape == (24, 32)
     assert model.nominal.info["preset"] is None and model.nominal.offset.std() > 0
+    assert np.all(model.nominal.gain[0] > 0)  # the fit's dead pixels filled from neighbours
+    code, err = run(["train", "--out", str(out), "--resume", "--steps", "1"], capsys)
+    assert code == 2 and "resume it with --chamber" in err
     lo, hi = info["data"]["fpa_range_c"]
     assert 14.0 < lo < hi < 48.0  # the FPA range the chamber covered (not the preset 10-50)
 
@@ -609,7 +612,7 @@ def test_train_init_starts_from_a_weights_file(tmp_path, capsys):
     assert load_model(tmp_path / "s.pt")[0].config == shipped.config
     code, err = run(["train", "--out", str(tmp_path / "c.pt"), "--init", str(first),
                      *[x if x != "4" else "8" for x in small]], capsys)
-    assert code == 2 and "not the one to train" in err
+    assert code == 2 and "differs from the one to train in mu (4 there)" in err
     code, err = run(["train", "--out", str(second), "--init", str(first), "--resume"], capsys)
     assert code == 2 and "give one" in err
     code, err = run(["train", "--out", str(tmp_path / "d.pt"), "--temp-mean-range-c", "-80:60",
@@ -833,3 +836,45 @@ def test_train_refuses_a_calibrated_network_on_raw_bursts(tmp_path):
                                              calibrated=True),
               BurstConfig(n_frames=3, crop=16, units=(0,), sensor_size=(32, 24)),
               TrainConfig(max_steps=1), val_units=(1,))
+
+
+def test_calibrated_bursts_are_what_inference_gives_the_network():
+    """make_burst's calibrated frames = inference's (stuck pixels filled, then the nominal
+    camera of the training units where each frame lies, then warped), also for bursts of other
+    units (validation) whose nominal camera stays the training units'."""
+    from thermocal.burst import fill_stuck_pixels
+    from thermocal.nn.data import UnitCache, make_burst, preset_nominal
+
+    cfg = BurstConfig(n_frames=3, crop=48, units=(50,), nominal_units=(0, 1),
+                      sensor_size=(48, 48), calibrated=True)
+    b = make_burst(ScenePool.training(seed=2, n_procedural=2), cfg,
+                   rng=np.random.default_rng(4), units=UnitCache(cfg.preset, cfg.sensor_size))
+    model = KPN(ModelConfig(n_frames=3, mu=4, levels=1, kernel=3, calibrated=True))
+    model.nominal = preset_nominal("tau2", (48, 48), (0, 1))
+    filled, _ = fill_stuck_pixels(b.raw, b.homographies)
+    want = infer.calibrated_warp(model, filled, b.homographies, b.fpa_c)
+    assert np.allclose(np.where(b.valid, b.frames_c, 0), np.where(b.valid, want, 0), atol=1e-4)
+    own = preset_nominal("tau2", (48, 48), (50,))  # not the unit's own model
+    assert not np.allclose(own.offset, model.nominal.offset)
+
+
+def test_nominal_camera_fills_pixels_without_gain():
+    """A chamber fit zeroes its dead pixels' gain: the nominal camera still inverts there."""
+    from dataclasses import replace
+
+    from thermocal.nn.data import calibrate_frames, nominal_camera
+
+    cam = make_camera("tau2", unit=3, size=(32, 24))
+    gain = cam.gain.copy()
+    gain[:, 5, 7] = 0.0
+    gain[:, 0, 0] = 0.0
+    nominal = nominal_camera([replace(cam, gain=gain, info={})])
+    assert np.all(nominal.gain[0] > 0) and cam.gain[0, 5, 7] > 0
+    assert np.isclose(nominal.gain[0, 5, 7], np.median(cam.gain[0, 4:7, 6:9]), rtol=0.05)
+    frames = render(cam, np.full((1, 24, 32), 20.0), 30.0, housing_c=28.5,
+                    rng=np.random.default_rng(0))
+    t = calibrate_frames(nominal, frames, 30.0)
+    # finite and of the scene's order where the fit had no gain (its neighbours' FPN, not the
+    # pixel's: a dead pixel's output is replaced at inference anyway), exact elsewhere
+    assert np.all(np.isfinite(t)) and abs(float(t[0, 5, 7]) - 20.0) < 10.0
+    assert abs(float(np.median(t)) - 20.0) < 0.1

@@ -34,6 +34,7 @@ import cv2
 import numpy as np
 
 from thermocal.burst import fill_stuck_pixels
+from thermocal.calibration.base import fill_bad_pixels
 from thermocal.camera.model import CameraModel, invert, render
 from thermocal.camera.presets import PRESETS, make_camera, radial_map
 from thermocal.camera.thermal import ThermalParams, fpa_sensor
@@ -200,9 +201,12 @@ class BurstConfig:
         pixels are left out of the rendering (inference replaces them before the network).
     calibrated : bool
         Also give every burst its frames through the exact inverse of the *nominal* camera
-        (:func:`nominal_camera` of ``units``: the training units' average), calibrated on the
-        sensor before warping (:attr:`Burst.frames_c`): the input of a
+        (:func:`nominal_camera` of ``nominal_units``), calibrated on the sensor before warping
+        (:attr:`Burst.frames_c`): the input of a
         :attr:`~thermocal.nn.model.ModelConfig.calibrated` network.
+    nominal_units : tuple of int or None
+        The units whose average is the nominal camera (default ``units``): the validation bursts
+        of a run keep its training units' (what the network is given at inference).
     """
 
     n_frames: int = 7
@@ -225,6 +229,7 @@ class BurstConfig:
     sensor_size: tuple[int, int] = (336, 256)
     sensor_motion: bool = False
     calibrated: bool = False
+    nominal_units: tuple[int, ...] | None = None
 
     def __post_init__(self) -> None:
         if self.n_frames < 1:
@@ -463,13 +468,25 @@ def input_frames(frames: np.ndarray, valid: np.ndarray, norm: Normalisation, *,
 def nominal_camera(cameras: list[CameraModel]) -> CameraModel:
     """The average of camera units of one family: gain, offset and housing maps averaged (their
     unit-to-unit and pixel spread averages out), the first unit's transient and physics, no
-    defects. What a user knows of a camera family before calibrating the unit at hand."""
+    defects. What a user knows of a camera family before calibrating the unit at hand. Pixels
+    without a positive gain (a chamber fit's dead pixels) take their neighbours' median
+    coefficients, so that the model inverts everywhere."""
     base = cameras[0]
+    gain = np.mean([c.gain for c in cameras], axis=0).astype(np.float32)
+    offset = np.mean([c.offset for c in cameras], axis=0).astype(np.float32)
+    housing = np.mean([c.housing for c in cameras], axis=0).astype(np.float32)
+    transient = base.transient.astype(np.float32)
+    bad = ~(gain[0] > 0)
+    if bad.any():
+        gain, offset = fill_bad_pixels(gain.copy(), bad), fill_bad_pixels(offset.copy(), bad)
+        housing = fill_bad_pixels(housing[None].copy(), bad)[0]
+        transient = fill_bad_pixels(transient[None].copy(), bad)[0]
     return replace(
         base,
-        gain=np.mean([c.gain for c in cameras], axis=0).astype(np.float32),
-        offset=np.mean([c.offset for c in cameras], axis=0).astype(np.float32),
-        housing=np.mean([c.housing for c in cameras], axis=0).astype(np.float32),
+        gain=gain,
+        offset=offset,
+        housing=housing,
+        transient=transient,
         defects=np.zeros(base.shape, bool),
         defect_counts=np.zeros(base.shape, np.uint16),
         # a preset's units are remade from their numbers; others (a chamber fit) are not
@@ -735,7 +752,7 @@ def make_burst(
     warped, valid = warp_to_pivot(filled, h_reg)
     frames_c = None
     if cfg.calibrated:  # each frame through the nominal model of the window that rendered it
-        nominal = units.nominal(cfg.units)
+        nominal = units.nominal(cfg.nominal_units or cfg.units)
         temps = [calibrate_frames(nominal.crop(top + dy, left + dx, s, s), filled[i : i + 1],
                                   fpa_read) for i, (dy, dx) in enumerate(moves)]
         frames_c, _ = warp_to_pivot(np.concatenate(temps), h_reg)

@@ -253,6 +253,8 @@ def save_model(
     how the training data were made and free-form metadata (plain values only, so that it loads
     with ``torch.load(weights_only=True)``)."""
     out = Path(path)
+    if model.config.calibrated != burst_cfg.calibrated:
+        raise InvalidInputError("a calibrated network needs calibrated bursts, and only it")
     payload = {
         "format": FORMAT,
         "version": VERSION,
@@ -327,7 +329,8 @@ def _nominal_of(payload: dict[str, Any], config: ModelConfig) -> CameraModel:
             band=band_table(tuple(config.band_m)), info={"preset": None},
         )
     data = payload["data"]
-    return preset_nominal(data["preset"], tuple(data["sensor_size"]), tuple(data["units"]))
+    return preset_nominal(data["preset"], tuple(data["sensor_size"]),
+                          tuple(data.get("nominal_units") or data["units"]))
 
 
 # --------------------------------------------------------------------------------------------
@@ -451,6 +454,10 @@ def train(
             state = torch.load(ckpt_path, map_location="cpu", weights_only=False)
         except Exception:
             raise FileFormatError(f"{ckpt_path}: damaged checkpoint") from None
+        if state.get("cameras") and not cameras:
+            raise InvalidInputError(
+                f"{ckpt_path}: this run was trained from a chamber file: resume it with --chamber"
+            )
         model_cfg = ModelConfig(**state["model_cfg"])
         burst_cfg = BurstConfig(
             **{k: tuple(v) if isinstance(v, list) else v for k, v in state["burst_cfg"].items()}
@@ -498,9 +505,12 @@ def train(
     if init is not None:
         init_model, norm, _ = load_model(init)
         if init_model.config != model_cfg:
+            differ = [k for k, v in init_model.config.to_dict().items()
+                      if model_cfg.to_dict()[k] != v]
             raise InvalidInputError(
-                f"{init}: its network ({init_model.config.to_dict()}) is not the one to train "
-                f"({model_cfg.to_dict()})"
+                f"{init}: its network differs from the one to train in "
+                f"{', '.join(f'{k} ({getattr(init_model.config, k)} there)' for k in differ)}: "
+                "give the same options (e.g. --no-calibrated for a model on raw counts)"
             )
         fresh = fit_normalisation(pool, burst_cfg, seed=train_cfg.seed, cameras=cameras)
         if (fresh.counts_min < norm.counts_min - 500 or fresh.counts_max > norm.counts_max + 500
@@ -516,7 +526,7 @@ def train(
 
     val_cfg = BurstConfig(
         **{**asdict(burst_cfg), "units": tuple(val_units), "redraw_pixel_fpn": False,
-           "walk_frames": None}
+           "walk_frames": None, "nominal_units": burst_cfg.nominal_units or burst_cfg.units}
     )
     val_pool = val_pool_fn()
     val_units_cache = _unit_cache(val_cfg, cameras)
@@ -539,7 +549,8 @@ def train(
     model = KPN(model_cfg, temp_range_c=(norm.temp_min_c, norm.temp_max_c),
                 train_crop=burst_cfg.crop)
     if model_cfg.calibrated:  # what its input goes through, saved with it
-        model.nominal = _unit_cache(burst_cfg, cameras).nominal(burst_cfg.units)
+        model.nominal = _unit_cache(burst_cfg, cameras).nominal(
+            burst_cfg.nominal_units or burst_cfg.units)
     if init_model is not None:
         model.load_state_dict(init_model.state_dict())
     model = model.to(device)
@@ -587,6 +598,7 @@ def train(
             "schedule_cfg": asdict(schedule_cfg),
             "torch_rng": torch.get_rng_state(),
             "elapsed_s": elapsed_before + time.monotonic() - t0,
+            "cameras": sorted(cameras) if cameras else None,  # a chamber run resumes with it
         }
         with atomic_path(ckpt_path) as tmp:
             torch.save(payload, tmp)
