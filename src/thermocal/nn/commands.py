@@ -63,7 +63,8 @@ def _parse_range(text: str, name: str) -> tuple[float, float]:
 @click.option(
     "--registered",
     is_flag=True,
-    help="The frames are already registered onto the pivot (skip registration).",
+    help="The frames are already registered onto the pivot (skip registration; not for a network "
+    "with --calibrated, the shipped one, which calibrates each frame before warping).",
 )
 @click.option(
     "--calibration",

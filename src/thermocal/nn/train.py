@@ -513,8 +513,9 @@ def train(
                 "give the same options (e.g. --no-calibrated for a model on raw counts)"
             )
         fresh = fit_normalisation(pool, burst_cfg, seed=train_cfg.seed, cameras=cameras)
-        if (fresh.counts_min < norm.counts_min - 500 or fresh.counts_max > norm.counts_max + 500
-                or fresh.fpa_min_c < norm.fpa_min_c or fresh.fpa_max_c > norm.fpa_max_c):
+        counts_out = not model_cfg.calibrated and (  # a calibrated network never sees counts
+            fresh.counts_min < norm.counts_min - 500 or fresh.counts_max > norm.counts_max + 500)
+        if counts_out or fresh.fpa_min_c < norm.fpa_min_c or fresh.fpa_max_c > norm.fpa_max_c:
             log(f"warning: the new data (counts {fresh.counts_min:.0f}…{fresh.counts_max:.0f}, "
                 f"FPA {fresh.fpa_min_c:g}…{fresh.fpa_max_c:g} °C) reach outside the range "
                 f"{init} was normalised for (counts {norm.counts_min:.0f}…"
