@@ -66,6 +66,7 @@ from thermocal.nn.data import (
     TRAIN_UNITS,
     BurstConfig,
     ScenePool,
+    calibrate_frames,
     coverage_mask,
     evaluation_scenes,
     nominal_camera,
@@ -145,9 +146,8 @@ class ExactModel:
     (``--chamber``) it is the floor of a network trained from that file.
     """
 
-    def __init__(self, model, housing_offset_c: float = -1.5) -> None:
+    def __init__(self, model) -> None:
         self.model = model
-        self.housing_offset_c = housing_offset_c  # the camera settled: housing = FPA − 1.5 °C
 
     @classmethod
     def family(cls, units) -> ExactModel:
@@ -158,10 +158,7 @@ class ExactModel:
         return self.model.shape
 
     def apply(self, frames, *, fpa_c=None):
-        from thermocal.camera.model import invert
-
-        fpa = np.broadcast_to(np.asarray(fpa_c, dtype=np.float64), (len(frames),))
-        return invert(self.model, frames, fpa, housing_c=fpa + self.housing_offset_c)
+        return calibrate_frames(self.model, frames, fpa_c)  # the camera settled, as in training
 
 
 FAMILY_ROW = "(floor) exact model of the average training unit (eq. 9 mean)"

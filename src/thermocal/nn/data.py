@@ -55,8 +55,8 @@ __all__ = [
     "BurstConfig",
     "Normalisation",
     "ScenePool",
-    "calibrate_frames",
     "UnitCache",
+    "calibrate_frames",
     "coverage_mask",
     "frame_r2",
     "input_frames",
@@ -256,6 +256,11 @@ class BurstConfig:
                 f"temp_mean_range_c {lo:g}…{hi:g} °C must lie inside the clip range "
                 f"{self.temp_clip_c[0]:g}…{self.temp_clip_c[1]:g} °C"
             )
+
+    @property
+    def nominal_of(self) -> tuple[int, ...]:
+        """The units whose average is the nominal camera: ``nominal_units``, else ``units``."""
+        return self.nominal_units or self.units
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-able form."""
@@ -472,15 +477,14 @@ def nominal_camera(cameras: list[CameraModel]) -> CameraModel:
     without a positive gain (a chamber fit's dead pixels) take their neighbours' median
     coefficients, so that the model inverts everywhere."""
     base = cameras[0]
+    # new arrays (np.mean, astype): filled in place below, the cameras' own maps untouched
     gain = np.mean([c.gain for c in cameras], axis=0).astype(np.float32)
     offset = np.mean([c.offset for c in cameras], axis=0).astype(np.float32)
     housing = np.mean([c.housing for c in cameras], axis=0).astype(np.float32)
     transient = base.transient.astype(np.float32)
     bad = ~(gain[0] > 0)
-    if bad.any():
-        gain, offset = fill_bad_pixels(gain.copy(), bad), fill_bad_pixels(offset.copy(), bad)
-        housing = fill_bad_pixels(housing[None].copy(), bad)[0]
-        transient = fill_bad_pixels(transient[None].copy(), bad)[0]
+    for coefficients in (gain, offset, housing[None], transient[None]):
+        fill_bad_pixels(coefficients, bad)
     return replace(
         base,
         gain=gain,
@@ -503,10 +507,11 @@ def preset_nominal(preset: str, sensor_size: tuple[int, int],
     return UnitCache(preset, sensor_size).nominal(units)
 
 
-def calibrate_frames(nominal: CameraModel, counts: np.ndarray, fpa_c: float) -> np.ndarray:
+def calibrate_frames(nominal: CameraModel, counts: np.ndarray, fpa_c: Any) -> np.ndarray:
     """Raw frames ``(N, H, W)`` seen by the sensor window of ``nominal`` → scene temperature
     ``(N, H, W)`` °C, float32, through that model's exact inverse at the reported FPA
-    temperature ``fpa_c`` (°C; the camera settled: housing = FPA − its self-heating)."""
+    temperature ``fpa_c`` (°C, one or one per frame; the camera settled: housing = FPA − its
+    self-heating)."""
     return invert(nominal, counts, fpa_c, housing_c=fpa_c - _THERMAL.fpa_self_heating_c)
 
 
@@ -752,10 +757,13 @@ def make_burst(
     warped, valid = warp_to_pivot(filled, h_reg)
     frames_c = None
     if cfg.calibrated:  # each frame through the nominal model of the window that rendered it
-        nominal = units.nominal(cfg.nominal_units or cfg.units)
-        temps = [calibrate_frames(nominal.crop(top + dy, left + dx, s, s), filled[i : i + 1],
-                                  fpa_read) for i, (dy, dx) in enumerate(moves)]
-        frames_c, _ = warp_to_pivot(np.concatenate(temps), h_reg)
+        nominal = units.nominal(cfg.nominal_of)
+        temps = np.empty(filled.shape, np.float32)
+        for dy, dx in np.unique(moves, axis=0):  # one window for all frames without sensor_motion
+            same = np.all(moves == (dy, dx), axis=1)
+            temps[same] = calibrate_frames(nominal.crop(top + dy, left + dx, s, s),
+                                           filled[same], fpa_read)
+        frames_c, _ = warp_to_pivot(temps, h_reg)
     r2_windows = np.stack([sensor_r2(full.shape, top + dy, left + dx, (s, s)) for dy, dx in moves])
     return Burst(
         frames=warped,

@@ -527,7 +527,7 @@ def train(
 
     val_cfg = BurstConfig(
         **{**asdict(burst_cfg), "units": tuple(val_units), "redraw_pixel_fpn": False,
-           "walk_frames": None, "nominal_units": burst_cfg.nominal_units or burst_cfg.units}
+           "walk_frames": None, "nominal_units": burst_cfg.nominal_of}
     )
     val_pool = val_pool_fn()
     val_units_cache = _unit_cache(val_cfg, cameras)
@@ -550,8 +550,7 @@ def train(
     model = KPN(model_cfg, temp_range_c=(norm.temp_min_c, norm.temp_max_c),
                 train_crop=burst_cfg.crop)
     if model_cfg.calibrated:  # what its input goes through, saved with it
-        model.nominal = _unit_cache(burst_cfg, cameras).nominal(
-            burst_cfg.nominal_units or burst_cfg.units)
+        model.nominal = _unit_cache(burst_cfg, cameras).nominal(burst_cfg.nominal_of)
     if init_model is not None:
         model.load_state_dict(init_model.state_dict())
     model = model.to(device)
