@@ -74,7 +74,7 @@ def sub_burst(batch: tuple[torch.Tensor, ...], n: int, n_max: int,
 def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
     device = resolve_device(args.device)
     torch.set_num_threads(args.threads)
-    _seed_everything(42, device)
+    _seed_everything(args.seed, device)
     ns = [int(x) for x in args.ns.split(",")]
     variants = args.variants.split(",")
     if any(n % 2 == 0 for n in ns):
@@ -98,8 +98,8 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
             models[(v, n)] = KPN(mc, temp_range_c=(norm.temp_min_c, norm.temp_max_c))
             models[(v, n)] = models[(v, n)].to(device).train()
             opts[(v, n)] = torch.optim.Adam(models[(v, n)].parameters(), lr=args.lr)
-    stream = _Stream(pool_fn, cfg, norm, seed=42, batch=args.batch, start_batch=0, cameras=None,
-                     frame_positions=base.radial_frames,
+    stream = _Stream(pool_fn, cfg, norm, seed=args.seed, batch=args.batch, start_batch=0,
+                     cameras=None, frame_positions=base.radial_frames,
                      band_m=base.band_m if base.radiance else None)
     loader = torch.utils.data.DataLoader(
         stream,
@@ -166,6 +166,7 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
                     "n": n,
                     "variant": v,
                     **{k: s[k] for k in ACCURACY_KEYS},
+                    "seed": args.seed,
                     "steps": steps,
                     "minutes": round(wall / 60, 2),
                     "batch": args.batch,
@@ -191,20 +192,38 @@ ACCURACY_KEYS = ("mae_c", "mean_abs_bias_c", "bias_free_mae_c", "smooth_mae_c", 
 
 def to_figure_json(rows: list[dict], note: str) -> dict:
     """The ``fig7.json`` layout the demo reads: ``{"n": [...], "mae_c": {variant: [...]}}``;
-    the family model's floor, where measured, under ``"floor"``."""
+    the family model's floor, where measured, under ``"floor"``. Rows of several training seeds
+    of the same (variant, N) are averaged; their standard deviation over seeds (ddof 1) is under
+    ``"mae_sd_c"`` and ``"bias_free_mae_sd_c"``, their count under ``"seeds"``."""
     ns = sorted({r["n"] for r in rows})
     order = ["kpn", "kpn-no-offset", "e2e"]
     variants = sorted({r["variant"] for r in rows} & set(order), key=order.index)
-    pick = {(r["variant"], r["n"]): r for r in rows}
-    missing = [f"{v} N={n}" for v in variants for n in ns if (v, n) not in pick]
+    groups: dict[tuple[str, int], list[dict]] = {}
+    for r in rows:
+        groups.setdefault((r["variant"], r["n"]), []).append(r)
+    missing = [f"{v} N={n}" for v in variants for n in ns if (v, n) not in groups]
     if missing:
         raise SystemExit(f"no result for {', '.join(missing)}: merge files covering every pair")
+
+    def mean(key: str) -> dict[str, list[float]]:
+        return {v: [float(np.mean([r[key] for r in groups[(v, n)]])) for n in ns]
+                for v in variants}
+
+    def sd(key: str) -> dict[str, list[float | None]]:
+        return {v: [float(np.std([r[key] for r in groups[(v, n)]], ddof=1))
+                    if len(groups[(v, n)]) > 1 else None for n in ns] for v in variants}
+
+    several = any(len(groups[(v, n)]) > 1 for v in variants for n in ns)
     return {
         "n": ns,
-        "mae_c": {v: [pick[(v, n)]["mae_c"] for n in ns] for v in variants},
-        "bias_free_mae_c": {v: [pick[(v, n)]["bias_free_mae_c"] for n in ns] for v in variants},
-        "within_0_5": {v: [pick[(v, n)]["within_0_5"] for n in ns] for v in variants},
-        **({"floor": {k: [pick[(FLOOR, n)][k] if (FLOOR, n) in pick else None for n in ns]
+        "mae_c": mean("mae_c"),
+        "bias_free_mae_c": mean("bias_free_mae_c"),
+        "within_0_5": mean("within_0_5"),
+        **({"mae_sd_c": sd("mae_c"), "bias_free_mae_sd_c": sd("bias_free_mae_c"),
+            "seeds": {v: [len(groups[(v, n)]) for n in ns] for v in variants}}
+           if several else {}),
+        **({"floor": {k: [groups[(FLOOR, n)][0][k] if (FLOOR, n) in groups else None
+                          for n in ns]
                       for k in ("mae_c", "bias_free_mae_c")}}
            if any(r["variant"] == FLOOR for r in rows) else {}),
         "rows": rows,
@@ -226,6 +245,9 @@ def main() -> None:
     ap.add_argument("--batch", type=int, default=32)
     ap.add_argument("--lr", type=float, default=1e-3)
     ap.add_argument("--crop", type=int, default=64)
+    ap.add_argument("--seed", type=int, default=42,
+                    help="seed of the initialisation and the burst stream (the scene pool and "
+                    "the normalisation keep 42); merge runs of several seeds for error bars")
     ap.add_argument("--quick", action="store_true", help="the small evaluation set")
     ap.add_argument("--sensor-motion", action="store_true",
                     help="thermocal train --sensor-motion: frames displaced as on the whole sensor")
@@ -256,7 +278,8 @@ def main() -> None:
     note = (
         f"the models trained side by side for {rows[-1]['minutes']:g} min, "
         f"{rows[-1]['steps']} steps each, on shared bursts (batch {args.batch}, "
-        f"crop {args.crop}, lr {args.lr:g}{', raw counts in' if args.no_calibrated else ''}) "
+        f"crop {args.crop}, lr {args.lr:g}, seed {args.seed}"
+        f"{', raw counts in' if args.no_calibrated else ''}) "
         f"on {dev} ({os.cpu_count()} cores, "
         f"{platform.machine()}); evaluated on the held-out set of benchmarks/kpn.py"
         f"{' (quick)' if args.quick else ''}: MAE °C on pixels seen by >= half the frames"

@@ -114,13 +114,20 @@ def mae_vs_frames_figure(results: dict):
 
     ``results = {"n": [1, 3, …], "mae_c": {variant: [...]}, "note": "..."}``, optionally with
     ``"floor": {"mae_c": [...]}`` (the eq. 9 mean through the exact average training unit),
-    drawn dashed.
+    drawn dashed, and ``"mae_sd_c": {variant: [...]}`` (the SD over training seeds of mean
+    values), drawn as error bars.
     """
     plt = _pyplot()
     fig, ax = plt.subplots(figsize=(6.0, 4.0))
     values_all = []
+    sds = results.get("mae_sd_c") or {}
     for name, values in results["mae_c"].items():
-        ax.plot(results["n"], values, marker="o", label=name)
+        sd = sds.get(name)
+        if sd and all(v is not None for v in sd):
+            label = f"{name} (mean ± SD of {max(results['seeds'][name])} seeds)"
+            ax.errorbar(results["n"], values, yerr=sd, marker="o", capsize=3, label=label)
+        else:
+            ax.plot(results["n"], values, marker="o", label=name)
         values_all.extend(values)
     floor = (results.get("floor") or {}).get("mae_c")
     if floor and all(v is not None for v in floor):
