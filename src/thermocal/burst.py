@@ -10,6 +10,7 @@ methods.
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -166,19 +167,27 @@ def prepare(
     registered: bool = False,
     homographies: Any = None,
     fill_defects: bool = True,
+    transform: Callable[[np.ndarray], np.ndarray] | None = None,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, int]:
     """:func:`register` a checked raw burst, replacing its stuck pixels (``fill_defects``; not
     for ``registered`` frames, where they no longer stay in place) before the frames are warped.
 
+    ``transform`` maps those raw frames ``(N, H, W)`` to what is warped in their place (a
+    calibration of each pixel where it lies on the sensor); not for ``registered`` frames.
+
     Returns ``(frames, warped, valid, homographies, pivot)``: the raw frames with their stuck
-    pixels replaced, and the registration of those frames.
+    pixels replaced, and the registration of those frames (or of their ``transform``).
     """
-    if registered or not fill_defects:
+    if registered:
+        if transform is not None:
+            raise InvalidInputError("a per-pixel transform needs the frames as recorded, not "
+                                    "registered ones")
         return (frames, *register(frames, pivot=pivot, registered=registered,
                                   homographies=homographies))
     hs, p = _homographies(frames, _pivot_index(pivot, frames.shape[0]), homographies)
-    frames, _ = fill_stuck_pixels(frames, hs)
-    warped, valid = warp_to_pivot(frames, hs)
+    if fill_defects:
+        frames, _ = fill_stuck_pixels(frames, hs)
+    warped, valid = warp_to_pivot(frames if transform is None else transform(frames), hs)
     return frames, warped, valid, hs, p
 
 

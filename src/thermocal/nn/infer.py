@@ -41,6 +41,8 @@ from thermocal.registration.warp import warp_to_pivot
 __all__ = [
     "SHIPPED_MODELS",
     "Estimate",
+    "calibrated_frames",
+    "calibrated_warp",
     "check_burst",
     "estimate_burst",
     "estimate_file",
@@ -181,11 +183,10 @@ def run_network(
     return norm.temp_inverse(out).astype(np.float32)
 
 
-def calibrated_warp(model: KPN, frames: np.ndarray, homographies: np.ndarray,
-                    fpa_c: float) -> np.ndarray:
+def calibrated_frames(model: KPN, frames: np.ndarray, fpa_c: float) -> np.ndarray:
     """Whole-sensor raw frames ``(N, H, W)`` (stuck pixels replaced) through a calibrated
-    model's nominal camera (:func:`~thermocal.nn.data.calibrate_frames`), warped onto the
-    pivot by ``homographies`` ``(N, 3, 3)``: the frames :func:`run_network` takes, °C.
+    model's nominal camera (:func:`~thermocal.nn.data.calibrate_frames`) where each pixel lies
+    on the sensor, °C ``(N, H, W)``.
 
     A nominal camera made from a preset's units is made again for another frame size (the
     preset's sensor of that size); one fitted on a chamber file fits its own size only.
@@ -197,8 +198,14 @@ def calibrated_warp(model: KPN, frames: np.ndarray, homographies: np.ndarray,
     h, w = frames.shape[1:]
     if nominal.shape != (h, w) and nominal.info.get("preset"):
         nominal = preset_nominal(nominal.info["preset"], (w, h), tuple(nominal.info["units"]))
-    warped, _ = warp_to_pivot(calibrate_frames(nominal, frames, fpa_c), homographies)
-    return warped
+    return calibrate_frames(nominal, frames, fpa_c)
+
+
+def calibrated_warp(model: KPN, frames: np.ndarray, homographies: np.ndarray,
+                    fpa_c: float) -> np.ndarray:
+    """:func:`calibrated_frames` warped onto the pivot by ``homographies`` ``(N, 3, 3)``: the
+    frames :func:`run_network` takes for a calibrated model, °C ``(N, H, W)``."""
+    return warp_to_pivot(calibrated_frames(model, frames, fpa_c), homographies)[0]
 
 
 def estimate_burst(
@@ -258,11 +265,11 @@ def estimate_burst(
             "this model calibrates each frame where it lies on the sensor, before registration: "
             "give the burst as recorded (not --registered)"
         )
-    filled, warped, valid, hs, p = prepare(arr, pivot=pivot, registered=registered,
-                                           homographies=homographies, fill_defects=fill_defects)
+    to_c = (lambda f: calibrated_frames(model, f, fpa)) if model.config.calibrated else None
+    _, warped, valid, hs, p = prepare(arr, pivot=pivot, registered=registered,
+                                      homographies=homographies, fill_defects=fill_defects,
+                                      transform=to_c)
     check_overlap(valid, p)
-    if model.config.calibrated:
-        warped = calibrated_warp(model, filled, hs, fpa)
     r2f = None
     if model.config.radial_frames:
         r2f = _to_model_order(frame_r2(sensor_r2(valid.shape[1:]), hs, valid), p)
