@@ -16,10 +16,12 @@ half of the model's N frames. Network sizes are the shipped model's unless given
 
     .venv/bin/python benchmarks/kpn_fig7.py --minutes 7 --device auto --workers 4 \\
         --variants kpn,kpn-no-offset,e2e --ns 1,3,5,7,9,11 --json fig7.json [--out-dir DIR] \\
-        [--sensor-motion] [--radial-frames] [--no-calibrated]
+        [--sensor-motion] [--radial-frames] [--no-calibrated] [--seed 42]
 
-Several processes (say one per variant) can share a GPU; ``--merge A.json B.json --json OUT``
-joins their results into the file that ships beside the weights (``nn/weights/fig7.json``).
+Several processes (say one per variant, or one per ``--seed``) can share a GPU; ``--merge A.json
+B.json --json OUT`` joins their results into the file that ships beside the weights
+(``nn/weights/fig7.json``): runs of several seeds of the same (variant, N) are averaged, with
+their SD over seeds.
 """
 
 from __future__ import annotations
@@ -28,6 +30,7 @@ import argparse
 import json
 import os
 import platform
+import re
 import sys
 import tempfile
 import time
@@ -199,8 +202,20 @@ def to_figure_json(rows: list[dict], note: str) -> dict:
     order = ["kpn", "kpn-no-offset", "e2e"]
     variants = sorted({r["variant"] for r in rows} & set(order), key=order.index)
     groups: dict[tuple[str, int], list[dict]] = {}
+    seen = set()
     for r in rows:
-        groups.setdefault((r["variant"], r["n"]), []).append(r)
+        key = (r["variant"], r["n"])
+        if r["variant"] == FLOOR:  # the same in every run: kept once, and checked
+            if key in groups and not np.isclose(groups[key][0]["mae_c"], r["mae_c"]):
+                raise SystemExit(f"the family model's rows at N={r['n']} differ between the "
+                                 "files: runs on different evaluation sets (--quick?)")
+            groups.setdefault(key, [r])
+            continue
+        if (*key, r.get("seed", 42)) in seen:
+            raise SystemExit(f"{r['variant']} N={r['n']} seed {r.get('seed', 42)} is given "
+                             "twice: merge each run once (not a merged file with its parts)")
+        seen.add((*key, r.get("seed", 42)))
+        groups.setdefault(key, []).append(r)
     missing = [f"{v} N={n}" for v in variants for n in ns if (v, n) not in groups]
     if missing:
         raise SystemExit(f"no result for {', '.join(missing)}: merge files covering every pair")
@@ -267,9 +282,16 @@ def main() -> None:
     )
     args = ap.parse_args()
     if args.merge:
-        rows = [r for p in args.merge for r in json.loads(p.read_text())["rows"]]
-        notes = {json.loads(p.read_text())["note"] for p in args.merge}
-        args.json.write_text(json.dumps(to_figure_json(rows, " / ".join(sorted(notes))), indent=2))
+        runs = [json.loads(p.read_text()) for p in args.merge]
+        rows = [r for run in runs for r in run["rows"]]
+        steps = sorted({r["steps"] for r in rows if "steps" in r}) or [0]
+        span = str(steps[0]) if len(steps) == 1 else f"{steps[0]}–{steps[-1]}"
+        notes = {re.sub(r", seed \d+", "", re.sub(r"\d+ steps each", f"{span} steps each",
+                                                  run["note"])) for run in runs}
+        seeds = sorted({r["seed"] for r in rows if "seed" in r})
+        note = " / ".join(sorted(notes)) + (f"; seeds {', '.join(map(str, seeds))}"
+                                            if len(seeds) > 1 else "")
+        args.json.write_text(json.dumps(to_figure_json(rows, note), indent=2))
         return
     base, _, _ = load_model(shipped_model_path("kpn"))
     rows = train_sweep(args, replace(base.config, radial_frames=args.radial_frames,

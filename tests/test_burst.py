@@ -99,13 +99,20 @@ def test_prepare_warps_the_transformed_filled_frames_on_the_same_homographies(ca
         seen.append(f)
         return f.astype(np.float32) * 0.5 + np.arange(f.shape[2], dtype=np.float32)
 
+    before = fl.frames.copy()
     filled, warped, valid, hs, p = prepare(fl.frames, homographies=fl.homographies,
                                            transform=transform)
-    assert len(seen) == 1 and np.array_equal(seen[0], filled)  # the stuck pixels replaced
+    assert np.array_equal(fl.frames, before)  # the input is not changed
+    assert not np.array_equal(filled, fl.frames)  # the unit's defects were replaced …
+    assert len(seen) == 1 and np.array_equal(seen[0], filled)  # … before the transform
     want, want_valid = warp_to_pivot(transform(filled), hs)
     assert np.array_equal(warped, want) and np.array_equal(valid, want_valid) and p == 2
     plain = prepare(fl.frames, homographies=fl.homographies)
     assert np.array_equal(plain[0], filled) and np.array_equal(plain[2], valid)
+    raw = prepare(fl.frames, homographies=fl.homographies, fill_defects=False,
+                  transform=transform)  # the raw frames themselves, transformed and warped
+    assert np.array_equal(raw[0], fl.frames)
+    assert np.array_equal(raw[1], warp_to_pivot(transform(fl.frames), hs)[0])
     with pytest.raises(InvalidInputError, match="as recorded"):
         prepare(fl.frames, registered=True, transform=transform)
 

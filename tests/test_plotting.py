@@ -3,9 +3,14 @@ shipped Fig. 7 results the demo draws."""
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
+import sys
 from importlib.resources import files
+from pathlib import Path
+
+import pytest
 
 from thermocal.plotting import mae_vs_frames_figure
 
@@ -42,29 +47,53 @@ def test_mae_vs_frames_figure_draws_error_bars_over_seeds():
     assert len(ax.containers) == 1  # kpn's error bars; e2e, of one seed, a plain line
     assert [ln.get_label() for ln in ax.get_lines()][-1] == "e2e"
     assert set(ax.get_legend_handles_labels()[1]) == {"kpn (mean ± SD of 3 seeds)", "e2e"}
+    uneven = {"n": [1, 3], "mae_c": {"kpn": [0.7, 0.6]}, "mae_sd_c": {"kpn": [0.05, None]},
+              "seeds": {"kpn": [2, 1]}}
+    ax = mae_vs_frames_figure(uneven).axes[0]
+    assert ax.get_legend_handles_labels()[1] == ["kpn (mean ± SD of 1–2 seeds)"]
+    no_counts = {k: v for k, v in res.items() if k != "seeds"}  # SD without the seed counts
+    assert "kpn (mean ± SD of several seeds)" in (
+        mae_vs_frames_figure(no_counts).axes[0].get_legend_handles_labels()[1])
 
 
-def test_fig7_merge_averages_seeds_and_gives_their_sd():
-    import importlib.util
-    import sys
-    from pathlib import Path
-
+@pytest.fixture
+def fig7(monkeypatch):
+    """benchmarks/kpn_fig7.py as a module (it needs torch, and benchmarks/ on the path)."""
+    pytest.importorskip("torch")
     bench = Path(__file__).resolve().parents[1] / "benchmarks"
-    sys.path.insert(0, str(bench))
-    try:
-        spec = importlib.util.spec_from_file_location("kpn_fig7", bench / "kpn_fig7.py")
-        fig7 = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(fig7)
-    finally:
-        sys.path.remove(str(bench))
+    monkeypatch.syspath_prepend(str(bench))
+    for name in ("kpn", "kpn_fig7"):
+        monkeypatch.delitem(sys.modules, name, raising=False)
+    spec = importlib.util.spec_from_file_location("kpn_fig7", bench / "kpn_fig7.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    yield module
+    for name in ("kpn", "kpn_fig7"):
+        sys.modules.pop(name, None)
+
+
+def _rows(fig7, runs):
     keys = dict.fromkeys(("mae_c", "bias_free_mae_c", "within_0_5"), 0.0)
-    rows = [{**keys, "variant": "kpn", "n": n, "seed": s, "mae_c": m, "bias_free_mae_c": m / 2}
-            for n, s, m in [(1, 42, 0.8), (1, 43, 0.6), (3, 42, 0.5), (3, 43, 0.5)]]
-    rows.append({**keys, "variant": fig7.FLOOR, "n": 1, "mae_c": 1.8})
-    res = fig7.to_figure_json(rows, "note")
+    return [{**keys, "variant": "kpn", "n": n, "seed": s, "mae_c": m, "bias_free_mae_c": m / 2}
+            for n, s, m in runs]
+
+
+def test_fig7_merge_averages_seeds_and_gives_their_sd(fig7):
+    rows = _rows(fig7, [(1, 42, 0.8), (1, 43, 0.6), (3, 42, 0.5), (3, 43, 0.5)])
+    floor = {"variant": fig7.FLOOR, "n": 1, "mae_c": 1.8, "bias_free_mae_c": 1.7}
+    res = fig7.to_figure_json(rows + [floor, dict(floor)], "note")  # one floor row per run
     assert res["mae_c"]["kpn"] == [0.7, 0.5] and res["seeds"]["kpn"] == [2, 2]
     assert math.isclose(res["mae_sd_c"]["kpn"][0], math.sqrt(0.02))
     assert res["mae_sd_c"]["kpn"][1] == 0
     assert res["floor"]["mae_c"] == [1.8, None]
     one = fig7.to_figure_json(rows[::2], "note")  # one seed: no SD keys
     assert "mae_sd_c" not in one and one["mae_c"]["kpn"] == [0.8, 0.5]
+
+
+def test_fig7_merge_refuses_a_run_given_twice_and_unlike_floors(fig7):
+    rows = _rows(fig7, [(1, 42, 0.8), (1, 43, 0.6)])
+    with pytest.raises(SystemExit, match="seed 43 is given twice"):
+        fig7.to_figure_json(rows + rows[1:], "note")
+    floor = {"variant": fig7.FLOOR, "n": 1, "mae_c": 1.8, "bias_free_mae_c": 1.7}
+    with pytest.raises(SystemExit, match="differ between the files"):
+        fig7.to_figure_json(rows + [floor, {**floor, "mae_c": 1.5}], "note")

@@ -172,8 +172,9 @@ def prepare(
     """:func:`register` a checked raw burst, replacing its stuck pixels (``fill_defects``; not
     for ``registered`` frames, where they no longer stay in place) before the frames are warped.
 
-    ``transform`` maps those raw frames ``(N, H, W)`` to what is warped in their place (a
-    calibration of each pixel where it lies on the sensor); not for ``registered`` frames.
+    ``transform`` maps those raw frames ``(N, H, W)`` to the ``(N, H, W)`` array warped in their
+    place (a calibration of each pixel where it lies on the sensor), without changing its input
+    (with ``fill_defects=False`` that is the caller's array); not for ``registered`` frames.
 
     Returns ``(frames, warped, valid, homographies, pivot)``: the raw frames with their stuck
     pixels replaced, and the registration of those frames (or of their ``transform``).

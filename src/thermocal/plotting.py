@@ -123,9 +123,13 @@ def mae_vs_frames_figure(results: dict):
     sds = results.get("mae_sd_c") or {}
     for name, values in results["mae_c"].items():
         sd = sds.get(name)
-        if sd and all(v is not None for v in sd):
-            label = f"{name} (mean ± SD of {max(results['seeds'][name])} seeds)"
-            ax.errorbar(results["n"], values, yerr=sd, marker="o", capsize=3, label=label)
+        if sd and any(v is not None for v in sd):  # None: a single seed at that N
+            counts = sorted(set((results.get("seeds") or {}).get(name) or []))
+            of = ("–".join(map(str, (counts[0], counts[-1]) if len(counts) > 1 else counts))
+                  if counts else "several")
+            label = f"{name} (mean ± SD of {of} seeds)"
+            ax.errorbar(results["n"], values, yerr=[0.0 if v is None else v for v in sd],
+                        marker="o", capsize=3, label=label)
         else:
             ax.plot(results["n"], values, marker="o", label=name)
         values_all.extend(values)

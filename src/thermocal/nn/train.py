@@ -293,9 +293,10 @@ def load_model(path: str | os.PathLike[str]) -> tuple[KPN, Normalisation, dict[s
     try:
         payload = torch.load(p, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises many types for a corrupt file
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        text = str(exc).strip()
+        detail = type(exc).__name__ + (f": {text.splitlines()[0][:100]}" if text else "")
         raise FileFormatError(f"{p}: not a thermocal weights file (PyTorch cannot read it: "
-                              f"{type(exc).__name__} {first[:100]})") from None
+                              f"{detail})") from None
     if not isinstance(payload, dict) or payload.get("format") != FORMAT:
         raise FileFormatError(f"{p}: not a thermocal weights file (no '{FORMAT}' header)")
     if payload.get("version") != VERSION:
