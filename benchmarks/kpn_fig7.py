@@ -211,10 +211,11 @@ def to_figure_json(rows: list[dict], note: str) -> dict:
                                  "files: runs on different evaluation sets (--quick?)")
             groups.setdefault(key, [r])
             continue
-        if (*key, r.get("seed", 42)) in seen:
-            raise SystemExit(f"{r['variant']} N={r['n']} seed {r.get('seed', 42)} is given "
-                             "twice: merge each run once (not a merged file with its parts)")
-        seen.add((*key, r.get("seed", 42)))
+        run = (*key, r.get("seed", 42))  # rows from before --seed: 42
+        if run in seen:
+            raise SystemExit(f"{r['variant']} N={r['n']} seed {run[2]} is given twice: merge "
+                             "each run once (not a merged file with its parts)")
+        seen.add(run)
         groups.setdefault(key, []).append(r)
     missing = [f"{v} N={n}" for v in variants for n in ns if (v, n) not in groups]
     if missing:

@@ -181,8 +181,10 @@ def prepare(
     """
     if registered:
         if transform is not None:
-            raise InvalidInputError("a per-pixel transform needs the frames as recorded, not "
-                                    "registered ones")
+            raise InvalidInputError(
+                "each frame is calibrated where it lies on the sensor, before registration: give "
+                "the burst as recorded (not --registered)"
+            )
         return (frames, *register(frames, pivot=pivot, registered=registered,
                                   homographies=homographies))
     hs, p = _homographies(frames, _pivot_index(pivot, frames.shape[0]), homographies)

@@ -125,8 +125,8 @@ def mae_vs_frames_figure(results: dict):
         sd = sds.get(name)
         if sd and any(v is not None for v in sd):  # None: a single seed at that N
             counts = sorted(set((results.get("seeds") or {}).get(name) or []))
-            of = ("–".join(map(str, (counts[0], counts[-1]) if len(counts) > 1 else counts))
-                  if counts else "several")
+            of = ("several" if not counts else str(counts[0]) if len(counts) == 1
+                  else f"{counts[0]}–{counts[-1]}")
             label = f"{name} (mean ± SD of {of} seeds)"
             ax.errorbar(results["n"], values, yerr=[0.0 if v is None else v for v in sd],
                         marker="o", capsize=3, label=label)

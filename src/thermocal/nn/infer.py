@@ -260,11 +260,8 @@ def estimate_burst(
             "this model needs where on the sensor each frame saw the scene: give the burst as "
             "recorded (not --registered) or its homographies"
         )
-    if model.config.calibrated and registered:
-        raise InvalidInputError(
-            "this model calibrates each frame where it lies on the sensor, before registration: "
-            "give the burst as recorded (not --registered)"
-        )
+    # a calibrated model's frames are calibrated where they lie on the sensor: prepare refuses
+    # registered ones
     to_c = (lambda f: calibrated_frames(model, f, fpa)) if model.config.calibrated else None
     _, warped, valid, hs, p = prepare(arr, pivot=pivot, registered=registered,
                                       homographies=homographies, fill_defects=fill_defects,

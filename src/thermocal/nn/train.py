@@ -253,8 +253,7 @@ def save_model(
     how the training data were made and free-form metadata (plain values only, so that it loads
     with ``torch.load(weights_only=True)``)."""
     out = Path(path)
-    if model.config.calibrated != burst_cfg.calibrated:
-        raise InvalidInputError("a calibrated network needs calibrated bursts, and only it")
+    _check_calibrated(model.config, burst_cfg)
     payload = {
         "format": FORMAT,
         "version": VERSION,
@@ -316,6 +315,11 @@ def load_model(path: str | os.PathLike[str]) -> tuple[KPN, Normalisation, dict[s
     model.eval()
     model.to(memory_format=torch.channels_last)  # faster CPU convolutions (oneDNN), same values
     return model, norm, {"data": payload.get("data", {}), "meta": payload.get("meta", {})}
+
+
+def _check_calibrated(model_cfg: ModelConfig, burst_cfg: BurstConfig) -> None:
+    if model_cfg.calibrated != burst_cfg.calibrated:
+        raise InvalidInputError("a calibrated network needs calibrated bursts, and only it")
 
 
 def _nominal_of(payload: dict[str, Any], config: ModelConfig) -> CameraModel:
@@ -489,8 +493,7 @@ def train(
         )
     if cameras is None and set(val_units) & set(burst_cfg.units):
         raise InvalidInputError("validation units must not be training units")
-    if model_cfg.calibrated != burst_cfg.calibrated:
-        raise InvalidInputError("a calibrated network needs calibrated bursts, and only it")
+    _check_calibrated(model_cfg, burst_cfg)  # before training, not only at the first save
     band_m = model_cfg.band_m if model_cfg.radiance else None  # the calibrated input's units
 
     device = resolve_device(train_cfg.device)
