@@ -56,25 +56,25 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from thermocal.burst import fill_stuck_pixels, naive_mean
+from thermocal.burst import fill_stuck_pixels
 from thermocal.calibration.two_point import fit_two_point
 from thermocal.camera.model import render
 from thermocal.camera.presets import make_camera
+from thermocal.estimation.calibrated import naive_mean
 from thermocal.metrics import best_affine_fit, fraction_within, mae
 from thermocal.nn.data import (
     EVAL_UNITS,
     TRAIN_UNITS,
     BurstConfig,
     ScenePool,
-    calibrate_frames,
     coverage_mask,
     evaluation_scenes,
-    nominal_camera,
-    sensor_r2,
 )
 from thermocal.nn.infer import calibrated_warp, estimate_burst, run_network, shipped_model_path
+from thermocal.nn.inputs import calibrate_frames, nominal_camera, sensor_r2
 from thermocal.nn.model import ModelConfig, count_macs, count_parameters
-from thermocal.nn.train import TrainConfig, load_model, resolve_device, train
+from thermocal.nn.store import load_model
+from thermocal.nn.train import TrainConfig, resolve_device, train
 from thermocal.radiometry import BandRadiance
 from thermocal.scenes.trajectory import perturb_homographies
 from thermocal.simulate.flight import simulate_flight
@@ -280,7 +280,7 @@ def run_methods(bursts, model, norm, *, baselines: bool = True, label: str = KPN
         references = {FAMILY_ROW: ExactModel.family(TRAIN_UNITS)} | (references or {})
     for b in bursts:
         cam = b["camera"]
-        # the burst's stuck pixels replaced once, for every method (as thermocal.burst.prepare)
+        # the burst's stuck pixels replaced once, for every method (as the estimation pipeline does)
         frames, _ = fill_stuck_pixels(b["frames"], b["hs"])
         if model is not None:
             e = network_estimate(b, frames, model, norm)

@@ -48,14 +48,13 @@ from thermocal.nn.data import BurstConfig, ScenePool, min_views  # noqa: E402
 from thermocal.nn.infer import shipped_model_path  # noqa: E402
 from thermocal.nn.loss import kpn_loss  # noqa: E402
 from thermocal.nn.model import KPN, ModelConfig  # noqa: E402
+from thermocal.nn.store import load_model, save_model  # noqa: E402
 from thermocal.nn.train import (  # noqa: E402
     TrainConfig,
     _seed_everything,
     _Stream,
     fit_normalisation,
-    load_model,
     resolve_device,
-    save_model,
     step_lr,
 )
 

@@ -7,12 +7,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from thermocal.burst import fill_stuck_pixels, naive_mean, prepare, scene_motion_px, stuck_pixels
+from thermocal.burst import fill_stuck_pixels, scene_motion_px, stuck_pixels
 from thermocal.calibration.two_point import fit_two_point
 from thermocal.camera.model import render
 from thermocal.camera.presets import make_camera
-from thermocal.errors import InvalidInputError
-from thermocal.registration.warp import warp_to_pivot
+from thermocal.estimation.calibrated import naive_mean
 from thermocal.scenes.procedural import procedural_scene
 from thermocal.simulate.flight import simulate_flight
 
@@ -89,32 +88,6 @@ def test_fill_stuck_pixels_replaces_them_alone(camera, scene):
         around = fl.frames[:, r - 1 : r + 2, c - 1 : c + 2].reshape(len(filled), 9).astype(float)
         expected = np.median(np.delete(around, 4, axis=1), axis=1)
         assert np.all(np.abs(filled[:, r, c] - expected) <= 0.5)
-
-
-def test_prepare_warps_the_transformed_filled_frames_on_the_same_homographies(camera, scene):
-    fl = simulate_flight(scene, camera, n_frames=5, motion="walk", fpa_c=30.0, seed=4)
-    seen = []
-
-    def transform(f):  # a per-pixel map of the raw frames, as a calibration is
-        seen.append(f)
-        return f.astype(np.float32) * 0.5 + np.arange(f.shape[2], dtype=np.float32)
-
-    before = fl.frames.copy()
-    filled, warped, valid, hs, p = prepare(fl.frames, homographies=fl.homographies,
-                                           transform=transform)
-    assert np.array_equal(fl.frames, before)  # the input is not changed
-    assert not np.array_equal(filled, fl.frames)  # the unit's defects were replaced …
-    assert len(seen) == 1 and np.array_equal(seen[0], filled)  # … before the transform
-    want, want_valid = warp_to_pivot(transform(filled), hs)
-    assert np.array_equal(warped, want) and np.array_equal(valid, want_valid) and p == 2
-    plain = prepare(fl.frames, homographies=fl.homographies)
-    assert np.array_equal(plain[0], filled) and np.array_equal(plain[2], valid)
-    raw = prepare(fl.frames, homographies=fl.homographies, fill_defects=False,
-                  transform=transform)  # the raw frames themselves, transformed and warped
-    assert np.array_equal(raw[0], fl.frames)
-    assert np.array_equal(raw[1], warp_to_pivot(transform(fl.frames), hs)[0])
-    with pytest.raises(InvalidInputError, match="as recorded"):
-        prepare(fl.frames, registered=True, transform=transform)
 
 
 def test_eq9_mean_leaves_no_defect_trail(camera):

@@ -18,7 +18,6 @@ from thermocal.nn.data import (
     TRAIN_UNITS,
     VAL_UNITS,
     BurstConfig,
-    Normalisation,
     ScenePool,
     UnitCache,
     coverage_mask,
@@ -27,9 +26,9 @@ from thermocal.nn.data import (
     make_bursts,
     redraw_column_fpn,
     redraw_pixel_fpn,
-    sensor_r2,
     window_offsets,
 )
+from thermocal.nn.inputs import Normalisation, sensor_r2
 from thermocal.scenes.procedural import procedural_scene
 
 

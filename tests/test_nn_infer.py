@@ -15,23 +15,19 @@ from thermocal.camera.model import render  # noqa: E402
 from thermocal.camera.presets import make_camera  # noqa: E402
 from thermocal.cli import main  # noqa: E402
 from thermocal.errors import InvalidInputError, RegistrationError, ThermocalError  # noqa: E402
+from thermocal.estimation.calibrated import naive_mean  # noqa: E402
 from thermocal.io.recording import Recording, write_recording  # noqa: E402
 from thermocal.nn import infer  # noqa: E402
-from thermocal.nn.data import (  # noqa: E402
-    BurstConfig,
-    Normalisation,
-    ScenePool,
-    frame_r2,
-    sensor_r2,
-)
+from thermocal.nn.data import BurstConfig, ScenePool  # noqa: E402
 from thermocal.nn.infer import (  # noqa: E402
     estimate_burst,
     inference_tiling,
-    naive_mean,
     run_network,
 )
+from thermocal.nn.inputs import Normalisation, frame_r2, sensor_r2  # noqa: E402
 from thermocal.nn.model import KPN, ModelConfig  # noqa: E402
-from thermocal.nn.train import TrainConfig, load_model, save_model, step_lr  # noqa: E402
+from thermocal.nn.store import load_model, save_model  # noqa: E402
+from thermocal.nn.train import TrainConfig, step_lr  # noqa: E402
 from thermocal.registration.warp import warp_to_pivot  # noqa: E402
 from thermocal.scenes.procedural import procedural_scene  # noqa: E402
 from thermocal.simulate.flight import simulate_flight, write_flight  # noqa: E402
@@ -627,7 +623,7 @@ def test_burst_module_and_mean_need_no_torch():
 
     code = (
         "import sys, numpy as np\n"
-        "from thermocal.burst import naive_mean\n"
+        "from thermocal.estimation.calibrated import naive_mean\n"
         "from thermocal.calibration.two_point import fit_two_point\n"
         "from thermocal.camera.presets import make_camera\n"
         "from thermocal.camera.model import render\n"
@@ -762,7 +758,8 @@ def test_calibrated_bursts_recover_the_scene_through_their_own_units_model():
 def test_train_and_estimate_a_calibrated_model(tmp_path, capsys, flight, camera):
     """--calibrated: trained, saved (the preset's nominal camera remade at load), run by
     estimate_burst on the frames calibrated before warping; registered bursts are refused."""
-    from thermocal.nn.data import UnitCache, calibrate_frames
+    from thermocal.nn.data import UnitCache
+    from thermocal.nn.inputs import calibrate_frames
 
     out = tmp_path / "cal.pt"
     small = ["--frames", "3", "--mu", "4", "--levels", "1", "--kernel", "3", "--crop", "32",
@@ -803,7 +800,7 @@ def test_a_calibrated_chamber_model_keeps_its_camera(tmp_path):
 
     cam = make_camera("tau2", unit=3, size=(48, 32))
     fitted = replace(cam, info={"fitted_from": "chamber"})
-    from thermocal.nn.data import nominal_camera
+    from thermocal.nn.inputs import nominal_camera
 
     nominal = nominal_camera([fitted])
     assert nominal.info["preset"] is None
@@ -843,7 +840,8 @@ def test_calibrated_bursts_are_what_inference_gives_the_network():
     camera of the training units where each frame lies, then warped), also for bursts of other
     units (validation) whose nominal camera stays the training units'."""
     from thermocal.burst import fill_stuck_pixels
-    from thermocal.nn.data import UnitCache, make_burst, preset_nominal
+    from thermocal.nn.data import UnitCache, make_burst
+    from thermocal.nn.inputs import preset_nominal
 
     cfg = BurstConfig(n_frames=3, crop=48, units=(50,), nominal_units=(0, 1),
                       sensor_size=(48, 48), calibrated=True)
@@ -862,7 +860,7 @@ def test_nominal_camera_fills_pixels_without_gain():
     """A chamber fit zeroes its dead pixels' gain: the nominal camera still inverts there."""
     from dataclasses import replace
 
-    from thermocal.nn.data import calibrate_frames, nominal_camera
+    from thermocal.nn.inputs import calibrate_frames, nominal_camera
 
     cam = make_camera("tau2", unit=3, size=(32, 24))
     gain = cam.gain.copy()

@@ -13,7 +13,7 @@ from thermocal.camera.model import render  # noqa: E402
 from thermocal.camera.presets import make_camera  # noqa: E402
 from thermocal.nn.data import EVAL_UNITS, TRAIN_UNITS, coverage_mask  # noqa: E402
 from thermocal.nn.infer import SHIPPED_MODELS, estimate_burst, shipped_model_path  # noqa: E402
-from thermocal.nn.train import load_model  # noqa: E402
+from thermocal.nn.store import load_model  # noqa: E402
 from thermocal.scenes.builtin import load_builtin_scene  # noqa: E402
 from thermocal.scenes.trajectory import perturb_homographies  # noqa: E402
 from thermocal.simulate.flight import simulate_flight  # noqa: E402
@@ -109,3 +109,54 @@ def test_shipped_kpn_leaves_no_trail_of_stuck_pixels(shipped):
     assert err[True][0] < 0.5 * err[False][0], err  # the trails are gone ...
     assert err[True][0] < 2 * err[True][1], err  # ... down to the error elsewhere
 
+
+
+def test_shipped_network_keeps_its_camera_model_when_the_preset_changes(burst, monkeypatch):
+    """The weights hold the network's nominal camera (and the preset parameters to make it
+    again at another size): a changed preset coefficient changes nothing it outputs."""
+    from dataclasses import replace
+
+    from thermocal.camera import presets
+    from thermocal.nn import inputs
+
+    fl, hs, _ = burst
+    big = simulate_flight(load_builtin_scene("aerial"), make_camera("tau2", unit=UNIT),
+                          n_frames=7, motion="walk", fpa_c=FPA_C, seed=0)
+    before = [estimate_burst(f.frames, f.fpa_c, model=m, norm=n, homographies=f.homographies)
+              .temperature_c for f in (fl, big) for m, n, _ in [load_model(
+                  shipped_model_path("kpn"))]]
+    changed = replace(presets.PRESETS["tau2"], gain=90.0, offset_radial=-300.0)
+    monkeypatch.setitem(presets.PRESETS, "tau2", changed)
+    inputs.preset_nominal.cache_clear()
+    model, norm, _ = load_model(shipped_model_path("kpn"))
+    after = [estimate_burst(f.frames, f.fpa_c, model=model, norm=norm,
+                            homographies=f.homographies).temperature_c for f in (fl, big)]
+    assert np.array_equal(before[0], after[0]) and np.array_equal(before[1], after[1])
+    # the nominal camera the version-1 file format made from the preset does change
+    remade = inputs.preset_nominal("tau2", (336, 256), tuple(range(24)))
+    assert not np.allclose(remade.gain, model.nominal.gain)
+    inputs.preset_nominal.cache_clear()
+
+
+def test_damaged_camera_model_in_weights_is_refused(tmp_path):
+    from thermocal.errors import FileFormatError
+
+    payload = torch.load(shipped_model_path("kpn"), map_location="cpu", weights_only=True)
+    payload["nominal"]["gain"][0, 10, 10] *= 1.01
+    torch.save(payload, tmp_path / "bad.pt")
+    with pytest.raises(FileFormatError, match="checksum"):
+        load_model(tmp_path / "bad.pt")
+
+
+def test_version_1_weights_upgrade_to_the_same_network(tmp_path):
+    from thermocal.nn.store import VERSION, upgrade
+
+    payload = torch.load(shipped_model_path("kpn"), map_location="cpu", weights_only=True)
+    del payload["nominal"]
+    payload["version"] = 1
+    torch.save(payload, tmp_path / "v1.pt")
+    upgrade(tmp_path / "v1.pt", tmp_path / "v2.pt")
+    shipped = torch.load(shipped_model_path("kpn"), map_location="cpu", weights_only=True)
+    again = torch.load(tmp_path / "v2.pt", map_location="cpu", weights_only=True)
+    assert again["version"] == VERSION
+    assert again["nominal"]["sha256"] == shipped["nominal"]["sha256"]

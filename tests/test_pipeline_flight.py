@@ -131,3 +131,33 @@ def test_disk_full_keeps_finished_outputs_and_resumes(setup, tmp_path, monkeypat
     main(argv)
     names = sorted(p.name for p in (out / "temps").iterdir())
     assert names == ["frame_000003.tiff", "frame_000010.tiff", "frame_000017.tiff"]
+
+
+@pytest.mark.parametrize("method", ["kpn", "mean", "calibration"])
+def test_flight_end_to_end_through_the_cli(setup, tmp_path, method, capsys):
+    """``thermocal flight`` on a small recording, every kind of estimator: one map per pivot,
+    close to the simulator's truth (the unit's own polynomial calibration for ``mean`` and
+    ``calibration``; the shipped network, calibration-free, for ``kpn``)."""
+    if method == "kpn":
+        pytest.importorskip("torch")
+    import tifffile
+
+    from thermocal.cli import main
+
+    out = tmp_path / "out"
+    argv = ["flight", str(setup / "flight" / "frames.tiff"), "--out", str(out), "--method", method,
+            "--preview-every", "2"]
+    if method != "kpn":
+        argv += ["--calibration", str(setup / "cal.h5")]
+    main(argv)
+    assert "3 temperature maps written" in capsys.readouterr().out
+    truth = tifffile.imread(setup / "flight" / "truth.tiff")
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["processed"] == 3 and summary["failed"] == 0
+    for pivot in (3, 10, 17):
+        temp = read_temperature_tiff(out / "temps" / f"frame_{pivot:06d}.tiff")
+        err = np.abs(temp - truth[pivot])[4:-4, 4:-4]
+        limit = {"kpn": 1.5, "mean": 0.5, "calibration": 0.2}[method]
+        assert np.median(err) < limit, (method, pivot, float(np.median(err)))
+    assert sorted(p.name for p in (out / "previews").iterdir()) == [
+        "frame_000003.png", "frame_000017.png"]

@@ -199,7 +199,7 @@ COMMANDS: list[tuple[str, str]] = [
     ("thermocal.calibration.commands", "calibrate"),
     ("thermocal.calibration.commands", "correct"),
     ("thermocal.nuc.commands", "nuc"),
-    ("thermocal.nn.commands", "estimate"),
+    ("thermocal.estimation.commands", "estimate"),
     ("thermocal.nn.commands", "train"),
     ("thermocal.pipeline.commands", "flight"),
     ("thermocal.bench", "bench"),

@@ -22,6 +22,9 @@ from thermocal import metrics
 from thermocal.calibration import fit_calibration
 from thermocal.camera.model import invert
 from thermocal.camera.presets import make_camera
+from thermocal.estimation.calibrated import PivotCalibration
+from thermocal.estimation.pipeline import estimate
+from thermocal.estimation.registry import make_estimator
 from thermocal.io.atomic import ensure_output_dir, write_json_atomic
 from thermocal.scenes.builtin import load_builtin_scene
 from thermocal.simulate.chamber import ChamberPlan, write_simulated_chamber
@@ -56,14 +59,12 @@ def calibrate_in_chamber(camera, *, seed: int, tmp: Path) -> dict:
 
 
 def _network():
-    """The shipped KPN + offset model, or None (with the reason) when torch is not installed."""
+    """The shipped KPN + offset estimator, or None (with the reason) when torch is not
+    installed."""
     try:
-        from thermocal.nn.infer import shipped_model_path
-        from thermocal.nn.train import load_model
+        return make_estimator("kpn"), ""
     except ImportError as exc:  # torch is an optional dependency
         return None, f"network skipped: {exc}"
-    model, norm, _ = load_model(shipped_model_path("kpn"))
-    return (model, norm), ""
 
 
 def _scores(estimate: np.ndarray, truth: np.ndarray, valid: np.ndarray) -> dict[str, float]:
@@ -102,12 +103,10 @@ def run_demo(out_dir: str | Path, *, unit: int = DEMO_UNIT, size=(336, 256),
             group = flight.frames[first:first + N_FRAMES]
             fpa = flight.fpa_c[first:first + N_FRAMES]
             for name, cal in calibrations.items():
-                temp = cal.apply(flight.frames[pivot], fpa_c=flight.fpa_c[pivot])[0]
-                estimates.setdefault(name, []).append(temp)
+                est = estimate(group, PivotCalibration(cal), fpa_c=fpa)
+                estimates.setdefault(name, []).append(est.temperature_c)
             if network is not None:
-                from thermocal.nn.infer import estimate_burst
-
-                est = estimate_burst(group, fpa, model=network[0], norm=network[1])
+                est = estimate(group, network, fpa_c=fpa)
                 estimates.setdefault("KPN + offset (calibration-free)", []).append(
                     est.temperature_c)
             oracle = invert(camera, flight.frames[pivot], flight.fpa_true_c[pivot],

@@ -1,4 +1,4 @@
-"""``thermocal estimate`` and ``thermocal train`` (torch is imported inside the commands only)."""
+"""``thermocal train`` (torch is imported inside the command only)."""
 
 from __future__ import annotations
 
@@ -7,8 +7,6 @@ from pathlib import Path
 import click
 
 from thermocal.errors import InvalidInputError
-
-METHODS = ("kpn", "kpn-no-offset", "e2e", "mean")
 
 
 def _parse_units(text: str) -> tuple[int, ...]:
@@ -37,68 +35,6 @@ def _parse_range(text: str, name: str) -> tuple[float, float]:
     if not a < b:
         raise InvalidInputError(f"{name} {text!r}: LOW must be below HIGH")
     return a, b
-
-
-@click.command("estimate")
-@click.argument("frames", type=click.Path(path_type=Path))
-@click.option(
-    "--out",
-    "out",
-    type=click.Path(path_type=Path),
-    required=True,
-    help="Output temperature TIFF (float32 °C, the pivot frame).",
-)
-@click.option(
-    "--fpa-c", type=float, default=None, help="FPA temperature, °C (overrides the sidecar's fpa_c)."
-)
-@click.option("--method", type=click.Choice(METHODS), default="kpn", show_default=True)
-@click.option(
-    "--model",
-    "model_path",
-    type=click.Path(path_type=Path),
-    default=None,
-    help="Weights file (default: the shipped model for --method).",
-)
-@click.option("--pivot", type=int, default=None, help="Pivot frame index (default: the middle).")
-@click.option(
-    "--registered",
-    is_flag=True,
-    help="The frames are already registered onto the pivot (skip registration; not for a network "
-    "with --calibrated, the shipped one, which calibrates each frame before warping).",
-)
-@click.option(
-    "--calibration",
-    type=click.Path(path_type=Path),
-    default=None,
-    help="Per-pixel calibration file, for --method mean.",
-)
-def estimate(
-    frames: Path,
-    out: Path,
-    fpa_c: float | None,
-    method: str,
-    model_path: Path | None,
-    pivot: int | None,
-    registered: bool,
-    calibration: Path | None,
-) -> None:
-    """Estimate the scene temperature of a burst's pivot frame (Oz et al. KPN + offset).
-
-    FRAMES are whole sensor frames as the camera gave them (not crops): a model trained with
-    --radial uses where on the sensor each pixel lies."""
-    from thermocal.burst import estimate_file
-
-    estimate_file(
-        frames,
-        out,
-        fpa_c=fpa_c,
-        method=method,
-        model_path=model_path,
-        pivot=pivot,
-        registered=registered,
-        calibration=calibration,
-    )
-    click.echo(f"wrote {out}", err=True)
 
 
 @click.command("train")

@@ -1,14 +1,14 @@
-"""Inference: the pivot frame's temperature from a burst, tiled for any frame size.
+"""Inference: the network as an estimator of the pipeline, tiled for any frame size.
 
-:func:`estimate_burst` registers the burst onto its pivot (or takes it as registered), checks it
-(length against the model, saturation, overlap), normalises it (eq. 21) and runs the network over
-overlapping tiles. The network-free parts (validation, registration, eq. 9's
-:func:`naive_mean`, ``thermocal estimate``'s :func:`estimate_file`) live in :mod:`thermocal.burst`
-and are re-exported here.
+:class:`NetworkEstimator` is the network behind :mod:`thermocal.estimation`'s protocol: its
+per-pixel map is the frames through its nominal camera (a calibrated network) or the counts
+themselves; its estimate normalises the warped frames (eq. 20-21) and runs the network over
+overlapping tiles (:func:`run_network`). :func:`estimate_burst` is the pipeline with it.
 """
 
 from __future__ import annotations
 
+import os
 from importlib.resources import files
 from pathlib import Path
 from typing import Any
@@ -16,48 +16,35 @@ from typing import Any
 import numpy as np
 import torch
 
-from thermocal.burst import (
-    Estimate,
-    check_burst,
-    check_overlap,
-    estimate_file,
-    fpa_value,
-    naive_mean,
-    prepare,
-    register,
-)
 from thermocal.errors import InvalidInputError
-from thermocal.nn.data import (
+from thermocal.estimation.base import Estimate, PreparedBurst
+from thermocal.estimation.pipeline import estimate
+from thermocal.nn.inputs import (
     Normalisation,
     calibrate_frames,
     frame_r2,
     input_frames,
-    preset_nominal,
     sensor_r2,
 )
 from thermocal.nn.model import KPN, frame_means
+from thermocal.nn.store import load_model, nominal_for
+from thermocal.nn.variants import VARIANTS
 from thermocal.registration.warp import warp_to_pivot
 
 __all__ = [
     "SHIPPED_MODELS",
-    "Estimate",
+    "NetworkEstimator",
     "calibrated_frames",
     "calibrated_warp",
-    "check_burst",
     "estimate_burst",
-    "estimate_file",
     "inference_tiling",
-    "naive_mean",
-    "register",
+    "run_network",
     "shipped_model_path",
 ]
 
 #: Weights shipped in the package, by method.
-SHIPPED_MODELS = {
-    "kpn": "kpn_n7.pt",
-    "kpn-no-offset": "kpn_no_offset_n7.pt",
-    "e2e": "e2e_n7.pt",
-}
+SHIPPED_MODELS = {name: v.weights for name, v in VARIANTS.items()}
+
 
 def shipped_model_path(method: str) -> Path:
     """Path of the shipped weights for ``method`` (``kpn``, ``kpn-no-offset``, ``e2e``)."""
@@ -121,7 +108,7 @@ def run_network(
     are (CPU or GPU). A model with position terms (``radial > 0``) takes the frames to be whole
     sensor frames (``R²`` of Oz et al. eq. 16 over ``H × W``); one with ``radial_frames`` also
     needs ``r2_frames (N, H, W)``, where each frame saw each pivot pixel
-    (:func:`~thermocal.nn.data.frame_r2`).
+    (:func:`~thermocal.nn.inputs.frame_r2`).
     """
     if tile is None or margin is None:
         default_tile, default_margin = inference_tiling(model)
@@ -185,20 +172,14 @@ def run_network(
 
 def calibrated_frames(model: KPN, frames: np.ndarray, fpa_c: float) -> np.ndarray:
     """Whole-sensor raw frames ``(N, H, W)`` (stuck pixels replaced) through a calibrated
-    model's nominal camera (:func:`~thermocal.nn.data.calibrate_frames`) where each pixel lies
+    model's nominal camera (:func:`~thermocal.nn.inputs.calibrate_frames`) where each pixel lies
     on the sensor, °C ``(N, H, W)``.
 
-    A nominal camera made from a preset's units is made again for another frame size (the
-    preset's sensor of that size); one fitted on a chamber file fits its own size only.
+    The nominal camera is the one stored with the weights (:func:`~thermocal.nn.store.nominal_for`:
+    made again from its stored preset parameters for another sensor size; a chamber fit fits its
+    own size only).
     """
-    nominal = model.nominal
-    if nominal is None:
-        raise InvalidInputError("this calibrated model has no nominal camera (load it with "
-                                "thermocal.nn.train.load_model)")
-    h, w = frames.shape[1:]
-    if nominal.shape != (h, w) and nominal.info.get("preset"):
-        nominal = preset_nominal(nominal.info["preset"], (w, h), tuple(nominal.info["units"]))
-    return calibrate_frames(nominal, frames, fpa_c)
+    return calibrate_frames(nominal_for(model, frames.shape[1:]), frames, fpa_c)
 
 
 def calibrated_warp(model: KPN, frames: np.ndarray, homographies: np.ndarray,
@@ -206,6 +187,69 @@ def calibrated_warp(model: KPN, frames: np.ndarray, homographies: np.ndarray,
     """:func:`calibrated_frames` warped onto the pivot by ``homographies`` ``(N, 3, 3)``: the
     frames :func:`run_network` takes for a calibrated model, °C ``(N, H, W)``."""
     return warp_to_pivot(calibrated_frames(model, frames, fpa_c), homographies)[0]
+
+
+class NetworkEstimator:
+    """A network variant (``kpn``, ``kpn-no-offset``, ``e2e``) as an estimator of the pipeline
+    (:class:`thermocal.estimation.base.Estimator`).
+
+    Parameters
+    ----------
+    model, norm
+        From :func:`thermocal.nn.store.load_model`.
+    """
+
+    needs_fpa = True
+    per_frame = False
+
+    def __init__(self, model: KPN, norm: Normalisation) -> None:
+        self.model = model
+        self.norm = norm
+        self.name = model.config.variant
+        self.n_frames = model.config.n_frames
+        # a calibrated network calibrates each frame where it lies on the sensor
+        self.accepts_registered = not model.config.calibrated
+
+    @classmethod
+    def from_file(cls, method: str, path: str | os.PathLike[str] | None = None
+                  ) -> NetworkEstimator:
+        """The network ``method`` from weights file ``path`` (default: the shipped one),
+        refused when the file holds another variant."""
+        path = Path(path) if path is not None else shipped_model_path(method)
+        model, norm, _ = load_model(path)
+        if model.config.variant != method:
+            raise InvalidInputError(
+                f"{path} holds a {model.config.variant} model, not {method}; pass the right "
+                "--model or --method"
+            )
+        return cls(model, norm)
+
+    def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
+        n_model = self.model.config.n_frames
+        if frames.shape[0] != n_model:
+            raise InvalidInputError(
+                f"the model was trained for N = {n_model} frames, got {frames.shape[0]}; give a "
+                f"burst of {n_model} frames"
+            )
+        if self.model.config.radial_frames and registered and homographies is None:
+            raise InvalidInputError(
+                "this model needs where on the sensor each frame saw the scene: give the burst "
+                "as recorded (not --registered) or its homographies"
+            )
+
+    def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any) -> np.ndarray:
+        if not self.model.config.calibrated:
+            return frames
+        return calibrated_frames(self.model, frames, fpa_c)
+
+    def estimate(self, burst: PreparedBurst) -> np.ndarray:
+        p, valid = burst.pivot, burst.valid
+        r2f = None
+        if self.model.config.radial_frames:
+            r2f = _to_model_order(frame_r2(sensor_r2(valid.shape[1:]), burst.homographies,
+                                           valid), p)
+        return run_network(self.model, self.norm, _to_model_order(burst.warped, p),
+                           _to_model_order(valid, p), burst.fpa_c, r2_frames=r2f)
 
 
 def estimate_burst(
@@ -219,7 +263,8 @@ def estimate_burst(
     homographies: Any = None,
     fill_defects: bool = True,
 ) -> Estimate:
-    """Temperature of the pivot frame of a burst, °C.
+    """Temperature of the pivot frame of a burst through the network, °C: the pipeline
+    (:func:`thermocal.estimation.pipeline.estimate`) with :class:`NetworkEstimator`.
 
     Parameters
     ----------
@@ -228,48 +273,9 @@ def estimate_burst(
     fpa_c : float or (N,) array
         FPA temperature, °C (a series is averaged: a burst lasts well under a second).
     model, norm
-        From :func:`thermocal.nn.train.load_model`.
-    pivot : int, optional
-        Pivot frame (default the middle one).
-    registered : bool
-        The frames are already registered onto the pivot.
-    homographies : (N, 3, 3), optional
-        Known frame → pivot homographies (skips registration).
-    fill_defects : bool
-        Replace the burst's stuck pixels (:func:`~thermocal.burst.stuck_pixels`) by their
-        neighbours' median before warping (:func:`~thermocal.burst.prepare`; not for
-        ``registered`` frames): otherwise each leaves a short trail along the motion.
-
-    Raises
-    ------
-    InvalidInputError
-        Wrong length, saturated frames, no or bad FPA temperature.
-    RegistrationError
-        Registration failed or the frames do not overlap.
+        From :func:`thermocal.nn.store.load_model`.
+    pivot, registered, homographies, fill_defects
+        As for :func:`thermocal.estimation.pipeline.estimate`.
     """
-    arr = check_burst(frames, registered=registered)
-    n_model = model.config.n_frames
-    if arr.shape[0] != n_model:
-        raise InvalidInputError(
-            f"the model was trained for N = {n_model} frames, got {arr.shape[0]}; give a burst "
-            f"of {n_model} frames"
-        )
-    fpa = fpa_value(fpa_c, arr.shape[0])
-    if model.config.radial_frames and registered and homographies is None:
-        raise InvalidInputError(
-            "this model needs where on the sensor each frame saw the scene: give the burst as "
-            "recorded (not --registered) or its homographies"
-        )
-    # a calibrated model's frames are calibrated where they lie on the sensor: prepare refuses
-    # registered ones
-    to_c = (lambda f: calibrated_frames(model, f, fpa)) if model.config.calibrated else None
-    _, warped, valid, hs, p = prepare(arr, pivot=pivot, registered=registered,
-                                      homographies=homographies, fill_defects=fill_defects,
-                                      transform=to_c)
-    check_overlap(valid, p)
-    r2f = None
-    if model.config.radial_frames:
-        r2f = _to_model_order(frame_r2(sensor_r2(valid.shape[1:]), hs, valid), p)
-    temp = run_network(model, norm, _to_model_order(warped, p), _to_model_order(valid, p), fpa,
-                       r2_frames=r2f)
-    return Estimate(temp, valid.sum(axis=0), hs, p)
+    return estimate(frames, NetworkEstimator(model, norm), fpa_c=fpa_c, pivot=pivot,
+                    registered=registered, homographies=homographies, fill_defects=fill_defects)

@@ -30,6 +30,7 @@ import torch.nn.functional as F
 from torch import nn
 
 from thermocal.errors import InvalidInputError
+from thermocal.nn.variants import VARIANTS
 from thermocal.radiometry import TAU2_BAND_M, band_radiance
 
 __all__ = [
@@ -46,7 +47,6 @@ __all__ = [
     "frame_means",
 ]
 
-VARIANTS = ("kpn", "kpn-no-offset", "e2e")
 
 
 @dataclass(frozen=True)
@@ -102,14 +102,14 @@ class ModelConfig:
     radial_frames : bool
         With ``radial``: the position terms take, for each frame, where on the sensor it saw
         each pivot pixel (``R²`` of its pixels warped onto the pivot, ``N`` planes;
-        :func:`~thermocal.nn.data.frame_r2`) instead of the pivot's position alone, and the
+        :func:`~thermocal.nn.inputs.frame_r2`) instead of the pivot's position alone, and the
         offset block's radial polynomial of frame ``n`` is evaluated at frame ``n``'s ``R²``.
         An addition: in a walk the other frames see a scene point far from where the pivot
         does, under another radial offset and vignetting.
     calibrated : bool
         The frames reach the network through the exact inverse of the *nominal* camera model it
         was trained from (the average of the preset's training units, or the model fitted on the
-        chamber file; :func:`~thermocal.nn.data.calibrate_frames`, on the sensor before
+        chamber file; :func:`~thermocal.nn.inputs.calibrate_frames`, on the sensor before
         warping), in the units of its linear output (normalised band radiance with
         ``radiance``, else eq. 20's normalised temperature), instead of as raw counts (eq. 21).
         An addition to the paper: the untrained network then starts from eq. 9 through that
@@ -372,11 +372,11 @@ class KPN(nn.Module):
     and returns the normalised temperature of the pivot
     ``(B, 1, H, W)``. ``H, W`` must be multiples of ``ξ^L``. ``temp_range_c`` is eq. 20's
     temperature range (the normalisation's); only ``radiance=True`` uses it. ``train_crop`` is
-    the side of the training crops, px (:func:`~thermocal.nn.train.load_model` sets it from the
+    the side of the training crops, px (:func:`~thermocal.nn.store.load_model` sets it from the
     weights file): :func:`~thermocal.nn.infer.run_network` runs an E2E model in tiles of it.
     ``nominal`` is, for a ``calibrated`` model, the whole-sensor camera model that its input
     goes through (a :class:`~thermocal.camera.model.CameraModel`, not a parameter; set by
-    :func:`~thermocal.nn.train.load_model`).
+    :func:`~thermocal.nn.store.load_model`).
     """
 
     def __init__(

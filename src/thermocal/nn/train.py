@@ -1,4 +1,4 @@
-"""Training the KPN on synthetic bursts (Oz et al. §IV-D) and the weights file.
+"""Training the KPN on synthetic bursts (Oz et al. §IV-D).
 
 Adam at 1e-4; the learning rate is halved after 3 epochs without improvement of the validation
 loss and training stops after 8; orthogonal initialisation scaled by 0.1; seed 42 with
@@ -9,12 +9,11 @@ set of bursts made once (noise and FPN fixed) from cameras units that are never 
 Checkpoints (``OUT.ckpt``: model, optimiser, scheduler, counters, history) are written after every
 epoch and when the wall-clock budget runs out; ``resume=True`` continues from one. The weights file
 ``OUT`` holds the best model so far (validation loss), its configuration and the normalisation
-constants (eq. 20-21); it is written atomically.
+constants (eq. 20-21) (:mod:`thermocal.nn.store`); it is written atomically.
 """
 
 from __future__ import annotations
 
-import json
 import math
 import os
 import time
@@ -33,33 +32,23 @@ from thermocal.nn.data import (
     VAL_UNITS,
     Burst,
     BurstConfig,
-    Normalisation,
     ScenePool,
     UnitCache,
     coverage_mask,
-    input_frames,
     make_burst,
-    preset_nominal,
 )
+from thermocal.nn.inputs import Normalisation, input_frames
 from thermocal.nn.loss import kpn_loss
 from thermocal.nn.model import KPN, ModelConfig
-from thermocal.radiometry import band_table
+from thermocal.nn.store import check_calibrated, load_model, save_model
 
 __all__ = [
-    "FORMAT",
     "TrainConfig",
     "TrainResult",
     "batch_tensors",
     "fit_normalisation",
-    "load_model",
-    "save_model",
     "train",
 ]
-
-FORMAT = "thermocal-kpn"
-VERSION = 1
-#: The maps of a calibrated model's nominal camera that a weights file keeps (chamber fits).
-NOMINAL_MAPS = ("gain", "offset", "housing", "transient")
 
 
 @dataclass(frozen=True)
@@ -240,106 +229,6 @@ def fit_normalisation(
 
 
 # --------------------------------------------------------------------------------------------
-# weights file
-# --------------------------------------------------------------------------------------------
-def save_model(
-    path: str | os.PathLike[str],
-    model: KPN,
-    norm: Normalisation,
-    burst_cfg: BurstConfig,
-    meta: dict[str, Any] | None = None,
-) -> Path:
-    """Write the weights file atomically: state dict, model configuration, normalisation,
-    how the training data were made and free-form metadata (plain values only, so that it loads
-    with ``torch.load(weights_only=True)``)."""
-    out = Path(path)
-    _check_calibrated(model.config, burst_cfg)
-    payload = {
-        "format": FORMAT,
-        "version": VERSION,
-        "config": model.config.to_dict(),
-        "normalisation": norm.to_dict(),
-        "data": json.loads(json.dumps(burst_cfg.to_dict())),
-        "meta": json.loads(json.dumps(meta or {}, default=float)),
-        "state_dict": {k: v.detach().cpu().clone() for k, v in model.state_dict().items()},
-    }
-    nominal = model.nominal if model.config.calibrated else None
-    if nominal is not None and nominal.info.get("preset") is None:  # not remade from a preset
-        payload["nominal"] = {
-            **{k: torch.from_numpy(np.ascontiguousarray(getattr(nominal, k)))
-               for k in NOMINAL_MAPS},
-            "noise_sigma": float(nominal.noise_sigma), "t_ref_c": float(nominal.t_ref_c),
-            "bit_depth": int(nominal.bit_depth),
-        }
-    with atomic_path(out) as tmp:
-        torch.save(payload, tmp)
-    return out
-
-
-def load_model(path: str | os.PathLike[str]) -> tuple[KPN, Normalisation, dict[str, Any]]:
-    """Read a weights file written by :func:`save_model`; the model is in eval mode.
-
-    Returns the model, its normalisation and the file's ``{"data": …, "meta": …}``.
-
-    Raises
-    ------
-    FileFormatError
-        Missing, truncated or not a thermocal KPN weights file.
-    """
-    p = Path(path)
-    if not p.is_file():
-        raise FileFormatError(f"{p}: no such weights file (train one with `thermocal train`)")
-    try:
-        payload = torch.load(p, map_location="cpu", weights_only=True)
-    except Exception as exc:  # torch raises many types for a corrupt file
-        text = str(exc).strip()
-        detail = type(exc).__name__ + (f": {text.splitlines()[0][:100]}" if text else "")
-        raise FileFormatError(f"{p}: not a thermocal weights file (PyTorch cannot read it: "
-                              f"{detail})") from None
-    if not isinstance(payload, dict) or payload.get("format") != FORMAT:
-        raise FileFormatError(f"{p}: not a thermocal weights file (no '{FORMAT}' header)")
-    if payload.get("version") != VERSION:
-        raise FileFormatError(f"{p}: weights file version {payload.get('version')} not supported")
-    try:
-        config = ModelConfig(**payload["config"])
-        norm = Normalisation(**payload["normalisation"])
-        crop = payload.get("data", {}).get("crop")
-        model = KPN(config, init=False, temp_range_c=(norm.temp_min_c, norm.temp_max_c),
-                    train_crop=int(crop) if crop else None)
-        model.load_state_dict(payload["state_dict"])
-        if config.calibrated:
-            model.nominal = _nominal_of(payload, config)
-    except (KeyError, TypeError, RuntimeError, InvalidInputError, ValueError) as exc:
-        first = str(exc).strip().splitlines()[0]
-        raise FileFormatError(f"{p}: damaged weights file ({first[:120]})") from None
-    model.eval()
-    model.to(memory_format=torch.channels_last)  # faster CPU convolutions (oneDNN), same values
-    return model, norm, {"data": payload.get("data", {}), "meta": payload.get("meta", {})}
-
-
-def _check_calibrated(model_cfg: ModelConfig, burst_cfg: BurstConfig) -> None:
-    if model_cfg.calibrated != burst_cfg.calibrated:
-        raise InvalidInputError("a calibrated network needs calibrated bursts, and only it")
-
-
-def _nominal_of(payload: dict[str, Any], config: ModelConfig) -> CameraModel:
-    """The nominal camera of a calibrated model's weights file: stored, or remade from the
-    preset units it was trained on."""
-    if "nominal" in payload:
-        d = payload["nominal"]
-        maps = {k: d[k].numpy() for k in NOMINAL_MAPS}
-        return CameraModel(
-            **maps, defects=np.zeros(maps["housing"].shape, bool),
-            defect_counts=np.zeros(maps["housing"].shape, np.uint16),
-            noise_sigma=d["noise_sigma"], t_ref_c=d["t_ref_c"], bit_depth=d["bit_depth"],
-            band=band_table(tuple(config.band_m)), info={"preset": None},
-        )
-    data = payload["data"]
-    return preset_nominal(data["preset"], tuple(data["sensor_size"]),
-                          tuple(data.get("nominal_units") or data["units"]))
-
-
-# --------------------------------------------------------------------------------------------
 # training
 # --------------------------------------------------------------------------------------------
 def resolve_device(name: str) -> torch.device:
@@ -493,7 +382,7 @@ def train(
         )
     if cameras is None and set(val_units) & set(burst_cfg.units):
         raise InvalidInputError("validation units must not be training units")
-    _check_calibrated(model_cfg, burst_cfg)  # before training, not only at the first save
+    check_calibrated(model_cfg, burst_cfg)  # before training, not only at the first save
     band_m = model_cfg.band_m if model_cfg.radiance else None  # the calibrated input's units
 
     device = resolve_device(train_cfg.device)

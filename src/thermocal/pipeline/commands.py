@@ -6,6 +6,7 @@ from pathlib import Path
 
 import click
 
+from thermocal.estimation.registry import ESTIMATORS, method_help
 from thermocal.progress import progress_bar
 
 
@@ -13,10 +14,8 @@ from thermocal.progress import progress_bar
 @click.argument("recording", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), required=True,
               help="Output folder (created; a rerun resumes).")
-@click.option("--method", type=click.Choice(["kpn", "kpn-no-offset", "e2e", "mean", "calibration"]),
-              default="kpn", show_default=True,
-              help="Network, registered average of a calibration (eq. 9), or a per-frame "
-                   "calibration applied to each pivot.")
+@click.option("--method", type=click.Choice(list(ESTIMATORS)), default="kpn", show_default=True,
+              help=method_help())
 @click.option("--calibration", type=click.Path(dir_okay=False), default=None,
               help="Calibration file (thermocal calibrate) for --method mean|calibration.")
 @click.option("--model", type=click.Path(dir_okay=False), default=None,

@@ -2,9 +2,10 @@
 
 The recording is streamed (a few groups of frames in memory at a time). Each group of ``N``
 consecutive frames is registered onto its middle frame (the pivot) and turned into that pivot's
-temperature map by the chosen method: the kernel prediction network (``kpn``, ``kpn-no-offset``,
-``e2e``), the registered average of a calibration (``mean``, Oz et al. eq. 9) or any per-frame
-calibration applied to the pivot (``calibration``). Outputs, each written atomically::
+temperature map by the chosen estimator of :data:`thermocal.estimation.registry.ESTIMATORS`
+(the network variants, the registered average of a calibration ``mean``, or a per-frame
+calibration applied to the pivot ``calibration``) through the estimation pipeline
+(:func:`thermocal.estimation.pipeline.estimate`). Outputs, each written atomically::
 
     OUT/temps/frame_000123.tiff     float32 °C (H, W), one per pivot
     OUT/previews/frame_000123.png   a preview with a colour bar in °C
@@ -29,13 +30,15 @@ from typing import Any
 import numpy as np
 
 from thermocal.errors import InvalidInputError, OutputError, RegistrationError
+from thermocal.estimation.base import Estimator
+from thermocal.estimation.pipeline import estimate
+from thermocal.estimation.registry import ESTIMATORS, make_estimator
 from thermocal.io.atomic import atomic_path, ensure_output_dir, write_json_atomic
 from thermocal.io.recording import iter_recording, read_recording_header, write_temperature_tiff
+from thermocal.registration.sequence import SequenceRegistration, register_sequence
 
-NETWORK_METHODS = ("kpn", "kpn-no-offset", "e2e")
 #: Frames registered together as one sequence (a batch of groups).
 BATCH_FRAMES = 512
-METHODS = (*NETWORK_METHODS, "mean", "calibration")
 
 
 @dataclass(frozen=True)
@@ -51,11 +54,13 @@ class FlightOptions:
     preview_every: int = 1
 
     def __post_init__(self) -> None:
-        if self.method not in METHODS:
-            raise InvalidInputError(f"unknown method {self.method!r}; choose from {METHODS}")
+        info = ESTIMATORS.get(self.method)
+        if info is None:
+            raise InvalidInputError(
+                f"unknown method {self.method!r}; choose from {', '.join(ESTIMATORS)}")
         if self.frames < 1 or self.stride < 1:
             raise InvalidInputError("--frames and --stride must be >= 1")
-        if self.method in ("mean", "calibration") and self.calibration is None:
+        if info.needs == "calibration" and self.calibration is None:
             raise InvalidInputError(f"--method {self.method} needs --calibration CAL.h5")
         if self.preview_every < 0:
             raise InvalidInputError("--preview-every must be >= 0 (0: no previews)")
@@ -83,58 +88,32 @@ def pivots_of(n_total: int, n: int, stride: int) -> list[int]:
     return [start + n // 2 for start in range(0, n_total - n + 1, stride)]
 
 
-class _Estimator:
-    """Turns a group of raw frames into the pivot's temperature map, for one method."""
+def _estimator(options: FlightOptions, frame_shape: tuple[int, int]) -> Estimator:
+    """The estimator of ``options``, checked against the recording before any work: the
+    calibration's frame size, the network's burst length."""
+    estimator = make_estimator(options.method, model=options.model,
+                               calibration=options.calibration)
+    calibration = getattr(estimator, "calibration", None)
+    if calibration is not None and tuple(calibration.shape) != tuple(frame_shape):
+        raise InvalidInputError(
+            f"the calibration is {calibration.shape[1]}x{calibration.shape[0]} "
+            f"but the frames are {frame_shape[1]}x{frame_shape[0]}"
+        )
+    if estimator.n_frames is not None and estimator.n_frames != options.frames:
+        raise InvalidInputError(
+            f"the model was trained for N = {estimator.n_frames} frames; "
+            f"use --frames {estimator.n_frames}"
+        )
+    return estimator
 
-    def __init__(self, options: FlightOptions, frame_shape: tuple[int, int]) -> None:
-        self.options = options
-        self.calibration = None
-        if options.calibration is not None:
-            from thermocal.calibration import load_any_calibration
 
-            self.calibration = load_any_calibration(options.calibration)
-            if tuple(self.calibration.shape) != tuple(frame_shape):
-                raise InvalidInputError(
-                    f"the calibration is {self.calibration.shape[1]}x{self.calibration.shape[0]} "
-                    f"but the frames are {frame_shape[1]}x{frame_shape[0]}"
-                )
-        if options.method in NETWORK_METHODS:
-            from thermocal.nn.infer import shipped_model_path
-            from thermocal.nn.train import load_model
+def _register(estimator: Estimator, frames: np.ndarray) -> SequenceRegistration | None:
+    """Frame-to-previous registration of a run of frames; None for a per-frame estimator.
 
-            path = options.model or shipped_model_path(options.method)
-            self.model, self.norm, _ = load_model(path)
-            if self.model.config.n_frames != options.frames:
-                raise InvalidInputError(
-                    f"the model was trained for N = {self.model.config.n_frames} frames; "
-                    f"use --frames {self.model.config.n_frames}"
-                )
-
-    def register(self, frames: np.ndarray):
-        """Frame-to-previous registration of a run of frames; None for per-frame calibrations.
-
-        Consecutive frames of a recording overlap most, and the run's many frames give a good
-        fixed-pattern estimate: far faster and more accurate than registering each group alone.
-        """
-        if self.options.method == "calibration":
-            return None
-        from thermocal.registration import register_sequence
-
-        return register_sequence(frames)
-
-    def estimate(self, frames, fpa_c, time_s, homographies, pivot: int) -> np.ndarray:
-        method = self.options.method
-        if method in NETWORK_METHODS:
-            from thermocal.nn.infer import estimate_burst
-
-            return estimate_burst(frames, fpa_c, model=self.model, norm=self.norm, pivot=pivot,
-                                  homographies=homographies).temperature_c
-        if method == "mean":
-            from thermocal.burst import naive_mean
-
-            return naive_mean(frames, self.calibration, fpa_c=fpa_c, pivot=pivot,
-                              homographies=homographies).temperature_c
-        return self.calibration.apply(frames, fpa_c=fpa_c, time_s=time_s)[pivot]
+    Consecutive frames of a recording overlap most, and the run's many frames give a good
+    fixed-pattern estimate: far faster and more accurate than registering each group alone.
+    """
+    return None if estimator.per_frame else register_sequence(frames)
 
 
 def _preview(path: Path, temp_c: np.ndarray, title: str) -> None:
@@ -156,7 +135,7 @@ def process_flight(
     """
     header = read_recording_header(recording, fpa_c=options.fpa_c)
     fpa = header.series["fpa_c"]
-    if fpa is None and options.method != "calibration":
+    if fpa is None and not ESTIMATORS[options.method].per_frame:
         raise InvalidInputError(
             f"{header.path}: no FPA temperature (sidecar fpa_c); give --fpa-c"
         )
@@ -168,7 +147,7 @@ def process_flight(
         ensure_output_dir(out / sub)
     log_path = out / "log.jsonl"
     done = _finished_pivots(out)
-    estimator = _Estimator(options, header.frame_shape)
+    estimator = _estimator(options, header.frame_shape)
     times = StageTimes()
     reader = _FrameWindow(header.path, header.frame_shape, chunk=max(64, n))
     per_batch = max(1, BATCH_FRAMES // stride)
@@ -188,7 +167,7 @@ def process_flight(
             frames = reader.frames(a, z)
             t = times.add("reading", t)
             try:
-                sequence = estimator.register(frames)
+                sequence = _register(estimator, frames)
                 batch_error = None
             except (RegistrationError, InvalidInputError) as exc:
                 sequence, batch_error = None, str(exc)
@@ -210,10 +189,11 @@ def process_flight(
                             sequence.correlation[first - a + 1 : first - a + n].min())
                     with warnings.catch_warnings(record=True) as caught:
                         warnings.simplefilter("always")
-                        temp = estimator.estimate(
-                            group, None if fpa is None else fpa[first : first + n],
-                            None if time_s is None else time_s[first : first + n],
-                            homographies, n // 2)
+                        temp = estimate(
+                            group, estimator,
+                            fpa_c=None if fpa is None else fpa[first : first + n],
+                            time_s=None if time_s is None else time_s[first : first + n],
+                            pivot=n // 2, homographies=homographies).temperature_c
                     entry["warnings"] = sorted({str(w.message) for w in caught})
                     t = times.add("estimate", t)
                 except (RegistrationError, InvalidInputError) as exc:
@@ -314,4 +294,4 @@ def _write_csv(path: Path, entries: list[dict[str, Any]]) -> None:
                              "; ".join(e.get("warnings", [])), e.get("error", "")])
 
 
-__all__ = ["METHODS", "FlightOptions", "pivots_of", "process_flight"]
+__all__ = ["FlightOptions", "pivots_of", "process_flight"]

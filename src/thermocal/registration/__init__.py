@@ -10,8 +10,13 @@ warp_to_pivot(frames, homographies_to_pivot, *, interpolation="linear") -> (warp
 render_views(map_c, homographies, frame_size) -> views
 """
 
-from thermocal.registration.burst import BURST_METHODS, BurstRegistration, register_burst
-from thermocal.registration.features import normalise_frame, register_pair
+from thermocal.registration.burst import (
+    BURST_METHODS,
+    BurstRegistration,
+    register_burst,
+    register_pair,
+)
+from thermocal.registration.features import normalise_frame
 from thermocal.registration.fixed_pattern import FixedPattern, estimate_fixed_pattern
 from thermocal.registration.sequence import SequenceRegistration, register_sequence
 from thermocal.registration.warp import as_homographies, render_views, warp_to_pivot

@@ -44,11 +44,13 @@ from typing import Any
 import cv2
 import numpy as np
 
-from thermocal.errors import InvalidInputError, RegistrationError
-from thermocal.registration import _dense as dense
+import thermocal.registration._dense as dense
+from thermocal.errors import InvalidInputError, RegistrationError, ResolutionMismatchError
 from thermocal.registration.features import (
     MIN_INLIERS,
+    FrameFeatures,
     _as_frame,
+    _detector,
     _match,
     _ransac,
     _stretch,
@@ -60,8 +62,9 @@ from thermocal.registration.fixed_pattern import (
     initial_patterns,
     joint_residual,
 )
+from thermocal.registration.warp import warp_to_pivot
 
-__all__ = ["BURST_METHODS", "BurstRegistration", "register_burst"]
+__all__ = ["BURST_METHODS", "BurstRegistration", "register_burst", "register_pair"]
 
 #: Methods of :func:`register_burst`: the dense default and the feature-based alternatives.
 BURST_METHODS = ("auto", "ecc", "sift", "sift-ecc", "orb", "orb-ecc")
@@ -119,8 +122,6 @@ class BurstRegistration:
 
         See :func:`thermocal.registration.warp.warp_to_pivot`.
         """
-        from thermocal.registration.warp import warp_to_pivot
-
         return warp_to_pivot(frames, self.homographies, interpolation=interpolation)
 
 
@@ -222,8 +223,6 @@ def _align(
 def _features_h(
     moving: np.ndarray, fixed: np.ndarray, detector: str, name: str
 ) -> tuple[np.ndarray, int]:
-    from thermocal.registration.features import FrameFeatures, _detector
-
     def feats(img: np.ndarray) -> FrameFeatures:
         u8 = _stretch(img, 0.0)
         kps, desc = _detector(detector).detectAndCompute(u8, None)
@@ -417,3 +416,47 @@ def register_burst(
         homographies=hs, pivot=int(ref), inliers=inliers, method=method, fixed_pattern=f,
         correlation=cc.astype(np.float64),
     )
+
+
+def register_pair(
+    moving: Any, fixed: Any, *, method: str = "auto", fixed_pattern: Any = None
+) -> tuple[np.ndarray, int]:
+    """Homography that maps pixels of ``moving`` onto ``fixed``.
+
+    The pair is registered as a two-frame burst (:func:`thermocal.registration.register_burst`
+    with ``pivot=1``). Without ``fixed_pattern`` the pattern is estimated from the two frames
+    only, which fails on low-contrast scenes (see ``benchmarks/registration.py``); with the
+    pattern of the recording the frames come from
+    (:func:`thermocal.registration.estimate_fixed_pattern`) a pair is as easy as a burst.
+
+    Parameters
+    ----------
+    moving, fixed : array_like, shape (H, W)
+        Raw frames (uint16 14-bit counts or float), same size. Never modified.
+    method : {"auto", "ecc", "sift", "sift-ecc", "orb", "orb-ecc"}
+        See :func:`thermocal.registration.register_burst`.
+    fixed_pattern : FixedPattern or array_like (H, W), optional
+        The known fixed pattern (counts) of the camera.
+
+    Returns
+    -------
+    h : numpy.ndarray, shape (3, 3), float64
+        Pixel ``(x, y)`` of ``moving`` → pixel of ``fixed``; ``h[2, 2] = 1``.
+    inliers : int
+        Support of the estimate (RANSAC inliers, or covered pixels for the dense methods).
+
+    Raises
+    ------
+    RegistrationError
+        Too few inliers, a degenerate homography or a uniform frame.
+    InvalidInputError, ResolutionMismatchError
+        Frames that are not 2-D numeric, hold NaN, or differ in size.
+    """
+    a = _as_frame(moving, "moving")
+    b = _as_frame(fixed, "fixed")
+    if a.shape != b.shape:
+        raise ResolutionMismatchError(
+            f"moving is {a.shape[1]}x{a.shape[0]} but fixed is {b.shape[1]}x{b.shape[0]}"
+        )
+    reg = register_burst(np.stack([a, b]), pivot=1, method=method, fixed_pattern=fixed_pattern)
+    return reg.homographies[0], int(reg.inliers[0])

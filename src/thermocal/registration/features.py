@@ -8,8 +8,6 @@
   homography by RANSAC (``cv2.findHomography``, MAGSAC++ when available).
 * **Checks** (:func:`check_homography`): a degenerate homography raises
   :class:`~thermocal.errors.RegistrationError` naming the frame and the reason.
-* :func:`register_pair`: a pair registered as a two-frame burst
-  (:mod:`thermocal.registration.burst`, where the fixed pattern is estimated jointly).
 
 Homographies follow :mod:`thermocal.registration.warp`: ``(3, 3)`` float64, pixel ``(x, y)`` of
 the *moving* frame → pixel of the *fixed* frame, normalised so that ``h33 = 1``.
@@ -24,14 +22,13 @@ import cv2
 import numpy as np
 from scipy.ndimage import median_filter
 
-from thermocal.errors import InvalidInputError, RegistrationError, ResolutionMismatchError
+from thermocal.errors import InvalidInputError, RegistrationError
 
 __all__ = [
     "FrameFeatures",
     "check_homography",
     "detect_features",
     "normalise_frame",
-    "register_pair",
 ]
 
 #: Fewest RANSAC inliers accepted for a homography (8 degrees of freedom, 4 points each 2).
@@ -262,49 +259,3 @@ def _ransac(p_mov: np.ndarray, p_fix: np.ndarray) -> tuple[np.ndarray | None, in
     if h is None or mask is None:
         return None, 0
     return h, int(mask.sum())
-
-
-def register_pair(
-    moving: Any, fixed: Any, *, method: str = "auto", fixed_pattern: Any = None
-) -> tuple[np.ndarray, int]:
-    """Homography that maps pixels of ``moving`` onto ``fixed``.
-
-    The pair is registered as a two-frame burst (:func:`thermocal.registration.register_burst`
-    with ``pivot=1``). Without ``fixed_pattern`` the pattern is estimated from the two frames
-    only, which fails on low-contrast scenes (see ``benchmarks/registration.py``); with the
-    pattern of the recording the frames come from
-    (:func:`thermocal.registration.estimate_fixed_pattern`) a pair is as easy as a burst.
-
-    Parameters
-    ----------
-    moving, fixed : array_like, shape (H, W)
-        Raw frames (uint16 14-bit counts or float), same size. Never modified.
-    method : {"auto", "ecc", "sift", "sift-ecc", "orb", "orb-ecc"}
-        See :func:`thermocal.registration.register_burst`.
-    fixed_pattern : FixedPattern or array_like (H, W), optional
-        The known fixed pattern (counts) of the camera.
-
-    Returns
-    -------
-    h : numpy.ndarray, shape (3, 3), float64
-        Pixel ``(x, y)`` of ``moving`` → pixel of ``fixed``; ``h[2, 2] = 1``.
-    inliers : int
-        Support of the estimate (RANSAC inliers, or covered pixels for the dense methods).
-
-    Raises
-    ------
-    RegistrationError
-        Too few inliers, a degenerate homography or a uniform frame.
-    InvalidInputError, ResolutionMismatchError
-        Frames that are not 2-D numeric, hold NaN, or differ in size.
-    """
-    from thermocal.registration.burst import register_burst
-
-    a = _as_frame(moving, "moving")
-    b = _as_frame(fixed, "fixed")
-    if a.shape != b.shape:
-        raise ResolutionMismatchError(
-            f"moving is {a.shape[1]}x{a.shape[0]} but fixed is {b.shape[1]}x{b.shape[0]}"
-        )
-    reg = register_burst(np.stack([a, b]), pivot=1, method=method, fixed_pattern=fixed_pattern)
-    return reg.homographies[0], int(reg.inliers[0])

@@ -28,8 +28,8 @@ from typing import Any
 
 import numpy as np
 
+import thermocal.registration._dense as dense
 from thermocal.errors import InvalidInputError, RegistrationError
-from thermocal.registration import _dense as dense
 from thermocal.registration.features import check_homography
 from thermocal.registration.fixed_pattern import (
     FixedPattern,

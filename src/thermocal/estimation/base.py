@@ -1,0 +1,108 @@
+"""What every estimator is: the :class:`Estimator` protocol, the burst it is given and the
+:class:`Estimate` it makes (numpy only)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Protocol, runtime_checkable
+
+import numpy as np
+
+__all__ = ["Estimate", "Estimator", "PreparedBurst"]
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """A burst's pivot-frame temperature.
+
+    Attributes
+    ----------
+    temperature_c : (H, W) float32
+        Estimated scene temperature of the pivot frame, °C.
+    coverage : (H, W) int
+        How many frames see each pivot pixel.
+    homographies : (N, 3, 3) float64
+        Frame → pivot homographies used.
+    pivot : int
+        The pivot frame's index in the burst.
+    """
+
+    temperature_c: np.ndarray
+    coverage: np.ndarray
+    homographies: np.ndarray
+    pivot: int
+
+
+@dataclass(frozen=True)
+class PreparedBurst:
+    """A burst after the pipeline's stages, as an estimator's :meth:`Estimator.estimate` gets it.
+
+    Attributes
+    ----------
+    frames : (N, H, W)
+        The raw frames (counts) with their stuck pixels replaced.
+    warped : (N, H, W) float32
+        The estimator's per-frame input (:meth:`Estimator.calibrate`) warped onto the pivot;
+        0 where not ``valid``.
+    valid : (N, H, W) bool
+        Where each frame sees each pivot pixel.
+    homographies : (N, 3, 3) float64
+        Frame → pivot.
+    pivot : int
+    fpa_c : float or None
+        The burst's FPA temperature, °C (the mean of the frames'), where the estimator needs one.
+    """
+
+    frames: np.ndarray
+    warped: np.ndarray
+    valid: np.ndarray
+    homographies: np.ndarray
+    pivot: int
+    fpa_c: float | None
+
+
+@runtime_checkable
+class Estimator(Protocol):
+    """Turns a burst of raw frames into its pivot frame's temperature.
+
+    The pipeline (:func:`thermocal.estimation.pipeline.estimate`) validates the burst, calls
+    :meth:`check`, registers it, replaces its stuck pixels, calls :meth:`calibrate` on the raw
+    frames where they lie on the sensor, warps the result onto the pivot and calls
+    :meth:`estimate`. A ``per_frame`` estimator skips registration and warping: it gets the
+    pivot frame's calibration alone.
+
+    Attributes
+    ----------
+    name : str
+        The registry name (:data:`thermocal.estimation.registry.ESTIMATORS`).
+    n_frames : int or None
+        Frames per burst it needs (None: any).
+    needs_fpa : bool
+        Whether it needs the FPA temperature (:class:`~thermocal.errors.InvalidInputError`
+        without one).
+    per_frame : bool
+        Whether it estimates from the pivot frame alone.
+    accepts_registered : bool
+        Whether it may be given frames already registered onto the pivot.
+    """
+
+    name: str
+    n_frames: int | None
+    needs_fpa: bool
+    per_frame: bool
+    accepts_registered: bool
+
+    def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
+        """Refuse a burst ``(N, H, W)`` it cannot take (size, length), before any work."""
+        ...
+
+    def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any) -> np.ndarray:
+        """Per-pixel map of raw frames ``(N, H, W)`` where they lie on the sensor, ``(N, H, W)``
+        (°C, or the counts themselves); never changes ``frames``. ``fpa_c`` is the burst's FPA
+        temperature as given (one value or one per frame, or None), ``time_s`` the frames'
+        times (or None)."""
+        ...
+
+    def estimate(self, burst: PreparedBurst) -> np.ndarray:
+        """The pivot frame's temperature, °C ``(H, W)`` float32."""
+        ...

@@ -1,0 +1,72 @@
+"""Estimators from a per-pixel calibration (numpy only): the registered mean of eq. 9 of
+Oz et al. (``mean``) and the pivot frame alone (``calibration``)."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from thermocal.errors import ResolutionMismatchError
+from thermocal.estimation.base import Estimate, PreparedBurst
+from thermocal.estimation.pipeline import estimate
+
+__all__ = ["OzMean", "PivotCalibration", "naive_mean"]
+
+
+class _ThroughCalibration:
+    """Shared by both: a fitted calibration (``apply(frames, *, fpa_c, time_s)`` → °C) of one
+    frame size."""
+
+    n_frames = None
+    needs_fpa = False
+
+    def __init__(self, calibration: Any) -> None:
+        self.calibration = calibration
+
+    def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
+        shape = tuple(self.calibration.shape)
+        if shape != frames.shape[1:]:
+            raise ResolutionMismatchError(
+                f"frames are {frames.shape[2]}x{frames.shape[1]} but the calibration is "
+                f"{shape[1]}x{shape[0]}"
+            )
+
+
+class OzMean(_ThroughCalibration):
+    """Oz et al. eq. 9: the registered average of the per-frame temperatures a calibration
+    gives. Each frame goes through ``calibration.apply(frames, fpa_c=…)`` (°C) where it lies on
+    the sensor, is warped onto the pivot, and each pivot pixel's valid values are averaged."""
+
+    name = "mean"
+    per_frame = False
+    accepts_registered = True
+
+    def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any) -> np.ndarray:
+        return self.calibration.apply(frames, fpa_c=fpa_c)
+
+    def estimate(self, burst: PreparedBurst) -> np.ndarray:
+        count = burst.valid.sum(axis=0)
+        mean = (burst.warped * burst.valid).sum(axis=0) / np.maximum(count, 1)
+        return mean.astype(np.float32)
+
+
+class PivotCalibration(_ThroughCalibration):
+    """The pivot frame through a per-frame calibration (``apply`` with the frames' FPA
+    temperatures and times, for methods with a rate term): no registration."""
+
+    name = "calibration"
+    per_frame = True
+    accepts_registered = True
+
+    def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any) -> np.ndarray:
+        return self.calibration.apply(frames, fpa_c=fpa_c, time_s=time_s)
+
+    def estimate(self, burst: PreparedBurst) -> np.ndarray:
+        return np.asarray(burst.warped[burst.pivot], dtype=np.float32)
+
+
+def naive_mean(frames: Any, calibration: Any, *, fpa_c: Any = None, **options: Any) -> Estimate:
+    """Oz et al. eq. 9 on a burst: the pipeline (:func:`thermocal.estimation.pipeline.estimate`,
+    whose keyword ``options`` it takes) with :class:`OzMean` of a fitted ``calibration``."""
+    return estimate(frames, OzMean(calibration), fpa_c=fpa_c, **options)

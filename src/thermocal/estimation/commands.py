@@ -1,0 +1,110 @@
+"""``thermocal estimate``: a burst file → its pivot frame's temperature TIFF."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import click
+
+from thermocal.errors import InvalidInputError
+from thermocal.estimation.pipeline import estimate as run_pipeline
+from thermocal.estimation.registry import ESTIMATORS, make_estimator, method_help
+
+__all__ = ["estimate", "estimate_file"]
+
+
+def estimate_file(
+    frames_path: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    fpa_c: float | None = None,
+    method: str = "kpn",
+    model_path: str | os.PathLike[str] | None = None,
+    pivot: int | None = None,
+    registered: bool = False,
+    calibration: str | os.PathLike[str] | None = None,
+) -> Path:
+    """``thermocal estimate``: read a recording, estimate the pivot's temperature through the
+    estimator ``method`` (:data:`~thermocal.estimation.registry.ESTIMATORS`), write it.
+
+    The output (float32 °C TIFF, ``(H, W)``) is written atomically and only after every check.
+    """
+    from thermocal.io.recording import read_recording, write_temperature_tiff
+
+    out = Path(out)
+    if out.suffix.lower() not in (".tif", ".tiff"):
+        raise InvalidInputError(f"{out}: the output must be a .tiff file")
+    if not out.parent.is_dir():
+        raise InvalidInputError(f"{out.parent}: output folder does not exist")
+    if ESTIMATORS.get(method) and ESTIMATORS[method].needs == "calibration" and not calibration:
+        raise InvalidInputError(
+            f"--method {method} needs a per-pixel calibration: give --calibration CAL.h5"
+        )
+    rec = read_recording(frames_path, fpa_c=fpa_c)
+    estimator = make_estimator(method, model=model_path, calibration=calibration)
+    result = run_pipeline(rec.frames, estimator, fpa_c=rec.fpa_c, pivot=pivot,
+                          registered=registered)
+    write_temperature_tiff(out, result.temperature_c)
+    return out
+
+
+@click.command("estimate")
+@click.argument("frames", type=click.Path(path_type=Path))
+@click.option(
+    "--out",
+    "out",
+    type=click.Path(path_type=Path),
+    required=True,
+    help="Output temperature TIFF (float32 °C, the pivot frame).",
+)
+@click.option(
+    "--fpa-c", type=float, default=None, help="FPA temperature, °C (overrides the sidecar's fpa_c)."
+)
+@click.option("--method", type=click.Choice(list(ESTIMATORS)), default="kpn", show_default=True,
+              help=method_help())
+@click.option(
+    "--model",
+    "model_path",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Weights file (default: the shipped model for --method).",
+)
+@click.option("--pivot", type=int, default=None, help="Pivot frame index (default: the middle).")
+@click.option(
+    "--registered",
+    is_flag=True,
+    help="The frames are already registered onto the pivot (skip registration; not for a network "
+    "with --calibrated, the shipped one, which calibrates each frame before warping).",
+)
+@click.option(
+    "--calibration",
+    type=click.Path(path_type=Path),
+    default=None,
+    help="Per-pixel calibration file, for --method mean|calibration.",
+)
+def estimate(
+    frames: Path,
+    out: Path,
+    fpa_c: float | None,
+    method: str,
+    model_path: Path | None,
+    pivot: int | None,
+    registered: bool,
+    calibration: Path | None,
+) -> None:
+    """Estimate the scene temperature of a burst's pivot frame (Oz et al. KPN + offset).
+
+    FRAMES are whole sensor frames as the camera gave them (not crops): a model trained with
+    --radial uses where on the sensor each pixel lies."""
+    estimate_file(
+        frames,
+        out,
+        fpa_c=fpa_c,
+        method=method,
+        model_path=model_path,
+        pivot=pivot,
+        registered=registered,
+        calibration=calibration,
+    )
+    click.echo(f"wrote {out}", err=True)

@@ -1,0 +1,121 @@
+"""The estimation pipeline: a burst of raw frames → its pivot frame's temperature.
+
+One path for every estimator (:mod:`thermocal.estimation.registry`) and every caller
+(``thermocal estimate``, ``thermocal flight``, the demo, the benchmarks), in named stages:
+
+1. **validate** the burst (:func:`thermocal.burst.check_burst`), the pivot and the FPA
+   temperature, then the estimator's own checks;
+2. **register** it onto the pivot (homographies given, taken as registered, or found:
+   :func:`thermocal.burst.find_homographies`);
+3. **fill** its stuck pixels (:func:`thermocal.burst.fill_stuck_pixels`);
+4. **calibrate** each raw frame where it lies on the sensor (the estimator's per-pixel map);
+5. **warp** the calibrated frames onto the pivot and check the overlap;
+6. **estimate** the pivot's temperature (the estimator) → :class:`Estimate`.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from thermocal.burst import (
+    check_burst,
+    check_overlap,
+    fill_stuck_pixels,
+    find_homographies,
+    fpa_value,
+    pivot_index,
+)
+from thermocal.errors import InvalidInputError
+from thermocal.estimation.base import Estimate, Estimator, PreparedBurst
+from thermocal.registration.warp import warp_to_pivot
+
+__all__ = ["estimate", "register_stage"]
+
+
+def register_stage(
+    frames: np.ndarray, pivot: int, *, registered: bool, homographies: Any
+) -> np.ndarray:
+    """Stage 2: frame → pivot homographies ``(N, 3, 3)``: ``homographies`` as given, the
+    identity for ``registered`` frames, or found by registration."""
+    if registered and homographies is None:
+        return np.repeat(np.eye(3)[None], frames.shape[0], axis=0)
+    return find_homographies(frames, pivot, homographies)
+
+
+def estimate(
+    frames: Any,
+    estimator: Estimator,
+    *,
+    fpa_c: Any = None,
+    time_s: Any = None,
+    pivot: int | None = None,
+    registered: bool = False,
+    homographies: Any = None,
+    fill_defects: bool = True,
+) -> Estimate:
+    """The pivot frame's temperature of a raw burst through ``estimator``.
+
+    Parameters
+    ----------
+    frames : (N, H, W) array_like
+        Raw counts (14-bit).
+    estimator : Estimator
+        From :func:`thermocal.estimation.registry.make_estimator` (or any object of the
+        :class:`~thermocal.estimation.base.Estimator` protocol).
+    fpa_c : float or (N,) array_like, optional
+        FPA temperature, °C (one value or one per frame).
+    time_s : (N,) array_like, optional
+        Frame times, s (for calibrations with a rate term).
+    pivot : int, optional
+        Pivot frame (default the middle one).
+    registered : bool
+        The frames are already registered onto the pivot: no registration, no stuck-pixel
+        filling (they no longer stay in place); pixels at 0 counts are not covered.
+    homographies : (N, 3, 3) array_like, optional
+        Known frame → pivot homographies (skips registration).
+    fill_defects : bool
+        Replace the burst's stuck pixels by their neighbours' median before calibrating
+        (otherwise each leaves a short trail along the motion).
+
+    Raises
+    ------
+    InvalidInputError
+        A bad burst (saturated, constant, wrong length or size), pivot or FPA temperature.
+    RegistrationError
+        Registration failed or the frames do not overlap.
+    """
+    # 1. validate
+    arr = check_burst(frames, registered=registered)
+    p = pivot_index(pivot, arr.shape[0])
+    estimator.check(arr, registered=registered, homographies=homographies)
+    fpa = fpa_value(fpa_c, arr.shape[0]) if estimator.needs_fpa else None
+    if estimator.per_frame:  # the pivot frame alone: its calibration, not registered
+        valid = np.zeros(arr.shape, dtype=bool)
+        valid[p] = True
+        hs = np.repeat(np.eye(3)[None], arr.shape[0], axis=0)
+        burst = PreparedBurst(arr, estimator.calibrate(arr, fpa_c, time_s), valid, hs, p, fpa)
+        return Estimate(estimator.estimate(burst), valid.sum(axis=0), hs, p)
+    if registered and not estimator.accepts_registered:
+        raise InvalidInputError(
+            "each frame is calibrated where it lies on the sensor, before registration: give "
+            "the burst as recorded (not --registered)"
+        )
+    # 2. register
+    hs = register_stage(arr, p, registered=registered, homographies=homographies)
+    # 3. fill stuck pixels
+    filled = fill_stuck_pixels(arr, hs)[0] if fill_defects and not registered else arr
+    # 4. calibrate
+    calibrated = estimator.calibrate(filled, fpa_c if fpa is None else fpa, time_s)
+    # 5. warp
+    if registered and homographies is None:
+        warped = np.asarray(calibrated, dtype=np.float32)
+        valid = arr > 0
+        valid[p] = True
+    else:
+        warped, valid = warp_to_pivot(calibrated, hs)
+    check_overlap(valid, p)
+    # 6. estimate
+    burst = PreparedBurst(filled, warped, valid, hs, p, fpa)
+    return Estimate(estimator.estimate(burst), valid.sum(axis=0), hs, p)

@@ -1,0 +1,97 @@
+"""The estimator registry: every way thermocal turns a burst into a temperature, by name.
+
+The CLI's ``--method`` choices, its help and the README's method table come from
+:data:`ESTIMATORS`; :func:`make_estimator` builds one (importing torch only for a network).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from typing import Any
+
+from thermocal.errors import InvalidInputError
+from thermocal.estimation.base import Estimator
+from thermocal.nn.variants import VARIANTS
+
+__all__ = ["ESTIMATORS", "EstimatorInfo", "make_estimator", "method_help"]
+
+
+@dataclass(frozen=True)
+class EstimatorInfo:
+    """One registered estimator.
+
+    Attributes
+    ----------
+    name : str
+        Its ``--method`` name.
+    needs : {"model", "calibration"}
+        A network's weights file (the shipped one by default) or a calibration file.
+    source : str
+        The published method it implements.
+    summary : str
+        What it does, in a line.
+    per_frame : bool
+        It estimates from the pivot frame alone (no registration).
+    """
+
+    name: str
+    needs: str
+    source: str
+    summary: str
+    per_frame: bool = False
+
+
+#: ``--method`` name → estimator; the network variants first (the default is ``kpn``).
+ESTIMATORS: dict[str, EstimatorInfo] = {
+    **{name: EstimatorInfo(name, "model", "Oz et al. (KPN, §IV; ablations §V-C)", v.summary)
+       for name, v in VARIANTS.items()},
+    "mean": EstimatorInfo("mean", "calibration", "Oz et al. eq. 9",
+                          "registered average of the frames through a per-pixel calibration"),
+    "calibration": EstimatorInfo("calibration", "calibration", "the calibration's own method",
+                                 "the pivot frame alone through a per-pixel calibration",
+                                 per_frame=True),
+}
+
+
+def method_help() -> str:
+    """One line per estimator, for ``--help``."""
+    return "; ".join(f"{e.name}: {e.summary}" for e in ESTIMATORS.values())
+
+
+def make_estimator(
+    name: str,
+    *,
+    model: str | os.PathLike[str] | None = None,
+    calibration: str | os.PathLike[str] | Any = None,
+) -> Estimator:
+    """Build the estimator ``name`` of :data:`ESTIMATORS`.
+
+    ``model`` is a weights file for a network (default: the shipped one of that variant);
+    ``calibration`` a calibration file (or a fitted calibration) for ``mean`` and
+    ``calibration``.
+
+    Raises
+    ------
+    InvalidInputError
+        Unknown name, a missing calibration, or weights of another variant.
+    FileFormatError
+        A weights or calibration file that cannot be read.
+    """
+    info = ESTIMATORS.get(name)
+    if info is None:
+        raise InvalidInputError(f"unknown method {name!r}; choose from {', '.join(ESTIMATORS)}")
+    if info.needs == "calibration":
+        if calibration is None:
+            raise InvalidInputError(
+                f"--method {name} needs a per-pixel calibration: give --calibration CAL.h5"
+            )
+        from thermocal.calibration import load_any_calibration
+        from thermocal.estimation.calibrated import OzMean, PivotCalibration
+
+        cal = (load_any_calibration(calibration) if isinstance(calibration, (str, os.PathLike))
+               else calibration)
+        return OzMean(cal) if name == "mean" else PivotCalibration(cal)
+    from thermocal.nn.infer import NetworkEstimator  # torch: only for a network
+
+    return NetworkEstimator.from_file(name, model)

@@ -1,0 +1,169 @@
+"""The estimation pipeline, its registry and protocol, and the package's import graph."""
+
+from __future__ import annotations
+
+import re
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from thermocal.camera.presets import make_camera
+from thermocal.errors import InvalidInputError, ResolutionMismatchError
+from thermocal.estimation import ESTIMATORS, Estimator, PreparedBurst, estimate, make_estimator
+from thermocal.estimation.calibrated import OzMean, PivotCalibration
+from thermocal.registration.warp import warp_to_pivot
+from thermocal.scenes.procedural import procedural_scene
+from thermocal.simulate.flight import simulate_flight
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture(scope="module")
+def flight():
+    """Five frames of a walk of a 64×48 unit with three hot pixels."""
+    cam = make_camera("tau2", unit=101, size=(64, 48))
+    defects = np.zeros(cam.shape, bool)
+    counts = np.zeros(cam.shape, np.uint16)
+    for r, c in ((5, 7), (20, 30), (40, 60)):
+        defects[r, c], counts[r, c] = True, 16383
+    cam = replace(cam, defects=defects, defect_counts=counts)
+    scene = procedural_scene((200, 200), rng=np.random.default_rng(2), kind="urban")
+    return simulate_flight(scene, cam, n_frames=5, motion="walk", fpa_c=30.0, seed=4)
+
+
+class Recorder:
+    """A test estimator: a per-pixel map it records, and the burst it was given."""
+
+    name = "recorder"
+    n_frames = None
+    needs_fpa = True
+    accepts_registered = False
+
+    def __init__(self, *, per_frame: bool = False) -> None:
+        self.per_frame = per_frame
+        self.seen: list[tuple] = []
+        self.burst: PreparedBurst | None = None
+
+    def check(self, frames, *, registered, homographies):
+        self.seen.append(("check", frames.shape))
+
+    def calibrate(self, frames, fpa_c, time_s):
+        self.seen.append(("calibrate", frames.copy(), fpa_c))
+        return frames.astype(np.float32) * 0.5 + np.arange(frames.shape[2], dtype=np.float32)
+
+    def estimate(self, burst):
+        self.burst = burst
+        return burst.warped[burst.pivot]
+
+
+def test_pipeline_stages_in_order_on_the_filled_frames(flight):
+    rec = Recorder()
+    assert isinstance(rec, Estimator)
+    before = flight.frames.copy()
+    est = estimate(flight.frames, rec, fpa_c=flight.fpa_c, homographies=flight.homographies)
+    assert np.array_equal(flight.frames, before)  # the input is not changed
+    assert [s[0] for s in rec.seen] == ["check", "calibrate"]
+    filled = rec.seen[1][1]
+    assert not np.array_equal(filled, flight.frames)  # the defects were replaced before …
+    assert rec.seen[1][2] == pytest.approx(float(np.mean(flight.fpa_c)))  # … one FPA value
+    want, valid = warp_to_pivot(rec.calibrate(filled, None, None), flight.homographies)
+    b = rec.burst
+    assert np.array_equal(b.warped, want) and np.array_equal(b.valid, valid)  # … warping
+    assert np.array_equal(b.frames, filled) and b.pivot == 2
+    assert np.array_equal(est.temperature_c, want[2])
+    assert np.array_equal(est.coverage, valid.sum(axis=0))
+    with pytest.raises(InvalidInputError, match="as recorded"):
+        estimate(flight.frames, Recorder(), fpa_c=30.0, registered=True)
+    with pytest.raises(InvalidInputError, match="no FPA temperature"):
+        estimate(flight.frames, Recorder(), homographies=flight.homographies)
+    with pytest.raises(InvalidInputError, match="pivot 9"):
+        estimate(flight.frames, Recorder(), fpa_c=30.0, pivot=9)
+
+
+def test_per_frame_estimator_sees_no_registration(flight):
+    rec = Recorder(per_frame=True)
+    est = estimate(flight.frames, rec, fpa_c=30.0, pivot=1)
+    assert [s[0] for s in rec.seen] == ["check", "calibrate"]
+    assert np.array_equal(rec.seen[1][1], flight.frames)  # raw, not filled: nothing moves
+    assert np.array_equal(est.temperature_c, rec.calibrate(flight.frames, None, None)[1])
+    assert np.all(est.coverage == 1) and np.array_equal(est.homographies[1], np.eye(3))
+
+
+def test_calibration_estimators(flight, small_camera):
+    from thermocal.calibration.two_point import fit_two_point
+    from thermocal.camera.model import render
+
+    cam = make_camera("tau2", unit=101, size=(64, 48))
+    rng = np.random.default_rng(0)
+    lo = render(cam, np.full(8, 10.0), 30.0, housing_c=29.0, rng=rng)
+    hi = render(cam, np.full(8, 50.0), 30.0, housing_c=29.0, rng=rng)
+    cal = fit_two_point(lo, hi, 10.0, 50.0, fpa_ref_c=30.0)
+    for est in (OzMean(cal), PivotCalibration(cal)):
+        assert isinstance(est, Estimator)
+    pivot_only = estimate(flight.frames, PivotCalibration(cal), fpa_c=flight.fpa_c)
+    assert np.array_equal(pivot_only.temperature_c,
+                          cal.apply(flight.frames, fpa_c=flight.fpa_c)[2])
+    mean = estimate(flight.frames, OzMean(cal), homographies=flight.homographies)
+    truth = flight.truth_c[flight.pivot]
+    inner = mean.coverage == 5
+    assert np.median(np.abs(mean.temperature_c - truth)[inner]) < 1.0
+    small = make_camera("tau2", unit=0, size=(32, 24))
+    lo2 = render(small, np.full(4, 10.0), 30.0, housing_c=29.0, rng=rng)
+    hi2 = render(small, np.full(4, 50.0), 30.0, housing_c=29.0, rng=rng)
+    with pytest.raises(ResolutionMismatchError, match="calibration is 32x24"):
+        estimate(flight.frames, OzMean(fit_two_point(lo2, hi2, 10.0, 50.0, fpa_ref_c=30.0)))
+
+
+def test_registry_names_and_refusals():
+    assert list(ESTIMATORS)[0] == "kpn"
+    assert {"kpn", "kpn-no-offset", "e2e", "mean", "calibration"} <= set(ESTIMATORS)
+    with pytest.raises(InvalidInputError, match="unknown method 'nope'"):
+        make_estimator("nope")
+    with pytest.raises(InvalidInputError, match="needs a per-pixel calibration"):
+        make_estimator("mean")
+
+
+def test_cli_choices_come_from_the_registry():
+    from click.testing import CliRunner
+
+    from thermocal.cli import cli
+
+    for command in ("estimate", "flight"):
+        text = CliRunner().invoke(cli, [command, "--help"], terminal_width=200).output
+        for name in ESTIMATORS:
+            assert name in text, (command, name)
+
+
+def test_readme_names_every_registered_method():
+    from thermocal.calibration import CALIBRATION_METHODS
+    from thermocal.nuc import NUC_METHODS
+
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    names = [*ESTIMATORS, *CALIBRATION_METHODS, *NUC_METHODS]
+    missing = [n for n in names if not re.search(rf"`{re.escape(n)}`", readme)]
+    assert not missing, f"README.md does not name these registered methods: {missing}"
+
+
+def test_no_import_cycles():
+    """No cycle in the import graph of thermocal, counting imports inside functions."""
+    grimp = pytest.importorskip("grimp")
+    nx = pytest.importorskip("networkx")
+    graph = grimp.build_graph("thermocal", exclude_type_checking_imports=True)
+    edges = nx.DiGraph()
+    for module in graph.modules:
+        for imported in graph.find_modules_directly_imported_by(module):
+            edges.add_edge(module, imported)
+    cycles = [sorted(c) for c in nx.strongly_connected_components(edges) if len(c) > 1]
+    assert not cycles, f"import cycles: {cycles}"
+
+
+def test_burst_and_pipeline_import_no_network_code():
+    grimp = pytest.importorskip("grimp")
+    graph = grimp.build_graph("thermocal", exclude_type_checking_imports=True)
+    network = {"thermocal.nn.model", "thermocal.nn.infer", "thermocal.nn.train",
+               "thermocal.nn.store"}
+    for module in ("thermocal.burst", "thermocal.estimation.pipeline",
+                   "thermocal.estimation.base", "thermocal.estimation.calibrated"):
+        assert not graph.find_upstream_modules(module) & network, module
