@@ -31,7 +31,6 @@ import json
 import os
 import platform
 import re
-import sys
 import tempfile
 import time
 from dataclasses import replace
@@ -40,10 +39,10 @@ from pathlib import Path
 import numpy as np
 import torch
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
-from kpn import FAMILY_ROW, ExactModel, eval_bursts, run_methods, summarise  # noqa: E402
-
+from thermocal.evaluation.heldout import eval_bursts  # noqa: E402
+from thermocal.evaluation.network import run_methods  # noqa: E402
+from thermocal.evaluation.references import FAMILY_ROW, ExactModel  # noqa: E402
+from thermocal.evaluation.scoring import summarise  # noqa: E402
 from thermocal.nn.data import BurstConfig, ScenePool, min_views  # noqa: E402
 from thermocal.nn.infer import shipped_model_path  # noqa: E402
 from thermocal.nn.loss import kpn_loss  # noqa: E402

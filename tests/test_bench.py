@@ -6,14 +6,24 @@ import json
 
 import pytest
 
-from thermocal.bench import BENCHMARKS, find_benchmarks, machine, markdown_report
+from thermocal.bench import BENCHMARKS, machine, markdown_report
 from thermocal.cli import main
 
 
-def test_every_benchmark_script_exists():
-    folder = find_benchmarks()
+def test_every_suite_is_a_package_module_with_a_script_beside_it():
+    import importlib
+    from pathlib import Path
+
+    scripts = Path(__file__).resolve().parents[1] / "benchmarks"
     for name in BENCHMARKS:
-        assert (folder / f"{name}.py").is_file()
+        assert callable(importlib.import_module(f"thermocal.evaluation.suites.{name}").main)
+        assert f"thermocal.evaluation.suites.{name}" in (scripts / f"{name}.py").read_text()
+
+
+def test_bench_refuses_a_missing_output_folder_before_running(tmp_path, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["bench", "--quick", "--json", str(tmp_path / "no" / "r.json")])
+    assert exc.value.code == 2 and "does not exist" in capsys.readouterr().err
 
 
 def test_report_names_the_machine_and_failures():

@@ -1,9 +1,10 @@
-"""``thermocal bench``: run the accuracy and speed benchmarks of ``benchmarks/`` and gather them.
+"""``thermocal bench``: run the accuracy and speed benchmarks and gather them.
 
-Each benchmark is a script of the source tree (``benchmarks/NAME.py [--quick] [--json OUT]``) that
-prints Markdown tables; this command runs them one after the other, each in its own process (so
-their timings do not disturb each other), and writes one JSON file and one Markdown report that
-names the machine. It needs a source checkout: the benchmarks are not installed with the package.
+Each benchmark is a suite of the installed package (:mod:`thermocal.evaluation.suites`, ``python
+-m thermocal.evaluation.suites.NAME [--quick] [--json OUT]``; ``benchmarks/NAME.py`` runs the
+same from a checkout) that prints Markdown tables; this command runs them one after the other,
+each in its own process (so that their timings do not disturb each other), and writes one JSON
+file and one Markdown report that names the machine.
 """
 
 from __future__ import annotations
@@ -21,8 +22,7 @@ from pathlib import Path
 import click
 
 from thermocal.errors import InvalidInputError
-
-BENCHMARKS = ("simulator", "calibration", "registration", "nuc", "kpn", "unit_spread", "flight")
+from thermocal.evaluation.suites import SUITES as BENCHMARKS
 
 
 def machine() -> str:
@@ -43,29 +43,18 @@ def machine() -> str:
     return f"{cpu}, {os.cpu_count()} cores{mem}, Python {platform.python_version()}"
 
 
-def find_benchmarks(start: Path | None = None) -> Path:
-    """The ``benchmarks/`` folder of the source checkout this package runs from."""
-    here = Path(__file__).resolve()
-    for root in [*(start.resolve().parents if start else []), *here.parents]:
-        candidate = root / "benchmarks"
-        if (candidate / "simulator.py").is_file():
-            return candidate
-    raise InvalidInputError(
-        "thermocal bench needs a source checkout (benchmarks/ is not installed); "
-        "run it from a clone of the repository"
-    )
-
-
-def run_benchmarks(names: tuple[str, ...], *, quick: bool, folder: Path) -> dict:
-    """Run each benchmark script; returns ``{name: {"markdown", "results", "seconds", "rc"}}``."""
+def run_benchmarks(names: tuple[str, ...], *, quick: bool) -> dict:
+    """Run each suite in its own process; returns ``{name: {"markdown", "results", "seconds",
+    "rc", "stderr_tail"}}``."""
     out: dict[str, dict] = {}
     with tempfile.TemporaryDirectory() as tmp:
         for name in names:
             json_path = Path(tmp) / f"{name}.json"
-            cmd = [sys.executable, str(folder / f"{name}.py"), "--json", str(json_path)]
+            cmd = [sys.executable, "-m", f"thermocal.evaluation.suites.{name}", "--json",
+                   str(json_path)]
             if quick:
                 cmd.append("--quick")
-            click.echo(f"running benchmarks/{name}.py{' --quick' if quick else ''} …", err=True)
+            click.echo(f"running the {name} suite{' --quick' if quick else ''} …", err=True)
             started = time.perf_counter()
             proc = subprocess.run(cmd, capture_output=True, text=True, check=False)
             seconds = time.perf_counter() - started
@@ -108,9 +97,11 @@ def bench(quick: bool, json_out: Path | None, md_out: Path | None, only: tuple[s
     """Run the calibration, registration, NUC, network, unit-spread and simulator benchmarks."""
     from thermocal.io.atomic import atomic_path, write_json_atomic
 
-    folder = find_benchmarks(Path.cwd())
     host = machine()
-    runs = run_benchmarks(only or BENCHMARKS, quick=quick, folder=folder)
+    for path in (json_out, md_out):  # before hours of benchmarks, not after
+        if path is not None and not path.resolve().parent.is_dir():
+            raise InvalidInputError(f"{path.parent}: output folder does not exist")
+    runs = run_benchmarks(only or BENCHMARKS, quick=quick)
     report = markdown_report(runs, quick=quick, host=host)
     if json_out:
         write_json_atomic(json_out, {"machine": host, "quick": quick, "benchmarks": runs})

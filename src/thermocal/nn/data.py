@@ -20,7 +20,7 @@ place of their fitted degradation model:
 5. the target is the scene in the pivot's view.
 
 Normalisation (eq. 20-21) maps temperatures and counts linearly onto ``[0, 1]`` with constants
-kept in :class:`Normalisation`, which travels with the weights.
+kept in :class:`~thermocal.nn.inputs.Normalisation`, which travels with the weights.
 """
 
 from __future__ import annotations
@@ -144,8 +144,8 @@ class BurstConfig:
         pixels are left out of the rendering (inference replaces them before the network).
     calibrated : bool
         Also give every burst its frames through the exact inverse of the *nominal* camera
-        (:func:`nominal_camera` of ``nominal_units``), calibrated on the sensor before warping
-        (:attr:`Burst.frames_c`): the input of a
+        (:func:`~thermocal.nn.inputs.nominal_camera` of ``nominal_units``), calibrated on the
+        sensor before warping (:attr:`Burst.frames_c`): the input of a
         :attr:`~thermocal.nn.model.ModelConfig.calibrated` network.
     nominal_units : tuple of int or None
         The units whose average is the nominal camera (default ``units``): the validation bursts
@@ -374,7 +374,7 @@ class UnitCache:
         return self._units[unit]
 
     def nominal(self, units: tuple[int, ...]) -> CameraModel:
-        """:func:`nominal_camera` of ``units``, made once."""
+        """:func:`~thermocal.nn.inputs.nominal_camera` of ``units``, made once."""
         key = tuple(int(u) for u in units)
         if key not in self._nominal:
             self._nominal[key] = nominal_camera([self.get(u) for u in key])
@@ -602,7 +602,7 @@ def make_burst(
         perspective_sigma=cfg.perspective_sigma,
         pivot=pivot,
     )
-    filled, _ = fill_stuck_pixels(raw, h_reg)  # as inference does (thermocal.burst.prepare)
+    filled, _ = fill_stuck_pixels(raw, h_reg)  # as the estimation pipeline does
     warped, valid = warp_to_pivot(filled, h_reg)
     frames_c = None
     if cfg.calibrated:  # each frame through the nominal model of the window that rendered it

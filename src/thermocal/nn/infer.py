@@ -75,8 +75,9 @@ def inference_tiling(model: KPN) -> tuple[int, int]:
     E2E runs in tiles of its training crop overlapping by a quarter of it: it predicts the
     temperature itself from the levels in its whole view and does not carry over from its crops
     to larger ones (one trained on 64-px crops: 3.97 °C on whole 336×256 frames, 2.09 °C in
-    64-px tiles; ``benchmarks/results/cpu-2026-11-22d/``). The KPN variants give the same error
-    whole or tiled (0.574 / 0.573 °C) and run whole frames up to 512 px, which is faster.
+    64-px tiles; ``benchmarks/RESULTS.md``, E2E on whole frames and in tiles). The KPN variants
+    give the same error whole or tiled (0.574 / 0.573 °C) and run whole frames up to 512 px,
+    which is faster.
     """
     crop = model.train_crop
     if model.config.variant == "e2e" and crop:

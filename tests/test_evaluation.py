@@ -1,0 +1,70 @@
+"""thermocal.evaluation: the held-out set, the scores and their split, the tables."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from thermocal.evaluation.heldout import eval_bursts, other_unit_calibration
+from thermocal.evaluation.references import FAMILY_ROW, ExactModel, reference_scores
+from thermocal.evaluation.scoring import scores, split_error, summarise
+from thermocal.evaluation.tables import accuracy_table, markdown_table
+from thermocal.nn.data import EVAL_SCENES, EVAL_UNITS
+
+
+def _burst(truth, mask=None):
+    return {"truth": truth, "mask": np.ones(truth.shape, bool) if mask is None else mask}
+
+
+def test_scores_split_a_known_error():
+    rng = np.random.default_rng(0)
+    truth = rng.uniform(10.0, 30.0, (96, 128))
+    b = _burst(truth)
+    s = scores(truth + 0.4, b)  # the unit's offset alone
+    assert s["mae"] == pytest.approx(0.4) and s["bias"] == pytest.approx(0.4)
+    assert s["bias_free"] < 1e-9 and s["smooth"] < 1e-9 and s["fine"] < 1e-9
+    assert s["within_0_5"] == 1.0 and s["affine_free"] < 1e-9
+    checker = 0.3 * ((np.indices(truth.shape).sum(axis=0) % 2) * 2 - 1)  # pixel FPN
+    smooth, fine = split_error(checker, b["mask"])
+    assert smooth < 0.02 and fine == pytest.approx(0.3, abs=0.02)
+    ramp = np.linspace(-1.0, 1.0, truth.shape[1])[None].repeat(truth.shape[0], 0)
+    smooth, fine = split_error(ramp, b["mask"])
+    assert smooth > 0.45 and fine < 0.05  # a radial-like pattern is smooth
+    rows, cols = np.indices(truth.shape)
+    corners = np.hypot(rows - 47.5, cols - 63.5) > 60  # in the last fifth of the pixels
+    by_r = scores(truth + 2.0 * corners, b)["bias_by_radius"]
+    assert by_r[0] == pytest.approx(0.0) and by_r[3] < 1.0 < by_r[-1] <= 2.0
+
+
+def test_summarise_and_tables():
+    rows = summarise({"a": [{"mae": 1.0, "bias_free": 0.5, "affine_free": 0.4,
+                             "within_0_5": 0.2, "bias": -0.5, "smooth": 0.3, "fine": 0.2},
+                            {"mae": 3.0, "bias_free": 1.5, "affine_free": 0.6,
+                             "within_0_5": 0.4, "bias": 1.5, "smooth": 0.5, "fine": 0.4}]})
+    r = rows[0]
+    assert r["mae_c"] == 2.0 and r["median_mae_c"] == 2.0 and r["mean_abs_bias_c"] == 1.0
+    assert r["within_0_5"] == pytest.approx(0.3)
+    text = accuracy_table(rows)
+    assert text.splitlines()[2] == ("| a | 2.00 | 2.00 | 30 % | 1.00 | 1.00 | 0.40 | 0.30 | "
+                                    "0.50 |")
+    assert markdown_table(("x", "y"), [(1, 2)]) == "| x | y |\n|---|---|\n| 1 | 2 |"
+
+
+def test_held_out_set_and_references():
+    bursts = eval_bursts(7, quick=True)
+    assert len(bursts) == len(EVAL_SCENES)
+    assert {b["unit"] for b in bursts} <= set(EVAL_UNITS)
+    assert {b["scene"] for b in bursts} == set(EVAL_SCENES)
+    again = eval_bursts(7, quick=True)
+    assert all(np.array_equal(a["frames"], b["frames"]) for a, b in zip(bursts, again,
+                                                                         strict=True))
+    b = bursts[0]
+    refs = {FAMILY_ROW: ExactModel.family((0, 1))}
+    from thermocal.burst import fill_stuck_pixels
+
+    frames, _ = fill_stuck_pixels(b["frames"], b["hs"])
+    out = reference_scores(b, frames, refs, other_unit_calibration())
+    assert list(out)[0] == FAMILY_ROW
+    own = out["(reference) own two-point at the burst FPA (eq. 9 mean)"]
+    other = out["two-point, other unit, FPA 30 °C (pivot frame)"]
+    assert own["mae"] < 0.3 < other["mae"]  # the unit's own calibration is the best reference
