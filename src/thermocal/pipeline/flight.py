@@ -134,108 +134,149 @@ def process_flight(
     ``progress(k)`` is called with the number of frames each finished group advanced.
     """
     header = read_recording_header(recording, fpa_c=options.fpa_c)
-    fpa = header.series["fpa_c"]
-    if fpa is None and not ESTIMATORS[options.method].per_frame:
+    if header.series["fpa_c"] is None and not ESTIMATORS[options.method].per_frame:
         raise InvalidInputError(
             f"{header.path}: no FPA temperature (sidecar fpa_c); give --fpa-c"
         )
-    time_s = header.series["time_s"]
     n, stride = options.frames, options.stride
     pivots = pivots_of(header.n_frames, n, stride)
     out = ensure_output_dir(Path(out_dir))
     for sub in ("temps", "previews"):
         ensure_output_dir(out / sub)
-    log_path = out / "log.jsonl"
     done = _finished_pivots(out)
     estimator = _estimator(options, header.frame_shape)
-    times = StageTimes()
+    tally = _Tally()
     reader = _FrameWindow(header.path, header.frame_shape, chunk=max(64, n))
     per_batch = max(1, BATCH_FRAMES // stride)
-    processed = skipped = failed = 0
     started = time.perf_counter()
-    with open(log_path, "a", encoding="utf-8") as log:
+    with open(out / "log.jsonl", "a", encoding="utf-8") as log:
         for b in range(0, len(pivots), per_batch):
             batch = pivots[b : b + per_batch]
             todo = [p for p in batch if p not in done]
-            skipped += len(batch) - len(todo)
+            tally.skipped += len(batch) - len(todo)
             if progress and len(todo) < len(batch):
                 progress(stride * (len(batch) - len(todo)))
             if not todo:
                 continue
-            t = time.perf_counter()
-            a, z = todo[0] - n // 2, todo[-1] - n // 2 + n
-            frames = reader.frames(a, z)
-            t = times.add("reading", t)
-            try:
-                sequence = _register(estimator, frames)
-                batch_error = None
-            except (RegistrationError, InvalidInputError) as exc:
-                sequence, batch_error = None, str(exc)
-            t = times.add("registration", t)
+            run = _register_batch(reader, estimator, todo, n, tally.times)
             for pivot in todo:
-                first = pivot - n // 2
-                entry = {"frame": pivot,
-                         "time_s": None if time_s is None else float(time_s[pivot]),
-                         "fpa_c": None if fpa is None else float(fpa[pivot]), "warnings": []}
-                group = frames[first - a : first - a + n]
-                try:
-                    if batch_error is not None:
-                        raise RegistrationError(batch_error)
-                    homographies = None
-                    if sequence is not None:
-                        local = range(first - a, first - a + n)
-                        homographies = sequence.to_pivot(local, pivot - a)
-                        entry["registration_correlation"] = float(
-                            sequence.correlation[first - a + 1 : first - a + n].min())
-                    with warnings.catch_warnings(record=True) as caught:
-                        warnings.simplefilter("always")
-                        temp = estimate(
-                            group, estimator,
-                            fpa_c=None if fpa is None else fpa[first : first + n],
-                            time_s=None if time_s is None else time_s[first : first + n],
-                            pivot=n // 2, homographies=homographies).temperature_c
-                    entry["warnings"] = sorted({str(w.message) for w in caught})
-                    t = times.add("estimate", t)
-                except (RegistrationError, InvalidInputError) as exc:
-                    entry["error"] = str(exc)
-                    failed += 1
-                    t = times.add("estimate", t)
-                else:
-                    name = f"frame_{pivot:06d}"
-                    try:
-                        write_temperature_tiff(out / "temps" / f"{name}.tiff", temp)
-                        if options.preview_every and processed % options.preview_every == 0:
-                            _preview(out / "previews" / f"{name}.png", temp,
-                                     f"frame {pivot}, {options.method}")
-                    except OSError as exc:  # each output is atomic: the finished ones stand
-                        where = f"{exc.filename}: " if exc.filename else ""
-                        raise OutputError(
-                            f"{where}{exc.strerror or exc}; the maps finished so far are kept, "
-                            "rerun to resume"
-                        ) from None
-                    entry["mean_c"] = float(temp.mean())
-                    processed += 1
-                    t = times.add("writing", t)
+                entry = _process_pivot(run, pivot, header.series, estimator, options, out, tally)
                 log.write(json.dumps(entry) + "\n")
                 log.flush()
                 if progress:
                     progress(stride)
-    elapsed = time.perf_counter() - started
-    entries = _read_log(log_path)
-    _write_csv(out / "log.csv", entries)
-    frames_done = processed * n
+    return _finish(out, header.path, options, len(pivots), tally, time.perf_counter() - started)
+
+
+@dataclass
+class _Tally:
+    """What a run did so far: pivots processed, skipped (done before), failed; stage times."""
+
+    processed: int = 0
+    skipped: int = 0
+    failed: int = 0
+    times: StageTimes = field(default_factory=StageTimes)
+
+
+@dataclass(frozen=True)
+class _Batch:
+    """A run of frames ``[start, start + len(frames))`` read and registered together (or the
+    registration's error, which every group of it then reports)."""
+
+    start: int
+    frames: np.ndarray
+    sequence: SequenceRegistration | None
+    error: str | None
+
+
+def _register_batch(reader: _FrameWindow, estimator: Estimator, todo: list[int], n: int,
+                    times: StageTimes) -> _Batch:
+    """Read the frames of the groups of ``todo`` (pivots) and register them as one sequence."""
+    t = time.perf_counter()
+    a, z = todo[0] - n // 2, todo[-1] - n // 2 + n
+    frames = reader.frames(a, z)
+    t = times.add("reading", t)
+    try:
+        sequence, error = _register(estimator, frames), None
+    except (RegistrationError, InvalidInputError) as exc:
+        sequence, error = None, str(exc)
+    times.add("registration", t)
+    return _Batch(a, frames, sequence, error)
+
+
+def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: Estimator,
+                   options: FlightOptions, out: Path, tally: _Tally) -> dict[str, Any]:
+    """Estimate one pivot's map from its group of ``run``, write it (and its preview) and
+    return its log entry; a group that cannot be estimated is logged with its error."""
+    n = options.frames
+    first = pivot - n // 2
+    fpa, time_s = series["fpa_c"], series["time_s"]
+    entry = {"frame": pivot, "time_s": None if time_s is None else float(time_s[pivot]),
+             "fpa_c": None if fpa is None else float(fpa[pivot]), "warnings": []}
+    t = time.perf_counter()
+    try:
+        if run.error is not None:
+            raise RegistrationError(run.error)
+        homographies = None
+        if run.sequence is not None:
+            local = first - run.start
+            homographies = run.sequence.to_pivot(range(local, local + n), pivot - run.start)
+            entry["registration_correlation"] = float(
+                run.sequence.correlation[local + 1 : local + n].min())
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            temp = estimate(
+                run.frames[first - run.start : first - run.start + n], estimator,
+                fpa_c=None if fpa is None else fpa[first : first + n],
+                time_s=None if time_s is None else time_s[first : first + n],
+                pivot=n // 2, homographies=homographies).temperature_c
+        entry["warnings"] = sorted({str(w.message) for w in caught})
+    except (RegistrationError, InvalidInputError) as exc:
+        entry["error"] = str(exc)
+        tally.failed += 1
+        tally.times.add("estimate", t)
+        return entry
+    t = tally.times.add("estimate", t)
+    preview = bool(options.preview_every) and tally.processed % options.preview_every == 0
+    _write_pivot(out, pivot, temp, f"frame {pivot}, {options.method}" if preview else None)
+    entry["mean_c"] = float(temp.mean())
+    tally.processed += 1
+    tally.times.add("writing", t)
+    return entry
+
+
+def _write_pivot(out: Path, pivot: int, temp: np.ndarray, preview_title: str | None) -> None:
+    """A pivot's temperature TIFF, and its preview when titled; each written atomically, so
+    that the finished ones stand when the disk fills."""
+    name = f"frame_{pivot:06d}"
+    try:
+        write_temperature_tiff(out / "temps" / f"{name}.tiff", temp)
+        if preview_title is not None:
+            _preview(out / "previews" / f"{name}.png", temp, preview_title)
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename else ""
+        raise OutputError(
+            f"{where}{exc.strerror or exc}; the maps finished so far are kept, rerun to resume"
+        ) from None
+
+
+def _finish(out: Path, recording: Path, options: FlightOptions, groups: int, tally: _Tally,
+            elapsed: float) -> dict[str, Any]:
+    """Write ``log.csv`` (the latest try of each pivot) and ``summary.json``; the summary."""
+    _write_csv(out / "log.csv", _read_log(out / "log.jsonl"))
+    frames_done = tally.processed * options.frames
     summary = {
-        "recording": str(header.path),
+        "recording": str(recording),
         "options": asdict(options),
-        "groups": len(pivots),
-        "processed": processed,
-        "skipped_already_done": skipped,
-        "failed": failed,
+        "groups": groups,
+        "processed": tally.processed,
+        "skipped_already_done": tally.skipped,
+        "failed": tally.failed,
         "wall_time_s": elapsed,
         "frames_per_second": {
-            stage: (frames_done / s if s > 0 else None) for stage, s in times.seconds.items()
+            stage: (frames_done / s if s > 0 else None) for stage, s in tally.times.seconds.items()
         },
-        "stage_seconds": times.seconds,
+        "stage_seconds": tally.times.seconds,
     }
     write_json_atomic(out / "summary.json", summary)
     return summary
