@@ -45,16 +45,17 @@ from thermocal.evaluation.references import FAMILY_ROW, ExactModel  # noqa: E402
 from thermocal.evaluation.scoring import summarise  # noqa: E402
 from thermocal.nn.data import BurstConfig, ScenePool, min_views  # noqa: E402
 from thermocal.nn.infer import shipped_model_path  # noqa: E402
-from thermocal.nn.loss import kpn_loss  # noqa: E402
 from thermocal.nn.model import KPN, ModelConfig  # noqa: E402
 from thermocal.nn.store import load_model, save_model  # noqa: E402
 from thermocal.nn.train import (  # noqa: E402
+    BurstStream,
     TrainConfig,
-    _seed_everything,
-    _Stream,
+    burst_loader,
     fit_normalisation,
     resolve_device,
+    seed_everything,
     step_lr,
+    train_step,
 )
 
 
@@ -72,12 +73,14 @@ def sub_burst(batch: tuple[torch.Tensor, ...], n: int, n_max: int,
     return frames[:, sel].contiguous(), fpa, v.contiguous(), truth, mask, r2
 
 
-def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
+def train_side_by_side(args: argparse.Namespace, base: ModelConfig) -> dict:
+    """Every (variant, N) model trained on one stream of N_max-frame bursts (each on its
+    sub-bursts: :func:`sub_burst`) with ``thermocal train``'s pieces: its seeding, burst stream,
+    optimisation step and ``--lr-schedule step`` rate, for ``--minutes`` or ``--steps``."""
     device = resolve_device(args.device)
     torch.set_num_threads(args.threads)
-    _seed_everything(args.seed, device)
+    seed_everything(args.seed, device)
     ns = [int(x) for x in args.ns.split(",")]
-    variants = args.variants.split(",")
     if any(n % 2 == 0 for n in ns):
         raise SystemExit("N must be odd (a pivot in the middle)")
     n_max = max(ns)
@@ -86,33 +89,20 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
     pool_fn = lambda: ScenePool.training(seed=42, n_procedural=24)  # noqa: E731
     norm = fit_normalisation(pool_fn(), cfg, seed=42)
     models, opts = {}, {}
-    for v in variants:
+    for v in args.variants.split(","):
         for n in ns:
-            mc = ModelConfig(
-                **{
-                    **base.to_dict(),
-                    "n_frames": n,
-                    "variant": v,
-                    "centre": base.centre and v == "kpn",
-                }
-            )
+            mc = ModelConfig(**{**base.to_dict(), "n_frames": n, "variant": v,
+                                "centre": base.centre and v == "kpn"})
             models[(v, n)] = KPN(mc, temp_range_c=(norm.temp_min_c, norm.temp_max_c))
             models[(v, n)] = models[(v, n)].to(device).train()
             opts[(v, n)] = torch.optim.Adam(models[(v, n)].parameters(), lr=args.lr)
-    stream = _Stream(pool_fn, cfg, norm, seed=args.seed, batch=args.batch, start_batch=0,
-                     cameras=None, frame_positions=base.radial_frames,
-                     band_m=base.band_m if base.radiance else None)
-    loader = torch.utils.data.DataLoader(
-        stream,
-        batch_size=None,
-        num_workers=args.workers,
-        prefetch_factor=4 if args.workers else None,
-        pin_memory=device.type == "cuda",
-    )
+    stream = BurstStream(pool_fn, cfg, norm, seed=args.seed, batch=args.batch, start_batch=0,
+                         cameras=None, frame_positions=base.radial_frames,
+                         band_m=base.band_m if base.radiance else None)
+    loader = burst_loader(stream, args.workers, device)
     t0, steps, budget = time.monotonic(), 0, 60.0 * args.minutes
     losses = {k: [] for k in models}
     it = iter(loader)
-
     # thermocal train --lr-schedule step's rate, over the first of --minutes and --steps to run out
     schedule = TrainConfig(lr=args.lr, steps_per_epoch=1, max_epochs=2**62,
                            max_minutes=args.minutes, max_steps=args.steps)
@@ -120,16 +110,8 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
         lr = step_lr(schedule, steps, time.monotonic() - t0)
         batch = tuple(t.to(device, non_blocking=True) for t in next(it))
         for key, model in models.items():
-            frames, fpa, valid, truth, mask, r2 = sub_burst(batch, key[1], n_max,
-                                                            base.radial_frames)
-            opt = opts[key]
-            for g in opt.param_groups:
-                g["lr"] = lr
-            opt.zero_grad(set_to_none=True)
-            loss = kpn_loss(model(frames, fpa, valid, r2=r2), truth, mask)
-            loss.backward()
-            opt.step()
-            losses[key].append(float(loss.detach()))
+            sub = sub_burst(batch, key[1], n_max, base.radial_frames)
+            losses[key].append(train_step(model, opts[key], sub, lr=lr))
         steps += 1
         if steps % 100 == 0:
             print(
@@ -143,6 +125,16 @@ def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
         f"{wall:.0f} s: {steps * args.batch / wall:.0f} bursts/s",
         flush=True,
     )
+    return {"models": models, "norm": norm, "cfg": cfg, "ns": ns, "variants":
+            args.variants.split(","), "steps": steps, "wall": wall, "losses": losses,
+            "device": device}
+
+
+def train_sweep(args: argparse.Namespace, base: ModelConfig) -> list[dict]:
+    run = train_side_by_side(args, base)
+    models, norm, cfg, ns, variants = (run[k] for k in ("models", "norm", "cfg", "ns",
+                                                        "variants"))
+    steps, wall, losses, device = (run[k] for k in ("steps", "wall", "losses", "device"))
     out_dir = Path(args.out_dir) if args.out_dir else None
     rows = []
     torch.set_num_threads(args.eval_threads)

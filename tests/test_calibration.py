@@ -16,6 +16,7 @@ import tifffile
 
 from thermocal.calibration import (
     CALIBRATION_METHODS,
+    Calibration,
     OutsideCalibrationRangeWarning,
     PolynomialCalibration,
     TwoPointCalibration,
@@ -319,6 +320,8 @@ def test_every_method_round_trips_through_one_file_layout(fit_run, tmp_path, met
     session, _ = fit_run
     assert method in CALIBRATION_METHODS
     cal = fit_calibration(session, method)
+    assert isinstance(cal, Calibration) and cal.method == method
+    assert type(cal) is CALIBRATION_METHODS[method].loads
     path = cal.save(tmp_path / "cal.h5")
     with h5py.File(path) as f:
         assert f.attrs["method"] == method

@@ -9,6 +9,7 @@ import pytest
 
 from thermocal.calibration import (
     OutsideCalibrationRangeWarning,
+    StreamingCorrector,
     fit_calibration,
     fit_planck_curve,
 )
@@ -97,6 +98,28 @@ def test_wolf2016_holds_30c_while_the_fpa_rises(wolf_fit_run, wolf_eval_run, cam
 
     no_hw = replace(wolf, hw=flat).apply(ev.frames, fpa_c=ev.fpa_c, time_s=ev.time_s)
     assert rmse(no_hw, truth, camera) > 2 * err_wolf
+
+
+def test_wolf2016_stream_is_a_streaming_corrector(wolf_fit_run, wolf_eval_run):
+    """apply (a stack, a fresh stream) = the stream's correct = process frame by frame;
+    correct_frame learns nothing."""
+    session, _ = wolf_fit_run
+    ev, _ = wolf_eval_run
+    wolf = fit_calibration(session, "wolf2016", fpa_ref_c=float(ev.fpa_c[0]), warmup_frames=5)
+    frames, fpa, t = ev.frames[:12], ev.fpa_c[:12], ev.time_s[:12]
+    stream = wolf.stream()
+    assert isinstance(stream, StreamingCorrector) and not hasattr(stream, "apply")
+    by_stack = stream.correct(frames, fpa_c=fpa, time_s=t)
+    one = wolf.stream()
+    by_frame = np.stack([one.process(f, fpa_c=a, time_s=b) for f, a, b in zip(
+        frames, fpa, t, strict=True)])
+    np.testing.assert_array_equal(wolf.apply(frames, fpa_c=fpa, time_s=t), by_stack)
+    np.testing.assert_array_equal(by_frame, by_stack)
+    assert stream.delta_t_c == one.delta_t_c != 0.0
+    fresh = wolf.stream()
+    np.testing.assert_array_equal(fresh.correct_frame(frames[0], fpa_c=fpa[0], time_s=t[0]),
+                                  by_stack[0])
+    assert fresh.delta_t_c == 0.0 and fresh.history == []
 
 
 def test_wolf2016_lms_settles_from_a_cold_start(wolf_fit_run, wolf_eval_run, camera):

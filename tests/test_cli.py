@@ -33,6 +33,25 @@ def test_version_and_help(capsys):
         assert code == 0 and "Usage" in out
 
 
+@pytest.mark.parametrize("command", ["calibrate", "correct", "nuc"])
+def test_method_names_and_help_come_from_the_registries(command):
+    """calibrate's and nuc's --method choices, and every method's summary in the help of
+    calibrate, correct and nuc, are their family's registry."""
+    from click.testing import CliRunner
+
+    from thermocal.calibration import CALIBRATION_METHODS
+    from thermocal.cli import cli
+    from thermocal.nuc import NUC_METHODS
+
+    registry = NUC_METHODS if command == "nuc" else CALIBRATION_METHODS
+    text = CliRunner().invoke(cli, [command, "--help"], terminal_width=2000).output
+    flat = " ".join(text.split())
+    for name, info in registry.items():
+        assert f" {name} {info.summary} ({info.source})" in flat, (command, name)
+    if command != "correct":
+        assert f"[{'|'.join(registry)}]" in flat
+
+
 def test_simulate_chamber_writes_a_valid_file(tmp_path, capsys):
     out = tmp_path / "c.h5"
     code, _, err = run(["simulate", "chamber", str(out), "--size", "32x24", "--seed", "3",

@@ -167,3 +167,34 @@ def test_burst_and_pipeline_import_no_network_code():
     for module in ("thermocal.burst", "thermocal.estimation.pipeline",
                    "thermocal.estimation.base", "thermocal.estimation.calibrated"):
         assert not graph.find_upstream_modules(module) & network, module
+
+
+def test_thermocal_estimate_with_a_calibration(tmp_path, flight, capsys):
+    """``thermocal estimate --method mean|calibration`` end to end: a recording in, the pivot's
+    map out (that of the pipeline), and the one-line refusals."""
+    import tifffile
+
+    from thermocal.calibration.two_point import fit_two_point
+    from thermocal.camera.model import render
+    from thermocal.cli import main
+    from thermocal.io.recording import Recording, write_recording
+
+    cam = make_camera("tau2", unit=101, size=(64, 48))
+    rng = np.random.default_rng(0)
+    lo = render(cam, np.full(8, 10.0), 30.0, housing_c=29.0, rng=rng)
+    hi = render(cam, np.full(8, 50.0), 30.0, housing_c=29.0, rng=rng)
+    cal = fit_two_point(lo, hi, 10.0, 50.0, fpa_ref_c=30.0)
+    cal.save(tmp_path / "cal.h5")
+    write_recording(tmp_path / "burst.tiff", Recording(flight.frames, fpa_c=flight.fpa_c))
+    for method, est in (("calibration", PivotCalibration(cal)), ("mean", OzMean(cal))):
+        out = tmp_path / f"{method}.tiff"
+        main(["estimate", str(tmp_path / "burst.tiff"), "--method", method, "--calibration",
+              str(tmp_path / "cal.h5"), "--registered", "--out", str(out)])
+        want = estimate(flight.frames, est, fpa_c=flight.fpa_c, registered=True)
+        assert np.array_equal(tifffile.imread(out), want.temperature_c)
+    with pytest.raises(SystemExit) as exc:
+        main(["estimate", str(tmp_path / "burst.tiff"), "--method", "mean", "--out",
+              str(tmp_path / "x.tiff")])
+    assert exc.value.code == 2
+    assert "needs a per-pixel calibration" in capsys.readouterr().err
+    assert not (tmp_path / "x.tiff").exists()

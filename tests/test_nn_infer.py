@@ -545,10 +545,10 @@ def test_training_stream_is_the_same_with_any_number_of_workers():
     import torch
 
     from thermocal.nn.data import ScenePool
-    from thermocal.nn.train import _Stream
+    from thermocal.nn.train import BurstStream
 
     cfg = BurstConfig(n_frames=3, crop=16, units=(0,), sensor_size=(32, 24))
-    stream = _Stream(
+    stream = BurstStream(
         lambda: ScenePool.training(seed=1, n_procedural=2),
         cfg,
         Normalisation(),

@@ -7,6 +7,7 @@ import pytest
 import tifffile
 from scipy.ndimage import gaussian_filter1d
 
+from thermocal.calibration import StreamingCorrector
 from thermocal.camera.presets import make_camera
 from thermocal.cli import main
 from thermocal.errors import InvalidInputError, ResolutionMismatchError
@@ -14,7 +15,6 @@ from thermocal.io.recording import Recording, write_recording
 from thermocal.metrics import best_affine_fit, rmse, roughness
 from thermocal.nuc import (
     NUC_METHODS,
-    STREAMING_METHODS,
     Scribner,
     correct_nonuniformity,
 )
@@ -85,17 +85,32 @@ def test_scribner_flattens_pure_offset_fpn_on_a_moving_scene():
     assert np.std(resid - resid.mean()) < 0.35 * np.std(fpn)
 
 
+STREAMING = {name: m.streaming for name, m in NUC_METHODS.items() if m.streaming is not None}
+
+
 def test_streaming_objects_match_the_batch_functions(flight):
-    for name, cls in STREAMING_METHODS.items():
+    assert set(STREAMING) == {"harris1999", "scribner", "ecr", "torres-kalman", "zuo2011"}
+    for name, cls in STREAMING.items():
         obj = cls()
+        assert isinstance(obj, StreamingCorrector), name
         manual = np.stack([obj.process(f) for f in flight.frames[:12]])
         np.testing.assert_allclose(
             manual, correct_nonuniformity(flight.frames[:12], method=name), rtol=1e-5, atol=1e-3
         )
-    obj = STREAMING_METHODS["ecr"]()
+        # correct_frame: the current parameters, learning nothing
+        seen = obj.n_seen
+        np.testing.assert_array_equal(obj.correct_frame(flight.frames[11]), manual[-1])
+        assert obj.n_seen == seen and not hasattr(obj, "apply")
+    obj = STREAMING["ecr"]()
     obj.update(flight.frames[0])
     with pytest.raises(ResolutionMismatchError):
         obj.update(flight.frames[0][:, :50])
+
+
+def test_every_nuc_method_has_a_source_and_summary():
+    for name, m in NUC_METHODS.items():
+        assert m.name == name and m.source and m.summary and "\n" not in m.summary
+        assert callable(m.correct)
 
 
 def test_column_midway_removes_column_offsets():

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import click
 
-from thermocal.errors import InvalidInputError
+from thermocal._validate import check_output_file
 from thermocal.evaluation.suites import SUITES as BENCHMARKS
 
 
@@ -99,8 +99,8 @@ def bench(quick: bool, json_out: Path | None, md_out: Path | None, only: tuple[s
 
     host = machine()
     for path in (json_out, md_out):  # before hours of benchmarks, not after
-        if path is not None and not path.resolve().parent.is_dir():
-            raise InvalidInputError(f"{path.parent}: output folder does not exist")
+        if path is not None:
+            check_output_file(path)
     runs = run_benchmarks(only or BENCHMARKS, quick=quick)
     report = markdown_report(runs, quick=quick, host=host)
     if json_out:

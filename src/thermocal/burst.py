@@ -12,7 +12,13 @@ from typing import Any
 
 import numpy as np
 
-from thermocal._validate import as_frames
+from thermocal._validate import (
+    SATURATED_FRACTION,
+    as_frames,
+    check_not_constant,
+    check_not_saturated,
+    pivot_index,
+)
 from thermocal.calibration.base import fill_bad_pixels
 from thermocal.errors import InvalidInputError, RegistrationError
 from thermocal.registration.burst import register_burst
@@ -31,8 +37,6 @@ __all__ = [
     "stuck_pixels",
 ]
 
-#: A frame with more than this fraction of its pixels at 0 or at the largest count is saturated.
-SATURATED_FRACTION = 0.02
 #: Every frame must see at least this fraction of the pivot frame.
 MIN_OVERLAP = 0.1
 
@@ -40,26 +44,18 @@ MIN_OVERLAP = 0.1
 def check_burst(
     frames: Any, *, bit_depth: int = 14, name: str = "frames", registered: bool = False
 ) -> np.ndarray:
-    """Validate a raw burst: ``(N, H, W)`` counts, no saturated or dead frames.
+    """Validate a raw burst: ``(N, H, W)`` counts, no saturated or constant (dead) frames.
 
-    Raises :class:`InvalidInputError` for saturated frames (more than 2 % of the pixels at 0 or
-    at ``2**bit_depth − 1``) or constant frames. For ``registered`` frames, 0 marks pixels a
-    frame does not cover: they are not counted.
+    The rules are :mod:`thermocal._validate`'s: :func:`~thermocal._validate.as_frames`,
+    :func:`~thermocal._validate.check_not_saturated` (more than
+    :data:`~thermocal._validate.SATURATED_FRACTION` of the pixels at 0 or at
+    ``2**bit_depth − 1``) and :func:`~thermocal._validate.check_not_constant`. For
+    ``registered`` frames, 0 marks pixels a frame does not cover: they are not counted.
+    Raises :class:`InvalidInputError`.
     """
-    arr = as_frames(frames, name)
-    top = 2**bit_depth - 1
-    for k, f in enumerate(arr):
-        covered = np.count_nonzero(f > 0) if registered else f.size
-        n_pix = max(covered, 1)
-        sat = np.count_nonzero(f >= top) / n_pix
-        low = 0.0 if registered else np.count_nonzero(f <= 0) / n_pix
-        if sat > SATURATED_FRACTION or low > SATURATED_FRACTION:
-            which = f"{100 * sat:.0f} % at {top}" if sat >= low else f"{100 * low:.0f} % at 0"
-            raise InvalidInputError(
-                f"{name}: frame {k} is saturated ({which}); use frames within the sensor's range"
-            )
-        if covered == 0 or float(f.max()) == float(f[f > 0].min() if registered else f.min()):
-            raise InvalidInputError(f"{name}: frame {k} is constant (a dead or blank frame)")
+    arr = as_frames(frames, name, bit_depth=bit_depth)
+    check_not_saturated(arr, name, bit_depth=bit_depth, registered=registered)
+    check_not_constant(arr, name, registered=registered)
     return arr
 
 
@@ -127,15 +123,6 @@ def fill_stuck_pixels(frames: Any, homographies: Any = None) -> tuple[np.ndarray
             filled = np.rint(filled)
         out[:, bad] = filled.astype(arr.dtype)
     return out, bad
-
-
-def pivot_index(pivot: int | None, n: int) -> int:
-    """The pivot frame's index (default the middle one), checked against ``n`` frames."""
-    if pivot is None:
-        pivot = n // 2
-    if not 0 <= pivot < n:
-        raise InvalidInputError(f"pivot {pivot} is not a frame index (0 … {n - 1})")
-    return pivot
 
 
 def find_homographies(frames: np.ndarray, pivot: int, homographies: Any = None) -> np.ndarray:

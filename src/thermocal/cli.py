@@ -11,26 +11,9 @@ from pathlib import Path
 import click
 
 from thermocal import __version__
+from thermocal._validate import check_output_file, parse_range
 from thermocal.errors import InvalidInputError, ThermocalError
 from thermocal.progress import progress_bar
-
-
-def parse_range(text: str, name: str, *, parts: int) -> tuple[float, ...]:
-    """Parse ``A:B`` or ``A:B:STEP`` (°C); ``A < B`` and ``STEP > 0`` for three parts."""
-    try:
-        values = tuple(float(v) for v in text.split(":"))
-    except ValueError:
-        values = ()
-    want = "A:B" if parts == 2 else "A:B:STEP"
-    if len(values) != parts:
-        raise InvalidInputError(f"{name} {text!r}: expected {want} in °C")
-    if parts == 3:
-        start, stop, step = values
-        if step <= 0 or stop < start:
-            raise InvalidInputError(
-                f"{name} {text!r}: expected {want} with A <= B and STEP > 0 (e.g. 10:70:10)"
-            )
-    return values
 
 
 def setpoints_from_range(start: float, stop: float, step: float) -> tuple[float, ...]:
@@ -91,9 +74,9 @@ def simulate_chamber_cmd(
     from thermocal.camera.presets import make_camera
     from thermocal.simulate.chamber import ChamberPlan, write_simulated_chamber
 
-    start, stop, step = parse_range(blackbody_c, "--blackbody-c", parts=3)
-    amb_low, amb_high = parse_range(ambient_c, "--ambient-c", parts=2)
-    _check_output_file(out)
+    start, stop, step = parse_range(blackbody_c, "--blackbody-c", step=True)
+    amb_low, amb_high = parse_range(ambient_c, "--ambient-c")
+    check_output_file(out)
     plan = ChamberPlan(
         setpoints_c=setpoints_from_range(start, stop, step),
         frames_per_point=frames_per_point,
@@ -165,13 +148,6 @@ def load_scene_or_procedural(scene: str, *, seed: int):
     from thermocal.scenes.real import load_scene
 
     return load_scene(scene), Path(scene).name
-
-
-def _check_output_file(path: Path) -> None:
-    if path.is_dir():
-        raise InvalidInputError(f"{path}: is a directory, expected a file name")
-    if not path.parent.exists():
-        raise InvalidInputError(f"{path.parent}: output folder does not exist")
 
 
 @cli.command()

@@ -1,4 +1,5 @@
-"""Shared pieces of every calibration: warnings, input checks, bad-pixel filling, range checks.
+"""Shared pieces of every calibration: what one is (:class:`Calibration`,
+:class:`StreamingCorrector`), warnings, input checks, bad-pixel filling, range checks.
 
 Every fitted calibration is a frozen dataclass with ``apply(frames, *, fpa_c=None, time_s=None)``
 returning the scene's blackbody-equivalent (radiance) temperature in °C as float32 ``(N, H, W)``,
@@ -8,17 +9,83 @@ and ``save(path)`` / ``load(path)`` through :mod:`thermocal.calibration.store`.
 from __future__ import annotations
 
 import warnings
-from typing import Any
+from pathlib import Path
+from typing import Any, Protocol, Self, runtime_checkable
 
 import numpy as np
 
-from thermocal._validate import as_frames, as_temperature_c, check_same_shape
+from thermocal._validate import (
+    as_frames,
+    as_temperature_c,
+    check_not_saturated,
+    check_same_shape,
+)
 from thermocal.errors import InvalidInputError
 from thermocal.radiometry import BandRadiance, band_table
 
-ZERO_C_K = 273.15
-#: A frame with more than this fraction of its pixels at 0 or at the top count is "saturated".
-SATURATED_FRAME_FRACTION = 0.05
+
+@runtime_checkable
+class Calibration(Protocol):
+    """A fitted per-pixel calibration: raw counts → the scene's temperature, °C.
+
+    ``apply`` means the same for every calibration (and nowhere else in thermocal means
+    anything else): a stateless map of a stack of frames, never changing the calibration.
+    A method that learns as frames stream by (``wolf2016``) keeps that state in a
+    :class:`StreamingCorrector` it makes afresh for each ``apply``.
+
+    Attributes
+    ----------
+    method : str
+        Its name in :data:`thermocal.calibration.CALIBRATION_METHODS` (and in its file).
+    shape : (H, W)
+        The frame size it applies to, pixels.
+    bad : (H, W) bool
+        Pixels whose fit is unusable; their output is filled from their neighbours.
+    """
+
+    method: str
+    bad: np.ndarray
+
+    @property
+    def shape(self) -> tuple[int, int]: ...
+
+    def apply(self, frames: Any, *, fpa_c: Any = None, time_s: Any = None) -> np.ndarray:
+        """Scene temperature, °C, float32 ``(N, H, W)``, of raw counts ``(N, H, W)`` (or one
+        ``(H, W)`` frame); ``fpa_c`` (°C) and ``time_s`` (s): one value or one per frame, for
+        the methods that need them."""
+        ...
+
+    def save(self, path: str | Path) -> Path:
+        """Write the calibration file (HDF5, atomic); returns its path."""
+        ...
+
+    @classmethod
+    def load(cls, path: str | Path) -> Self:
+        """Read a calibration file of this class's method(s)."""
+        ...
+
+
+@runtime_checkable
+class StreamingCorrector(Protocol):
+    """Corrects a recording frame by frame, learning from each frame as it goes (stateful).
+
+    The keyword arguments are a method's per-frame data (``wolf2016``: ``fpa_c`` °C and
+    ``time_s`` s; ``zuo2011``: the homography to the previous frame). Outputs are float32.
+    """
+
+    def correct_frame(self, frame: Any, **per_frame: Any) -> np.ndarray:
+        """One frame ``(H, W)`` corrected with the current state, ``(H, W)``; learns nothing."""
+        ...
+
+    def process(self, frame: Any, **per_frame: Any) -> np.ndarray:
+        """One step of the stream: correct one frame ``(H, W)`` and learn from it (in the
+        method's order), ``(H, W)``."""
+        ...
+
+    def correct(self, frames: Any, **per_frame: Any) -> np.ndarray:
+        """:meth:`process` every frame of ``(N, H, W)`` in order (causal), ``(N, H, W)``; the
+        per-frame data as one value or one per frame."""
+        ...
 
 
 class ThermocalWarning(UserWarning):
@@ -32,22 +99,13 @@ class OutsideCalibrationRangeWarning(ThermocalWarning):
 def check_frames(frames: Any, shape: tuple[int, int], *, bit_depth: int = 14) -> np.ndarray:
     """Validate raw counts for a calibration of frame ``shape`` ``(H, W)``; ``(N, H, W)`` out.
 
-    Raises :class:`InvalidInputError` for non-numeric or NaN input, counts outside 14 bits, or
-    saturated frames (more than 5 % of the pixels at 0 or at the top count), and
-    :class:`ResolutionMismatchError` for frames of another size than the calibration.
+    Raises :class:`InvalidInputError` for non-numeric or NaN input, counts outside
+    ``bit_depth`` bits, or saturated frames (:func:`thermocal._validate.check_not_saturated`),
+    and :class:`ResolutionMismatchError` for frames of another size than the calibration.
     """
-    counts = as_frames(frames)
+    counts = as_frames(frames, bit_depth=bit_depth)
     check_same_shape(counts, np.empty(shape, dtype=np.uint8), "frames", "the calibration")
-    top = 2**bit_depth - 1
-    if counts.dtype.kind in "ui":
-        n_pix = counts.shape[1] * counts.shape[2]
-        for k, frame in enumerate(counts):
-            clipped = np.count_nonzero(frame == top) + np.count_nonzero(frame == 0)
-            if clipped > SATURATED_FRAME_FRACTION * n_pix:
-                raise InvalidInputError(
-                    f"frames: frame {k} is saturated ({100 * clipped / n_pix:.0f} % of its pixels "
-                    f"at 0 or {top}); remove it or lower the scene temperature / gain"
-                )
+    check_not_saturated(counts, bit_depth=bit_depth)
     return counts
 
 

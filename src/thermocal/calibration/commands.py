@@ -1,4 +1,8 @@
-"""The ``thermocal calibrate`` and ``thermocal correct`` commands."""
+"""The ``thermocal calibrate`` and ``thermocal correct`` commands.
+
+Their method names and help come from the registry,
+:data:`thermocal.calibration.registry.CALIBRATION_METHODS`.
+"""
 
 from __future__ import annotations
 
@@ -7,60 +11,56 @@ from pathlib import Path
 
 import click
 
+from thermocal._validate import TIFF_SUFFIXES, check_output_file
+from thermocal.calibration.registry import CALIBRATION_METHODS, method_help
 from thermocal.errors import InvalidInputError
 
-_METHODS = ["two-point", "one-point", "shutter", "polynomial", "wolf2016", "lin", "lin-level"]
+_CALIBRATION_SUFFIXES = (".h5", ".hdf5")
 
 
-def _check_output(path: Path, suffixes: tuple[str, ...]) -> None:
-    if path.is_dir():
-        raise InvalidInputError(f"{path}: is a directory, expected a file name")
-    if not path.parent.exists():
-        raise InvalidInputError(f"{path.parent}: output folder does not exist")
-    if path.suffix.lower() not in suffixes:
-        raise InvalidInputError(f"{path}: the output must end in {' or '.join(suffixes)}")
+def _fpa_ref_help() -> str:
+    takes = ", ".join(name for name, c in CALIBRATION_METHODS.items() if c.takes_fpa_ref)
+    return f"Reference FPA temperature, °C ({takes})."
 
 
-@click.command()
+@click.command(epilog=method_help())
 @click.argument("chamber", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--method", type=click.Choice(_METHODS), default="polynomial", show_default=True)
+@click.option("--method", type=click.Choice(list(CALIBRATION_METHODS)), default="polynomial",
+              show_default=True, help="Calibration method (listed below).")
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Calibration file to write (.h5).")
-@click.option("--fpa-ref-c", type=float, default=None,
-              help="Reference FPA temperature, °C (two-point, one-point, shutter, wolf2016, lin, "
-                   "lin-level).")
+@click.option("--fpa-ref-c", type=float, default=None, help=_fpa_ref_help())
 @click.option("--scene-term", type=click.Choice(["radiance", "t4", "linear"]), default="radiance",
               show_default=True, help="Scene term of the polynomial model.")
 @click.option("--radial", is_flag=True, help="Polynomial: keep only the radial fit (eq. 16–17).")
 def calibrate(chamber: Path, method: str, out: Path, fpa_ref_c: float | None, scene_term: str,
               radial: bool) -> None:
     """Fit a calibration to a chamber file (HDF5, or an EnvChamberCtrl .npz)."""
-    from thermocal.calibration import fit_calibration
     from thermocal.calibration.dataset import prepare_chamber
+    from thermocal.calibration.registry import fit_calibration
 
-    _check_output(out, (".h5", ".hdf5"))
+    check_output_file(out, _CALIBRATION_SUFFIXES)
+    if radial and method != "polynomial":
+        raise InvalidInputError("--radial applies to --method polynomial only")
     data = prepare_chamber(chamber)
     options: dict = {}
     if method == "polynomial":
         options["scene"] = scene_term
-    elif fpa_ref_c is not None:
+    elif fpa_ref_c is not None and CALIBRATION_METHODS[method].takes_fpa_ref:
         options["fpa_ref_c"] = fpa_ref_c
     cal = fit_calibration(data, method, **options)
     if radial:
-        if method != "polynomial":
-            raise InvalidInputError("--radial applies to --method polynomial only")
-        cal = cal.radial()
+        cal = cal.radial()  # type: ignore[attr-defined]
     cal.save(out)
-    lo, hi = getattr(cal, "fpa_range", None) or cal.fpa_range_c
-    n_bad = int(cal.bad.sum())
+    lo, hi = getattr(cal, "fpa_range", None) or cal.fpa_range_c  # type: ignore[attr-defined]
     click.echo(
         f"{method} calibration of {data.frame_shape[1]}x{data.frame_shape[0]} from "
         f"{data.n_frames} frames ({len(data.setpoints_c)} set points, FPA {lo:.2f}…{hi:.2f} °C, "
-        f"{n_bad} bad pixels) written to {out}"
+        f"{int(cal.bad.sum())} bad pixels) written to {out}"
     )
 
 
-@click.command()
+@click.command(epilog=method_help())
 @click.argument("frames", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--calibration", "calibration_path", type=click.Path(dir_okay=False, path_type=Path),
               required=True, help="Calibration file made by `thermocal calibrate`.")
@@ -69,12 +69,13 @@ def calibrate(chamber: Path, method: str, out: Path, fpa_ref_c: float | None, sc
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Temperature TIFF to write (float32 °C, (N, H, W)).")
 def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path) -> None:
-    """Turn a recording's raw frames into temperatures (°C) with a calibration."""
-    from thermocal.calibration import load_any_calibration
+    """Turn a recording's raw frames into temperatures (°C) with a calibration file of any
+    method (the file records which)."""
     from thermocal.calibration.base import ThermocalWarning
+    from thermocal.calibration.registry import load_any_calibration
     from thermocal.io.recording import read_recording, write_temperature_tiff
 
-    _check_output(out, (".tif", ".tiff"))
+    check_output_file(out, TIFF_SUFFIXES)
     cal = load_any_calibration(calibration_path)
     rec = read_recording(frames, fpa_c=fpa_c)
     with warnings.catch_warnings(record=True) as caught:

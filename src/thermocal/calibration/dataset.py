@@ -13,7 +13,8 @@ ambient drifts. Before a fit, every frame gets
 - the set-point visit (block) it belongs to, and whether it is usable (settled blackbody).
 
 Frames are read chunk by chunk (:func:`iter_frames`), so sessions larger than memory can be fitted;
-frames with more than 5 % of their pixels at 0 or the top count are excluded and counted.
+saturated frames (:data:`thermocal._validate.SATURATED_FRACTION` of their pixels at 0 or the top
+count) are excluded and counted.
 """
 
 from __future__ import annotations
@@ -26,7 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from thermocal.calibration.base import SATURATED_FRAME_FRACTION
+from thermocal._validate import SATURATED_FRACTION, clipped_mask, saturated_fraction
+from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import FitError, InvalidInputError
 from thermocal.io.chamber import ChamberSession, LazyFrames
 from thermocal.radiometry import TAU2, BandRadiance
@@ -136,10 +138,10 @@ def scene_temperature_c(
     surround = session.ambient_c if session.ambient_c is not None else session.housing_c
     if surround is None:
         surround = bb
-    radiance = eps * band.radiance(bb + 273.15) + (1.0 - eps) * band.radiance(
-        np.asarray(surround, dtype=np.float64) + 273.15
+    radiance = eps * band.radiance(bb + ZERO_CELSIUS_K) + (1.0 - eps) * band.radiance(
+        np.asarray(surround, dtype=np.float64) + ZERO_CELSIUS_K
     )
-    return band.temperature(radiance) - 273.15
+    return band.temperature(radiance) - ZERO_CELSIUS_K
 
 
 @dataclass(frozen=True, eq=False)
@@ -321,11 +323,11 @@ class FrameScan:
         self.clipped_per_pixel = np.zeros(self.shape, dtype=np.int64)
 
     def check(self, index: np.ndarray, frames: np.ndarray) -> np.ndarray:
-        """Return a bool ``(k,)`` of frames to keep; saturated frames are recorded as excluded."""
-        top = 2**self.bit_depth - 1
-        clipped = (frames == top) | (frames == 0)
-        per_frame = clipped.reshape(len(frames), -1).mean(axis=1)
-        keep = per_frame <= SATURATED_FRAME_FRACTION
+        """Return a bool ``(k,)`` of frames to keep; saturated frames (more than
+        :data:`~thermocal._validate.SATURATED_FRACTION` of their pixels clipped) are recorded as
+        excluded."""
+        clipped = clipped_mask(frames, self.bit_depth)
+        keep = saturated_fraction(frames, clipped=clipped) <= SATURATED_FRACTION
         self.clipped_per_pixel += clipped[keep].sum(axis=0)
         self.excluded.extend(int(i) for i in index[~keep])
         self.n_seen += int(keep.sum())

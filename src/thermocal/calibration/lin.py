@@ -43,7 +43,6 @@ import numpy as np
 from scipy.optimize import curve_fit
 
 from thermocal.calibration.base import (
-    ZERO_C_K,
     band_for,
     calibration_info,
     check_frames,
@@ -63,6 +62,7 @@ from thermocal.calibration.dataset import (
     require_setpoints,
 )
 from thermocal.calibration.store import FileLayout, StoredCalibrationMixin
+from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import FitError, InvalidInputError
 
 METHOD = "lin"
@@ -203,10 +203,11 @@ class LinCalibration(StoredCalibrationMixin):
         gf = self.corrected_counts(counts, fpa, rate)
         out = np.empty_like(gf)
         b, f = np.float32(self.planck_b), np.float32(self.planck_f)
+        zero_c = np.float32(ZERO_CELSIUS_K)
         for k in range(nfr):
             den = gf[k] - self.o
             arg = self.r / np.where(np.abs(den) < 1e-3, np.float32(1e-3), den) + f
-            out[k] = b / np.log(np.maximum(arg, np.float32(1.0 + 1e-6))) - np.float32(ZERO_C_K)
+            out[k] = b / np.log(np.maximum(arg, np.float32(1.0 + 1e-6))) - zero_c
         return fill_bad_pixels(out, self.bad)
 
 
@@ -262,7 +263,7 @@ def lin(
     n_groups = points.size
     # Radiance of each frame's scene, and a global responsivity to refer every frame of a set
     # point to that set point's mean radiance (the grey blackbody reflects a drifting ambient).
-    rad = np.asarray(band.radiance(data.scene_c + ZERO_C_K), dtype=np.float64)
+    rad = np.asarray(band.radiance(data.scene_c + ZERO_CELSIUS_K), dtype=np.float64)
     rad_s = np.array([rad[group == g].mean() for g in range(n_groups)])
     dt = data.fpa_c - ref
     # scene level of each frame (its set point's mean radiance) around the set points' mean

@@ -27,7 +27,6 @@ from typing import Any
 import numpy as np
 
 from thermocal.calibration.base import (
-    ZERO_C_K,
     band_for,
     calibration_info,
     check_frames,
@@ -47,6 +46,7 @@ from thermocal.calibration.dataset import (
 )
 from thermocal.calibration.store import FileLayout, StoredCalibration, StoredCalibrationMixin
 from thermocal.camera.model import horner
+from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import FitError, InvalidInputError
 from thermocal.radiometry import BandRadiance
 
@@ -59,11 +59,11 @@ def scene_term(temp_c: Any, kind: str, band: BandRadiance) -> np.ndarray:
     """The scene term ``S(T)`` of the model for temperatures in °C (float64)."""
     t = np.asarray(temp_c, dtype=np.float64)
     if kind == "t4":
-        return (t + ZERO_C_K) ** 4
+        return (t + ZERO_CELSIUS_K) ** 4
     if kind == "linear":
         return t.copy()
     if kind == "radiance":
-        return np.asarray(band.radiance(t + ZERO_C_K), dtype=np.float64)
+        return np.asarray(band.radiance(t + ZERO_CELSIUS_K), dtype=np.float64)
     raise InvalidInputError(f"unknown scene term {kind!r}; choose from {', '.join(SCENE_TERMS)}")
 
 
@@ -193,10 +193,10 @@ def _invert_scene(s: np.ndarray, kind: str, band: BandRadiance) -> np.ndarray:
         return s
     if kind == "t4":
         np.maximum(s, np.float32(1e4), out=s)  # 10 K⁴: keeps the root real for broken pixels
-        return np.sqrt(np.sqrt(s)) - np.float32(ZERO_C_K)
+        return np.sqrt(np.sqrt(s)) - np.float32(ZERO_CELSIUS_K)
     lo, hi = band.radiance_range
     np.clip(s, lo, hi, out=s)
-    return band.temperature(s) - np.float32(ZERO_C_K)
+    return band.temperature(s) - np.float32(ZERO_CELSIUS_K)
 
 
 def polynomial(
@@ -221,7 +221,7 @@ def polynomial(
     t_ref_c : float, optional
         Expansion point of the FPA polynomials, °C (default: the middle of the FPA range).
     frames : {"stable", "settled", "all"}
-        Which frames to fit by FPA stability: only stable ones (|rate| ≤ 0.05 °C/min, the
+        Which frames to fit by FPA stability: only stable ones (``|rate| ≤ 0.05`` °C/min, the
         default), stable and relatively stable ones (≤ 0.5 °C/min), or all. The model has no
         transient term: frames taken while the FPA changes bias it.
     frame_mask : (M,) bool, optional

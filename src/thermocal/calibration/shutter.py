@@ -16,7 +16,6 @@ from typing import Any
 import numpy as np
 
 from thermocal.calibration.base import (
-    ZERO_C_K,
     band_for,
     check_frames,
     fill_bad_pixels,
@@ -25,6 +24,7 @@ from thermocal.calibration.base import (
 )
 from thermocal.calibration.store import FileLayout, StoredCalibrationMixin
 from thermocal.calibration.two_point import TwoPointCalibration, two_point
+from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import InvalidInputError
 
 METHOD = "shutter"
@@ -75,7 +75,7 @@ class ShutterCalibration(StoredCalibrationMixin):
         fpa = per_frame_series(fpa_c, n, "fpa_c")
         t = per_frame_series(time_s, n, "time_s", temperature=False)
         band = band_for(tuple(self.band_m))
-        shutter_l = band.radiance((fpa + ZERO_C_K).astype(np.float32))
+        shutter_l = band.radiance((fpa + ZERO_CELSIUS_K).astype(np.float32))
         offsets = counts - self.gain[None] * shutter_l[:, None, None]
         times = np.concatenate([self.event_time_s, t])
         stack = offsets if self.event_offset is None else np.concatenate(
@@ -103,7 +103,7 @@ class ShutterCalibration(StoredCalibrationMixin):
         for k in range(n):
             off = self.offset if which[k] < 0 else self.event_offset[which[k]]  # type: ignore[index]
             rad = (counts[k].astype(np.float32) - off) * inv_gain
-            out[k] = band.temperature(np.clip(rad, lo, hi)) - np.float32(ZERO_C_K)
+            out[k] = band.temperature(np.clip(rad, lo, hi)) - np.float32(ZERO_CELSIUS_K)
         return fill_bad_pixels(out, self.bad)
 
 

@@ -16,7 +16,6 @@ import numpy as np
 
 from thermocal._validate import as_frames, as_temperature_c, check_same_shape
 from thermocal.calibration.base import (
-    ZERO_C_K,
     band_for,
     calibration_info,
     check_frames,
@@ -34,6 +33,7 @@ from thermocal.calibration.dataset import (
     prepare_chamber,
 )
 from thermocal.calibration.store import FileLayout, StoredCalibrationMixin
+from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import FitError
 from thermocal.radiometry import BandRadiance
 
@@ -94,7 +94,7 @@ class TwoPointCalibration(StoredCalibrationMixin):
         for k, frame in enumerate(counts):
             radiance = (frame.astype(np.float32) - self.offset) * inv_gain
             np.clip(radiance, lo, hi, out=radiance)
-            out[k] = band.temperature(radiance) - np.float32(ZERO_C_K)
+            out[k] = band.temperature(radiance) - np.float32(ZERO_CELSIUS_K)
         return fill_bad_pixels(out, self.bad)
 
 
@@ -138,7 +138,7 @@ def _two_point_from_means(
             f"got {t_low:.2f} and {t_high:.2f} °C"
         )
     band = band_for(tuple(band_m))
-    l_low, l_high = (float(band.radiance(np.float64(t + ZERO_C_K))) for t in (t_low, t_high))
+    l_low, l_high = (float(band.radiance(np.float64(t + ZERO_CELSIUS_K))) for t in (t_low, t_high))
     gain = (mean_high - mean_low) / (l_high - l_low)
     offset = mean_low - gain * l_low
     bad = robust_outliers(gain, mads=outlier_mads) | (gain <= 0)
@@ -184,8 +184,8 @@ def _reference_frames(
 
 def _mean_scene_c(data: ChamberData, sel: np.ndarray, band: BandRadiance) -> float:
     """Radiance-mean scene temperature of the selected frames, °C."""
-    radiance = band.radiance(data.scene_c[sel] + ZERO_C_K).mean()
-    return float(band.temperature(radiance)) - ZERO_C_K
+    radiance = band.radiance(data.scene_c[sel] + ZERO_CELSIUS_K).mean()
+    return float(band.temperature(radiance)) - ZERO_CELSIUS_K
 
 
 def two_point(
@@ -289,7 +289,7 @@ def one_point(
     scan = FrameScan(data.frame_shape, data.session.bit_depth)
     means, _ = group_means(data, groups, len(chosen), chunk=chunk, scan=scan)
     temps = [_mean_scene_c(data, groups == g, band) for g in range(len(chosen))]
-    rad = [float(band.radiance(t + ZERO_C_K)) for t in temps]
+    rad = [float(band.radiance(t + ZERO_CELSIUS_K)) for t in temps]
     bad = scan.saturated_pixels()
     if gain is None:
         valid = ~bad

@@ -29,8 +29,9 @@ therefore starts on the steady response to a ramp at the FPA rate fitted to its 
 (``hw_start="ramp"``, as ``lfilter_zi`` starts a filter on a constant); ``hw_start="steady"`` keeps
 the settled start.
 
-:class:`Wolf2016Stream` does this frame by frame; :meth:`Wolf2016Calibration.apply` runs a fresh
-stream over a batch of frames.
+:class:`Wolf2016Stream` does this frame by frame (a
+:class:`~thermocal.calibration.base.StreamingCorrector`); :meth:`Wolf2016Calibration.apply` runs
+a fresh stream over a stack of frames.
 """
 
 from __future__ import annotations
@@ -43,7 +44,6 @@ import numpy as np
 from scipy.ndimage import uniform_filter
 
 from thermocal.calibration.base import (
-    ZERO_C_K,
     band_for,
     calibration_info,
     check_frames,
@@ -62,6 +62,7 @@ from thermocal.calibration.dataset import (
     stability_mask,
 )
 from thermocal.calibration.store import FileLayout, StoredCalibration, StoredCalibrationMixin
+from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import FileFormatError, FitError, InvalidInputError
 
 METHOD = "wolf2016"
@@ -215,17 +216,8 @@ class Wolf2016Calibration(StoredCalibrationMixin):
         ``frame_rate_hz``. ``options`` go to :class:`Wolf2016Stream` (e.g. ``hw_start``: by
         default the HW block starts on the FPA ramp fitted to the first samples).
         """
-        counts = check_frames(frames, self.shape)
-        n = len(counts)
-        fpa = require_fpa(fpa_c, n, METHOD)
-        warn_outside_range(fpa, self.fpa_range_c, METHOD)
-        t = (np.arange(n) / frame_rate_hz if time_s is None
-             else per_frame_series(time_s, n, "time_s", temperature=False))
-        stream = self.stream(**options)
-        out = np.empty(counts.shape, dtype=np.float32)
-        for k in range(n):
-            out[k] = stream.process(counts[k], fpa_c=float(fpa[k]), time_s=float(t[k]))
-        return out
+        return self.stream(**options).correct(frames, fpa_c=fpa_c, time_s=time_s,
+                                              frame_rate_hz=frame_rate_hz)
 
     def _metadata(self) -> dict[str, Any]:
         return super()._metadata() | {"hw": self.hw.to_list()}  # same place in the JSON
@@ -246,7 +238,10 @@ class Wolf2016Calibration(StoredCalibrationMixin):
 
 
 class Wolf2016Stream:
-    """Frame-by-frame Wolf et al. correction: :meth:`apply` a frame, :meth:`update` the LMS.
+    """Frame-by-frame Wolf et al. correction (a
+    :class:`~thermocal.calibration.base.StreamingCorrector`): :meth:`correct_frame` corrects a
+    frame with the current ΔT̂, :meth:`update` takes the LMS step from it, :meth:`process` does
+    both and :meth:`correct` processes a stack.
 
     Parameters
     ----------
@@ -338,10 +333,15 @@ class Wolf2016Stream:
             self._hw_v = v
         return self._hw_z + hw.bias
 
-    def apply(self, frame: Any, *, fpa_c: float, time_s: float) -> np.ndarray:
-        """Scene temperature of one frame, °C, float32 ``(H, W)``, with the current ΔT̂."""
+    def correct_frame(self, frame: Any, *, fpa_c: float, time_s: float) -> np.ndarray:
+        """Scene temperature of one frame ``(H, W)`` (raw counts), °C, float32 ``(H, W)``, with
+        the current ΔT̂ (the HW block advanced to ``time_s``, s; ``fpa_c``: the FPA sensor, °C).
+        """
+        return self._correct(check_frames(frame, self.calibration.shape)[0], fpa_c, time_s)
+
+    def _correct(self, counts: np.ndarray, fpa_c: float, time_s: float) -> np.ndarray:
+        """:meth:`correct_frame` of checked counts ``(H, W)``."""
         cal = self.calibration
-        counts = check_frames(frame, cal.shape)[0]
         x = counts.astype(np.float32) * cal.s0
         x += cal.s1
         x += cal.s2 * np.float32(self.delta_t_c)
@@ -349,13 +349,14 @@ class Wolf2016Stream:
         self._last_x = x
         self._last_time = float(time_s)
         lo, hi = self.band.radiance_range
-        temp = self.band.temperature(np.clip(x, lo, hi)) - np.float32(ZERO_C_K)
+        temp = self.band.temperature(np.clip(x, lo, hi)) - np.float32(ZERO_CELSIUS_K)
         return fill_bad_pixels(temp[None], cal.bad)[0]
 
     def update(self) -> bool:
-        """One LMS step (eq. 10–11) from the last applied frame, if one is due; True if done."""
+        """Learn: one LMS step (eq. 10–11) from the last corrected frame, if one is due; True if
+        done."""
         if self._last_x is None:
-            raise InvalidInputError("Wolf2016Stream.update: apply a frame first")
+            raise InvalidInputError("Wolf2016Stream.update: correct a frame first")
         self._frames += 1
         due = (
             self._frames <= self.warmup_frames
@@ -370,10 +371,32 @@ class Wolf2016Stream:
         return due
 
     def process(self, frame: Any, *, fpa_c: float, time_s: float) -> np.ndarray:
-        """:meth:`apply` then :meth:`update`: the temperature of this frame, °C ``(H, W)``."""
-        temp = self.apply(frame, fpa_c=fpa_c, time_s=time_s)
+        """:meth:`correct_frame` then :meth:`update`: the temperature of this frame, °C
+        ``(H, W)``."""
+        temp = self.correct_frame(frame, fpa_c=fpa_c, time_s=time_s)
         self.update()
         return temp
+
+    def correct(self, frames: Any, *, fpa_c: Any, time_s: Any = None,
+                frame_rate_hz: float = 30.0) -> np.ndarray:
+        """:meth:`process` every frame of raw counts ``(N, H, W)`` in order: °C, float32
+        ``(N, H, W)``.
+
+        ``fpa_c`` (the FPA sensor, °C: one value or one per frame) is required and checked
+        against the calibrated range (a warning); ``time_s`` (s, one per frame) defaults to
+        frames at ``frame_rate_hz``.
+        """
+        counts = check_frames(frames, self.calibration.shape)
+        n = len(counts)
+        fpa = require_fpa(fpa_c, n, METHOD)
+        warn_outside_range(fpa, self.calibration.fpa_range_c, METHOD)
+        t = (np.arange(n) / frame_rate_hz if time_s is None
+             else per_frame_series(time_s, n, "time_s", temperature=False))
+        out = np.empty(counts.shape, dtype=np.float32)
+        for k in range(n):
+            out[k] = self._correct(counts[k], float(fpa[k]), float(t[k]))
+            self.update()
+        return out
 
 
 def _s2_highpass(s2: np.ndarray, bad: np.ndarray, window: int) -> tuple[np.ndarray, float]:
@@ -449,7 +472,7 @@ def wolf2016(
     require_setpoints(data, 2, "wolf2016 (S0, S1, S2 of eq. 7-9)", near)
     require_fpa_span(data, 1.0, f"wolf2016 (S2 of eq. 7-9, frames within ±{fpa_window_c:g} °C "
                      f"of {ref:.2f} °C)", near)
-    x_all = np.asarray(band.radiance(data.scene_c + ZERO_C_K), dtype=np.float64)
+    x_all = np.asarray(band.radiance(data.scene_c + ZERO_CELSIUS_K), dtype=np.float64)
     dt_all = data.fpa_c - ref
     h, w = data.frame_shape
     scan = FrameScan((h, w), data.session.bit_depth)

@@ -21,6 +21,7 @@ from typing import Any
 import numpy as np
 
 from thermocal._validate import as_float_array, as_temperature_c
+from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import InvalidInputError, ResolutionMismatchError
 from thermocal.radiometry import TAU2, BandRadiance
 
@@ -166,11 +167,11 @@ def _scene_radiance(
             f"scene is {scene.shape[2]}x{scene.shape[1]} but the camera is "
             f"{model.shape[1]}x{model.shape[0]}"
         )
-    radiance = model.band.radiance((scene + 273.15).astype(np.float32))
+    radiance = model.band.radiance((scene + ZERO_CELSIUS_K).astype(np.float32))
     if emissivity < 1.0:
         if reflected_c is None:
             raise InvalidInputError("reflected_c is required when emissivity < 1")
-        reflected = float(model.band.radiance(np.float32(reflected_c + 273.15)))
+        reflected = float(model.band.radiance(np.float32(reflected_c + ZERO_CELSIUS_K)))
         radiance = emissivity * radiance + np.float32((1.0 - emissivity) * reflected)
     return radiance.astype(np.float32, copy=False)
 
@@ -212,7 +213,8 @@ def expected_counts(
     housing = fpa if housing_c is None else _per_frame(housing_c, n, "housing_c")
     as_temperature_c(housing, "housing_c")
     rate = _per_frame(fpa_rate_c_per_min, n, "fpa_rate_c_per_min")
-    self_radiance = model.band.radiance(housing + 273.15) - model.band.radiance(fpa + 273.15)
+    self_radiance = (model.band.radiance(housing + ZERO_CELSIUS_K)
+                     - model.band.radiance(fpa + ZERO_CELSIUS_K))
 
     out = np.empty((n, *model.shape), dtype=np.float32)
     for k in range(n):
@@ -297,12 +299,12 @@ def invert(
         housing_c=housing_c,
         fpa_rate_c_per_min=fpa_rate_c_per_min,
     )
-    zero_radiance = float(model.band.radiance(np.float32(273.15)))
+    zero_radiance = float(model.band.radiance(np.float32(ZERO_CELSIUS_K)))
     fpa = _per_frame(fpa_c, n, "fpa_c")
     out = np.empty_like(frames)
     for k in range(n):
         gain = model.gain_at(fpa[k])
         radiance = (frames[k] - zero_scene[k]) / gain + np.float32(zero_radiance)
         lo, hi = model.band.radiance_range
-        out[k] = model.band.temperature(np.clip(radiance, lo, hi)) - np.float32(273.15)
+        out[k] = model.band.temperature(np.clip(radiance, lo, hi)) - np.float32(ZERO_CELSIUS_K)
     return out

@@ -1,11 +1,14 @@
 """Estimation: a burst of raw frames → the pivot frame's temperature, one pipeline for every
 method.
 
-``base``      the :class:`Estimator` protocol, :class:`PreparedBurst`, :class:`Estimate`
-``pipeline``  the stages: validate → register → fill stuck pixels → calibrate → warp → estimate
-``registry``  :data:`ESTIMATORS` (every ``--method``) and :func:`make_estimator`
+============== ==============================================================================
+``base``       the :class:`Estimator` protocol, :class:`PreparedBurst`, :class:`Estimate`
+``pipeline``   the stages: validate → register → fill stuck pixels → calibrate → warp →
+               estimate
+``registry``   :data:`ESTIMATORS` (every ``--method``) and :func:`make_estimator`
 ``calibrated`` estimators from a per-pixel calibration: eq. 9's mean, the pivot frame alone
-``commands``  ``thermocal estimate``
+``commands``   ``thermocal estimate``
+============== ==============================================================================
 
 The network estimator lives in :mod:`thermocal.nn.infer` (it imports torch) and is built by
 :func:`make_estimator` only when asked for.

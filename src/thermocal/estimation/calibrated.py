@@ -7,6 +7,7 @@ from typing import Any
 
 import numpy as np
 
+from thermocal.calibration.base import Calibration
 from thermocal.errors import ResolutionMismatchError
 from thermocal.estimation.base import Estimate, PreparedBurst
 from thermocal.estimation.pipeline import estimate
@@ -15,13 +16,13 @@ __all__ = ["OzMean", "PivotCalibration", "naive_mean"]
 
 
 class _ThroughCalibration:
-    """Shared by both: a fitted calibration (``apply(frames, *, fpa_c, time_s)`` → °C) of one
-    frame size."""
+    """Shared by both: a fitted :class:`~thermocal.calibration.base.Calibration`
+    (``apply(frames, *, fpa_c, time_s)`` → °C) of one frame size."""
 
     n_frames = None
     needs_fpa = False
 
-    def __init__(self, calibration: Any) -> None:
+    def __init__(self, calibration: Calibration) -> None:
         self.calibration = calibration
 
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
@@ -66,7 +67,8 @@ class PivotCalibration(_ThroughCalibration):
         return np.asarray(burst.warped[burst.pivot], dtype=np.float32)
 
 
-def naive_mean(frames: Any, calibration: Any, *, fpa_c: Any = None, **options: Any) -> Estimate:
+def naive_mean(frames: Any, calibration: Calibration, *, fpa_c: Any = None, **options: Any
+               ) -> Estimate:
     """Oz et al. eq. 9 on a burst: the pipeline (:func:`thermocal.estimation.pipeline.estimate`,
     whose keyword ``options`` it takes) with :class:`OzMean` of a fitted ``calibration``."""
     return estimate(frames, OzMean(calibration), fpa_c=fpa_c, **options)

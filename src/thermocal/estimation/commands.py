@@ -7,6 +7,7 @@ from pathlib import Path
 
 import click
 
+from thermocal._validate import TIFF_SUFFIXES, check_output_file
 from thermocal.errors import InvalidInputError
 from thermocal.estimation.pipeline import estimate as run_pipeline
 from thermocal.estimation.registry import ESTIMATORS, make_estimator, method_help
@@ -32,11 +33,7 @@ def estimate_file(
     """
     from thermocal.io.recording import read_recording, write_temperature_tiff
 
-    out = Path(out)
-    if out.suffix.lower() not in (".tif", ".tiff"):
-        raise InvalidInputError(f"{out}: the output must be a .tiff file")
-    if not out.parent.is_dir():
-        raise InvalidInputError(f"{out.parent}: output folder does not exist")
+    out = check_output_file(out, TIFF_SUFFIXES)
     if ESTIMATORS.get(method) and ESTIMATORS[method].needs == "calibration" and not calibration:
         raise InvalidInputError(
             f"--method {method} needs a per-pixel calibration: give --calibration CAL.h5"

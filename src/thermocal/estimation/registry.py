@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from typing import Any
 
+from thermocal.calibration.base import Calibration
 from thermocal.errors import InvalidInputError
 from thermocal.estimation.base import Estimator
 from thermocal.nn.variants import VARIANTS
@@ -63,7 +63,7 @@ def make_estimator(
     name: str,
     *,
     model: str | os.PathLike[str] | None = None,
-    calibration: str | os.PathLike[str] | Any = None,
+    calibration: str | os.PathLike[str] | Calibration | None = None,
 ) -> Estimator:
     """Build the estimator ``name`` of :data:`ESTIMATORS`.
 

@@ -2,12 +2,14 @@
 benchmark suites themselves (``thermocal bench`` runs :mod:`thermocal.evaluation.suites`, so it
 works from an installed package).
 
-``heldout``     the fixed held-out bursts (held-out scenes, held-out camera units)
-``scoring``     MAE, the bias / smooth / fine split, affine-free MAE, within 0.5 °C, by radius
-``references``  the estimates the network is compared with (family floor, baselines, classical)
-``network``     the network's rows, speed and training throughput (torch)
-``tables``      Markdown tables
-``suites``      one module per benchmark (``python -m thermocal.evaluation.suites.NAME``)
+============== ==============================================================================
+``heldout``    the fixed held-out bursts (held-out scenes, held-out camera units)
+``scoring``    MAE, the bias / smooth / fine split, affine-free MAE, within 0.5 °C, by radius
+``references`` the estimates the network is compared with (family floor, baselines, classical)
+``network``    the network's rows, speed and training throughput (torch)
+``tables``     Markdown tables
+``suites``     one module per benchmark (``python -m thermocal.evaluation.suites.NAME``)
+============== ==============================================================================
 """
 
 from thermocal.evaluation.scoring import scores, split_error, summarise

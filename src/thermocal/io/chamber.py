@@ -2,16 +2,16 @@
 
 A **chamber file** (DESIGN.md, "The contract: command line and files") is HDF5 with
 
-============== ======================= =======================================================
-name           type, shape             meaning
-============== ======================= =======================================================
-``frames``     uint16 ``(M, H, W)``    raw counts, chunked one frame per chunk
-``blackbody_c`` float ``(M,)``         blackbody temperature for each frame, °C
-``fpa_c``      float ``(M,)``          FPA temperature reported by the camera, °C
-``time_s``     float ``(M,)``          time stamp of each frame, s
-``housing_c``  float ``(M,)``          optional: housing temperature, °C
-``ambient_c``  float ``(M,)``          optional: chamber (ambient) temperature, °C
-============== ======================= =======================================================
+=============== ======================= ======================================================
+name            type, shape             meaning
+=============== ======================= ======================================================
+``frames``      uint16 ``(M, H, W)``    raw counts, chunked one frame per chunk
+``blackbody_c`` float ``(M,)``          blackbody temperature for each frame, °C
+``fpa_c``       float ``(M,)``          FPA temperature reported by the camera, °C
+``time_s``      float ``(M,)``          time stamp of each frame, s
+``housing_c``   float ``(M,)``          optional: housing temperature, °C
+``ambient_c``   float ``(M,)``          optional: chamber (ambient) temperature, °C
+=============== ======================= ======================================================
 
 and the file attributes ``format = "thermocal-chamber"``, ``version = 1``, ``bit_depth = 14``,
 plus free metadata attributes (``unit``, ``preset``, ``seed``, ...). Series are written as

@@ -33,10 +33,12 @@ import tifffile
 
 from thermocal._validate import (
     ABSOLUTE_ZERO_C,
+    TIFF_SUFFIXES,
     as_float_array,
+    as_frames,
     as_temperature_c,
     check_length,
-    check_ndim,
+    check_suffix,
 )
 from thermocal.errors import FileFormatError, InvalidInputError, ThermocalError
 from thermocal.io.atomic import atomic_path
@@ -58,7 +60,6 @@ __all__ = [
 #: Per-frame series a recording may carry, in sidecar order.
 SERIES_KEYS: tuple[str, ...] = ("fpa_c", "time_s", "housing_c", "ambient_c")
 _RESERVED_KEYS = frozenset((*SERIES_KEYS, "bit_depth"))
-_TIFF_SUFFIXES = (".tif", ".tiff")
 
 
 # --------------------------------------------------------------------------------------------
@@ -78,26 +79,15 @@ def _check_bit_depth(bit_depth: Any, name: str = "bit_depth") -> int:
 def _counts_as_uint16(frames: Any, bit_depth: int, name: str = "frames") -> np.ndarray:
     """Validate raw counts and return them as a ``(N, H, W)`` uint16 array (no copy if possible).
 
-    Integer dtypes only; values must lie in ``0 .. 2**bit_depth - 1``; a 2-D frame becomes N = 1.
+    Integer dtypes only; values must lie in ``0 .. 2**bit_depth - 1``
+    (:func:`thermocal._validate.as_frames`); a 2-D frame becomes N = 1.
     """
     arr = np.asarray(frames)
     if arr.dtype.kind not in "ui":
         raise InvalidInputError(
             f"{name}: raw counts must be integers (uint16), got dtype {arr.dtype}"
         )
-    check_ndim(arr, name, (2, 3))
-    if arr.ndim == 2:
-        arr = arr[None]
-    if arr.shape[0] == 0 or arr.shape[1] == 0 or arr.shape[2] == 0:
-        raise InvalidInputError(f"{name}: no frames or empty frames (shape {arr.shape})")
-    max_count = 2**bit_depth - 1
-    lo, hi = int(arr.min()), int(arr.max())
-    if lo < 0 or hi > max_count:
-        raise InvalidInputError(
-            f"{name}: counts outside the {bit_depth}-bit range 0..{max_count} "
-            f"(min {lo}, max {hi}); check the bit depth or the file"
-        )
-    return arr.astype(np.uint16, copy=False)
+    return as_frames(arr, name, bit_depth=bit_depth).astype(np.uint16, copy=False)
 
 
 def _read_only(arr: np.ndarray) -> np.ndarray:
@@ -226,10 +216,7 @@ def sidecar_path(path: str | os.PathLike[str]) -> Path:
 
 def _check_tiff_name(path: str | os.PathLike[str]) -> Path:
     """Return ``path`` as a Path, raising InvalidInputError unless it ends in .tif/.tiff."""
-    p = Path(path)
-    if p.suffix.lower() not in _TIFF_SUFFIXES:
-        raise InvalidInputError(f"{p}: a TIFF output must end in .tiff or .tif")
-    return p
+    return check_suffix(path, TIFF_SUFFIXES, "a TIFF output")
 
 
 def _sidecar_text(sidecar: dict[str, Any], json_path: Path) -> str:

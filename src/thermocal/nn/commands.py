@@ -1,43 +1,113 @@
-"""``thermocal train`` (torch is imported inside the command only)."""
+"""``thermocal train`` (torch is imported inside the command only).
+
+The options' defaults are the configuration of the shipped network (``nn/weights/kpn_n7.pt``):
+``--preset shipped``, the default. ``--preset paper`` gives Oz et al.'s optimisation (§IV-D)
+instead. An option given on the command line wins over the preset. ``--help`` lists the options
+a run needs (output, budget, camera, machine); the experiment options (network sizes, training
+data, optimisation) are left out of it and listed by ``--help-all``.
+"""
 
 from __future__ import annotations
 
+import copy
 from pathlib import Path
+from typing import Any
 
 import click
+from click.core import ParameterSource
 
+from thermocal._validate import parse_range, parse_units
 from thermocal.errors import InvalidInputError
 
+#: The configuration of the shipped network, ``nn/weights/kpn_n7.pt`` (trained by ``--device
+#: cuda --workers 14 --max-minutes 8.2``: 20100 steps on an H100), by option name.
+SHIPPED: dict[str, Any] = {
+    "n_frames": 7,
+    "variant": "kpn",
+    "mu": 16,
+    "xi": 2,
+    "levels": 3,
+    "kernel": 5,
+    "degree": 4,
+    "fpa_input": True,
+    "centre": True,
+    "radiance": True,
+    "radial": 2,
+    "radial_frames": False,
+    "calibrated": True,
+    "crop": 64,
+    "batch": 16,
+    "steps_per_epoch": 100,
+    "max_epochs": 1000,
+    "lr": 1e-3,
+    "lr_schedule": "step",
+    "max_minutes": 30.0,
+    "seed": 42,
+    "units_text": "0-23",
+    "val_units_text": "50-53",
+    "val_bursts": 64,
+    "n_scenes": 24,
+    "fpa_range_c": None,
+    "temp_mean_range_c": None,
+    "redraw_pixel_fpn": False,
+    "walk_frames": None,
+    "sensor_motion": False,
+}
 
-def _parse_units(text: str) -> tuple[int, ...]:
-    """``"0-23"``, ``"3"`` or ``"0,2,5-7"`` → unit numbers."""
-    units: list[int] = []
-    try:
-        for part in text.split(","):
-            part = part.strip()
-            if "-" in part:
-                a, b = (int(x) for x in part.split("-"))
-                units.extend(range(a, b + 1))
-            elif part:
-                units.append(int(part))
-    except ValueError:
-        raise InvalidInputError(f"units {text!r}: expected e.g. 0-23 or 0,2,5-7") from None
-    if not units or min(units) < 0:
-        raise InvalidInputError(f"units {text!r}: give unit numbers >= 0")
-    return tuple(dict.fromkeys(units))
+#: ``--preset NAME``: the values of the options not given on the command line.
+PRESETS: dict[str, dict[str, Any]] = {
+    "shipped": SHIPPED,
+    # Oz et al. §IV-D: Adam at 1e-4 halved on validation plateaus, early stop; no time limit
+    "paper": {"lr": 1e-4, "lr_schedule": "plateau", "max_epochs": 60, "max_minutes": None},
+}
 
 
-def _parse_range(text: str, name: str) -> tuple[float, float]:
-    try:
-        a, b = (float(x) for x in text.split(":"))
-    except ValueError:
-        raise InvalidInputError(f"{name} {text!r}: expected LOW:HIGH, e.g. 10:50") from None
-    if not a < b:
-        raise InvalidInputError(f"{name} {text!r}: LOW must be below HIGH")
-    return a, b
+# --------------------------------------------------------------------------------------------
+# --help and --help-all
+# --------------------------------------------------------------------------------------------
+_HELP_ALL = "thermocal.train.help_all"
 
 
-@click.command("train")
+class _TrainCommand(click.Command):
+    """``--help`` lists the options that are not hidden; ``--help-all`` the hidden ones too,
+    under "Experiment options"."""
+
+    def format_options(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        main, hidden = [], []
+        for param in self.get_params(ctx):
+            record = param.get_help_record(ctx)
+            if record:
+                main.append(record)
+            elif isinstance(param, click.Option) and param.hidden:
+                shown = copy.copy(param)
+                shown.hidden = False
+                hidden.append(shown.get_help_record(ctx))
+        with formatter.section("Options"):
+            formatter.write_dl(main)
+        if ctx.meta.get(_HELP_ALL):
+            with formatter.section("Experiment options"):
+                formatter.write_dl([r for r in hidden if r])
+
+
+def _help_all(ctx: click.Context, _param: click.Parameter, value: bool) -> None:
+    if not value or ctx.resilient_parsing:
+        return
+    ctx.meta[_HELP_ALL] = True
+    click.echo(ctx.get_help(), color=ctx.color)
+    ctx.exit()
+
+
+def _experiment(*decls: str, **kwargs: Any):
+    """A click option left out of ``--help`` (listed by ``--help-all``), its default the
+    shipped configuration's."""
+    name = kwargs.pop("name", None)
+    param = name or decls[-1].split("/")[0].lstrip("-").replace("-", "_")
+    kwargs.setdefault("default", SHIPPED[param])
+    kwargs.setdefault("show_default", SHIPPED[param] is not None)
+    return click.option(*decls, *([name] if name else []), hidden=True, **kwargs)
+
+
+@click.command("train", cls=_TrainCommand)
 @click.option(
     "--out",
     "out",
@@ -46,82 +116,14 @@ def _parse_range(text: str, name: str) -> tuple[float, float]:
     help="Weights file to write (.pt); a checkpoint OUT.ckpt is kept beside it.",
 )
 @click.option(
-    "--frames", "n_frames", type=int, default=7, show_default=True, help="Frames per burst N."
-)
-@click.option("--steps", type=int, default=None, help="Stop after this many batches.")
-@click.option("--seed", type=int, default=42, show_default=True)
-@click.option(
-    "--variant",
-    type=click.Choice(["kpn", "kpn-no-offset", "e2e"]),
-    default="kpn",
+    "--preset",
+    type=click.Choice(sorted(PRESETS)),
+    default="shipped",
     show_default=True,
-)
-@click.option("--mu", type=int, default=16, show_default=True, help="Channels μ (paper: 64).")
-@click.option("--xi", type=int, default=2, show_default=True, help="Level factor ξ.")
-@click.option("--levels", type=int, default=3, show_default=True, help="Levels L (paper: 4).")
-@click.option("--kernel", type=int, default=5, show_default=True, help="Kernel side K.")
-@click.option("--degree", type=int, default=4, show_default=True, help="Offset degree ν.")
-@click.option(
-    "--fpa-input/--no-fpa-input",
-    default=True,
-    show_default=True,
-    help="Feed the FPA temperature to the UNet too (not only the offset block).",
-)
-@click.option(
-    "--centre/--no-centre",
-    default=True,
-    show_default=True,
-    help="KPN with offset block: apply the kernels to the frames minus the burst's "
-    "mean level (the offset block carries the level).",
-)
-@click.option(
-    "--radiance/--no-radiance",
-    default=True,
-    show_default=True,
-    help="The kernels and the offset give band radiance, turned into temperature by the "
-    "inverse of Planck's band integral (an addition to the paper).",
-)
-@click.option(
-    "--radial",
-    type=click.IntRange(0, 4),
-    default=2,
-    show_default=True,
-    help="Degree in R² of position terms: the UNet sees where on the sensor a pixel lies and "
-    "the offset block gives a radial map (an addition to the paper; 0: none, as the paper).",
-)
-@click.option("--crop", type=int, default=64, show_default=True, help="Training crop side, px.")
-@click.option("--batch", type=int, default=16, show_default=True)
-@click.option("--steps-per-epoch", type=int, default=100, show_default=True)
-@click.option("--max-epochs", type=int, default=60, show_default=True)
-@click.option("--lr", type=float, default=1e-4, show_default=True)
-@click.option(
-    "--units",
-    "units_text",
-    default="0-23",
-    show_default=True,
-    help="Training camera units of the preset.",
-)
-@click.option(
-    "--val-units",
-    "val_units_text",
-    default="50-53",
-    show_default=True,
-    help="Validation camera units (never training units).",
-)
-@click.option(
-    "--fpa-range-c",
-    default=None,
-    help="FPA temperature range of the training data, °C (default 10:50, or the "
-    "range the chamber file covers).",
-)
-@click.option("--val-bursts", type=int, default=64, show_default=True)
-@click.option(
-    "--scenes",
-    "n_scenes",
-    type=int,
-    default=24,
-    show_default=True,
-    help="Procedural maps in the training pool (beside the real training scenes).",
+    help="shipped: the shipped network's configuration (the options' defaults: Adam at 1e-3, "
+    "halved at 50 % and 75 % of the budget). paper: Oz et al.'s optimisation instead (Adam at "
+    "1e-4 halved on validation plateaus, early stop, at most 60 epochs, no time limit). "
+    "Options given on the command line win.",
 )
 @click.option(
     "--chamber",
@@ -131,67 +133,6 @@ def _parse_range(text: str, name: str) -> tuple[float, float]:
     "on it instead of the simulator preset.",
 )
 @click.option(
-    "--max-minutes",
-    type=float,
-    default=None,
-    help="Wall-clock budget; the run saves and stops cleanly when it runs out.",
-)
-@click.option(
-    "--lr-schedule",
-    type=click.Choice(["plateau", "step"]),
-    default="plateau",
-    show_default=True,
-    help="plateau (Oz et al.): halve the learning rate once more than 3 epochs in a row have "
-    "not improved the validation loss, stop after 8; step: halve it at 50 % and 75 % of the "
-    "budget (--steps, --max-minutes or --max-epochs, the first to run out), no early stop. "
-    "--resume keeps the checkpoint's schedule and its budget for the rate.",
-)
-@click.option("--resume", is_flag=True, help="Continue from OUT.ckpt.")
-@click.option("--threads", type=int, default=2, show_default=True)
-@click.option(
-    "--workers", type=int, default=1, show_default=True, help="Data-generating processes."
-)
-@click.option(
-    "--temp-mean-range-c",
-    default=None,
-    help="Range of the training maps' mean temperature, °C (default -15:60).",
-)
-@click.option(
-    "--redraw-pixel-fpn",
-    is_flag=True,
-    help="Give every training burst a new pixel FPN of the preset's spread instead of its "
-    "unit's own (the validation units keep theirs).",
-)
-@click.option(
-    "--walk-frames",
-    type=int,
-    default=None,
-    help="Draw each training trajectory for this many frames and keep the --frames around its "
-    "pivot (less motion per burst; the validation bursts keep --frames).",
-)
-@click.option(
-    "--sensor-motion",
-    is_flag=True,
-    help="Displace the training frames on the sensor as whole-sensor frames of the same overlap "
-    "are (each frame rendered by its own sensor window), not by crop-sized amounts; the "
-    "validation bursts too.",
-)
-@click.option(
-    "--radial-frames",
-    is_flag=True,
-    help="With --radial: the position terms take where on the sensor each frame saw each pixel "
-    "(N planes), not the pivot's position alone.",
-)
-@click.option(
-    "--calibrated/--no-calibrated",
-    default=True,
-    show_default=True,
-    help="Give the network each frame through the camera model it is trained from (the "
-    "training units' average, or the --chamber fit), not raw counts: it learns what that model "
-    "gets wrong for the unit at hand (an addition to the paper; the model travels with the "
-    "weights).",
-)
-@click.option(
     "--init",
     "init",
     type=click.Path(path_type=Path),
@@ -199,6 +140,28 @@ def _parse_range(text: str, name: str) -> tuple[float, float]:
     help="Start from this weights file, or 'shipped' for the shipped KPN (same network; its "
     "normalisation is kept).",
 )
+@click.option("--resume", is_flag=True, help="Continue from OUT.ckpt (the budget is this call's).")
+@click.option(
+    "--max-minutes",
+    type=float,
+    default=SHIPPED["max_minutes"],
+    show_default=True,
+    help="Wall-clock budget; the run saves and stops cleanly when it runs out "
+    "(--preset paper: none).",
+)
+@click.option(
+    "--steps", type=int, default=None,
+    help="Stop after this many batches (or when --max-minutes run out, if first).",
+)
+@click.option(
+    "--frames", "n_frames", type=int, default=SHIPPED["n_frames"], show_default=True,
+    help="Frames per burst N (the bursts the network will estimate).",
+)
+@click.option("--seed", type=int, default=SHIPPED["seed"], show_default=True)
+@click.option(
+    "--workers", type=int, default=1, show_default=True, help="Data-generating processes."
+)
+@click.option("--threads", type=int, default=2, show_default=True)
 @click.option(
     "--device",
     type=click.Choice(["auto", "cpu", "cuda"]),
@@ -206,47 +169,119 @@ def _parse_range(text: str, name: str) -> tuple[float, float]:
     show_default=True,
     help="Where the network trains (auto: a GPU when there is one).",
 )
-def train(
-    out: Path,
-    n_frames: int,
-    steps: int | None,
-    seed: int,
-    variant: str,
-    mu: int,
-    xi: int,
-    levels: int,
-    kernel: int,
-    degree: int,
-    fpa_input: bool,
-    centre: bool,
-    radiance: bool,
-    radial: int,
-    crop: int,
-    batch: int,
-    steps_per_epoch: int,
-    max_epochs: int,
-    lr: float,
-    units_text: str,
-    val_units_text: str,
-    fpa_range_c: str | None,
-    val_bursts: int,
-    n_scenes: int,
-    chamber: Path | None,
-    max_minutes: float | None,
-    lr_schedule: str,
-    resume: bool,
-    threads: int,
-    workers: int,
-    temp_mean_range_c: str | None,
-    redraw_pixel_fpn: bool,
-    walk_frames: int | None,
-    sensor_motion: bool,
-    radial_frames: bool,
-    calibrated: bool,
-    init: Path | None,
-    device: str,
-) -> None:
-    """Train the KPN on synthetic bursts from the camera simulator (Oz et al. §IV)."""
+@click.option(
+    "--help-all",
+    is_flag=True,
+    expose_value=False,
+    is_eager=True,
+    callback=_help_all,
+    help="Show this message with the experiment options too (network sizes, training data, "
+    "optimisation) and exit.",
+)
+# experiment options: network
+@_experiment(
+    "--variant",
+    type=click.Choice(["kpn", "kpn-no-offset", "e2e"]),
+    help="KPN with the offset block, without it, or the end-to-end UNet (E2E).",
+)
+@_experiment("--mu", type=int, help="Channels μ (paper: 64).")
+@_experiment("--xi", type=int, help="Level factor ξ.")
+@_experiment("--levels", type=int, help="Levels L (paper: 4).")
+@_experiment("--kernel", type=int, help="Kernel side K.")
+@_experiment("--degree", type=int, help="Offset degree ν.")
+@_experiment(
+    "--fpa-input/--no-fpa-input",
+    help="Feed the FPA temperature to the UNet too (not only the offset block).",
+)
+@_experiment(
+    "--centre/--no-centre",
+    help="KPN with offset block: apply the kernels to the frames minus the burst's "
+    "mean level (the offset block carries the level).",
+)
+@_experiment(
+    "--radiance/--no-radiance",
+    help="The kernels and the offset give band radiance, turned into temperature by the "
+    "inverse of Planck's band integral (an addition to the paper).",
+)
+@_experiment(
+    "--radial",
+    type=click.IntRange(0, 4),
+    help="Degree in R² of position terms: the UNet sees where on the sensor a pixel lies and "
+    "the offset block gives a radial map (an addition to the paper; 0: none, as the paper).",
+)
+@_experiment(
+    "--radial-frames",
+    is_flag=True,
+    help="With --radial: the position terms take where on the sensor each frame saw each pixel "
+    "(N planes), not the pivot's position alone.",
+)
+@_experiment(
+    "--calibrated/--no-calibrated",
+    help="Give the network each frame through the camera model it is trained from (the "
+    "training units' average, or the --chamber fit), not raw counts: it learns what that model "
+    "gets wrong for the unit at hand (an addition to the paper; the model travels with the "
+    "weights).",
+)
+# experiment options: optimisation
+@_experiment("--crop", type=int, help="Training crop side, px.")
+@_experiment("--batch", type=int, help="Bursts per batch.")
+@_experiment("--steps-per-epoch", type=int, help="Batches between validations.")
+@_experiment("--max-epochs", type=int, help="Upper bound on epochs (--preset paper: 60).")
+@_experiment("--lr", type=float, help="Adam learning rate (--preset paper: 1e-4).")
+@_experiment(
+    "--lr-schedule",
+    type=click.Choice(["plateau", "step"]),
+    help="plateau (Oz et al.; --preset paper): halve the learning rate once more than 3 epochs "
+    "in a row have not improved the validation loss, stop after 8; step: halve it at 50 % and "
+    "75 % of the budget (--steps, --max-minutes or --max-epochs, the first to run out), no "
+    "early stop. --resume keeps the checkpoint's schedule and its budget for the rate.",
+)
+@_experiment("--val-bursts", type=int, help="Size of the fixed validation set.")
+# experiment options: training data
+@_experiment("--units", name="units_text", help="Training camera units of the preset.")
+@_experiment(
+    "--val-units", name="val_units_text", help="Validation camera units (never training units)."
+)
+@_experiment(
+    "--scenes",
+    name="n_scenes",
+    type=int,
+    help="Procedural maps in the training pool (beside the real training scenes).",
+)
+@_experiment(
+    "--fpa-range-c",
+    help="FPA temperature range of the training data, °C (default 10:50, or the "
+    "range the chamber file covers).",
+)
+@_experiment(
+    "--temp-mean-range-c",
+    help="Range of the training maps' mean temperature, °C (default -15:60).",
+)
+@_experiment(
+    "--redraw-pixel-fpn",
+    is_flag=True,
+    help="Give every training burst a new pixel FPN of the preset's spread instead of its "
+    "unit's own (the validation units keep theirs).",
+)
+@_experiment(
+    "--walk-frames",
+    type=int,
+    help="Draw each training trajectory for this many frames and keep the --frames around its "
+    "pivot (less motion per burst; the validation bursts keep --frames).",
+)
+@_experiment(
+    "--sensor-motion",
+    is_flag=True,
+    help="Displace the training frames on the sensor as whole-sensor frames of the same overlap "
+    "are (each frame rendered by its own sensor window), not by crop-sized amounts; the "
+    "validation bursts too.",
+)
+def train(**opts: Any) -> None:
+    """Train the KPN on synthetic bursts from the camera simulator (Oz et al. §IV).
+
+    The defaults train the shipped network's configuration (--preset shipped) for 30 minutes;
+    --help-all lists the experiment options.
+    """
     import os
     import sys
 
@@ -254,38 +289,89 @@ def train(
     # spinning thread burns the core the other one needs (3x slower steps, measured).
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
 
-    from thermocal.camera.presets import PRESETS
-    from thermocal.nn.data import BurstConfig, ScenePool
-    from thermocal.nn.model import ModelConfig
-    from thermocal.nn.train import TrainConfig
+    from thermocal.nn.data import ScenePool
     from thermocal.nn.train import train as run_training
 
-    for name, value in (
-        ("--frames", n_frames),
-        ("--batch", batch),
-        ("--steps-per-epoch", steps_per_epoch),
-        ("--max-epochs", max_epochs),
-        ("--threads", threads),
-        ("--val-bursts", val_bursts),
-        ("--scenes", n_scenes),
+    _apply_preset(click.get_current_context(), opts)
+    _check_numbers(opts)
+    meta = {"command": " ".join(sys.argv[1:]) if sys.argv else "", "preset": opts["preset"]}
+    camera = _camera_setup(opts, meta)
+    model_cfg = _model_config(opts, camera["band_m"])
+    burst_cfg = _burst_config(opts, camera)
+    init = opts["init"]
+    if init is not None and str(init) == "shipped":
+        from thermocal.nn.infer import shipped_model_path
+
+        init = shipped_model_path("kpn")
+    seed, n_scenes = opts["seed"], opts["n_scenes"]
+    n_val_scenes = max(3, (3 * n_scenes) // 8)
+    result = run_training(
+        opts["out"],
+        model_cfg,
+        burst_cfg,
+        _train_config(opts),
+        resume=opts["resume"],
+        cameras=camera["cameras"],
+        val_units=camera["val_units"],
+        log=lambda line: click.echo(line, err=True),
+        meta=meta,
+        pool_fn=lambda: ScenePool.training(seed=seed, n_procedural=n_scenes),
+        val_pool_fn=lambda: ScenePool.training(seed=seed + 1000, n_procedural=n_val_scenes),
+        init=init,
+    )
+    click.echo(
+        f"trained {result.steps} steps ({result.epochs} epochs, stopped: {result.stopped}) in "
+        f"{result.wall_s / 60:.1f} min at {result.samples_per_s:.1f} samples/s; best validation "
+        f"MAE {result.best_val_mae_c:.3f} °C; wrote {opts['out']}",
+        err=True,
+    )
+
+
+def _apply_preset(ctx: click.Context, opts: dict[str, Any]) -> None:
+    """The preset's value for every option the command line does not give."""
+    for name, value in PRESETS[opts["preset"]].items():
+        if ctx.get_parameter_source(name) in (ParameterSource.DEFAULT, ParameterSource.DEFAULT_MAP):
+            opts[name] = value
+
+
+def _check_numbers(opts: dict[str, Any]) -> None:
+    for name, key in (
+        ("--frames", "n_frames"),
+        ("--batch", "batch"),
+        ("--steps-per-epoch", "steps_per_epoch"),
+        ("--max-epochs", "max_epochs"),
+        ("--threads", "threads"),
+        ("--val-bursts", "val_bursts"),
+        ("--scenes", "n_scenes"),
     ):
-        if value < 1:
-            raise InvalidInputError(f"{name} must be >= 1, got {value}")
-    if steps is not None and steps < 1:
-        raise InvalidInputError(f"--steps must be >= 1, got {steps}")
-    if workers < 0:
-        raise InvalidInputError(f"--workers must be >= 0, got {workers}")
-    if max_minutes is not None and max_minutes <= 0:
-        raise InvalidInputError(f"--max-minutes must be > 0, got {max_minutes}")
-    if lr <= 0:
-        raise InvalidInputError(f"--lr must be > 0, got {lr}")
-    units = _parse_units(units_text)
-    val_units = _parse_units(val_units_text)
-    fpa_range = _parse_range(fpa_range_c, "--fpa-range-c") if fpa_range_c else (10.0, 50.0)
-    cameras = None
-    sensor_size = (336, 256)
-    band_m = PRESETS["tau2"].band_m
-    meta = {"command": " ".join(sys.argv[1:]) if sys.argv else ""}
+        if opts[key] < 1:
+            raise InvalidInputError(f"{name} must be >= 1, got {opts[key]}")
+    if opts["steps"] is not None and opts["steps"] < 1:
+        raise InvalidInputError(f"--steps must be >= 1, got {opts['steps']}")
+    if opts["workers"] < 0:
+        raise InvalidInputError(f"--workers must be >= 0, got {opts['workers']}")
+    if opts["max_minutes"] is not None and opts["max_minutes"] <= 0:
+        raise InvalidInputError(f"--max-minutes must be > 0, got {opts['max_minutes']}")
+    if opts["lr"] <= 0:
+        raise InvalidInputError(f"--lr must be > 0, got {opts['lr']}")
+
+
+def _camera_setup(opts: dict[str, Any], meta: dict[str, Any]) -> dict[str, Any]:
+    """Units, sensor size, band and FPA range of the training cameras: the simulator preset's,
+    or (``--chamber``) the camera model fitted on a chamber file (recorded in ``meta``)."""
+    from thermocal.camera.presets import PRESETS as CAMERA_PRESETS
+
+    fpa_range_c = opts["fpa_range_c"]
+    setup = {
+        "cameras": None,
+        "units": parse_units(opts["units_text"]),
+        "val_units": parse_units(opts["val_units_text"]),
+        "fpa_range": (parse_range(fpa_range_c, "--fpa-range-c", increasing=True)
+                      if fpa_range_c else (10.0, 50.0)),
+        "sensor_size": (336, 256),
+        "band_m": CAMERA_PRESETS["tau2"].band_m,
+    }
+    chamber = opts["chamber"]
     if chamber is not None:
         try:
             from thermocal.calibration.polynomial import camera_model_from_chamber
@@ -295,102 +381,84 @@ def train(
                 "installation does not have"
             ) from None
         camera = camera_model_from_chamber(chamber, radial=True)
-        cameras = {0: camera}
-        units, val_units = (0,), (0,)
-        sensor_size = (camera.shape[1], camera.shape[0])
-        band_m = camera.band.band_m
+        setup.update(cameras={0: camera}, units=(0,), val_units=(0,),
+                     sensor_size=(camera.shape[1], camera.shape[0]), band_m=camera.band.band_m)
         meta["chamber"] = str(chamber)
         if fpa_range_c is None and "fpa_range_c" in camera.info:
-            fpa_range = tuple(float(v) for v in camera.info["fpa_range_c"])
-    if crop > min(sensor_size):
-        raise InvalidInputError(f"--crop {crop} is larger than the sensor {sensor_size}")
-    model_cfg = ModelConfig(
-        n_frames=n_frames,
-        mu=mu,
-        xi=xi,
-        levels=levels,
-        kernel=kernel,
-        degree=degree,
-        variant=variant,
-        fpa_input=fpa_input,
-        centre=centre and variant == "kpn",
-        radiance=radiance,
-        radial=radial,
-        band_m=band_m,
-        radial_frames=radial_frames,
-        calibrated=calibrated,
-    )
-    if crop % model_cfg.multiple:
-        raise InvalidInputError(f"--crop must be a multiple of ξ^L = {model_cfg.multiple}")
-    if init is not None and str(init) == "shipped":
-        from thermocal.nn.infer import shipped_model_path
+            setup["fpa_range"] = tuple(float(v) for v in camera.info["fpa_range_c"])
+    if opts["crop"] > min(setup["sensor_size"]):
+        raise InvalidInputError(
+            f"--crop {opts['crop']} is larger than the sensor {setup['sensor_size']}"
+        )
+    return setup
 
-        init = shipped_model_path("kpn")
-    extra = {}
-    if temp_mean_range_c:
-        extra["temp_mean_range_c"] = _parse_range(temp_mean_range_c, "--temp-mean-range-c")
-    if redraw_pixel_fpn:
+
+def _model_config(opts: dict[str, Any], band_m: tuple[float, float]):
+    from thermocal.nn.model import ModelConfig
+
+    model_cfg = ModelConfig(
+        n_frames=opts["n_frames"],
+        mu=opts["mu"],
+        xi=opts["xi"],
+        levels=opts["levels"],
+        kernel=opts["kernel"],
+        degree=opts["degree"],
+        variant=opts["variant"],
+        fpa_input=opts["fpa_input"],
+        centre=opts["centre"] and opts["variant"] == "kpn",
+        radiance=opts["radiance"],
+        radial=opts["radial"],
+        band_m=band_m,
+        radial_frames=opts["radial_frames"],
+        calibrated=opts["calibrated"],
+    )
+    if opts["crop"] % model_cfg.multiple:
+        raise InvalidInputError(f"--crop must be a multiple of ξ^L = {model_cfg.multiple}")
+    return model_cfg
+
+
+def _burst_config(opts: dict[str, Any], camera: dict[str, Any]):
+    from thermocal.nn.data import BurstConfig
+
+    extra: dict[str, Any] = {}
+    if opts["temp_mean_range_c"]:
+        extra["temp_mean_range_c"] = parse_range(opts["temp_mean_range_c"],
+                                                 "--temp-mean-range-c", increasing=True)
+    if opts["redraw_pixel_fpn"]:
         extra["redraw_pixel_fpn"] = True
-    if walk_frames is not None:
-        extra["walk_frames"] = walk_frames
-    if calibrated:
+    if opts["walk_frames"] is not None:
+        extra["walk_frames"] = opts["walk_frames"]
+    if opts["calibrated"]:
         extra["calibrated"] = True
-    if sensor_motion:
+    if opts["sensor_motion"]:
         extra["sensor_motion"] = True
-    elif radial_frames:
+    elif opts["radial_frames"]:
         click.echo("warning: --radial-frames without --sensor-motion: the training frames move "
                    "by crop-sized amounts, far less than whole-sensor bursts do", err=True)
-    burst_cfg = BurstConfig(
-        n_frames=n_frames,
-        crop=crop,
-        fpa_range_c=fpa_range,
-        units=units,
-        sensor_size=sensor_size,
+    return BurstConfig(
+        n_frames=opts["n_frames"],
+        crop=opts["crop"],
+        fpa_range_c=camera["fpa_range"],
+        units=camera["units"],
+        sensor_size=camera["sensor_size"],
         **extra,
     )
-    train_cfg = TrainConfig(
-        batch=batch,
-        steps_per_epoch=steps_per_epoch,
-        max_epochs=max_epochs,
-        lr=lr,
-        lr_schedule=lr_schedule,
-        seed=seed,
-        val_bursts=val_bursts,
-        max_minutes=max_minutes,
-        max_steps=steps,
-        threads=threads,
-        workers=workers,
-        device=device,
-    )
 
-    def log(line: str) -> None:
-        click.echo(line, err=True)
 
-    n_val_scenes = max(3, (3 * n_scenes) // 8)
+def _train_config(opts: dict[str, Any]):
+    from thermocal.nn.train import TrainConfig
 
-    def pool_fn() -> ScenePool:
-        return ScenePool.training(seed=seed, n_procedural=n_scenes)
-
-    def val_pool_fn() -> ScenePool:
-        return ScenePool.training(seed=seed + 1000, n_procedural=n_val_scenes)
-
-    result = run_training(
-        out,
-        model_cfg,
-        burst_cfg,
-        train_cfg,
-        resume=resume,
-        cameras=cameras,
-        val_units=val_units,
-        log=log,
-        meta=meta,
-        pool_fn=pool_fn,
-        val_pool_fn=val_pool_fn,
-        init=init,
-    )
-    click.echo(
-        f"trained {result.steps} steps ({result.epochs} epochs, stopped: {result.stopped}) in "
-        f"{result.wall_s / 60:.1f} min at {result.samples_per_s:.1f} samples/s; best validation "
-        f"MAE {result.best_val_mae_c:.3f} °C; wrote {out}",
-        err=True,
+    return TrainConfig(
+        batch=opts["batch"],
+        steps_per_epoch=opts["steps_per_epoch"],
+        max_epochs=opts["max_epochs"],
+        lr=opts["lr"],
+        lr_schedule=opts["lr_schedule"],
+        seed=opts["seed"],
+        val_bursts=opts["val_bursts"],
+        max_minutes=opts["max_minutes"],
+        max_steps=opts["steps"],
+        threads=opts["threads"],
+        workers=opts["workers"],
+        device=opts["device"],
     )

@@ -359,12 +359,14 @@ def evaluation_scenes() -> dict[str, np.ndarray]:
 
 
 class UnitCache:
-    """Full-sensor camera units, made once (``make_camera`` is the slow part)."""
+    """Full-sensor camera units, made once (``make_camera`` is the slow part); ``cameras``
+    (unit number → model, e.g. fitted on a chamber file) stand in for the preset's units."""
 
-    def __init__(self, preset: str, sensor_size: tuple[int, int]) -> None:
+    def __init__(self, preset: str, sensor_size: tuple[int, int],
+                 cameras: dict[int, CameraModel] | None = None) -> None:
         self.preset = preset
         self.sensor_size = tuple(sensor_size)
-        self._units: dict[int, CameraModel] = {}
+        self._units: dict[int, CameraModel] = dict(cameras or {})
         self._nominal: dict[tuple[int, ...], CameraModel] = {}
 
     def get(self, unit: int) -> CameraModel:

@@ -29,6 +29,7 @@ import torch
 import torch.nn.functional as F
 from torch import nn
 
+from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import InvalidInputError
 from thermocal.nn.variants import VARIANTS
 from thermocal.radiometry import TAU2_BAND_M, band_radiance
@@ -334,8 +335,8 @@ class RadianceToTemperature(nn.Module):
         if not hi > lo:
             raise InvalidInputError(f"temperature range must increase, got {temp_range_c}")
         t_c = np.arange(max(lo - margin_c, -200.0), hi + margin_c + step_c, step_c)
-        ends = band_radiance(np.array([lo, hi]) + 273.15, band_m)
-        x = (band_radiance(t_c + 273.15, band_m) - ends[0]) / (ends[1] - ends[0])
+        ends = band_radiance(np.array([lo, hi]) + ZERO_CELSIUS_K, band_m)
+        x = (band_radiance(t_c + ZERO_CELSIUS_K, band_m) - ends[0]) / (ends[1] - ends[0])
         self.temp_range_c = (lo, hi)
         self.register_buffer("x_grid", torch.tensor(x, dtype=torch.float32), persistent=False)
         self.register_buffer(

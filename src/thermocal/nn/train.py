@@ -6,6 +6,14 @@ deterministic algorithms. An *epoch* here is ``steps_per_epoch`` batches (the pa
 ~800 batches of 16 are far too long for 2 CPU cores), each followed by a validation pass on a fixed
 set of bursts made once (noise and FPN fixed) from cameras units that are never trained on.
 
+:class:`Trainer` holds a run: :meth:`~Trainer.step` (one batch), :meth:`~Trainer.epoch`,
+:meth:`~Trainer.validate`, :meth:`~Trainer.checkpoint` / :meth:`Trainer.resume`,
+:meth:`~Trainer.save` and :meth:`~Trainer.run` (the loop with its budget, learning-rate schedule
+and stopping rule); :func:`train` is a run from start to end. The pieces a run is made of
+(:func:`seed_everything`, :class:`BurstStream`, :func:`burst_loader`, :func:`train_step`,
+:func:`step_lr`, :func:`fit_normalisation`) serve other loops too (``benchmarks/kpn_fig7.py``
+trains several networks side by side on one stream).
+
 Checkpoints (``OUT.ckpt``: model, optimiser, scheduler, counters, history) are written after every
 epoch and when the wall-clock budget runs out; ``resume=True`` continues from one. The weights file
 ``OUT`` holds the best model so far (validation loss), its configuration and the normalisation
@@ -25,6 +33,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from thermocal._validate import check_output_file, check_suffix
 from thermocal.camera.model import CameraModel
 from thermocal.errors import FileFormatError, InvalidInputError
 from thermocal.io.atomic import atomic_path
@@ -43,11 +52,19 @@ from thermocal.nn.model import KPN, ModelConfig
 from thermocal.nn.store import check_calibrated, load_model, save_model
 
 __all__ = [
+    "BurstStream",
     "TrainConfig",
     "TrainResult",
+    "Trainer",
     "batch_tensors",
+    "burst_loader",
     "fit_normalisation",
+    "resolve_device",
+    "seed_everything",
+    "step_lr",
     "train",
+    "train_step",
+    "validate",
 ]
 
 
@@ -152,9 +169,10 @@ def batch_tensors(
     )
 
 
-class _Stream(torch.utils.data.IterableDataset):
-    """Batches ``start, start+1, …`` of the seeded training stream (burst ``i`` depends only on
-    ``(seed, i)``), as tensors."""
+class BurstStream(torch.utils.data.IterableDataset):
+    """Batches ``start_batch, start_batch + 1, …`` of the seeded training stream (burst ``i``
+    depends only on ``(seed, i)``), as the tensors of :func:`batch_tensors`; the same batches in
+    the same order whatever the number of :func:`burst_loader` workers."""
 
     def __init__(
         self,
@@ -191,10 +209,7 @@ class _Stream(torch.utils.data.IterableDataset):
 
 
 def _unit_cache(cfg: BurstConfig, cameras: dict[int, CameraModel] | None) -> UnitCache:
-    cache = UnitCache(cfg.preset, cfg.sensor_size)
-    if cameras:
-        cache._units.update(cameras)
-    return cache
+    return UnitCache(cfg.preset, cfg.sensor_size, cameras)
 
 
 def fit_normalisation(
@@ -229,7 +244,7 @@ def fit_normalisation(
 
 
 # --------------------------------------------------------------------------------------------
-# training
+# pieces of a training loop
 # --------------------------------------------------------------------------------------------
 def resolve_device(name: str) -> torch.device:
     """``"cpu"``, ``"cuda"`` (an error without a GPU) or ``"auto"`` (CUDA when there is one)."""
@@ -242,7 +257,9 @@ def resolve_device(name: str) -> torch.device:
     return torch.device(name)
 
 
-def _seed_everything(seed: int, device: torch.device) -> None:
+def seed_everything(seed: int, device: torch.device) -> None:
+    """Seed torch (and numpy's global state) and make torch deterministic: strictly on the CPU;
+    on CUDA a fixed cuBLAS workspace, and ops without a deterministic kernel only warn."""
     torch.manual_seed(seed)
     np.random.seed(seed)  # noqa: NPY002 - only for third-party code that reads the global state
     if device.type == "cuda":
@@ -252,6 +269,39 @@ def _seed_everything(seed: int, device: torch.device) -> None:
         torch.use_deterministic_algorithms(True, warn_only=True)
     else:
         torch.use_deterministic_algorithms(True)
+
+
+def burst_loader(
+    stream: BurstStream, workers: int, device: torch.device
+) -> torch.utils.data.DataLoader:
+    """The DataLoader over a :class:`BurstStream`: ``workers`` processes (0: this one), each
+    ahead by up to 4 batches; pinned memory for a GPU."""
+    return torch.utils.data.DataLoader(
+        stream,
+        batch_size=None,
+        num_workers=workers,
+        prefetch_factor=4 if workers else None,
+        persistent_workers=False,
+        pin_memory=device.type == "cuda",
+    )
+
+
+def train_step(
+    model: KPN, opt: torch.optim.Optimizer, batch: tuple[torch.Tensor, ...],
+    *, lr: float | None = None,
+) -> float:
+    """One optimisation step of ``model`` on ``batch`` (the tensors of :func:`batch_tensors`, on
+    the model's device) with the loss of eq. 12; ``lr`` first sets the optimiser's rate.
+    Returns the batch's loss."""
+    if lr is not None:
+        for g in opt.param_groups:
+            g["lr"] = lr
+    frames, fpa, valid, truth, mask, r2 = batch
+    opt.zero_grad(set_to_none=True)
+    loss = kpn_loss(model(frames, fpa, valid, r2=r2), truth, mask)
+    loss.backward()
+    opt.step()
+    return float(loss.detach())
 
 
 def validate(
@@ -294,6 +344,438 @@ def step_lr(cfg: TrainConfig, step: int, elapsed_s: float) -> float:
     return cfg.lr * (0.25 if spent >= 0.75 else 0.5 if spent >= 0.5 else 1.0)
 
 
+# --------------------------------------------------------------------------------------------
+# a training run
+# --------------------------------------------------------------------------------------------
+#: What a resumed run takes from its own call, not from the checkpoint: the budget and the machine.
+CALL_FIELDS = ("max_minutes", "max_steps", "max_epochs", "device", "workers", "threads")
+
+
+class Trainer:
+    """One training run of a KPN: its data, network, optimiser, counters and files.
+
+    Making one checks the configurations, picks the device, seeds everything (:func:`train`'s
+    determinism), builds the normalisation (fitted on the training data, or ``init``'s), the fixed
+    validation set and the network (``init``'s weights, or a checkpoint's), and writes ``out``
+    (``init``'s weights and scores, or the untrained network's) unless a resumed run has one.
+    The training stream starts at the first :meth:`epoch` (or :meth:`next_batch`).
+
+    Parameters are :func:`train`'s (``state``: a checkpoint's contents, as
+    :meth:`resume` reads them).
+
+    Attributes
+    ----------
+    out, ckpt_path : Path
+        The weights file and the checkpoint (``OUT.ckpt``) the run writes.
+    model_cfg, burst_cfg, train_cfg : ModelConfig, BurstConfig, TrainConfig
+        The run's configurations (a resumed run's: the checkpoint's, with this call's budget).
+    schedule_cfg : TrainConfig
+        The budget the ``"step"`` schedule's rate follows: the first call's.
+    device : torch.device
+        Where the network trains.
+    model, opt, sched
+        The network (on ``device``), its Adam optimiser and the plateau scheduler.
+    norm : Normalisation
+        Eq. 20-21 constants of the run.
+    val : list of tuple of tensors
+        The validation batches, on ``device``.
+    steps, epochs : int
+        Batches and epochs done (since the run's start, resumed runs included).
+    best_loss, best_mae : float
+        The best validation loss so far and its MAE (°C).
+    bad_epochs : int
+        Epochs in a row without a better validation loss.
+    history : list of dict
+        One row per epoch (:meth:`record`).
+    """
+
+    def __init__(
+        self,
+        out: str | os.PathLike[str],
+        model_cfg: ModelConfig,
+        burst_cfg: BurstConfig,
+        train_cfg: TrainConfig = TrainConfig(),
+        *,
+        pool_fn: Callable[[], ScenePool] | None = None,
+        val_pool_fn: Callable[[], ScenePool] | None = None,
+        cameras: dict[int, CameraModel] | None = None,
+        val_units: tuple[int, ...] = VAL_UNITS,
+        log: Callable[[str], None] = print,
+        progress: bool = True,
+        meta: dict[str, Any] | None = None,
+        init: str | os.PathLike[str] | None = None,
+        state: dict[str, Any] | None = None,
+    ) -> None:
+        self.t0 = time.monotonic()
+        self.out = _weights_path(out)
+        self.ckpt_path = self.out.with_suffix(".ckpt")
+        self.model_cfg, self.burst_cfg, self.train_cfg = model_cfg, burst_cfg, train_cfg
+        self.cameras, self.val_units = cameras, val_units
+        self.log, self.progress, self.meta = log, progress, meta or {}
+        _check_run(model_cfg, burst_cfg, train_cfg, cameras, val_units)
+        # the step schedule's budget is the first call's: a resumed run continues its schedule
+        # (the new call's budget only says when this call stops)
+        self.schedule_cfg = (
+            TrainConfig(**state.get("schedule_cfg", state["train_cfg"])) if state else train_cfg
+        )
+        self.band_m = model_cfg.band_m if model_cfg.radiance else None  # the calibrated input's
+        self.device = resolve_device(train_cfg.device)
+        torch.set_num_threads(train_cfg.threads)
+        seed_everything(train_cfg.seed, self.device)
+        seed = train_cfg.seed
+        self.pool_fn = pool_fn or (lambda: ScenePool.training(seed=seed))
+        val_pool_fn = val_pool_fn or (lambda: ScenePool.training(seed=seed + 1000, n_procedural=9))
+        if init is not None and state:
+            raise InvalidInputError(
+                "--init starts a new run and --resume continues OUT.ckpt: give one"
+            )
+        init_model = self._normalise(self.pool_fn(), init, state)
+        self.val = self._validation_set(val_pool_fn())
+        self._build(init_model, state)
+        if init is not None:  # a fine-tune keeps what it starts from unless an epoch beats it
+            self.best_loss, self.best_mae, _ = self.validate()
+            log(f"start from {init}: val_loss {self.best_loss:.5f} val_mae {self.best_mae:.3f} C")
+            self.save(val=(self.best_loss, self.best_mae))
+        elif not state or not self.out.is_file():
+            self.save()
+        self.samples, self.train_s = 0, 0.0  # this call's, for its samples/s
+        self._loader: torch.utils.data.DataLoader | None = None
+        self._batches: Iterator[tuple[torch.Tensor, ...]] | None = None
+        self._bar: Any = None
+        self._task: Any = None
+
+    @classmethod
+    def resume(
+        cls,
+        out: str | os.PathLike[str],
+        train_cfg: TrainConfig = TrainConfig(),
+        *,
+        ckpt: str | os.PathLike[str] | None = None,
+        **kwargs: Any,
+    ) -> Trainer:
+        """Continue the run of the checkpoint ``ckpt`` (default ``OUT.ckpt``): its
+        configurations, weights, optimiser, counters, history and torch random state;
+        ``train_cfg`` gives only the budget and the machine (:data:`CALL_FIELDS`). ``kwargs``:
+        the constructor's (``cameras`` again for a run on a chamber file's camera model)."""
+        out = _weights_path(out)
+        ckpt_path = out.with_suffix(".ckpt") if ckpt is None else Path(ckpt)
+        state = _read_checkpoint(ckpt_path, kwargs.get("cameras"))
+        model_cfg = ModelConfig(**state["model_cfg"])
+        burst_cfg = BurstConfig(
+            **{k: tuple(v) if isinstance(v, list) else v for k, v in state["burst_cfg"].items()}
+        )
+        call = {k: getattr(train_cfg, k) for k in CALL_FIELDS}
+        train_cfg = TrainConfig(**{**state["train_cfg"], **call})
+        return cls(out, model_cfg, burst_cfg, train_cfg, state=state, **kwargs)
+
+    # construction -------------------------------------------------------------------------
+    def _normalise(
+        self, pool: ScenePool, init: str | os.PathLike[str] | None, state: dict[str, Any] | None
+    ) -> KPN | None:
+        """Set :attr:`norm` (``init``'s, the checkpoint's or fitted on ``pool``); return the
+        ``init`` model."""
+        cfg, seed = self.burst_cfg, self.train_cfg.seed
+        if init is None:
+            self.norm = (Normalisation(**state["norm"]) if state else
+                         fit_normalisation(pool, cfg, seed=seed, cameras=self.cameras))
+            return None
+        init_model, self.norm, _ = load_model(init)
+        _check_same_network(init, init_model.config, self.model_cfg)
+        fresh = fit_normalisation(pool, cfg, seed=seed, cameras=self.cameras)
+        norm = self.norm
+        counts_out = not self.model_cfg.calibrated and (  # a calibrated network never sees counts
+            fresh.counts_min < norm.counts_min - 500 or fresh.counts_max > norm.counts_max + 500)
+        if counts_out or fresh.fpa_min_c < norm.fpa_min_c or fresh.fpa_max_c > norm.fpa_max_c:
+            self.log(f"warning: the new data (counts {fresh.counts_min:.0f}…{fresh.counts_max:.0f}"
+                     f", FPA {fresh.fpa_min_c:g}…{fresh.fpa_max_c:g} °C) reach outside the range "
+                     f"{init} was normalised for (counts {norm.counts_min:.0f}…"
+                     f"{norm.counts_max:.0f}, FPA {norm.fpa_min_c:g}…{norm.fpa_max_c:g} °C)")
+        return init_model
+
+    def _validation_set(self, val_pool: ScenePool) -> list[tuple[torch.Tensor, ...]]:
+        """The fixed validation batches (units ``val_units``, their own pixel FPN, no longer
+        walks), made once and put on the device."""
+        cfg, tc = self.burst_cfg, self.train_cfg
+        val_cfg = BurstConfig(
+            **{**asdict(cfg), "units": tuple(self.val_units), "redraw_pixel_fpn": False,
+               "walk_frames": None, "nominal_units": cfg.nominal_of}
+        )
+        units = _unit_cache(val_cfg, self.cameras)
+        bursts = [
+            make_burst(val_pool, val_cfg, rng=np.random.default_rng([tc.seed, 7, i]), units=units)
+            for i in range(tc.val_bursts)
+        ]
+        return [  # on the training device once, not at every validation
+            tuple(t.to(self.device) for t in batch_tensors(
+                bursts[i : i + tc.batch], self.norm, frame_positions=self.model_cfg.radial_frames,
+                band_m=self.band_m))
+            for i in range(0, len(bursts), tc.batch)
+        ]
+
+    def _build(self, init_model: KPN | None, state: dict[str, Any] | None) -> None:
+        """The network, optimiser, scheduler and counters: new, ``init``'s or the checkpoint's."""
+        mc, bc, norm = self.model_cfg, self.burst_cfg, self.norm
+        model = KPN(mc, temp_range_c=(norm.temp_min_c, norm.temp_max_c), train_crop=bc.crop)
+        if mc.calibrated:  # what its input goes through, saved with it
+            model.nominal = _unit_cache(bc, self.cameras).nominal(bc.nominal_of)
+        if init_model is not None:
+            model.load_state_dict(init_model.state_dict())
+        self.model = model.to(self.device)
+        self.opt = torch.optim.Adam(self.model.parameters(), lr=self.train_cfg.lr)
+        self.sched = torch.optim.lr_scheduler.ReduceLROnPlateau(
+            self.opt, mode="min", factor=0.5, patience=self.train_cfg.lr_patience
+        )
+        self.steps, self.epochs, self.bad_epochs = 0, 0, 0
+        self.best_loss, self.best_mae = math.inf, math.inf
+        self.history: list[dict[str, float]] = []
+        self.elapsed_before = 0.0  # the earlier calls' time, for a resumed run
+        if state:
+            self.model.load_state_dict(state["model"])
+            self.opt.load_state_dict(state["opt"])
+            self.sched.load_state_dict(state["sched"])
+            self.steps, self.epochs = state["step"], state["epoch"]
+            self.best_loss, self.best_mae = state["best"], state["best_mae"]
+            self.bad_epochs, self.history = state["bad"], state["history"]
+            self.elapsed_before = state.get("elapsed_s", 0.0)
+            torch.set_rng_state(state["torch_rng"])
+
+    # training ------------------------------------------------------------------------------
+    def elapsed(self) -> float:
+        """Seconds of training of the whole run (earlier calls of a resumed run included)."""
+        return self.elapsed_before + time.monotonic() - self.t0
+
+    def next_batch(self) -> tuple[torch.Tensor, ...]:
+        """The next batch of the training stream (on the CPU); the stream starts, at the first
+        call, at the batch after the last step done (:class:`BurstStream`)."""
+        if self._batches is None:
+            tc = self.train_cfg
+            stream = BurstStream(
+                self.pool_fn, self.burst_cfg, self.norm, seed=tc.seed, batch=tc.batch,
+                start_batch=self.steps, cameras=self.cameras,
+                frame_positions=self.model_cfg.radial_frames, band_m=self.band_m,
+            )
+            self._loader = burst_loader(stream, tc.workers, self.device)
+            self._batches = iter(self._loader)
+        return next(self._batches)
+
+    def step(self, batch: tuple[torch.Tensor, ...]) -> float:
+        """One optimisation step on ``batch`` (:func:`batch_tensors`' tensors), at the rate of
+        the ``"step"`` schedule where that is the run's; returns its loss."""
+        lr = None
+        if self.train_cfg.lr_schedule == "step":
+            lr = step_lr(self.schedule_cfg, self.steps, self.elapsed())
+        batch = tuple(t.to(self.device, non_blocking=True) for t in batch)
+        loss = train_step(self.model, self.opt, batch, lr=lr)
+        self.samples += batch[0].shape[0]
+        self.steps += 1
+        return loss
+
+    def out_of_time(self) -> bool:
+        """Whether this call's ``max_minutes`` have run out."""
+        budget = self.train_cfg.max_minutes
+        return budget is not None and time.monotonic() - self.t0 > 60.0 * budget
+
+    def steps_done(self) -> bool:
+        """Whether ``max_steps`` batches are done."""
+        return self.train_cfg.max_steps is not None and self.steps >= self.train_cfg.max_steps
+
+    def epoch(self) -> dict[str, Any]:
+        """``steps_per_epoch`` steps on the training stream (fewer where the time or
+        ``max_steps`` runs out). Returns ``{"epoch", "step", "train_loss", "steps",
+        "out_of_time"}``: the epochs and steps done after it, its mean loss, its steps and
+        whether the time ran out."""
+        self.model.train()
+        loss_sum, n, out_of_time = 0.0, 0, False
+        for _ in range(self.train_cfg.steps_per_epoch):
+            ts = time.monotonic()
+            loss = self.step(self.next_batch())
+            self.train_s += time.monotonic() - ts
+            loss_sum += loss
+            n += 1
+            if self._bar:
+                self._bar.update(self._task, advance=1, description=(
+                    f"epoch {self.epochs + 1} loss {loss_sum / n:.4f} "
+                    f"val MAE {self.best_mae:.2f} °C"))
+            if self.out_of_time():
+                out_of_time = True
+                break
+            if self.steps_done():
+                break
+        self.epochs += 1
+        return {"epoch": self.epochs, "step": self.steps, "train_loss": loss_sum / max(n, 1),
+                "steps": n, "out_of_time": out_of_time}
+
+    def validate(self) -> tuple[float, float, float]:
+        """Loss, MAE and bias-free MAE (°C) on the validation set (:func:`validate`)."""
+        return validate(self.model, self.val, self.norm)
+
+    def samples_per_s(self) -> float:
+        """Training speed of this call (bursts per second of steps, data included)."""
+        return self.samples / max(self.train_s, 1e-9)
+
+    def record(self, stats: dict[str, Any], val: tuple[float, float, float]) -> dict[str, float]:
+        """What follows an epoch's validation: the plateau schedule's step, a history row, the
+        weights file where the validation loss is the best so far, the log line. ``stats``:
+        :meth:`epoch`'s; ``val``: :meth:`validate`'s. Returns the history row."""
+        val_loss, val_mae, val_rel = val
+        if self.train_cfg.lr_schedule == "plateau":
+            self.sched.step(val_loss)
+        lr = self.opt.param_groups[0]["lr"]
+        row = {"epoch": self.epochs, "step": self.steps, "train_loss": stats["train_loss"],
+               "val_loss": val_loss, "val_mae_c": val_mae, "val_mae_bias_free_c": val_rel,
+               "lr": lr, "elapsed_s": self.elapsed()}
+        self.history.append(row)
+        if val_loss < self.best_loss:
+            self.best_loss, self.best_mae, self.bad_epochs = val_loss, val_mae, 0
+            self.save(val=val)
+        else:
+            self.bad_epochs += 1
+        self.log(
+            f"epoch {self.epochs} step {self.steps} train_loss {stats['train_loss']:.5f} "
+            f"val_loss {val_loss:.5f} val_mae {val_mae:.3f} C (bias-free {val_rel:.3f} C) "
+            f"best {self.best_mae:.3f} C "
+            f"lr {lr:.2e} elapsed {self.elapsed():.0f} s "
+            f"train {self.samples_per_s():.1f} samples/s"
+        )
+        return row
+
+    def stop_reason(self, stats: dict[str, Any]) -> str | None:
+        """Why the run stops after the epoch of ``stats`` (``"max_minutes"``, ``"max_steps"``,
+        ``"early_stop"``), or None."""
+        if stats["out_of_time"]:
+            return "max_minutes"
+        if self.steps_done():
+            return "max_steps"
+        tc = self.train_cfg
+        if self.bad_epochs >= tc.stop_patience and tc.lr_schedule == "plateau":
+            return "early_stop"
+        return None
+
+    def run(self) -> TrainResult:
+        """Epochs, each validated, recorded and checkpointed, until ``max_epochs``, the budget
+        or (the plateau schedule) the early stop."""
+        tc, stopped = self.train_cfg, None
+        with _bar(self.progress) as bar:
+            self._bar = bar
+            self._task = bar.add_task(
+                "training", total=tc.max_epochs * tc.steps_per_epoch, completed=self.steps
+            ) if bar else None
+            while stopped is None and self.epochs < tc.max_epochs:
+                stats = self.epoch()
+                self.record(stats, self.validate())
+                self.checkpoint()
+                stopped = self.stop_reason(stats)
+            self._bar = self._task = None
+        self.close()
+        return self.result(stopped or "max_epochs")
+
+    def result(self, stopped: str) -> TrainResult:
+        """The run so far as a :class:`TrainResult`."""
+        return TrainResult(
+            steps=self.steps,
+            epochs=self.epochs,
+            best_val_mae_c=self.best_mae,
+            best_val_loss=self.best_loss,
+            wall_s=self.elapsed(),
+            stopped=stopped,
+            samples_per_s=self.samples_per_s(),
+            history=self.history,
+        )
+
+    def close(self) -> None:
+        """Stop the data workers (a later :meth:`next_batch` starts them again, at the next
+        batch of the stream)."""
+        self._batches = self._loader = None
+
+    # files ---------------------------------------------------------------------------------
+    def save(
+        self, path: str | os.PathLike[str] | None = None,
+        val: tuple[float, ...] | None = None,
+    ) -> Path:
+        """Write the weights file (``out`` unless ``path``) with the run's normalisation, data
+        configuration and ``meta``; ``val`` (:meth:`validate`'s loss and MAE) adds the scores,
+        the step, the epoch and the validation units to the metadata."""
+        scores: dict[str, Any] = {"val_mae_c": None}
+        if val is not None:
+            scores = {"val_mae_c": val[1], "val_loss": val[0], "step": self.steps,
+                      "epoch": self.epochs, "val_units": list(self.val_units)}
+        return save_model(self.out if path is None else path, self.model, self.norm,
+                          self.burst_cfg, {**self.meta, **scores})
+
+    def checkpoint(self, path: str | os.PathLike[str] | None = None) -> Path:
+        """Write the checkpoint (``OUT.ckpt`` unless ``path``) that :meth:`resume` continues
+        from, atomically."""
+        payload = {
+            "model": self.model.state_dict(),
+            "opt": self.opt.state_dict(),
+            "sched": self.sched.state_dict(),
+            "step": self.steps,
+            "epoch": self.epochs,
+            "best": self.best_loss,
+            "best_mae": self.best_mae,
+            "bad": self.bad_epochs,
+            "history": self.history,
+            "norm": self.norm.to_dict(),
+            "model_cfg": self.model_cfg.to_dict(),
+            "burst_cfg": self.burst_cfg.to_dict(),
+            "train_cfg": asdict(self.train_cfg),
+            "schedule_cfg": asdict(self.schedule_cfg),
+            "torch_rng": torch.get_rng_state(),
+            "elapsed_s": self.elapsed(),
+            "cameras": sorted(self.cameras) if self.cameras else None,  # resumed with them
+        }
+        path = self.ckpt_path if path is None else Path(path)
+        with atomic_path(path) as tmp:
+            torch.save(payload, tmp)
+        return path
+
+
+def _weights_path(out: str | os.PathLike[str]) -> Path:
+    return check_output_file(check_suffix(out, (".pt",), "the weights file"))
+
+
+def _read_checkpoint(path: Path, cameras: dict[int, CameraModel] | None) -> dict[str, Any]:
+    if not path.is_file():
+        raise FileFormatError(f"{path}: no checkpoint to resume from")
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=False)
+    except Exception:
+        raise FileFormatError(f"{path}: damaged checkpoint") from None
+    if state.get("cameras") and not cameras:
+        raise InvalidInputError(
+            f"{path}: this run was trained from a chamber file: resume it with --chamber"
+        )
+    return state
+
+
+def _check_run(
+    model_cfg: ModelConfig, burst_cfg: BurstConfig, train_cfg: TrainConfig,
+    cameras: dict[int, CameraModel] | None, val_units: tuple[int, ...],
+) -> None:
+    if train_cfg.lr_schedule not in ("plateau", "step"):
+        raise InvalidInputError(f"lr_schedule must be plateau or step, got {train_cfg.lr_schedule}")
+    if model_cfg.n_frames != burst_cfg.n_frames:
+        raise InvalidInputError(
+            f"model has N = {model_cfg.n_frames} but the data N = {burst_cfg.n_frames}"
+        )
+    if cameras is None and set(val_units) & set(burst_cfg.units):
+        raise InvalidInputError("validation units must not be training units")
+    check_calibrated(model_cfg, burst_cfg)  # before training, not only at the first save
+
+
+def _check_same_network(
+    init: str | os.PathLike[str], have: ModelConfig, want: ModelConfig
+) -> None:
+    if have == want:
+        return
+    differ = [k for k, v in have.to_dict().items() if want.to_dict()[k] != v]
+    raise InvalidInputError(
+        f"{init}: its network differs from the one to train in "
+        f"{', '.join(f'{k} ({getattr(have, k)} there)' for k in differ)}: "
+        "give the same options (e.g. --no-calibrated for a model on raw counts)"
+    )
+
+
 def train(
     out: str | os.PathLike[str],
     model_cfg: ModelConfig,
@@ -310,7 +792,8 @@ def train(
     meta: dict[str, Any] | None = None,
     init: str | os.PathLike[str] | None = None,
 ) -> TrainResult:
-    """Train a KPN and write the best weights to ``out`` (and a checkpoint to ``out.ckpt``).
+    """Train a KPN and write the best weights to ``out`` (and a checkpoint to ``out.ckpt``):
+    :meth:`Trainer.run` of a new :class:`Trainer`, or of :meth:`Trainer.resume`'s.
 
     Parameters
     ----------
@@ -334,301 +817,12 @@ def train(
         Start from the weights and the normalisation of this weights file (fine-tuning, e.g. on
         a wider scene range or another camera model); its configuration must be ``model_cfg``.
     """
-    t0 = time.monotonic()
-    out = Path(out)
-    if out.suffix != ".pt":
-        raise InvalidInputError(f"{out}: the weights file must end in .pt")
-    if not out.parent.is_dir():
-        raise InvalidInputError(f"{out.parent}: output folder does not exist")
-    ckpt_path = out.with_suffix(".ckpt")
-    state: dict[str, Any] | None = None
+    kwargs = {"pool_fn": pool_fn, "val_pool_fn": val_pool_fn, "cameras": cameras,
+              "val_units": val_units, "log": log, "progress": progress, "meta": meta,
+              "init": init}
     if resume:
-        if not ckpt_path.is_file():
-            raise FileFormatError(f"{ckpt_path}: no checkpoint to resume from")
-        try:
-            state = torch.load(ckpt_path, map_location="cpu", weights_only=False)
-        except Exception:
-            raise FileFormatError(f"{ckpt_path}: damaged checkpoint") from None
-        if state.get("cameras") and not cameras:
-            raise InvalidInputError(
-                f"{ckpt_path}: this run was trained from a chamber file: resume it with --chamber"
-            )
-        model_cfg = ModelConfig(**state["model_cfg"])
-        burst_cfg = BurstConfig(
-            **{k: tuple(v) if isinstance(v, list) else v for k, v in state["burst_cfg"].items()}
-        )
-        # the budget (epochs, minutes, steps) is the new call's; everything else the checkpoint's
-        train_cfg = TrainConfig(
-            **{
-                **state["train_cfg"],
-                "max_minutes": train_cfg.max_minutes,
-                "max_steps": train_cfg.max_steps,
-                "max_epochs": train_cfg.max_epochs,
-                "device": train_cfg.device,
-                "workers": train_cfg.workers,
-                "threads": train_cfg.threads,
-            }
-        )
-    if train_cfg.lr_schedule not in ("plateau", "step"):
-        raise InvalidInputError(f"lr_schedule must be plateau or step, got {train_cfg.lr_schedule}")
-    # the step schedule's budget is the first call's: a resumed run continues its schedule (the
-    # new call's budget only says when this call stops)
-    schedule_cfg = (
-        TrainConfig(**state.get("schedule_cfg", state["train_cfg"])) if state else train_cfg
-    )
-    if model_cfg.n_frames != burst_cfg.n_frames:
-        raise InvalidInputError(
-            f"model has N = {model_cfg.n_frames} but the data N = {burst_cfg.n_frames}"
-        )
-    if cameras is None and set(val_units) & set(burst_cfg.units):
-        raise InvalidInputError("validation units must not be training units")
-    check_calibrated(model_cfg, burst_cfg)  # before training, not only at the first save
-    band_m = model_cfg.band_m if model_cfg.radiance else None  # the calibrated input's units
-
-    device = resolve_device(train_cfg.device)
-    torch.set_num_threads(train_cfg.threads)
-    _seed_everything(train_cfg.seed, device)
-    pool_fn = pool_fn or (lambda: ScenePool.training(seed=train_cfg.seed))
-    val_pool_fn = val_pool_fn or (
-        lambda: ScenePool.training(seed=train_cfg.seed + 1000, n_procedural=9)
-    )
-    pool = pool_fn()
-    init_model = None
-    if init is not None and state:
-        raise InvalidInputError("--init starts a new run and --resume continues OUT.ckpt: give one")
-    if init is not None:
-        init_model, norm, _ = load_model(init)
-        if init_model.config != model_cfg:
-            differ = [k for k, v in init_model.config.to_dict().items()
-                      if model_cfg.to_dict()[k] != v]
-            raise InvalidInputError(
-                f"{init}: its network differs from the one to train in "
-                f"{', '.join(f'{k} ({getattr(init_model.config, k)} there)' for k in differ)}: "
-                "give the same options (e.g. --no-calibrated for a model on raw counts)"
-            )
-        fresh = fit_normalisation(pool, burst_cfg, seed=train_cfg.seed, cameras=cameras)
-        counts_out = not model_cfg.calibrated and (  # a calibrated network never sees counts
-            fresh.counts_min < norm.counts_min - 500 or fresh.counts_max > norm.counts_max + 500)
-        if counts_out or fresh.fpa_min_c < norm.fpa_min_c or fresh.fpa_max_c > norm.fpa_max_c:
-            log(f"warning: the new data (counts {fresh.counts_min:.0f}…{fresh.counts_max:.0f}, "
-                f"FPA {fresh.fpa_min_c:g}…{fresh.fpa_max_c:g} °C) reach outside the range "
-                f"{init} was normalised for (counts {norm.counts_min:.0f}…"
-                f"{norm.counts_max:.0f}, FPA {norm.fpa_min_c:g}…{norm.fpa_max_c:g} °C)")
-    elif state:
-        norm = Normalisation(**state["norm"])
-    else:
-        norm = fit_normalisation(pool, burst_cfg, seed=train_cfg.seed, cameras=cameras)
-
-    val_cfg = BurstConfig(
-        **{**asdict(burst_cfg), "units": tuple(val_units), "redraw_pixel_fpn": False,
-           "walk_frames": None, "nominal_units": burst_cfg.nominal_of}
-    )
-    val_pool = val_pool_fn()
-    val_units_cache = _unit_cache(val_cfg, cameras)
-    val_bursts = [
-        make_burst(
-            val_pool,
-            val_cfg,
-            rng=np.random.default_rng([train_cfg.seed, 7, i]),
-            units=val_units_cache,
-        )
-        for i in range(train_cfg.val_bursts)
-    ]
-    val = [  # on the training device once, not at every validation
-        tuple(t.to(device) for t in batch_tensors(val_bursts[i : i + train_cfg.batch], norm,
-                                                  frame_positions=model_cfg.radial_frames,
-                                                  band_m=band_m))
-        for i in range(0, len(val_bursts), train_cfg.batch)
-    ]
-
-    model = KPN(model_cfg, temp_range_c=(norm.temp_min_c, norm.temp_max_c),
-                train_crop=burst_cfg.crop)
-    if model_cfg.calibrated:  # what its input goes through, saved with it
-        model.nominal = _unit_cache(burst_cfg, cameras).nominal(burst_cfg.nominal_of)
-    if init_model is not None:
-        model.load_state_dict(init_model.state_dict())
-    model = model.to(device)
-    opt = torch.optim.Adam(model.parameters(), lr=train_cfg.lr)
-    sched = torch.optim.lr_scheduler.ReduceLROnPlateau(
-        opt, mode="min", factor=0.5, patience=train_cfg.lr_patience
-    )
-    step, epoch, best, best_mae, bad = 0, 0, math.inf, math.inf, 0
-    history: list[dict[str, float]] = []
-    elapsed_before = 0.0
-    if state:
-        model.load_state_dict(state["model"])
-        opt.load_state_dict(state["opt"])
-        sched.load_state_dict(state["sched"])
-        step, epoch = state["step"], state["epoch"]
-        best, best_mae, bad = state["best"], state["best_mae"], state["bad"]
-        history = state["history"]
-        elapsed_before = state.get("elapsed_s", 0.0)
-        torch.set_rng_state(state["torch_rng"])
-    if init_model is not None:
-        # a fine-tune keeps what it starts from unless an epoch beats it on the validation set
-        best, best_mae, _ = validate(model, val, norm)
-        log(f"start from {init}: val_loss {best:.5f} val_mae {best_mae:.3f} C")
-        save_model(out, model, norm, burst_cfg, {
-            **(meta or {}), "val_mae_c": best_mae, "val_loss": best, "step": 0, "epoch": 0,
-            "val_units": list(val_units)})
-    elif not state or not out.is_file():
-        save_model(out, model, norm, burst_cfg, {**(meta or {}), "val_mae_c": None})
-
-    def checkpoint() -> None:
-        payload = {
-            "model": model.state_dict(),
-            "opt": opt.state_dict(),
-            "sched": sched.state_dict(),
-            "step": step,
-            "epoch": epoch,
-            "best": best,
-            "best_mae": best_mae,
-            "bad": bad,
-            "history": history,
-            "norm": norm.to_dict(),
-            "model_cfg": model_cfg.to_dict(),
-            "burst_cfg": burst_cfg.to_dict(),
-            "train_cfg": asdict(train_cfg),
-            "schedule_cfg": asdict(schedule_cfg),
-            "torch_rng": torch.get_rng_state(),
-            "elapsed_s": elapsed_before + time.monotonic() - t0,
-            "cameras": sorted(cameras) if cameras else None,  # a chamber run resumes with it
-        }
-        with atomic_path(ckpt_path) as tmp:
-            torch.save(payload, tmp)
-
-    stream = _Stream(
-        pool_fn,
-        burst_cfg,
-        norm,
-        seed=train_cfg.seed,
-        batch=train_cfg.batch,
-        start_batch=step,
-        cameras=cameras,
-        frame_positions=model_cfg.radial_frames,
-        band_m=band_m,
-    )
-    loader = torch.utils.data.DataLoader(
-        stream,
-        batch_size=None,
-        num_workers=train_cfg.workers,
-        prefetch_factor=4 if train_cfg.workers else None,
-        persistent_workers=False,
-        pin_memory=device.type == "cuda",
-    )
-    budget_s = None if train_cfg.max_minutes is None else 60.0 * train_cfg.max_minutes
-    stopped = "max_epochs"
-    samples, t_train = 0, 0.0
-    it = iter(loader)
-    bar_ctx = _bar(progress)
-    with bar_ctx as bar:
-        task = (
-            bar.add_task(
-                "training", total=train_cfg.max_epochs * train_cfg.steps_per_epoch, completed=step
-            )
-            if bar
-            else None
-        )
-        model.train()
-        while epoch < train_cfg.max_epochs:
-            run_loss, n_run = 0.0, 0
-            out_of_time = False
-            for _ in range(train_cfg.steps_per_epoch):
-                ts = time.monotonic()
-                if train_cfg.lr_schedule == "step":
-                    for g in opt.param_groups:
-                        g["lr"] = step_lr(
-                            schedule_cfg, step, elapsed_before + time.monotonic() - t0
-                        )
-                frames, fpa, valid, truth, mask, r2 = (
-                    t.to(device, non_blocking=True) for t in next(it)
-                )
-                opt.zero_grad(set_to_none=True)
-                loss = kpn_loss(model(frames, fpa, valid, r2=r2), truth, mask)
-                loss.backward()
-                opt.step()
-                t_train += time.monotonic() - ts
-                samples += frames.shape[0]
-                step += 1
-                run_loss += float(loss.detach())
-                n_run += 1
-                if bar:
-                    bar.update(
-                        task,
-                        advance=1,
-                        description=(
-                            f"epoch {epoch + 1} loss {run_loss / n_run:.4f} "
-                            f"val MAE {best_mae:.2f} °C"
-                        ),
-                    )
-                if budget_s is not None and time.monotonic() - t0 > budget_s:
-                    out_of_time = True
-                    break
-                if train_cfg.max_steps is not None and step >= train_cfg.max_steps:
-                    break
-            epoch += 1
-            val_loss, val_mae, val_rel = validate(model, val, norm)
-            if train_cfg.lr_schedule == "plateau":
-                sched.step(val_loss)
-            lr = opt.param_groups[0]["lr"]
-            history.append(
-                {
-                    "epoch": epoch,
-                    "step": step,
-                    "train_loss": run_loss / max(n_run, 1),
-                    "val_loss": val_loss,
-                    "val_mae_c": val_mae,
-                    "val_mae_bias_free_c": val_rel,
-                    "lr": lr,
-                    "elapsed_s": elapsed_before + time.monotonic() - t0,
-                }
-            )
-            if val_loss < best:
-                best, best_mae, bad = val_loss, val_mae, 0
-                save_model(
-                    out,
-                    model,
-                    norm,
-                    burst_cfg,
-                    {
-                        **(meta or {}),
-                        "val_mae_c": val_mae,
-                        "val_loss": val_loss,
-                        "step": step,
-                        "epoch": epoch,
-                        "val_units": list(val_units),
-                    },
-                )
-            else:
-                bad += 1
-            log(
-                f"epoch {epoch} step {step} train_loss {run_loss / max(n_run, 1):.5f} "
-                f"val_loss {val_loss:.5f} val_mae {val_mae:.3f} C (bias-free {val_rel:.3f} C) "
-                f"best {best_mae:.3f} C "
-                f"lr {lr:.2e} elapsed {elapsed_before + time.monotonic() - t0:.0f} s "
-                f"train {samples / max(t_train, 1e-9):.1f} samples/s"
-            )
-            checkpoint()
-            if out_of_time:
-                stopped = "max_minutes"
-                break
-            if train_cfg.max_steps is not None and step >= train_cfg.max_steps:
-                stopped = "max_steps"
-                break
-            if bad >= train_cfg.stop_patience and train_cfg.lr_schedule == "plateau":
-                stopped = "early_stop"
-                break
-    del it, loader
-    return TrainResult(
-        steps=step,
-        epochs=epoch,
-        best_val_mae_c=best_mae,
-        best_val_loss=best,
-        wall_s=elapsed_before + time.monotonic() - t0,
-        stopped=stopped,
-        samples_per_s=samples / max(t_train, 1e-9),
-        history=history,
-    )
+        return Trainer.resume(out, train_cfg, **kwargs).run()
+    return Trainer(out, model_cfg, burst_cfg, train_cfg, **kwargs).run()
 
 
 class _NoBar:

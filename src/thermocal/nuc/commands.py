@@ -1,4 +1,7 @@
-"""``thermocal nuc FRAMES.tiff --method NAME --out CORRECTED.tiff``."""
+"""``thermocal nuc FRAMES.tiff --method NAME --out CORRECTED.tiff``.
+
+Its method names and help come from the registry, :data:`thermocal.nuc.registry.NUC_METHODS`.
+"""
 
 from __future__ import annotations
 
@@ -6,29 +9,24 @@ from pathlib import Path
 
 import click
 
-# the registry's keys, listed here so that --help does not import numpy-heavy modules
-_METHODS = ("harris1999", "scribner", "ecr", "torres-kalman", "hardie2000", "zuo2011", "admire")
+from thermocal._validate import TIFF_SUFFIXES, check_output_file
+from thermocal.nuc.registry import NUC_METHODS, method_help
 
 
-@click.command("nuc")
+@click.command("nuc", epilog=method_help())
 @click.argument("frames", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--method", type=click.Choice(_METHODS), required=True, help="NUC method.")
+@click.option("--method", type=click.Choice(list(NUC_METHODS)), required=True,
+              help="NUC method (listed below).")
 @click.option(
     "--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
     help="Output float32 TIFF (N, H, W), counts-like units (not radiometric).",
 )
 def nuc(frames: Path, method: str, out: Path) -> None:
     """Scene-based / single-frame nonuniformity correction of a recording."""
-    from thermocal.errors import InvalidInputError
     from thermocal.io.recording import read_recording, write_temperature_tiff
     from thermocal.nuc import correct_nonuniformity
 
-    if out.is_dir():
-        raise InvalidInputError(f"{out}: is a directory, expected a file name")
-    if not out.parent.exists():
-        raise InvalidInputError(f"{out.parent}: output folder does not exist")
-    if out.suffix.lower() not in (".tif", ".tiff"):
-        raise InvalidInputError(f"{out}: the output must end in .tiff or .tif")
+    check_output_file(out, TIFF_SUFFIXES)
     rec = read_recording(frames)
     corrected = correct_nonuniformity(rec.frames, method=method)
     write_temperature_tiff(out, corrected)

@@ -1,8 +1,10 @@
 """Per-frame (streaming) scene-based NUC: each method keeps per-pixel parameters that it updates
 with every new frame and applies to it.
 
-Every corrector has ``update(frame)`` (learn from one ``(H, W)`` frame), ``apply(frame)`` (correct
-one frame with the current parameters, float32) and ``process(frame)`` (update, then apply).
+Every corrector is a :class:`~thermocal.calibration.base.StreamingCorrector`: ``update(frame)``
+learns from one ``(H, W)`` frame, ``correct_frame(frame)`` corrects one frame with the current
+parameters (float32), ``process(frame)`` does both (update, then correct) and ``correct(frames)``
+processes a stack ``(N, H, W)`` in order.
 The outputs are in counts-like units around the raw level: **not radiometric** (no method here
 knows the scene temperature); compare them with the truth only after an affine fit.
 
@@ -43,16 +45,22 @@ __all__ = [
     "StreamingNUC",
     "TorresKalman",
     "Zuo2011",
+    "harris1999",
+    "pezoa2004",
+    "scribner",
+    "torres_kalman",
+    "zuo2011",
 ]
 
 _EPS = np.float32(1e-3)
 
 
 class StreamingNUC:
-    """Base of the streaming correctors: shape bookkeeping, ``process`` and batch ``correct``.
+    """Base of the streaming correctors: shape bookkeeping, ``correct_frame``, ``process`` and
+    ``correct`` of a stack.
 
     A method states only its own rule: ``_start(x)`` (state from the first frame),
-    ``_update(x)`` (learn from one checked float32 frame), ``_apply(x)`` (correct one) and, when
+    ``_update(x)`` (learn from one checked float32 frame), ``_correct(x)`` (correct one) and, when
     the estimate needs a few frames first, ``_ready()`` (False: frames pass through unchanged).
     """
 
@@ -86,23 +94,25 @@ class StreamingNUC:
         raise NotImplementedError
 
     def _ready(self) -> bool:
-        """Whether the parameters are estimated yet (until then ``apply`` copies the frame)."""
+        """Whether the parameters are estimated yet (until then ``correct_frame`` copies the
+        frame)."""
         return True
 
-    def apply(self, frame: Any) -> np.ndarray:
-        """Correct one frame ``(H, W)`` with the current parameters; float32 ``(H, W)``."""
+    def correct_frame(self, frame: Any) -> np.ndarray:
+        """Correct one frame ``(H, W)`` with the current parameters (learning nothing); float32
+        ``(H, W)``."""
         x = self._frame(frame)
         if not self._ready():
             return x.copy()
-        return self._apply(x)
+        return self._correct(x)
 
-    def _apply(self, x: np.ndarray) -> np.ndarray:  # pragma: no cover
+    def _correct(self, x: np.ndarray) -> np.ndarray:  # pragma: no cover
         raise NotImplementedError
 
     def process(self, frame: Any) -> np.ndarray:
         """Update with a frame, then correct it; float32 ``(H, W)``."""
         self.update(frame)
-        return self.apply(frame)
+        return self.correct_frame(frame)
 
     def correct(self, frames: Any) -> np.ndarray:
         """Run over a sequence ``(N, H, W)`` (causal: frame k is corrected with frames ≤ k).
@@ -175,7 +185,7 @@ class _LinearLMS(StreamingNUC):
             xbar = np.float32(max(float(x.mean()), 1e-6))
             self.gain -= (self.mu_g / xbar) * e * (x / xbar)
 
-    def _apply(self, x: np.ndarray) -> np.ndarray:
+    def _correct(self, x: np.ndarray) -> np.ndarray:
         return self.gain * x + self.offset
 
 
@@ -246,7 +256,7 @@ class Harris1999(_ExponentialWindow):
     def _update_spread(self, a: np.float32, x: np.ndarray, d: np.ndarray) -> None:
         self.mad += a * (np.abs(x - self.mean) - self.mad)
 
-    def _apply(self, x: np.ndarray) -> np.ndarray:
+    def _correct(self, x: np.ndarray) -> np.ndarray:
         d = _floored(self.mad)
         return (x - self.mean) / d * np.float32(d.mean()) + np.float32(self.mean.mean())
 
@@ -281,7 +291,7 @@ class Scribner(_LinearLMS):
         self.ksize = 2 * check_int(window, "window") + 1
 
     def _update(self, x: np.ndarray) -> None:
-        y = self._apply(x)
+        y = self._correct(x)
         desired = cv2.blur(y, (self.ksize, self.ksize), borderType=cv2.BORDER_REFLECT)
         self._descend(x, y - desired)
 
@@ -332,7 +342,7 @@ class Pezoa2004(_ExponentialWindow):
         """Upper bound of each pixel's range, counts ``(H, W)``."""
         return self.mean + self._half_range()
 
-    def _apply(self, x: np.ndarray) -> np.ndarray:
+    def _correct(self, x: np.ndarray) -> np.ndarray:
         low = self.low
         return _gain_offset_output(x, _floored(self.high - low), low)
 
@@ -406,7 +416,7 @@ class TorresKalman(StreamingNUC):
             self.p_gain, self.p_offset = (1 - kg) * pg, (1 - ko) * po
         self.n_blocks += 1
 
-    def _apply(self, x: np.ndarray) -> np.ndarray:
+    def _correct(self, x: np.ndarray) -> np.ndarray:
         return _gain_offset_output(x, self.gain, self.offset)
 
 
@@ -474,7 +484,7 @@ class Zuo2011(_LinearLMS):
     def process(self, frame: Any, *, homography: Any = None) -> np.ndarray:
         """Update with a frame (and its homography to the previous frame), then correct it."""
         self.update(frame, homography=homography)
-        return self.apply(frame)
+        return self.correct_frame(frame)
 
     def correct(self, frames: Any, *, homographies: Any = None) -> np.ndarray:
         """Run over ``(N, H, W)`` frames; ``homographies`` (N, 3, 3) map each frame to a common
@@ -498,12 +508,12 @@ class Zuo2011(_LinearLMS):
         return np.array([[1.0, 0.0, t[0]], [0.0, 1.0, t[1]], [0.0, 0.0, 1.0]])
 
     def _update(self, x: np.ndarray) -> None:
-        y = self._apply(x)
+        y = self._correct(x)
         prev = self._prev
         self._prev = x
         if prev is None:
             return
-        prev_y = self._apply(prev)
+        prev_y = self._correct(prev)
         h = self._pending if self._pending is not None else self._shift_matrix(prev_y, y)
         if h is None:
             self.skipped += 1
@@ -523,3 +533,37 @@ class Zuo2011(_LinearLMS):
             mad = float(np.median(np.abs(e[ok])))
             e[np.abs(e) > self.threshold * max(mad, 1e-6)] = 0.0
         self._descend(x, e)
+
+
+# --------------------------------------------------------------------------------------------
+# the methods as functions of a stack: f(frames, **options) -> (N, H, W) float32
+# --------------------------------------------------------------------------------------------
+
+
+def harris1999(frames: Any, **options: Any) -> np.ndarray:
+    """Constant statistics (Harris & Chiang 1999) over ``(N, H, W)`` frames; see
+    :class:`Harris1999` for the options. Returns float32 ``(N, H, W)``."""
+    return Harris1999(**options).correct(frames)
+
+
+def scribner(frames: Any, **options: Any) -> np.ndarray:
+    """Retina-like LMS (Scribner et al. 1991); see :class:`Scribner`. float32 ``(N, H, W)``."""
+    return Scribner(**options).correct(frames)
+
+
+def pezoa2004(frames: Any, **options: Any) -> np.ndarray:
+    """Enhanced constant range (Pezoa et al. 2004); see :class:`Pezoa2004`."""
+    return Pezoa2004(**options).correct(frames)
+
+
+def torres_kalman(frames: Any, **options: Any) -> np.ndarray:
+    """Kalman-filter NUC (Torres & Hayat 2003); see :class:`TorresKalman`."""
+    return TorresKalman(**options).correct(frames)
+
+
+def zuo2011(frames: Any, *, homographies: Any = None, **options: Any) -> np.ndarray:
+    """Interframe-registration LMS (Zuo et al. 2011); see :class:`Zuo2011`.
+
+    ``homographies`` (N, 3, 3), frame → pivot, when known (else phase correlation per pair).
+    """
+    return Zuo2011(**options).correct(frames, homographies=homographies)

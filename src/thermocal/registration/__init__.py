@@ -1,13 +1,13 @@
 """Registration of raw thermal frames: homographies, bursts to a pivot, warping with valid masks.
 
-Public API
-----------
-register_pair(moving, fixed, *, method="auto", fixed_pattern=None) -> (H (3, 3), inliers)
-register_burst(frames, *, pivot=None, method="auto", fixed_pattern=None) -> BurstRegistration
-register_sequence(frames, *, fixed_pattern=None, block=512) -> SequenceRegistration
-estimate_fixed_pattern(frames, *, max_frames=256) -> FixedPattern
-warp_to_pivot(frames, homographies_to_pivot, *, interpolation="linear") -> (warped, valid)
-render_views(map_c, homographies, frame_size) -> views
+Public API::
+
+    register_pair(moving, fixed, *, method="auto", fixed_pattern=None) -> (H (3, 3), inliers)
+    register_burst(frames, *, pivot=None, method="auto", fixed_pattern=None) -> BurstRegistration
+    register_sequence(frames, *, fixed_pattern=None, block=512) -> SequenceRegistration
+    estimate_fixed_pattern(frames, *, max_frames=256) -> FixedPattern
+    warp_to_pivot(frames, homographies_to_pivot, *, interpolation="linear") -> (warped, valid)
+    render_views(map_c, homographies, frame_size) -> views
 """
 
 from thermocal.registration.burst import (

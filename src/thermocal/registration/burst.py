@@ -45,8 +45,10 @@ import cv2
 import numpy as np
 
 import thermocal.registration._dense as dense
+from thermocal._validate import as_frames, check_frame_index, is_constant
 from thermocal.errors import InvalidInputError, RegistrationError, ResolutionMismatchError
 from thermocal.registration.features import (
+    MIN_FRAME_PX,
     MIN_INLIERS,
     FrameFeatures,
     _as_frame,
@@ -131,26 +133,8 @@ class BurstRegistration:
 
 
 def _as_burst(frames: Any) -> np.ndarray:
-    arr = np.asarray(frames)
-    if arr.dtype.kind not in "biuf":
-        raise InvalidInputError(f"frames: expected raw counts or floats, got dtype {arr.dtype}")
-    if arr.ndim != 3:
-        raise InvalidInputError(f"frames: expected a (N, H, W) burst, got shape {arr.shape}")
-    if arr.shape[0] == 0:
-        raise InvalidInputError("frames: the burst is empty")
-    _as_frame(arr[0], "frame 0")
-    if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
-        bad = int(np.flatnonzero(~np.isfinite(arr).reshape(len(arr), -1).all(axis=1))[0])
-        raise InvalidInputError(f"frames: frame {bad} contains NaN or infinite values")
-    return arr
-
-
-def _check_pivot(pivot: Any, n: int) -> int:
-    if isinstance(pivot, bool) or not isinstance(pivot, int | np.integer):
-        raise InvalidInputError(f"pivot: expected a frame index, got {pivot!r}")
-    if not 0 <= int(pivot) < n:
-        raise InvalidInputError(f"pivot: {pivot} is not a frame index (0..{n - 1})")
-    return int(pivot)
+    """A ``(N, H, W)`` burst of numbers, frames at least :data:`MIN_FRAME_PX` on a side, finite."""
+    return as_frames(frames, ndim=3, min_size=MIN_FRAME_PX, bit_depth=None)
 
 
 def _as_float(arr: np.ndarray) -> np.ndarray:
@@ -158,7 +142,7 @@ def _as_float(arr: np.ndarray) -> np.ndarray:
     frames refused."""
     x = arr.astype(np.float32)
     for i in range(len(x)):
-        if float(np.ptp(x[i])) <= 1e-6 * max(1.0, float(np.abs(x[i]).max())):
+        if is_constant(x[i]):
             raise RegistrationError(
                 f"frame {i}: the frame is uniform; there is no scene structure to align"
             )
@@ -354,7 +338,7 @@ def register_burst(
     arr = _as_burst(frames)
     n, hh, w = arr.shape
     if pivot is not None:
-        pivot = _check_pivot(pivot, n)
+        pivot = check_frame_index(pivot, n)
     if n == 1:
         return BurstRegistration(np.eye(3)[None], 0, np.zeros(1, int), method,
                                  np.zeros((hh, w), np.float32), np.ones(1))

@@ -22,6 +22,7 @@ import cv2
 import numpy as np
 from scipy.ndimage import median_filter
 
+from thermocal._validate import as_frames
 from thermocal.errors import InvalidInputError, RegistrationError
 
 __all__ = [
@@ -37,6 +38,8 @@ MIN_INLIERS = 15
 _RANSAC_PX = 2.0
 # Lowe's ratio test.
 _RATIO = 0.8
+#: Fewest pixels on a side of a frame to register.
+MIN_FRAME_PX = 16
 # Largest change of scale / perspective accepted between two frames of one burst.
 _MAX_SCALE = 2.0
 _MAX_PERSPECTIVE_PX = 0.25  # largest |h31|, |h32| times the frame diagonal
@@ -48,17 +51,8 @@ _MAX_PERSPECTIVE_PX = 0.25  # largest |h31|, |h32| times the frame diagonal
 
 
 def _as_frame(frame: Any, name: str) -> np.ndarray:
-    arr = np.asarray(frame)
-    if arr.dtype.kind not in "biuf":
-        raise InvalidInputError(f"{name}: expected numbers, got dtype {arr.dtype}")
-    if arr.ndim != 2:
-        raise InvalidInputError(f"{name}: expected one (H, W) frame, got shape {arr.shape}")
-    if min(arr.shape) < 16:
-        raise InvalidInputError(f"{name}: frame {arr.shape[1]}x{arr.shape[0]} is too small to "
-                                "register (at least 16x16 pixels)")
-    if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
-        raise InvalidInputError(f"{name}: contains NaN or infinite values")
-    return arr
+    """One ``(H, W)`` frame of numbers, at least :data:`MIN_FRAME_PX` on a side, finite."""
+    return as_frames(frame, name, ndim=2, min_size=MIN_FRAME_PX, bit_depth=None)[0]
 
 
 def _highpass(frame: np.ndarray) -> np.ndarray:

@@ -29,6 +29,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from thermocal._validate import frames_layout
 from thermocal.errors import FileFormatError, InvalidInputError, ResolutionMismatchError
 
 __all__ = [
@@ -209,11 +210,8 @@ def estimate_fixed_pattern(
     if shape is None:
         frames = np.asarray(frames)
         shape = frames.shape
-    if len(shape) != 3:
-        raise InvalidInputError(f"frames: expected a (M, H, W) stack, got shape {tuple(shape)}")
-    m = int(shape[0])
-    if m < 3:
-        raise InvalidInputError(f"frames: a fixed pattern needs at least 3 frames, got {m}")
+    m = frames_layout(tuple(shape), getattr(frames, "dtype", np.float32), ndim=3,
+                      min_frames=3)[0]
     if isinstance(max_frames, bool) or not isinstance(max_frames, int | np.integer) or (
         max_frames < 3
     ):

@@ -29,8 +29,9 @@ from typing import Any
 import numpy as np
 
 import thermocal.registration._dense as dense
+from thermocal._validate import check_frame_index, frames_layout
 from thermocal.errors import InvalidInputError, RegistrationError
-from thermocal.registration.features import check_homography
+from thermocal.registration.features import MIN_FRAME_PX, check_homography
 from thermocal.registration.fixed_pattern import (
     FixedPattern,
     as_fixed_pattern,
@@ -115,10 +116,9 @@ class SequenceRegistration:
         idx = np.atleast_1d(np.asarray(indices))
         if idx.dtype.kind not in "iu" or idx.ndim != 1:
             raise InvalidInputError(f"indices: expected frame indices, got {indices!r}")
-        for v in (*idx.tolist(), pivot):
-            if isinstance(v, bool) or not isinstance(v, int | np.integer) or not 0 <= v < m:
-                raise InvalidInputError(f"frame index {v!r} is outside the recording (0..{m - 1})")
-        p = int(pivot)
+        for v in idx.tolist():
+            check_frame_index(v, m, "frame", within="the recording")
+        p = check_frame_index(pivot, m, within="the recording")
         out = np.empty((len(idx), 3, 3))
         for n, i in enumerate(idx.tolist()):
             lo, hi = min(i, p), max(i, p)
@@ -139,21 +139,15 @@ class SequenceRegistration:
 
 
 def _check_stack(frames: Any) -> tuple[Any, tuple[int, int, int]]:
+    """A ``(M, H, W)`` recording (lazy ones are not read) and its shape; M >= 2 frames of at
+    least :data:`~thermocal.registration.features.MIN_FRAME_PX` on a side."""
     shape = getattr(frames, "shape", None)
     dtype = getattr(frames, "dtype", None)
     if shape is None or dtype is None:
         frames = np.asarray(frames)
         shape, dtype = frames.shape, frames.dtype
-    if np.dtype(dtype).kind not in "biuf":
-        raise InvalidInputError(f"frames: expected raw counts or floats, got dtype {dtype}")
-    if len(shape) != 3:
-        raise InvalidInputError(f"frames: expected a (M, H, W) recording, got shape {tuple(shape)}")
-    m, h, w = (int(v) for v in shape)
-    if m < 2:
-        raise InvalidInputError(f"frames: a sequence needs at least 2 frames, got {m}")
-    if min(h, w) < 16:
-        raise InvalidInputError(f"frames: {w}x{h} is too small to register (at least 16x16)")
-    return frames, (m, h, w)
+    return frames, frames_layout(tuple(shape), dtype, ndim=3, min_frames=2,
+                                 min_size=MIN_FRAME_PX)
 
 
 class _Prepared:

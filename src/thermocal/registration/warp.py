@@ -25,7 +25,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from thermocal._validate import as_temperature_c, check_ndim
+from thermocal._validate import as_frames, as_temperature_c
 from thermocal.errors import InvalidInputError
 
 __all__ = [
@@ -198,17 +198,7 @@ def render_views(map_c: Any, homographies: Any, frame_size: tuple[int, int]) -> 
 
 def _as_frame_stack(frames: Any) -> np.ndarray:
     """Frames as ``(N, H, W)`` numeric, finite (never copied unless needed)."""
-    arr = np.asarray(frames)
-    if arr.dtype.kind not in "biuf":
-        raise InvalidInputError(f"frames: expected numbers, got dtype {arr.dtype}")
-    check_ndim(arr, "frames", (2, 3))
-    if arr.ndim == 2:
-        arr = arr[None]
-    if 0 in arr.shape:
-        raise InvalidInputError(f"frames: empty stack (shape {arr.shape})")
-    if arr.dtype.kind == "f" and not np.all(np.isfinite(arr)):
-        raise InvalidInputError("frames: contain NaN or infinite values")
-    return arr
+    return as_frames(frames, bit_depth=None)
 
 
 def warp_to_pivot(

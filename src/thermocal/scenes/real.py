@@ -240,7 +240,7 @@ def _finish(celsius: Any, p: Path) -> np.ndarray:
     if not finite.all():
         n_bad = int(arr.size - np.count_nonzero(finite))
         raise FileFormatError(f"{p}: {n_bad} pixel(s) decode to NaN or infinite temperatures")
-    # checked before the cast to float32, which would round -273.15 up
+    # checked before the cast to float32, which would round absolute zero up
     if float(arr.min()) <= -ZERO_CELSIUS_K:
         raise FileFormatError(
             f"{p}: temperatures at or below absolute zero ({float(arr.min()):.2f} °C); "

@@ -26,7 +26,7 @@ from typing import Any
 import numpy as np
 from scipy.optimize import brentq
 
-from thermocal._validate import check_rng
+from thermocal._validate import check_frame_index, check_rng
 from thermocal.errors import InvalidInputError
 from thermocal.registration.warp import (
     _check_frame_size,
@@ -96,14 +96,6 @@ def _check_overlap(overlap: Any) -> tuple[float, float]:
     if not (0.0 < lo <= hi < 1.0):
         raise InvalidInputError(f"overlap: expected 0 < low <= high < 1, got {overlap!r}")
     return lo, hi
-
-
-def _check_pivot(pivot: Any, n: int) -> int:
-    if isinstance(pivot, bool) or not isinstance(pivot, int | np.integer):
-        raise InvalidInputError(f"pivot: expected a frame index, got {pivot!r}")
-    if not 0 <= int(pivot) < n:
-        raise InvalidInputError(f"pivot: {pivot} is not a frame index (0..{n - 1})")
-    return int(pivot)
 
 
 def _similarity(
@@ -331,7 +323,7 @@ def to_pivot(homographies: Any, pivot: int) -> np.ndarray:
         the identity.
     """
     hs = as_homographies(homographies)
-    p = _check_pivot(pivot, len(hs))
+    p = check_frame_index(pivot, len(hs))
     out = _normalise(np.linalg.inv(hs[p])[None] @ hs)
     out[p] = np.eye(3)
     return out
@@ -752,7 +744,7 @@ def perturb_homographies(
         keep = np.all(np.abs(hs - np.eye(3)) <= 1e-12, axis=(1, 2))
     else:
         keep = np.zeros(n, dtype=bool)
-        keep[_check_pivot(pivot, n)] = True
+        keep[check_frame_index(pivot, n)] = True
     sx = 2.0 / (w - 1) if w > 1 else 1.0
     sy = 2.0 / (hh - 1) if hh > 1 else 1.0
     norm = np.array([[sx, 0.0, -1.0], [0.0, sy, -1.0], [0.0, 0.0, 1.0]])

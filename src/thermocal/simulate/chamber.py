@@ -23,6 +23,7 @@ from thermocal.camera.thermal import (
     profile_duration_s,
     thermal_response,
 )
+from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import InvalidInputError
 from thermocal.radiometry import BandRadiance
 
@@ -101,10 +102,10 @@ def radiance_temperature_c(
     The grey body of emissivity ``emissivity`` also reflects its surround at ``surround_c``:
     ``L(T_eff) = ε·L(T_body) + (1 − ε)·L(T_surround)``.
     """
-    body_k = np.asarray(body_c, dtype=np.float64) + 273.15
-    surround_k = np.asarray(surround_c, dtype=np.float64) + 273.15
+    body_k = np.asarray(body_c, dtype=np.float64) + ZERO_CELSIUS_K
+    surround_k = np.asarray(surround_c, dtype=np.float64) + ZERO_CELSIUS_K
     radiance = emissivity * band.radiance(body_k) + (1.0 - emissivity) * band.radiance(surround_k)
-    return band.temperature(radiance) - 273.15
+    return band.temperature(radiance) - ZERO_CELSIUS_K
 
 
 @dataclass(frozen=True)

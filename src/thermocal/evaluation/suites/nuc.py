@@ -85,8 +85,8 @@ def ghosting_flight(cam, scene, n: int, seed: int):
 
 def ghost_measure(out: np.ndarray, clean_out: np.ndarray, truth: np.ndarray,
                   trail: np.ndarray) -> float:
-    """Mean |difference| (°C, after each output's affine fit) along the object's trail over the
-    last 10 frames, between the run that saw the object and the run that did not."""
+    """Mean absolute difference (°C, after each output's affine fit) along the object's trail
+    over the last 10 frames, between the run that saw the object and the run that did not."""
     vals = []
     for k in range(len(out) - 10, len(out)):
         a = best_affine_fit(out[k], truth[k])

@@ -1,6 +1,7 @@
 """Speed of the camera simulator (issue: foundation).
 
 Measures, on this machine:
+
 - one 640×512 frame rendered with every term of the camera model (target ≤ 10 ms);
 - a 7-frame 336×256 burst: views rendered from a map, camera model, warped to the pivot
   (target ≤ 0.2 s);

@@ -10,7 +10,7 @@ family model of ``benchmarks/kpn.py``), divided by the family's responsivity, in
 1. for each held-out unit of the KPN benchmark (100-104), at several FPA and scene temperatures;
 2. over many other units of the preset (a population): its spread, and the least mean absolute
    shift that any single calibration-free estimate could leave (the mean absolute deviation from
-   the population's median: min over c of mean |shift − c|).
+   the population's median: min over c of mean ``|shift − c|``).
 
 A burst's MAE is at least the absolute value of its mean error, so the second figure bounds
 what a calibration-free method can reach on average over units, if the burst tells it nothing
@@ -33,10 +33,10 @@ from pathlib import Path
 
 import numpy as np
 
+from thermocal._validate import parse_units
 from thermocal.camera.model import expected_counts
 from thermocal.camera.presets import PRESETS, CameraPreset, make_camera
 from thermocal.evaluation.references import ExactModel
-from thermocal.nn.commands import _parse_units
 from thermocal.nn.data import EVAL_UNITS, TRAIN_UNITS
 from thermocal.progress import progress_bar
 
@@ -81,7 +81,7 @@ def main(argv: list[str] | None = None) -> None:
     if args.quick:
         args.units = "100-139"
     family = ExactModel.family(TRAIN_UNITS).model  # benchmarks/kpn.py's family model
-    population = [u for u in _parse_units(args.units) if u not in TRAIN_UNITS]
+    population = [u for u in parse_units(args.units) if u not in TRAIN_UNITS]
     held = shifts_c(EVAL_UNITS, family)
     pop = shifts_c(population, family)
     floor = np.mean(np.abs(pop - np.median(pop, axis=0)), axis=0)

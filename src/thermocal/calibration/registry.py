@@ -1,0 +1,132 @@
+"""The calibration registry: every calibration method thermocal fits, by name.
+
+``thermocal calibrate --method``'s choices and help, ``thermocal correct``'s help,
+:func:`fit_calibration` and :func:`load_any_calibration` all read :data:`CALIBRATION_METHODS`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from thermocal.calibration.base import Calibration
+from thermocal.calibration.lin import LinCalibration, lin, lin_level
+from thermocal.calibration.polynomial import PolynomialCalibration, polynomial
+from thermocal.calibration.shutter import ShutterCalibration, shutter
+from thermocal.calibration.store import load_calibration
+from thermocal.calibration.two_point import TwoPointCalibration, one_point, two_point
+from thermocal.calibration.wolf2016 import Wolf2016Calibration, wolf2016
+from thermocal.errors import InvalidInputError
+
+__all__ = [
+    "CALIBRATION_METHODS",
+    "CalibrationInfo",
+    "fit_calibration",
+    "load_any_calibration",
+    "method_help",
+]
+
+
+@dataclass(frozen=True)
+class CalibrationInfo:
+    """One registered calibration method.
+
+    Attributes
+    ----------
+    name : str
+        Its ``--method`` name, also recorded in its calibration files.
+    fit : callable
+        ``fit(session, **options)`` → a fitted :class:`~thermocal.calibration.base.Calibration`
+        (``session``: a chamber session, prepared data or a chamber file).
+    loads : type
+        The :class:`~thermocal.calibration.base.Calibration` class that reads its files.
+    source : str
+        The published method it implements.
+    summary : str
+        What it does, in a line.
+    takes_fpa_ref : bool
+        Whether ``fit`` takes a reference FPA temperature ``fpa_ref_c`` (``--fpa-ref-c``).
+    """
+
+    name: str
+    fit: Callable[..., Calibration]
+    loads: type[Calibration]
+    source: str
+    summary: str
+    takes_fpa_ref: bool = True
+
+
+#: ``--method`` name → calibration method, in the order ``--help`` lists them.
+CALIBRATION_METHODS: dict[str, CalibrationInfo] = {
+    info.name: info
+    for info in (
+        CalibrationInfo("two-point", two_point, TwoPointCalibration, "Riou et al.",
+                        "per-pixel gain and offset from two blackbody temperatures at one FPA "
+                        "temperature"),
+        CalibrationInfo("one-point", one_point, TwoPointCalibration, "Schulz & Caldwell",
+                        "one gain for the array, per-pixel offsets from one flat field"),
+        CalibrationInfo("shutter", shutter, ShutterCalibration,
+                        "Lin et al.'s baseline, FLIR GEV-style",
+                        "two-point gains; offsets re-read on the shutter every few minutes"),
+        CalibrationInfo("polynomial", polynomial, PolynomialCalibration,
+                        "Oz et al. eq. 13–15; Nugent et al. 2013",
+                        "per-pixel gain and offset cubic in the FPA temperature",
+                        takes_fpa_ref=False),
+        CalibrationInfo("wolf2016", wolf2016, Wolf2016Calibration, "Wolf et al. 2016",
+                        "per-pixel S0/S1/S2, Hammerstein–Wiener Ω, online LMS of the FPA "
+                        "temperature change"),
+        CalibrationInfo("lin", lin, LinCalibration, "Lin et al.",
+                        "2nd-order FPA projection, 3rd-order FPA-rate correction, Planck "
+                        "R/B/F/O fit"),
+        CalibrationInfo("lin-level", lin_level, LinCalibration,
+                        "extension of Lin et al., not in the paper",
+                        "lin whose projection follows the scene level"),
+    )
+}
+
+
+def method_help() -> str:
+    """The methods for ``--help``: one line each, name, summary and source (a click block)."""
+    width = max(map(len, CALIBRATION_METHODS))
+    lines = (f"{c.name:<{width}}  {c.summary} ({c.source})" for c in CALIBRATION_METHODS.values())
+    return "Methods:\n\n\b\n" + "\n".join(lines)
+
+
+def _info(method: str) -> CalibrationInfo:
+    """The registered method ``method``; :class:`InvalidInputError` naming the others."""
+    info = CALIBRATION_METHODS.get(method)
+    if info is None:
+        raise InvalidInputError(
+            f"unknown calibration method {method!r}; choose from {', '.join(CALIBRATION_METHODS)}"
+        )
+    return info
+
+
+def fit_calibration(session: Any, method: str = "polynomial", **options: Any) -> Calibration:
+    """Fit calibration ``method`` (a key of :data:`CALIBRATION_METHODS`) to a chamber session.
+
+    ``session`` is a :class:`~thermocal.io.chamber.ChamberSession`, a prepared
+    :class:`~thermocal.calibration.dataset.ChamberData`, or the path of a chamber ``.h5`` /
+    EnvChamberCtrl ``.npz``; ``options`` go to the method's ``fit`` function.
+    """
+    return _info(method).fit(session, **options)
+
+
+def load_any_calibration(path: str | Path) -> Calibration:
+    """Read any calibration file, with the class of the method it records.
+
+    Raises
+    ------
+    FileFormatError
+        A missing, damaged or foreign file.
+    InvalidInputError
+        A method this thermocal does not know (a file made by a newer one?).
+    """
+    method = load_calibration(path).method
+    if method not in CALIBRATION_METHODS:
+        raise InvalidInputError(
+            f"{path}: unknown calibration method {method!r} (made by a newer thermocal?)"
+        )
+    return CALIBRATION_METHODS[method].loads.load(path)
