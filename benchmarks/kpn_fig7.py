@@ -39,15 +39,15 @@ from pathlib import Path
 import numpy as np
 import torch
 
-from thermocal.evaluation.heldout import eval_bursts  # noqa: E402
-from thermocal.evaluation.network import run_methods  # noqa: E402
-from thermocal.evaluation.references import FAMILY_ROW, ExactModel  # noqa: E402
-from thermocal.evaluation.scoring import summarise  # noqa: E402
-from thermocal.nn.data import BurstConfig, ScenePool, min_views  # noqa: E402
-from thermocal.nn.infer import shipped_model_path  # noqa: E402
-from thermocal.nn.model import KPN, ModelConfig  # noqa: E402
-from thermocal.nn.store import load_model, save_model  # noqa: E402
-from thermocal.nn.train import (  # noqa: E402
+from thermocal.evaluation.heldout import eval_bursts
+from thermocal.evaluation.network import run_methods
+from thermocal.evaluation.references import FAMILY_ROW, ExactModel
+from thermocal.evaluation.scoring import summarise
+from thermocal.nn.data import BurstConfig, ScenePool, min_views
+from thermocal.nn.infer import shipped_model_path
+from thermocal.nn.model import KPN, ModelConfig
+from thermocal.nn.store import load_model, save_model
+from thermocal.nn.train import (
     BurstStream,
     TrainConfig,
     burst_loader,

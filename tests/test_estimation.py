@@ -198,3 +198,19 @@ def test_thermocal_estimate_with_a_calibration(tmp_path, flight, capsys):
     assert exc.value.code == 2
     assert "needs a per-pixel calibration" in capsys.readouterr().err
     assert not (tmp_path / "x.tiff").exists()
+
+
+def test_registry_and_estimators_agree_on_per_frame(flight):
+    from thermocal.calibration.two_point import fit_two_point
+    from thermocal.camera.model import render
+
+    cam = make_camera("tau2", unit=101, size=(64, 48))
+    rng = np.random.default_rng(0)
+    lo = render(cam, np.full(4, 10.0), 30.0, housing_c=29.0, rng=rng)
+    hi = render(cam, np.full(4, 50.0), 30.0, housing_c=29.0, rng=rng)
+    cal = fit_two_point(lo, hi, 10.0, 50.0, fpa_ref_c=30.0)
+    for name, info in ESTIMATORS.items():
+        if info.needs == "calibration":
+            assert make_estimator(name, calibration=cal).per_frame == info.per_frame, name
+    pytest.importorskip("torch")
+    assert make_estimator("kpn").per_frame == ESTIMATORS["kpn"].per_frame

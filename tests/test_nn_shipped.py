@@ -160,3 +160,23 @@ def test_version_1_weights_upgrade_to_the_same_network(tmp_path):
     again = torch.load(tmp_path / "v2.pt", map_location="cpu", weights_only=True)
     assert again["version"] == VERSION
     assert again["nominal"]["sha256"] == shipped["nominal"]["sha256"]
+
+
+@pytest.mark.parametrize("damage", ["no checksum", "no camera", "units", "preset parameters"])
+def test_weights_without_a_whole_camera_model_are_refused(tmp_path, damage):
+    """A version-2 file must carry its camera model, its checksum, and what the checksum covers
+    (where the model came from, used to make it again at another size)."""
+    from thermocal.errors import FileFormatError
+
+    payload = torch.load(shipped_model_path("kpn"), map_location="cpu", weights_only=True)
+    if damage == "no checksum":
+        del payload["nominal"]["sha256"]
+    elif damage == "no camera":
+        del payload["nominal"]
+    elif damage == "units":
+        payload["nominal"]["units"] = payload["nominal"]["units"][:-1]
+    else:
+        payload["nominal"]["preset_parameters"]["gain"] = 90.0
+    torch.save(payload, tmp_path / "bad.pt")
+    with pytest.raises(FileFormatError, match="damaged weights file"):
+        load_model(tmp_path / "bad.pt")

@@ -20,7 +20,6 @@ from thermocal.errors import InvalidInputError, ResolutionMismatchError
 
 __all__ = [
     "ABSOLUTE_ZERO_C",
-    "MAX_COUNTS_14BIT",
     "SATURATED_FRACTION",
     "TIFF_SUFFIXES",
     "as_float_array",
@@ -44,8 +43,6 @@ __all__ = [
     "saturated_fraction",
 ]
 
-#: The largest 14-bit count.
-MAX_COUNTS_14BIT = 16383
 
 #: A frame of integer counts with more than this fraction of its pixels clipped (at 0 or at the
 #: top count) is saturated: refused as input (a calibration's ``apply``, a burst) and left out of

@@ -28,8 +28,8 @@ from thermocal.radiometry import BandRadiance, band_table
 class Calibration(Protocol):
     """A fitted per-pixel calibration: raw counts → the scene's temperature, °C.
 
-    ``apply`` means the same for every calibration (and nowhere else in thermocal means
-    anything else): a stateless map of a stack of frames, never changing the calibration.
+    ``apply`` means the same for every calibration: a stateless map of a stack of frames,
+    never changing the calibration.
     A method that learns as frames stream by (``wolf2016``) keeps that state in a
     :class:`StreamingCorrector` it makes afresh for each ``apply``.
 

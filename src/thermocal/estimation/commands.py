@@ -8,7 +8,6 @@ from pathlib import Path
 import click
 
 from thermocal._validate import TIFF_SUFFIXES, check_output_file
-from thermocal.errors import InvalidInputError
 from thermocal.estimation.pipeline import estimate as run_pipeline
 from thermocal.estimation.registry import ESTIMATORS, make_estimator, method_help
 
@@ -34,12 +33,8 @@ def estimate_file(
     from thermocal.io.recording import read_recording, write_temperature_tiff
 
     out = check_output_file(out, TIFF_SUFFIXES)
-    if ESTIMATORS.get(method) and ESTIMATORS[method].needs == "calibration" and not calibration:
-        raise InvalidInputError(
-            f"--method {method} needs a per-pixel calibration: give --calibration CAL.h5"
-        )
-    rec = read_recording(frames_path, fpa_c=fpa_c)
     estimator = make_estimator(method, model=model_path, calibration=calibration)
+    rec = read_recording(frames_path, fpa_c=fpa_c)
     result = run_pipeline(rec.frames, estimator, fpa_c=rec.fpa_c, pivot=pivot,
                           registered=registered)
     write_temperature_tiff(out, result.temperature_c)
@@ -78,7 +73,8 @@ def estimate_file(
     "--calibration",
     type=click.Path(path_type=Path),
     default=None,
-    help="Per-pixel calibration file, for --method mean|calibration.",
+    help="Per-pixel calibration file (thermocal calibrate), for --method "
+    + "|".join(n for n, e in ESTIMATORS.items() if e.needs == "calibration") + ".",
 )
 def estimate(
     frames: Path,
@@ -90,7 +86,8 @@ def estimate(
     registered: bool,
     calibration: Path | None,
 ) -> None:
-    """Estimate the scene temperature of a burst's pivot frame (Oz et al. KPN + offset).
+    """Estimate the scene temperature of a burst's pivot frame (by default the shipped network,
+    Oz et al.'s KPN + offset; --method for the others).
 
     FRAMES are whole sensor frames as the camera gave them (not crops): a model trained with
     --radial uses where on the sensor each pixel lies."""

@@ -26,9 +26,9 @@ __all__ = ["KPN_ROW", "VARIANT_ROWS", "network_estimate", "run_methods", "speed"
 
 
 def network_estimate(b: dict, frames: np.ndarray, model, norm, homographies=None):
-    """The network's :class:`~thermocal.nn.infer.Estimate` for the evaluation burst ``b`` from
-    ``frames`` (its frames with their stuck pixels replaced, or a diagnosis' substitute) and
-    ``homographies`` (default: the burst's)."""
+    """The network's :class:`~thermocal.estimation.base.Estimate` for the evaluation burst
+    ``b`` from ``frames`` (its frames with their stuck pixels replaced, or a diagnosis'
+    substitute) and ``homographies`` (default: the burst's)."""
     return estimate_burst(frames, b["fpa_read"], model=model, norm=norm,
                           homographies=b["hs"] if homographies is None else homographies,
                           pivot=b["pivot"], fill_defects=False)

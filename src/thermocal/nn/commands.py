@@ -18,6 +18,7 @@ from click.core import ParameterSource
 
 from thermocal._validate import parse_range, parse_units
 from thermocal.errors import InvalidInputError
+from thermocal.nn.variants import VARIANTS
 
 #: The configuration of the shipped network, ``nn/weights/kpn_n7.pt`` (trained by ``--device
 #: cuda --workers 14 --max-minutes 8.2``: 20100 steps on an H100), by option name.
@@ -181,8 +182,8 @@ def _experiment(*decls: str, **kwargs: Any):
 # experiment options: network
 @_experiment(
     "--variant",
-    type=click.Choice(["kpn", "kpn-no-offset", "e2e"]),
-    help="KPN with the offset block, without it, or the end-to-end UNet (E2E).",
+    type=click.Choice(list(VARIANTS)),
+    help="; ".join(f"{v.name}: {v.summary}" for v in VARIANTS.values()),
 )
 @_experiment("--mu", type=int, help="Channels μ (paper: 64).")
 @_experiment("--xi", type=int, help="Level factor ξ.")

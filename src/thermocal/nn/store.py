@@ -28,7 +28,7 @@ from thermocal.nn.inputs import Normalisation, preset_nominal
 from thermocal.nn.model import KPN, ModelConfig
 from thermocal.radiometry import band_table
 
-__all__ = ["FORMAT", "VERSION", "load_model", "nominal_for", "save_model"]
+__all__ = ["FORMAT", "VERSION", "load_model", "nominal_for", "save_model", "upgrade"]
 
 
 FORMAT = "thermocal-kpn"
@@ -79,22 +79,26 @@ def nominal_payload(nominal: CameraModel) -> dict[str, Any]:
     scalars = {"noise_sigma": float(nominal.noise_sigma), "t_ref_c": float(nominal.t_ref_c),
                "bit_depth": int(nominal.bit_depth)}
     params = nominal.info.get("preset_parameters")
+    origin = {"preset_parameters": json.loads(json.dumps(params)) if params else None,
+              "units": [int(u) for u in nominal.info.get("units") or [] if u is not None]}
     return {
         **{k: torch.from_numpy(v.copy()) for k, v in maps.items()},
         **scalars,
-        "sha256": _nominal_sha256(maps, scalars),
-        "preset_parameters": json.loads(json.dumps(params)) if params else None,
-        "units": [int(u) for u in nominal.info.get("units") or [] if u is not None],
+        "sha256": _nominal_sha256(maps, scalars, origin),
+        **origin,
     }
 
 
-def _nominal_sha256(maps: dict[str, np.ndarray], scalars: dict[str, Any]) -> str:
+def _nominal_sha256(maps: dict[str, np.ndarray], scalars: dict[str, Any],
+                    origin: dict[str, Any]) -> str:
+    """SHA-256 of a nominal camera as stored: its maps (names, shapes, dtypes, bytes), its
+    scalars and where it came from (the preset parameters and units)."""
     digest = hashlib.sha256()
     for k in NOMINAL_MAPS:
         a = maps[k]
         digest.update(f"{k}{a.shape}{a.dtype}".encode())
         digest.update(a.tobytes())
-    digest.update(json.dumps(scalars, sort_keys=True).encode())
+    digest.update(json.dumps([scalars, origin], sort_keys=True).encode())
     return digest.hexdigest()
 
 
@@ -152,20 +156,25 @@ def _nominal_of(payload: dict[str, Any], config: ModelConfig) -> CameraModel:
     """The nominal camera of a calibrated model's weights file: the stored maps, checked
     against their SHA-256 (version 2, and version-1 chamber fits), or for a version-1 file made
     from a preset, made again from that preset."""
-    if "nominal" not in payload:  # version 1, trained from a preset's units
-        data = payload["data"]
+    if "nominal" not in payload:
+        if payload["version"] != 1:
+            raise InvalidInputError("a calibrated network without its camera model")
+        data = payload["data"]  # version 1, trained from a preset's units: made again
         return preset_nominal(data["preset"], tuple(data["sensor_size"]),
                               tuple(data.get("nominal_units") or data["units"]))
     d = payload["nominal"]
     maps = {k: np.ascontiguousarray(d[k].numpy(), dtype=np.float32) for k in NOMINAL_MAPS}
     scalars = {"noise_sigma": float(d["noise_sigma"]), "t_ref_c": float(d["t_ref_c"]),
                "bit_depth": int(d["bit_depth"])}
-    if "sha256" in d and d["sha256"] != _nominal_sha256(maps, scalars):
+    params = d.get("preset_parameters")
+    units = [int(u) for u in d.get("units") or []]
+    origin = {"preset_parameters": params, "units": units}
+    if payload["version"] != 1 and d.get("sha256") != _nominal_sha256(maps, scalars, origin):
         raise InvalidInputError("its camera model does not match the checksum stored with it")
     if not all(np.all(np.isfinite(m)) for m in maps.values()) or not np.all(maps["gain"][0] > 0):
         raise InvalidInputError("its camera model has non-finite or non-positive gain terms")
-    params = d.get("preset_parameters")
-    units = [int(u) for u in d.get("units") or []]
+    if params:
+        _preset_of(params)  # refused here, not when another frame size first needs it
     return CameraModel(
         **maps, defects=np.zeros(maps["housing"].shape, bool),
         defect_counts=np.zeros(maps["housing"].shape, np.uint16),
@@ -196,9 +205,18 @@ def nominal_for(model: KPN, shape: tuple[int, int]) -> CameraModel:
             f"this network's camera model is {w}x{h} (fitted on a chamber file of that size) but "
             f"the frames are {shape[1]}x{shape[0]}; train it from a chamber session of this size"
         )
-    preset = CameraPreset(**{k: tuple(v) if isinstance(v, list) else v
-                             for k, v in params.items()})
-    return preset_nominal(preset, (int(shape[1]), int(shape[0])), units)
+    return preset_nominal(_preset_of(params), (int(shape[1]), int(shape[0])), units)
+
+
+def _preset_of(params: dict[str, Any]) -> CameraPreset:
+    """The :class:`~thermocal.camera.presets.CameraPreset` of stored parameters
+    (:class:`InvalidInputError` for parameters it does not have)."""
+    try:
+        return CameraPreset(**{k: tuple(v) if isinstance(v, list) else v
+                               for k, v in params.items()})
+    except TypeError as exc:
+        raise InvalidInputError(f"its camera preset parameters are not thermocal's ({exc})"
+                                ) from None
 
 
 def upgrade(path: str | os.PathLike[str], out: str | os.PathLike[str]) -> Path:

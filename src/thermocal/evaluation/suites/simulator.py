@@ -88,7 +88,7 @@ def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer repeats, 1,000-frame chamber")
     parser.add_argument("--json", type=Path, default=None)
-    args = parser.parse_args()
+    args = parser.parse_args(argv)
     repeats = 5 if args.quick else 20
     # the chamber first, so that its peak-memory growth is not hidden by earlier allocations
     results = [bench_chamber(1000 if args.quick else 10000), bench_frame(repeats),
