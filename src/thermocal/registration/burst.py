@@ -51,12 +51,12 @@ from thermocal.registration.features import (
     MIN_FRAME_PX,
     MIN_INLIERS,
     FrameFeatures,
-    _as_frame,
-    _detector,
-    _match,
-    _ransac,
-    _stretch,
+    as_frame,
     check_homography,
+    make_detector,
+    match_features,
+    ransac_homography,
+    stretch_u8,
 )
 from thermocal.registration.fixed_pattern import (
     as_fixed_pattern,
@@ -208,13 +208,13 @@ def _features_h(
     moving: np.ndarray, fixed: np.ndarray, detector: str, name: str
 ) -> tuple[np.ndarray, int]:
     def feats(img: np.ndarray) -> FrameFeatures:
-        u8 = _stretch(img, 0.0)
-        kps, desc = _detector(detector).detectAndCompute(u8, None)
+        u8 = stretch_u8(img, 0.0)
+        kps, desc = make_detector(detector).detectAndCompute(u8, None)
         pts = np.array([k.pt for k in kps], dtype=np.float32).reshape(-1, 2)
         return FrameFeatures(u8, pts, desc, detector)
 
-    p_mov, p_fix = _match(feats(moving), feats(fixed))
-    h, inliers = _ransac(p_mov, p_fix)
+    p_mov, p_fix = match_features(feats(moving), feats(fixed))
+    h, inliers = ransac_homography(p_mov, p_fix)
     if h is None or inliers < MIN_INLIERS:
         raise RegistrationError(
             f"{name}: too few inliers ({inliers} of {len(p_mov)} matches, need {MIN_INLIERS}); "
@@ -436,8 +436,8 @@ def register_pair(
     InvalidInputError, ResolutionMismatchError
         Frames that are not 2-D numeric, hold NaN, or differ in size.
     """
-    a = _as_frame(moving, "moving")
-    b = _as_frame(fixed, "fixed")
+    a = as_frame(moving, "moving")
+    b = as_frame(fixed, "fixed")
     if a.shape != b.shape:
         raise ResolutionMismatchError(
             f"moving is {a.shape[1]}x{a.shape[0]} but fixed is {b.shape[1]}x{b.shape[0]}"

@@ -27,9 +27,14 @@ from thermocal.errors import InvalidInputError, RegistrationError
 
 __all__ = [
     "FrameFeatures",
+    "as_frame",
     "check_homography",
     "detect_features",
+    "make_detector",
+    "match_features",
     "normalise_frame",
+    "ransac_homography",
+    "stretch_u8",
 ]
 
 #: Fewest RANSAC inliers accepted for a homography (8 degrees of freedom, 4 points each 2).
@@ -50,7 +55,7 @@ _MAX_PERSPECTIVE_PX = 0.25  # largest |h31|, |h32| times the frame diagonal
 # --------------------------------------------------------------------------------------------
 
 
-def _as_frame(frame: Any, name: str) -> np.ndarray:
+def as_frame(frame: Any, name: str) -> np.ndarray:
     """One ``(H, W)`` frame of numbers, at least :data:`MIN_FRAME_PX` on a side, finite."""
     return as_frames(frame, name, ndim=2, min_size=MIN_FRAME_PX, bit_depth=None)[0]
 
@@ -113,10 +118,12 @@ def normalise_frame(frame: Any, *, blur_sigma: float = 1.0) -> np.ndarray:
     numpy.ndarray, shape (H, W), uint8
         Percentile 1 → 0, percentile 99 → 255.
     """
-    return _stretch(_highpass(_as_frame(frame, "frame")), blur_sigma)
+    return stretch_u8(_highpass(as_frame(frame, "frame")), blur_sigma)
 
 
-def _stretch(x: np.ndarray, blur_sigma: float) -> np.ndarray:
+def stretch_u8(x: np.ndarray, blur_sigma: float) -> np.ndarray:
+    """A frame ``(H, W)`` blurred by ``blur_sigma`` px (0: none) and stretched from its 1st to
+    99th percentile onto uint8, for the feature detectors."""
     if blur_sigma > 0:
         x = cv2.GaussianBlur(x, (0, 0), blur_sigma)
     lo, hi = np.percentile(x[::2, ::2], (1.0, 99.0))
@@ -144,7 +151,8 @@ class FrameFeatures:
 _DETECTORS: dict[str, Any] = {}
 
 
-def _detector(name: str) -> Any:
+def make_detector(name: str) -> Any:
+    """The OpenCV detector ``"sift"`` or ``"orb"`` (made once per process)."""
     if name not in _DETECTORS:
         if name == "sift":
             _DETECTORS[name] = cv2.SIFT_create(nfeatures=1500, contrastThreshold=0.02)
@@ -169,15 +177,15 @@ def detect_features(frame: Any, *, detector: str | None = "sift") -> FrameFeatur
     -------
     FrameFeatures
     """
-    image = _stretch(_highpass(_as_frame(frame, "frame")), 1.0)
+    image = stretch_u8(_highpass(as_frame(frame, "frame")), 1.0)
     if detector is None:
         return FrameFeatures(image, np.zeros((0, 2), np.float32), None, "none")
-    kps, desc = _detector(detector).detectAndCompute(image, None)
+    kps, desc = make_detector(detector).detectAndCompute(image, None)
     pts = np.array([k.pt for k in kps], dtype=np.float32).reshape(-1, 2)
     return FrameFeatures(image, pts, desc, detector)
 
 
-def _match(a: FrameFeatures, b: FrameFeatures) -> tuple[np.ndarray, np.ndarray]:
+def match_features(a: FrameFeatures, b: FrameFeatures) -> tuple[np.ndarray, np.ndarray]:
     """Matched points ``(M, 2)`` of a and of b: ratio test plus mutual best match."""
     if a.descriptors is None or b.descriptors is None or len(a.points) < 2 or len(b.points) < 2:
         return np.zeros((0, 2), np.float32), np.zeros((0, 2), np.float32)
@@ -243,7 +251,9 @@ def check_homography(h: np.ndarray, frame_size: tuple[int, int], name: str) -> n
     return h
 
 
-def _ransac(p_mov: np.ndarray, p_fix: np.ndarray) -> tuple[np.ndarray | None, int]:
+def ransac_homography(p_mov: np.ndarray, p_fix: np.ndarray) -> tuple[np.ndarray | None, int]:
+    """Homography of matched points ``(K, 2)`` moving → fixed by RANSAC (MAGSAC++ where OpenCV
+    has it) and its inlier count; ``(None, 0)`` when there is none."""
     if len(p_mov) < 4:
         return None, 0
     method = getattr(cv2, "USAC_MAGSAC", cv2.RANSAC)
