@@ -324,7 +324,7 @@ def test_every_method_round_trips_through_one_file_layout(fit_run, tmp_path, met
     assert type(cal) is CALIBRATION_METHODS[method].loads
     path = cal.save(tmp_path / "cal.h5")
     with h5py.File(path) as f:
-        assert f.attrs["method"] == method
+        assert f.attrs["method"].decode() == method  # fixed-length ASCII
         assert list(f.attrs["resolution"]) == [64, 48]
         assert f.attrs["camera_unit"] == 0
         lo, hi = f.attrs["fpa_range_c"]
@@ -350,6 +350,18 @@ def test_bad_calibration_files(tmp_path):
         PolynomialCalibration.load(tmp_path / "other.h5")
 
 
+def write_metadata(path, meta, *, seal=True):
+    """Replace a calibration file's metadata; with ``seal``, give it the checksum of its new
+    content (a file a faulty writer made whole), so that the checks behind it are reached."""
+    from thermocal.calibration.store import CHECKSUM, HEADER, calibration_digest
+
+    with h5py.File(path, "a") as f:
+        f.attrs["metadata"] = json.dumps(meta)
+        if seal:
+            f.attrs[CHECKSUM] = calibration_digest({k: f.attrs[k] for k in HEADER},
+                                                   {n: f[n][()] for n in f})
+
+
 def test_calibration_file_with_damaged_metadata(fit_run, tmp_path):
     session, _ = fit_run
     path = fit_calibration(session, "two-point").save(tmp_path / "cal.h5")
@@ -359,8 +371,10 @@ def test_calibration_file_with_damaged_metadata(fit_run, tmp_path):
     damaged = [({k: v for k, v in meta.items() if k != "band_m"}, r"lacks metadata \['band_m'\]"),
                (meta | {"fpa_ref_c": "warm"}, "unreadable two-point calibration metadata")]
     for broken, message in damaged:
-        with h5py.File(path, "a") as f:
-            f.attrs["metadata"] = json.dumps(broken)
+        write_metadata(path, broken, seal=False)  # as damage leaves it: the checksum tells
+        with pytest.raises(FileFormatError, match="does not match the SHA-256 checksum"):
+            load_any_calibration(path)
+        write_metadata(path, broken)
         with pytest.raises(FileFormatError, match=message):
             load_any_calibration(path)
     # wolf2016's Hammerstein-Wiener model: too few values, not numbers, a bad order
@@ -369,8 +383,7 @@ def test_calibration_file_with_damaged_metadata(fit_run, tmp_path):
         meta = json.loads(f.attrs["metadata"])
     for broken in (meta | {"hw": meta["hw"][:2]}, meta | {"hw": ["a"] * len(meta["hw"])},
                    meta | {"hw_order": -1}):
-        with h5py.File(path, "a") as f:
-            f.attrs["metadata"] = json.dumps(broken)
+        write_metadata(path, broken)
         with pytest.raises(FileFormatError, match="damaged wolf2016|unreadable wolf2016"):
             load_any_calibration(path)
 

@@ -152,14 +152,15 @@ def test_version_1_weights_upgrade_to_the_same_network(tmp_path):
     from thermocal.nn.store import VERSION, upgrade
 
     payload = torch.load(shipped_model_path("kpn"), map_location="cpu", weights_only=True)
-    del payload["nominal"]
+    del payload["nominal"], payload["sha256"]
     payload["version"] = 1
     torch.save(payload, tmp_path / "v1.pt")
-    upgrade(tmp_path / "v1.pt", tmp_path / "v2.pt")
+    upgrade(tmp_path / "v1.pt", tmp_path / "v3.pt")
     shipped = torch.load(shipped_model_path("kpn"), map_location="cpu", weights_only=True)
-    again = torch.load(tmp_path / "v2.pt", map_location="cpu", weights_only=True)
+    again = torch.load(tmp_path / "v3.pt", map_location="cpu", weights_only=True)
     assert again["version"] == VERSION
     assert again["nominal"]["sha256"] == shipped["nominal"]["sha256"]
+    assert again["sha256"] == shipped["sha256"]  # the same file as the shipped one
 
 
 @pytest.mark.parametrize("damage", ["no checksum", "no camera", "units", "preset parameters"])
@@ -167,6 +168,7 @@ def test_weights_without_a_whole_camera_model_are_refused(tmp_path, damage):
     """A version-2 file must carry its camera model, its checksum, and what the checksum covers
     (where the model came from, used to make it again at another size)."""
     from thermocal.errors import FileFormatError
+    from thermocal.nn.store import weights_digest
 
     payload = torch.load(shipped_model_path("kpn"), map_location="cpu", weights_only=True)
     if damage == "no checksum":
@@ -178,5 +180,9 @@ def test_weights_without_a_whole_camera_model_are_refused(tmp_path, damage):
     else:
         payload["nominal"]["preset_parameters"]["gain"] = 90.0
     torch.save(payload, tmp_path / "bad.pt")
-    with pytest.raises(FileFormatError, match="damaged weights file"):
+    with pytest.raises(FileFormatError, match="damaged weights file"):  # the file's checksum
+        load_model(tmp_path / "bad.pt")
+    payload["sha256"] = weights_digest(payload)  # made whole: the camera model's checks tell
+    torch.save(payload, tmp_path / "bad.pt")
+    with pytest.raises(FileFormatError, match="damaged weights file.*camera"):
         load_model(tmp_path / "bad.pt")

@@ -3,13 +3,18 @@
 Each rule has one home here: numbers and temperatures (:func:`as_float_array`,
 :func:`as_temperature_c`), raw frames (:func:`frames_layout`, :func:`as_frames`), saturated and
 constant frames (:data:`SATURATED_FRACTION`, :func:`check_not_saturated`, :func:`is_constant`),
-frame indices and the pivot (:func:`check_frame_index`, :func:`pivot_index`), output files
-(:func:`check_output_file`, :func:`check_suffix`) and the command line's ranges and sizes
-(:func:`parse_range`, :func:`parse_size`).
+FPA temperatures (:data:`FPA_RANGE_C`, :func:`as_fpa_c`, :func:`check_fpa_c`), frame indices and
+the pivot (:func:`check_frame_index`, :func:`pivot_index`), output files and folders
+(:func:`check_output_file`, :func:`check_output_dir`, :func:`check_suffix`,
+:func:`check_not_input`), the amount of data a command may make (:func:`check_data_size`) and the
+command line's numbers, ranges and sizes (:func:`check_number`, :func:`parse_range`,
+:func:`parse_size`).
 """
 
 from __future__ import annotations
 
+import math
+import os
 from pathlib import Path
 from typing import Any
 
@@ -20,16 +25,26 @@ from thermocal.errors import InvalidInputError, ResolutionMismatchError
 
 __all__ = [
     "ABSOLUTE_ZERO_C",
+    "FPA_RANGE_C",
+    "HDF5_SUFFIXES",
+    "MAX_DATA_FRAMES",
+    "MAX_DATA_PIXELS",
     "SATURATED_FRACTION",
     "TIFF_SUFFIXES",
     "as_float_array",
+    "as_fpa_c",
     "as_frames",
     "as_temperature_c",
+    "check_data_size",
+    "check_fpa_c",
     "check_frame_index",
     "check_length",
     "check_ndim",
     "check_not_constant",
+    "check_not_input",
     "check_not_saturated",
+    "check_number",
+    "check_output_dir",
     "check_output_file",
     "check_rng",
     "check_same_shape",
@@ -99,6 +114,58 @@ def as_temperature_c(x: Any, name: str, *, ndim: int | tuple[int, ...] | None = 
             f"{name}: {float(arr.min()):.2f} °C is at or below absolute zero "
             f"({ABSOLUTE_ZERO_C} °C)"
         )
+    return arr
+
+
+#: FPA temperatures a microbolometer core can report, °C (``(low, high)``): a Tau2-class core
+#: is specified for −40…80 °C ambient and its FPA runs a few °C above it; outside −60…120 °C a
+#: reading is a wrong unit (1/100 °C, kelvin), a damaged file or a typing error, and would give
+#: temperature maps off by hundreds of °C. One range for every FPA temperature that enters
+#: thermocal: ``--fpa-c`` and ``--fpa-ref-c``, a sidecar's ``fpa_c``, a chamber file's ``fpa_c``.
+FPA_RANGE_C: tuple[float, float] = (-60.0, 120.0)
+
+
+def _fpa_range_text() -> str:
+    lo, hi = FPA_RANGE_C
+    return f"{lo:g}…{hi:g} °C"
+
+
+def check_fpa_c(value: Any, name: str = "fpa_c") -> float:
+    """One FPA temperature, °C, as a float: a finite number within :data:`FPA_RANGE_C`.
+
+    Raises :class:`InvalidInputError` naming ``name`` otherwise (``bool`` is not a number).
+    """
+    if isinstance(value, bool | np.bool_):
+        raise InvalidInputError(f"{name}: expected an FPA temperature in °C, got {value!r}")
+    try:
+        v = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidInputError(
+            f"{name}: expected an FPA temperature in °C, got {value!r}"[:200]
+        ) from None
+    lo, hi = FPA_RANGE_C
+    if not lo <= v <= hi:  # NaN fails too
+        raise InvalidInputError(f"{name}: {_implausible_fpa(v)}")
+    return v
+
+
+def _implausible_fpa(value: float) -> str:
+    below = " is at or below absolute zero and" if value <= ABSOLUTE_ZERO_C else ""
+    return (f"{value:g} °C{below} is not a plausible FPA temperature (a microbolometer core "
+            f"reports {_fpa_range_text()})")
+
+
+def as_fpa_c(x: Any, name: str = "fpa_c", *, ndim: int | tuple[int, ...] | None = None
+             ) -> np.ndarray:
+    """Like :func:`as_float_array`, and also reject FPA temperatures outside
+    :data:`FPA_RANGE_C` (naming the first such value)."""
+    arr = as_float_array(x, name, ndim=ndim)
+    lo, hi = FPA_RANGE_C
+    bad = (arr < lo) | (arr > hi)
+    if bad.any():
+        k = int(np.flatnonzero(bad.ravel())[0])
+        where = f"value {k}: " if arr.size > 1 else ""
+        raise InvalidInputError(f"{name}: {where}{_implausible_fpa(float(arr.ravel()[k]))}")
     return arr
 
 
@@ -233,13 +300,18 @@ def check_not_saturated(frames: np.ndarray, name: str = "frames", *, bit_depth: 
                         registered: bool = False) -> None:
     """Raise :class:`InvalidInputError` for the first frame of integer counts ``(N, H, W)``
     with more than :data:`SATURATED_FRACTION` of its pixels clipped (:func:`saturated_fraction`);
-    float frames pass."""
+    an all-zero frame is called dead, not saturated; float frames pass."""
     if frames.dtype.kind not in "ui":
         return
     fraction = saturated_fraction(frames, bit_depth, registered=registered)
     over = np.flatnonzero(fraction > SATURATED_FRACTION)
     if over.size:
         k = int(over[0])
+        if not registered and not frames[k].any():
+            raise InvalidInputError(
+                f"{name}: frame {k} is all zero (a dead frame: no signal from the camera); "
+                "remove it"
+            )
         top = 2**bit_depth - 1
         where = f"at {top}" if registered else f"at 0 or {top}"
         raise InvalidInputError(
@@ -311,6 +383,9 @@ def pivot_index(pivot: Any, n: int) -> int:
 #: Names a TIFF output may end in (any case).
 TIFF_SUFFIXES = (".tif", ".tiff")
 
+#: Names an HDF5 output (a chamber or a calibration file) may end in (any case).
+HDF5_SUFFIXES = (".h5", ".hdf5")
+
 
 def check_suffix(path: str | Path, suffixes: tuple[str, ...], what: str = "the output") -> Path:
     """``path`` as a Path; :class:`InvalidInputError` unless it ends in one of ``suffixes``
@@ -338,6 +413,159 @@ def check_output_file(path: str | Path, suffixes: tuple[str, ...] | None = None)
     return p if suffixes is None else check_suffix(p, suffixes)
 
 
+def _same_file(a: Path, b: Path) -> bool:
+    """Whether ``a`` and ``b`` name one file or folder: after links (:func:`os.path.samefile`,
+    hard links too) where both exist, else by their resolved paths."""
+    try:
+        if os.path.samefile(a, b):
+            return True
+    except (OSError, ValueError):
+        pass
+    try:
+        return a.resolve() == b.resolve()
+    except (OSError, RuntimeError):  # a link loop
+        return False
+
+
+def check_not_input(out: str | os.PathLike[str] | None,
+                    *inputs: str | os.PathLike[str] | None, what: str = "--out") -> None:
+    """Refuse an output that is one of the command's inputs (never overwrite an input).
+
+    ``out`` and each input (None: not given) are compared after resolving links, so that a
+    link to the input, ``./x`` against ``x`` or a hard link are caught too.
+
+    Raises
+    ------
+    InvalidInputError
+        ``out`` is the same file as an input.
+    """
+    if out is None:
+        return
+    target = Path(out)
+    for inp in inputs:
+        if inp is not None and _same_file(target, Path(inp)):
+            same = "" if str(inp) == str(out) else f" (the same file as {inp})"
+            raise InvalidInputError(
+                f"{what} {out} is an input of this command{same}; write the output to another "
+                "file, never over an input"
+            )
+
+
+def check_output_dir(path: str | os.PathLike[str]) -> Path:
+    """Check an output folder before any work, creating nothing: an existing, writable folder,
+    or a name whose nearest existing parent is a writable folder (it is created later).
+
+    Raises
+    ------
+    InvalidInputError
+        ``path`` (or a parent) exists and is not a folder, or the folder cannot be written.
+    """
+    p = Path(path)
+    if p.exists() and not p.is_dir():
+        raise InvalidInputError(f"{p}: exists and is a file; give a folder for the output")
+    existing = p
+    while not existing.exists():
+        if existing.parent == existing:
+            break
+        existing = existing.parent
+    if existing.exists() and not existing.is_dir():
+        raise InvalidInputError(f"{p}: {existing} is a file, not a folder")
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise InvalidInputError(f"{p}: {existing} is not writable; choose another output")
+    return p
+
+
+#: Most pixels (frames × height × width) one command may make: 2**33, about 8.6 billion, 17 GB
+#: of 16-bit counts (a 10,000-frame chamber session at 640x512 is 3.3 billion; a two-hour flight
+#: at 30 Hz and 336x256, 19 billion, is to be simulated in parts). Beyond it a run would fill the
+#: disk or take days: a typing error, refused before any work.
+MAX_DATA_PIXELS = 2**33
+
+#: Most frames one command may make: ten million (92 hours at 30 Hz).
+MAX_DATA_FRAMES = 10**7
+
+
+def _gib(nbytes: float) -> str:
+    return f"{nbytes / 2**30:.1f} GiB"
+
+
+def _available_memory() -> int | None:
+    """Memory the system can give this process without swapping, bytes (None: unknown)."""
+    try:
+        with open("/proc/meminfo", encoding="ascii") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return int(os.sysconf("SC_AVPHYS_PAGES")) * int(os.sysconf("SC_PAGE_SIZE"))
+    except (AttributeError, OSError, ValueError):  # pragma: no cover - not POSIX
+        return None
+
+
+def check_data_size(n_frames: int, frame_shape: tuple[int, int], what: str, *,
+                    bytes_per_pixel: float = 2.0, folder: str | os.PathLike[str] | None = None,
+                    memory_bytes: float | None = None) -> None:
+    """Check, before any work or allocation, that ``n_frames`` frames of ``frame_shape``
+    ``(H, W)`` are a sane amount of data to make.
+
+    Parameters
+    ----------
+    n_frames, frame_shape
+        What the command would make.
+    what : str
+        Named in the message (``"the chamber session"``).
+    bytes_per_pixel : float
+        Bytes each pixel takes in the outputs (2: uint16 counts).
+    folder : path, optional
+        Where the outputs go: its free disk space must hold them.
+    memory_bytes : float, optional
+        Working memory the command needs at once: what the system has available must hold it.
+
+    Raises
+    ------
+    InvalidInputError
+        More than :data:`MAX_DATA_FRAMES` frames or :data:`MAX_DATA_PIXELS` pixels, more than
+        the free disk space or more memory than is available.
+    """
+    h, w = (int(v) for v in frame_shape)
+    pixels = int(n_frames) * h * w
+    if n_frames > MAX_DATA_FRAMES:
+        raise InvalidInputError(
+            f"{what}: {n_frames} frames are more than thermocal makes in one run "
+            f"({MAX_DATA_FRAMES:.3g}); use fewer frames"
+        )
+    if pixels > MAX_DATA_PIXELS:
+        raise InvalidInputError(
+            f"{what}: {n_frames} frames of {w}x{h} are {pixels:.3g} pixels, more than thermocal "
+            f"makes in one run ({MAX_DATA_PIXELS:.3g}); use fewer frames or smaller frames"
+        )
+    if folder is not None:
+        import shutil
+
+        need = pixels * bytes_per_pixel
+        existing = Path(folder)
+        while not existing.exists() and existing.parent != existing:
+            existing = existing.parent
+        try:
+            free = shutil.disk_usage(existing).free
+        except OSError:
+            free = None
+        if free is not None and need > free:
+            raise InvalidInputError(
+                f"{what}: {n_frames} frames of {w}x{h} need {_gib(need)} of disk, {existing} has "
+                f"{_gib(free)} free; use fewer frames or smaller frames"
+            )
+    if memory_bytes is not None:
+        available = _available_memory()
+        if available is not None and memory_bytes > available:
+            raise InvalidInputError(
+                f"{what}: frames of {w}x{h} need about {_gib(memory_bytes)} of memory, this "
+                f"machine has {_gib(available)} available; use smaller frames (--size)"
+            )
+
+
 # --------------------------------------------------------------------------------------------
 # command-line values
 # --------------------------------------------------------------------------------------------
@@ -358,6 +586,9 @@ def parse_range(text: str, name: str, *, step: bool = False, increasing: bool = 
         values = ()
     if len(values) != (3 if step else 2):
         raise InvalidInputError(f"{name} {text!r}: expected {want} in °C, e.g. {example}")
+    if not all(math.isfinite(v) for v in values):
+        raise InvalidInputError(f"{name} {text!r}: expected finite numbers (no NaN or inf), "
+                                f"e.g. {example}")
     if step and (values[2] <= 0 or values[1] < values[0]):
         raise InvalidInputError(
             f"{name} {text!r}: expected {want} with A <= B and STEP > 0, e.g. {example}"
@@ -365,6 +596,24 @@ def parse_range(text: str, name: str, *, step: bool = False, increasing: bool = 
     if increasing and not values[0] < values[1]:
         raise InvalidInputError(f"{name} {text!r}: A must be below B")
     return values
+
+
+def check_number(value: Any, name: str, *, low: float | None = None,
+                 high: float | None = None, low_open: bool = False) -> float:
+    """A command-line number as a finite float within ``[low, high]`` (``(low, high]`` with
+    ``low_open``; None: no bound). Raises :class:`InvalidInputError` naming ``name`` (the
+    option) otherwise: NaN and infinity included."""
+    try:
+        v = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise InvalidInputError(f"{name}: expected a number, got {value!r}") from None
+    if not math.isfinite(v):
+        raise InvalidInputError(f"{name}: expected a finite number, got {value!r}")
+    if low is not None and (v <= low if low_open else v < low):
+        raise InvalidInputError(f"{name} must be {'>' if low_open else '>='} {low:g}, got {v:g}")
+    if high is not None and v > high:
+        raise InvalidInputError(f"{name} must be <= {high:g}, got {v:g}")
+    return v
 
 
 def check_rng(rng: Any) -> np.random.Generator:

@@ -15,6 +15,7 @@ import numpy as np
 from thermocal._validate import (
     SATURATED_FRACTION,
     as_frames,
+    check_fpa_c,
     check_not_constant,
     check_not_saturated,
     pivot_index,
@@ -156,9 +157,6 @@ def fpa_value(fpa_c: Any, n: int) -> float:
     arr = np.asarray(fpa_c, dtype=np.float64).ravel()
     if arr.size not in (1, n) or not np.all(np.isfinite(arr)):
         raise InvalidInputError(f"fpa_c: expected one finite value or {n}, got {arr.size}")
-    value = float(arr.mean())
-    if not -60.0 <= value <= 120.0:
-        raise InvalidInputError(f"fpa_c: {value:.1f} °C is not a plausible FPA temperature")
-    return value
+    return check_fpa_c(float(arr.mean()))
 
 

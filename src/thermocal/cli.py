@@ -1,26 +1,68 @@
 """The ``thermocal`` command line (the contract of DESIGN.md).
 
-Bad input ends with a one-line message on stderr and exit status 2, never a traceback.
+Bad input ends with a one-line message on stderr and exit status 2, never a traceback; a warning
+is one line ``thermocal: warning: ...``; Ctrl-C ends with ``thermocal: interrupted`` (status 130),
+also while the modules load.
 """
 
 from __future__ import annotations
 
+import os
+import signal
 import sys
-from pathlib import Path
 
-import click
 
-from thermocal import __version__
-from thermocal._validate import check_output_file, parse_range
-from thermocal.errors import InvalidInputError, ThermocalError
-from thermocal.progress import progress_bar
+def _interrupted_while_loading(signum, frame) -> None:  # pragma: no cover - timing dependent
+    """Ctrl-C before :func:`main` runs (the imports below take a second): nothing has been read
+    or written yet, so end at once, without the import machinery's traceback."""
+    sys.stderr.write("thermocal: interrupted\n")
+    sys.stderr.flush()
+    os._exit(130)
+
+
+def _catch_interrupt_while_loading():
+    """Install :func:`_interrupted_while_loading` for SIGINT; return the handler to restore
+    (None where signals cannot be set: not the main thread)."""
+    try:
+        previous = signal.getsignal(signal.SIGINT)
+        if previous is signal.default_int_handler:
+            signal.signal(signal.SIGINT, _interrupted_while_loading)
+            return previous
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - not the main thread
+        pass
+    return None
+
+
+_SIGINT_BEFORE_LOADING = _catch_interrupt_while_loading()
+
+import warnings  # noqa: E402 - after the Ctrl-C handler, on purpose
+from pathlib import Path  # noqa: E402
+
+import click  # noqa: E402
+
+from thermocal import __version__  # noqa: E402
+from thermocal._validate import (  # noqa: E402
+    HDF5_SUFFIXES,
+    check_fpa_c,
+    check_not_input,
+    check_output_dir,
+    check_output_file,
+    parse_range,
+)
+from thermocal.errors import InvalidInputError, ThermocalError  # noqa: E402
+from thermocal.progress import progress_bar  # noqa: E402
+
+#: Most blackbody set points of a simulated chamber session.
+MAX_SETPOINTS = 1000
 
 
 def setpoints_from_range(start: float, stop: float, step: float) -> tuple[float, ...]:
     """Set points ``start, start + step, …`` up to and including ``stop`` (°C)."""
+    count = (stop - start) / step + 1  # a float: inf for a step too small to count
+    if not count <= MAX_SETPOINTS:
+        raise InvalidInputError(
+            f"{count:.0f} blackbody set points is too many (at most {MAX_SETPOINTS})")
     n = int(round((stop - start) / step)) + 1
-    if n > 1000:
-        raise InvalidInputError(f"{n} blackbody set points is too many (at most 1000)")
     points = (start + step * k for k in range(n))
     return tuple(float(p) for p in points if p <= stop + 1e-9)
 
@@ -70,13 +112,18 @@ def simulate_chamber_cmd(
     interval_s: float, duration_min: float | None, emissivity: float,
 ) -> None:
     """Simulate an environmental-chamber session into OUT (HDF5 chamber file)."""
-    from thermocal._validate import parse_size
+    from thermocal._validate import check_number, parse_size
     from thermocal.camera.presets import make_camera
-    from thermocal.simulate.chamber import ChamberPlan, write_simulated_chamber
+    from thermocal.simulate.chamber import ChamberPlan, check_chamber_run, write_simulated_chamber
 
     start, stop, step = parse_range(blackbody_c, "--blackbody-c", step=True)
     amb_low, amb_high = parse_range(ambient_c, "--ambient-c")
-    check_output_file(out)
+    check_output_file(out, HDF5_SUFFIXES)
+    check_number(rate_c_per_min, "--rate-c-per-min", low=0.0, low_open=True)
+    check_number(interval_s, "--interval-s", low=0.0, low_open=True)
+    if duration_min is not None:
+        check_number(duration_min, "--duration-min", low=0.0, low_open=True)
+    check_number(emissivity, "--emissivity", low=0.0, high=1.0, low_open=True)
     plan = ChamberPlan(
         setpoints_c=setpoints_from_range(start, stop, step),
         frames_per_point=frames_per_point,
@@ -88,7 +135,9 @@ def simulate_chamber_cmd(
         duration_s=None if duration_min is None else 60.0 * duration_min,
         emissivity=emissivity,
     )
-    camera = make_camera(preset, unit=unit, size=parse_size(size))
+    width, height = parse_size(size)
+    check_chamber_run(plan, (height, width), folder=out.parent)  # before the camera's maps
+    camera = make_camera(preset, unit=unit, size=(width, height))
     with progress_bar() as bar:
         task = bar.add_task("chamber", total=plan.n_frames)
         n = write_simulated_chamber(
@@ -119,11 +168,18 @@ def simulate_flight_cmd(
     """Simulate a flight over a scene into OUT_DIR (frames.tiff/json, truth.tiff, homographies)."""
     from thermocal._validate import parse_size
     from thermocal.camera.presets import make_camera
-    from thermocal.io.atomic import ensure_output_dir
-    from thermocal.simulate.flight import plan_flight, write_simulated_flight
+    from thermocal.simulate.flight import check_flight_run, plan_flight, write_simulated_flight
 
-    ensure_output_dir(out_dir)
-    camera = make_camera(preset, unit=unit, size=parse_size(size))
+    # every check before the folder is made (write_simulated_flight makes it)
+    check_output_dir(out_dir)
+    check_fpa_c(fpa_c, "--fpa-c")
+    width, height = parse_size(size)
+    check_flight_run(n_frames, (height, width), motion=motion, fps=fps, folder=out_dir)
+    if scene != "procedural":
+        outputs = ("frames.tiff", "frames.json", "truth.tiff", "homographies.npy")
+        for name in outputs:
+            check_not_input(out_dir / name, scene, what="the output")
+    camera = make_camera(preset, unit=unit, size=(width, height))
     scene_c, scene_name = load_scene_or_procedural(scene, seed=seed)
     plan = plan_flight(
         scene_c, camera, n_frames=n_frames, motion=motion, fpa_c=fpa_c, fps=fps, seed=seed
@@ -167,7 +223,10 @@ def _register_commands() -> None:
     import importlib
 
     for module, name in COMMANDS:
-        cli.add_command(getattr(importlib.import_module(module), name))
+        command = getattr(importlib.import_module(module), name)
+        if command.name in OUTPUT_NOT_INPUT:
+            _refuse_output_as_input(command, *OUTPUT_NOT_INPUT[command.name])
+        cli.add_command(command)
 
 
 # (module, click command) pairs; each module keeps heavy imports (torch, cv2) inside functions.
@@ -180,13 +239,63 @@ COMMANDS: list[tuple[str, str]] = [
     ("thermocal.pipeline.commands", "flight"),
     ("thermocal.bench", "bench"),
 ]
+
+#: Commands whose output must not be one of their inputs, checked here before they run
+#: (:func:`thermocal._validate.check_not_input`) because their modules do not check it
+#: themselves: command name → (the output's parameter, the inputs' parameters).
+OUTPUT_NOT_INPUT: dict[str, tuple[str, tuple[str, ...]]] = {
+    "train": ("out", ("chamber", "init")),
+    "flight": ("out_dir", ("recording", "calibration", "model")),
+}
+
+
+def _refuse_output_as_input(command: click.Command, out: str, inputs: tuple[str, ...]) -> None:
+    """Make ``command`` refuse, before it does anything, an output (its parameter ``out``) that
+    is one of its inputs (parameters ``inputs``)."""
+    import functools
+
+    run = command.callback
+    if run is None or getattr(run, "_checks_output", False):
+        return
+
+    @functools.wraps(run)
+    def checked(*args, **kwargs):
+        given = [kwargs.get(name) for name in inputs]
+        check_not_input(kwargs.get(out), *(g for g in given if g is not None and g != "shipped"),
+                        what="--out")
+        return run(*args, **kwargs)
+
+    checked._checks_output = True  # type: ignore[attr-defined]
+    command.callback = checked
+
+
 _register_commands()
+
+if _SIGINT_BEFORE_LOADING is not None:  # loaded: Ctrl-C raises KeyboardInterrupt again
+    signal.signal(signal.SIGINT, _SIGINT_BEFORE_LOADING)
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
+    """:func:`warnings.showwarning` for the command line: one line ``thermocal: warning: ...``,
+    without the source path and line of Python's own form."""
+    text = " ".join(str(message).split())
+    click.echo(f"thermocal: warning: {text}", err=True)
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Entry point: run the CLI, turning thermocal errors into one line and exit status 2."""
+    """Entry point: run the CLI, turning thermocal errors into one line and exit status 2.
+
+    Warnings are shown as one line each; output folders this run created are removed again
+    when it fails before writing anything into them.
+    """
+    from thermocal.io.atomic import removing_new_dirs_on_error
+
+    shown = warnings.showwarning
+    warnings.showwarning = _show_warning
+    terminate = _exit_cleanly_on_sigterm()
     try:
-        cli.main(args=argv, prog_name="thermocal", standalone_mode=False)
+        with removing_new_dirs_on_error():
+            cli.main(args=argv, prog_name="thermocal", standalone_mode=False)
     except click.exceptions.Abort:
         click.echo("thermocal: aborted", err=True)
         sys.exit(130)
@@ -195,18 +304,50 @@ def main(argv: list[str] | None = None) -> None:
         click.echo(f"thermocal: error: {exc.format_message()}", err=True)
         sys.exit(exc.exit_code)
     except ThermocalError as exc:
-        click.echo(f"thermocal: error: {exc}", err=True)
+        click.echo(f"thermocal: error: {_one_line(exc)}", err=True)
+        sys.exit(2)
+    except MemoryError:
+        click.echo("thermocal: error: out of memory; use smaller or fewer frames (nothing "
+                   "half-written is left)", err=True)
         sys.exit(2)
     except OSError as exc:
         # the machine, not the input: a full or read-only disk, a vanished file; outputs are
         # written atomically, so what finished is kept and nothing half-written is left
         where = f"{exc.filename}: " if exc.filename else ""
-        click.echo(f"thermocal: error: {where}{exc.strerror or exc} (outputs are written whole "
-                   "or not at all)", err=True)
+        click.echo(f"thermocal: error: {where}{exc.strerror or _one_line(exc)} (outputs are "
+                   "written whole or not at all)", err=True)
         sys.exit(2)
     except KeyboardInterrupt:
         click.echo("thermocal: interrupted", err=True)
         sys.exit(130)
+    finally:
+        warnings.showwarning = shown
+        if terminate is not None:
+            signal.signal(signal.SIGTERM, terminate)
+
+
+def _exit_cleanly_on_sigterm():
+    """Make SIGTERM (``kill``, ``timeout``) end the run like an error, through every ``finally``:
+    the temporary file of an output being written is removed (:func:`~thermocal.io.atomic.
+    atomic_path`). Returns the handler to restore (None where signals cannot be set)."""
+
+    def terminated(signum, frame):
+        click.echo("thermocal: terminated", err=True)
+        sys.exit(143)
+
+    try:
+        previous = signal.getsignal(signal.SIGTERM)
+        if previous in (signal.SIG_DFL, None):
+            signal.signal(signal.SIGTERM, terminated)
+            return previous
+    except (ValueError, OSError, AttributeError):  # pragma: no cover - not the main thread
+        pass
+    return None
+
+
+def _one_line(exc: BaseException) -> str:
+    """An exception's message on one line."""
+    return " ".join(str(exc).split())
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -15,6 +15,7 @@ from thermocal.calibration.base import (
     OutsideCalibrationRangeWarning,
     StreamingCorrector,
     ThermocalWarning,
+    UnverifiedFileWarning,
 )
 from thermocal.calibration.dataset import (
     ChamberData,
@@ -33,6 +34,7 @@ from thermocal.calibration.registry import (
     CalibrationInfo,
     fit_calibration,
     load_any_calibration,
+    upgrade_calibration,
 )
 from thermocal.calibration.shutter import ShutterCalibration, shutter
 from thermocal.calibration.two_point import (
@@ -54,6 +56,7 @@ __all__ = [
     "ShutterCalibration",
     "StreamingCorrector",
     "ThermocalWarning",
+    "UnverifiedFileWarning",
     "TwoPointCalibration",
     "Wolf2016Calibration",
     "Wolf2016Stream",
@@ -71,5 +74,6 @@ __all__ = [
     "prepare_chamber",
     "shutter",
     "two_point",
+    "upgrade_calibration",
     "wolf2016",
 ]

@@ -96,6 +96,11 @@ class OutsideCalibrationRangeWarning(ThermocalWarning):
     """A calibration applied at FPA temperatures it was not fitted on."""
 
 
+class UnverifiedFileWarning(ThermocalWarning):
+    """A model file written before thermocal stored checksums in it (a version-1 calibration, a
+    version-1 or 2 weights file): read, but it cannot be checked for damage beyond its ranges."""
+
+
 def check_frames(frames: Any, shape: tuple[int, int], *, bit_depth: int = 14) -> np.ndarray:
     """Validate raw counts for a calibration of frame ``shape`` ``(H, W)``; ``(N, H, W)`` out.
 

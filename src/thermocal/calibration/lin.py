@@ -37,6 +37,7 @@ share the regressors, so each regression is solved for all pixels at once.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -61,7 +62,16 @@ from thermocal.calibration.dataset import (
     require_fpa_span,
     require_setpoints,
 )
-from thermocal.calibration.store import FileLayout, StoredCalibrationMixin
+from thermocal.calibration.store import (
+    FPA_LIMITS_C,
+    FileLayout,
+    StoredCalibration,
+    StoredCalibrationMixin,
+    check_offsets,
+    check_response,
+    check_scalar,
+    damaged,
+)
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import FitError, InvalidInputError
 
@@ -150,6 +160,37 @@ class LinCalibration(StoredCalibrationMixin):
         method_arrays={METHOD_LEVEL: dict.fromkeys(("a1", "b1", "level_counts", "level_gain"),
                                                    np.float32)},
     )
+
+    @classmethod
+    def _check_fields(cls, kw: dict[str, Any], stored: StoredCalibration,
+                      path: str | Path) -> None:
+        """Beyond finiteness: ``t_ref_c`` within :data:`~thermocal.calibration.store.FPA_LIMITS_C`;
+        ``100 <= B <= 1e5`` K (``B ≈ c2/λ``: 480…14400 K for bands of 1…30 µm, with room for
+        the fit); ``F < exp(B / 373.15 K)``, so that the Planck curve has no pole below 100 °C
+        (the counts would be infinite there); every pixel's 0 → 100 °C response
+        ``R · (P(100 °C) − P(0 °C))``, ``P(T) = 1/(exp(B/T) − F)``, of
+        :data:`~thermocal.calibration.store.RESPONSE_LIMITS_COUNTS` and of one sign (the fit
+        gives the pixels whose ``R`` has the other sign the median); ``|O|`` within
+        :data:`~thermocal.calibration.store.OFFSET_LIMIT_COUNTS`; ``rate_smooth_s`` in
+        [0, 1 day] s, ``max_rate_c_per_min`` in [0, 1000] °C/min; lin-level: ``level_gain > 0``
+        (the fit gives the others the median) and ``|level_counts|`` within the offset limit."""
+        super()._check_fields(kw, stored, path)
+        m = stored.method
+        check_scalar(kw["t_ref_c"], "t_ref_c", *FPA_LIMITS_C, path, m, unit="°C")
+        check_scalar(kw["planck_b"], "planck_b", 100.0, 1e5, path, m, unit="K")
+        b = float(kw["planck_b"])
+        check_scalar(kw["planck_f"], "planck_f", -np.inf, float(np.exp(b / 373.15)), path, m,
+                     low_open=True)
+        f = float(kw["planck_f"])
+        hot, cold = (1.0 / (np.exp(b / t) - f) for t in (ZERO_CELSIUS_K + 100.0, ZERO_CELSIUS_K))
+        check_response(kw["r"].astype(np.float64) * (hot - cold), path, m, "(R)")
+        check_offsets(kw["o"], "o", path, m)
+        check_scalar(kw["rate_smooth_s"], "rate_smooth_s", 0.0, 86400.0, path, m, unit="s")
+        check_scalar(kw["max_rate_c_per_min"], "max_rate_c_per_min", 0.0, 1000.0, path, m)
+        if m == METHOD_LEVEL:
+            if not np.all(kw["level_gain"] > 0):
+                raise damaged(path, m, "a level_gain is not positive")
+            check_offsets(kw["level_counts"], "level_counts", path, m)
 
     @property
     def method(self) -> str:

@@ -44,7 +44,17 @@ from thermocal.calibration.dataset import (
     require_setpoints,
     stability_mask,
 )
-from thermocal.calibration.store import FileLayout, StoredCalibration, StoredCalibrationMixin
+from thermocal.calibration.store import (
+    FPA_LIMITS_C,
+    FileLayout,
+    StoredCalibration,
+    StoredCalibrationMixin,
+    check_band,
+    check_offsets,
+    check_response,
+    check_scalar,
+    damaged,
+)
 from thermocal.camera.model import horner
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import FitError, InvalidInputError
@@ -108,6 +118,7 @@ class PolynomialCalibration(StoredCalibrationMixin):
                 "residual_rms": np.float32},
         metadata={"t_ref_c": float, "scene_term": str, "band_m": tuple, "radial_centre": tuple},
         optional_arrays=("radial_coefficients",), optional_metadata=("radial_centre",),
+        stacks={"gain": ORDER + 1, "offset": ORDER + 1},
     )
 
     @property
@@ -184,7 +195,48 @@ class PolynomialCalibration(StoredCalibrationMixin):
     def _check_stored(cls, stored: StoredCalibration, path: str | Path) -> None:
         scene = stored.metadata.get("scene_term")
         if scene not in SCENE_TERMS:
-            raise InvalidInputError(f"{path}: unknown scene term {scene!r}")
+            raise damaged(path, METHOD, f"unknown scene term {scene!r:.40}")
+
+    @classmethod
+    def _check_fields(cls, kw: dict[str, Any], stored: StoredCalibration,
+                      path: str | Path) -> None:
+        """Beyond finiteness: the band within :data:`~thermocal.calibration.store.BAND_LIMITS_M`
+        and ``t_ref_c`` within :data:`~thermocal.calibration.store.FPA_LIMITS_C`; at nine FPA
+        temperatures across the fitted range and at ``t_ref_c`` (enough points to bound a cubic
+        between them), every pixel's gain polynomial gives a 0 → 100 °C response of
+        :data:`~thermocal.calibration.store.RESPONSE_LIMITS_COUNTS`, of the same sign on every
+        pixel (the fit marks a pixel whose ``g_0`` has the other sign bad and gives it the
+        median gain), and its offset polynomial stays within
+        :data:`~thermocal.calibration.store.OFFSET_LIMIT_COUNTS`; residuals ``>= 0``; a radial
+        model's coefficients ``(8, M+1)``, ``M <= 12`` (what :meth:`radial` allows), finite, its
+        centre within ±1 (the axes run −0.5…0.5)."""
+        super()._check_fields(kw, stored, path)
+        check_band(kw["band_m"], path, METHOD)
+        check_scalar(kw["t_ref_c"], "t_ref_c", *FPA_LIMITS_C, path, METHOD, unit="°C")
+        if np.any(kw["residual_rms"] < 0):
+            raise damaged(path, METHOD, "a negative residual")
+        band = band_for(tuple(kw["band_m"]))
+        span = float(scene_term(100.0, kw["scene_term"], band)
+                     - scene_term(0.0, kw["scene_term"], band))
+        gain = kw["gain"].astype(np.float64)
+        offset = kw["offset"].astype(np.float64)
+        t_ref = float(kw["t_ref_c"])
+        for fpa in (*np.linspace(*kw["fpa_range_c"], 9), t_ref):
+            where = f"at FPA {fpa:.2f} °C"
+            check_response(horner(gain, fpa - t_ref) * span, path, METHOD, where)
+            check_offsets(horner(offset, fpa - t_ref), f"offset {where}", path, METHOD)
+        coef = kw.get("radial_coefficients")
+        if coef is not None:
+            c = np.asarray(coef)
+            if (c.ndim != 2 or c.shape[0] != 2 * (ORDER + 1) or not 1 <= c.shape[1] <= 13
+                    or c.dtype.kind not in "iuf" or not np.all(np.isfinite(c))):
+                raise damaged(path, METHOD, f"radial coefficients of shape {c.shape}, expected "
+                                            "(8, M+1) with M <= 12, finite")
+        centre = kw.get("radial_centre", (0.0, 0.0))
+        if len(centre) != 2:
+            raise damaged(path, METHOD, f"radial_centre = {centre!r:.40}, expected (x, y)")
+        for v in centre:
+            check_scalar(v, "radial_centre", -1.0, 1.0, path, METHOD)
 
 
 def _invert_scene(s: np.ndarray, kind: str, band: BandRadiance) -> np.ndarray:

@@ -6,25 +6,27 @@
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from thermocal.calibration.base import Calibration
+from thermocal.calibration.base import Calibration, UnverifiedFileWarning
 from thermocal.calibration.lin import LinCalibration, lin, lin_level
 from thermocal.calibration.polynomial import PolynomialCalibration, polynomial
 from thermocal.calibration.shutter import ShutterCalibration, shutter
 from thermocal.calibration.store import load_calibration
 from thermocal.calibration.two_point import TwoPointCalibration, one_point, two_point
 from thermocal.calibration.wolf2016 import Wolf2016Calibration, wolf2016
-from thermocal.errors import InvalidInputError
+from thermocal.errors import FileFormatError, InvalidInputError
 
 __all__ = [
     "CALIBRATION_METHODS",
     "CalibrationInfo",
     "fit_calibration",
     "load_any_calibration",
+    "upgrade_calibration",
     "method_help",
 ]
 
@@ -117,16 +119,29 @@ def fit_calibration(session: Any, method: str = "polynomial", **options: Any) ->
 def load_any_calibration(path: str | Path) -> Calibration:
     """Read any calibration file, with the class of the method it records.
 
+    The file is read once, and checked as the method's class checks it (``load``).
+
     Raises
     ------
     FileFormatError
-        A missing, damaged or foreign file.
-    InvalidInputError
-        A method this thermocal does not know (a file made by a newer one?).
+        A missing, damaged or foreign file, or one of a method this thermocal does not know (a
+        file made by a newer one?).
     """
-    method = load_calibration(path).method
-    if method not in CALIBRATION_METHODS:
-        raise InvalidInputError(
-            f"{path}: unknown calibration method {method!r} (made by a newer thermocal?)"
+    stored = load_calibration(path)
+    if stored.method not in CALIBRATION_METHODS:
+        raise FileFormatError(
+            f"{path}: unknown calibration method {stored.method!r:.40} (made by a newer "
+            "thermocal?)"
         )
-    return CALIBRATION_METHODS[method].loads.load(path)
+    return CALIBRATION_METHODS[stored.method].loads.from_stored(stored, path)
+
+
+def upgrade_calibration(path: str | Path, out: str | Path) -> Path:
+    """Write the calibration file ``path`` (any version this thermocal reads, its coefficients
+    checked) again as the current version, with its checksum, to ``out`` (atomically).
+
+    Upgrading a version-1 file vouches for it: do it only for a file known to be intact."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UnverifiedFileWarning)
+        cal = load_any_calibration(path)
+    return cal.save(out)

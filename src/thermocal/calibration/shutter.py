@@ -11,6 +11,7 @@ shutter lags), which is what Lin et al. improve on.
 from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -22,8 +23,15 @@ from thermocal.calibration.base import (
     per_frame_series,
     warn_outside_range,
 )
-from thermocal.calibration.store import FileLayout, StoredCalibrationMixin
-from thermocal.calibration.two_point import TwoPointCalibration, two_point
+from thermocal.calibration.store import (
+    FileLayout,
+    StoredCalibration,
+    StoredCalibrationMixin,
+    check_offsets,
+    check_scalar,
+    damaged,
+)
+from thermocal.calibration.two_point import TwoPointCalibration, check_linear_gain, two_point
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import InvalidInputError
 
@@ -59,6 +67,33 @@ class ShutterCalibration(StoredCalibrationMixin):
     @property
     def shape(self) -> tuple[int, int]:
         return self.bad.shape  # type: ignore[return-value]
+
+    @classmethod
+    def _check_fields(cls, kw: dict[str, Any], stored: StoredCalibration,
+                      path: str | Path) -> None:
+        """Two-point's checks (:func:`~thermocal.calibration.two_point.check_linear_gain`);
+        ``interval_s`` in (0, 1 day] s; the shutter events: times ``(E,)`` finite and in order
+        (``apply`` looks them up by bisection), offsets ``(E, H, W)`` finite, within
+        :data:`~thermocal.calibration.store.OFFSET_LIMIT_COUNTS`, one per time."""
+        super()._check_fields(kw, stored, path)
+        method = stored.method
+        check_linear_gain(kw, method, path)
+        check_scalar(kw["interval_s"], "interval_s", 0.0, 86400.0, path, method, unit="s",
+                     low_open=True)
+        times = np.asarray(kw.get("event_time_s", np.zeros(0)))
+        offsets = kw.get("event_offset")
+        if (times.ndim != 1 or times.dtype.kind not in "iuf" or not np.all(np.isfinite(times))
+                or np.any(np.diff(times) < 0)):
+            raise damaged(path, method, "event_time_s is not a finite series in time order")
+        if offsets is None:
+            if times.size:
+                raise damaged(path, method, "shutter event times without their offsets")
+            return
+        offsets = np.asarray(offsets)
+        if offsets.shape != (times.size, *stored.shape) or offsets.dtype.kind not in "iuf":
+            raise damaged(path, method, f"event_offset has shape {offsets.shape}, expected "
+                                        f"{(times.size, *stored.shape)}")
+        check_offsets(offsets, "event_offset", path, method)
 
     @classmethod
     def from_two_point(cls, cal: TwoPointCalibration, *, interval_s: float = 180.0

@@ -10,6 +10,7 @@ what the temperature-dependent methods (polynomial, wolf2016, lin) fix.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -32,7 +33,17 @@ from thermocal.calibration.dataset import (
     group_means,
     prepare_chamber,
 )
-from thermocal.calibration.store import FileLayout, StoredCalibrationMixin
+from thermocal.calibration.store import (
+    FPA_LIMITS_C,
+    FileLayout,
+    StoredCalibration,
+    StoredCalibrationMixin,
+    check_band,
+    check_offsets,
+    check_response,
+    check_scalar,
+    damaged,
+)
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import FitError
 from thermocal.radiometry import BandRadiance
@@ -70,6 +81,16 @@ class TwoPointCalibration(StoredCalibrationMixin):
         """Frame shape ``(H, W)``."""
         return self.gain.shape  # type: ignore[return-value]
 
+    @classmethod
+    def _check_fields(cls, kw: dict[str, Any], stored: StoredCalibration,
+                      path: str | Path) -> None:
+        """See :func:`check_linear_gain`; one-point also has one gain for every pixel."""
+        super()._check_fields(kw, stored, path)
+        check_linear_gain(kw, stored.method, path)
+        if stored.method == "one-point" and np.ptp(kw["gain"]) != 0:
+            raise damaged(path, stored.method, "one-point has one gain for every pixel, the "
+                                               "file's differ")
+
     @property
     def fpa_range(self) -> tuple[float, float]:
         """FPA range covered, °C (the reference ± 0.5 °C when unknown)."""
@@ -96,6 +117,26 @@ class TwoPointCalibration(StoredCalibrationMixin):
             np.clip(radiance, lo, hi, out=radiance)
             out[k] = band.temperature(radiance) - np.float32(ZERO_CELSIUS_K)
         return fill_bad_pixels(out, self.bad)
+
+
+def check_linear_gain(kw: dict[str, Any], method: str, path: str | Path) -> None:
+    """The load checks of a linear per-pixel model ``counts = gain · L + offset`` (two-point,
+    one-point, shutter), beyond finiteness: the band within
+    :data:`~thermocal.calibration.store.BAND_LIMITS_M`; ``fpa_ref_c`` within
+    :data:`~thermocal.calibration.store.FPA_LIMITS_C`; every gain positive (a fit marks a pixel
+    with a non-positive gain bad and gives it the median gain), with a 0 → 100 °C response of
+    :data:`~thermocal.calibration.store.RESPONSE_LIMITS_COUNTS`; offsets within
+    :data:`~thermocal.calibration.store.OFFSET_LIMIT_COUNTS`."""
+    check_band(kw["band_m"], path, method)
+    check_scalar(kw["fpa_ref_c"], "fpa_ref_c", *FPA_LIMITS_C, path, method, unit="°C")
+    band = band_for(tuple(kw["band_m"]))
+    span = float(band.radiance(np.float64(100.0 + ZERO_CELSIUS_K))
+                 - band.radiance(np.float64(ZERO_CELSIUS_K)))
+    gain = np.asarray(kw["gain"], dtype=np.float64)
+    if not np.all(gain > 0):
+        raise damaged(path, method, "a gain is not positive")
+    check_response(gain * span, path, method, "(gain)")
+    check_offsets(kw["offset"], "offset", path, method)
 
 
 def fit_two_point(

@@ -61,7 +61,16 @@ from thermocal.calibration.dataset import (
     require_setpoints,
     stability_mask,
 )
-from thermocal.calibration.store import FileLayout, StoredCalibration, StoredCalibrationMixin
+from thermocal.calibration.store import (
+    FPA_LIMITS_C,
+    FileLayout,
+    StoredCalibration,
+    StoredCalibrationMixin,
+    check_band,
+    check_response,
+    check_scalar,
+    damaged,
+)
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import FileFormatError, FitError, InvalidInputError
 
@@ -235,6 +244,42 @@ class Wolf2016Calibration(StoredCalibrationMixin):
                 f"{path}: damaged wolf2016 calibration (Hammerstein-Wiener model: {exc})"
             ) from None
         return kw | {"hw": hw}
+
+    @classmethod
+    def _check_fields(cls, kw: dict[str, Any], stored: StoredCalibration,
+                      path: str | Path) -> None:
+        """Beyond finiteness: the band within :data:`~thermocal.calibration.store.BAND_LIMITS_M`,
+        ``fpa_ref_c`` within :data:`~thermocal.calibration.store.FPA_LIMITS_C`; ``S0 > 0`` on
+        every pixel (the fit marks the others bad and gives them the median) with a
+        0 → 100 °C response ``ΔL / S0`` of
+        :data:`~thermocal.calibration.store.RESPONSE_LIMITS_COUNTS`; the LMS options as
+        :class:`Wolf2016Stream` accepts them (``0 < eta <= 1``, ``1 <= window <= 1024``,
+        ``warmup_frames >= 0``, ``update_interval_s >= 0``); the HW model: order 1…10, every
+        value finite, ``0 <= a <= 0.999`` (what the identification clips it to: a stable
+        recursion), ``u_scale > 0`` (it divides), ``period_s`` in (0, 1 day] s."""
+        super()._check_fields(kw, stored, path)
+        m = METHOD
+        check_band(kw["band_m"], path, m)
+        check_scalar(kw["fpa_ref_c"], "fpa_ref_c", *FPA_LIMITS_C, path, m, unit="°C")
+        s0 = kw["s0"].astype(np.float64)
+        if not np.all(s0 > 0):
+            raise damaged(path, m, "an S0 is not positive")
+        band = band_for(tuple(kw["band_m"]))
+        span = float(band.radiance(np.float64(100.0 + ZERO_CELSIUS_K))
+                     - band.radiance(np.float64(ZERO_CELSIUS_K)))
+        check_response(span / s0, path, m, "(S0)")
+        check_scalar(kw["eta"], "eta", 0.0, 1.0, path, m, low_open=True)
+        check_scalar(kw["window"], "window", 1, 1024, path, m, integer=True)
+        check_scalar(kw["warmup_frames"], "warmup_frames", 0, 2**31, path, m, integer=True)
+        check_scalar(kw["update_interval_s"], "update_interval_s", 0.0, 86400.0, path, m)
+        check_scalar(kw["hw_order"], "hw_order", 1, 10, path, m, integer=True)
+        hw = kw["hw"]
+        if not all(np.isfinite(v) for v in hw.to_list()):
+            raise damaged(path, m, "a Hammerstein-Wiener value is not finite")
+        check_scalar(hw.a, "the HW pole a", 0.0, 0.999, path, m)
+        check_scalar(hw.u_scale, "the HW u_scale", 0.0, np.inf, path, m, low_open=True)
+        check_scalar(hw.period_s, "the HW period_s", 0.0, 86400.0, path, m, unit="s",
+                     low_open=True)
 
 
 class Wolf2016Stream:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 import click
 
-from thermocal._validate import TIFF_SUFFIXES, check_output_file
+from thermocal._validate import TIFF_SUFFIXES, check_not_input, check_output_file
 from thermocal.estimation.pipeline import estimate as run_pipeline
 from thermocal.estimation.registry import ESTIMATORS, make_estimator, method_help
 
@@ -33,6 +33,7 @@ def estimate_file(
     from thermocal.io.recording import read_recording, write_temperature_tiff
 
     out = check_output_file(out, TIFF_SUFFIXES)
+    check_not_input(out, frames_path, calibration, model_path)
     estimator = make_estimator(method, model=model_path, calibration=calibration)
     rec = read_recording(frames_path, fpa_c=fpa_c)
     result = run_pipeline(rec.frames, estimator, fpa_c=rec.fpa_c, pivot=pivot,

@@ -20,7 +20,11 @@ import numpy as np
 
 from thermocal.errors import InvalidInputError, ThermocalError
 
-__all__ = ["atomic_path", "ensure_output_dir", "write_json_atomic"]
+__all__ = ["atomic_path", "ensure_output_dir", "removing_new_dirs_on_error", "write_json_atomic"]
+
+#: The folders :func:`ensure_output_dir` created, one list per active
+#: :func:`removing_new_dirs_on_error` block.
+_NEW_DIRS: list[list[Path]] = []
 
 
 def _umask() -> int:
@@ -184,10 +188,47 @@ def ensure_output_dir(path: str | os.PathLike[str]) -> Path:
     out = Path(path)
     if out.exists() and not out.is_dir():
         raise InvalidInputError(f"{out}: exists and is a file; give a directory for the output")
+    missing = []  # the folders this call makes, outermost last
+    parent = out
+    while not parent.exists() and parent.parent != parent:
+        missing.append(parent)
+        parent = parent.parent
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
         raise InvalidInputError(f"{out}: cannot create the directory ({exc.strerror})") from None
+    for new_dirs in _NEW_DIRS:
+        new_dirs.extend(reversed(missing))
     if not os.access(out, os.W_OK | os.X_OK):
         raise InvalidInputError(f"{out}: directory is not writable; choose another output")
     return out
+
+
+@contextlib.contextmanager
+def removing_new_dirs_on_error() -> Iterator[None]:
+    """Remove, when the block fails, the output folders :func:`ensure_output_dir` created in it
+    that are still empty (a failed run leaves no empty folder behind; a folder holding any file,
+    a finished output or a log, is kept). A ``SystemExit`` of status 0 is no failure.
+
+    The command line runs every command in such a block.
+    """
+    created: list[Path] = []
+    _NEW_DIRS.append(created)
+    try:
+        yield
+    except SystemExit as exc:
+        if exc.code not in (0, None):
+            _remove_empty(created)
+        raise
+    except BaseException:
+        _remove_empty(created)
+        raise
+    finally:
+        del _NEW_DIRS[next(i for i, d in enumerate(_NEW_DIRS) if d is created)]
+
+
+def _remove_empty(folders: list[Path]) -> None:
+    """Remove the empty ones of ``folders``, innermost (last created) first."""
+    for folder in reversed(folders):
+        with contextlib.suppress(OSError):
+            folder.rmdir()  # fails, and keeps the folder, unless it is empty

@@ -34,7 +34,14 @@ from typing import Any
 import h5py
 import numpy as np
 
-from thermocal._validate import ABSOLUTE_ZERO_C, as_float_array, as_temperature_c, check_length
+from thermocal._validate import (
+    ABSOLUTE_ZERO_C,
+    FPA_RANGE_C,
+    as_float_array,
+    as_fpa_c,
+    as_temperature_c,
+    check_length,
+)
 from thermocal.errors import FileFormatError, InvalidInputError, ResolutionMismatchError
 from thermocal.io.atomic import atomic_path
 from thermocal.io.recording import _check_bit_depth, _counts_as_uint16, _series_or_none
@@ -60,6 +67,17 @@ OPTIONAL_SERIES: tuple[str, ...] = ("housing_c", "ambient_c")
 ALL_SERIES = REQUIRED_SERIES + OPTIONAL_SERIES
 _SERIES_CHUNK = 4096  # values per HDF5 chunk of a per-frame series
 _COPY_CHUNK = 256  # frames per block when copying frames into a file
+
+#: What h5py raises on a damaged file (a bad signature, heap, B-tree or object header): each is
+#: turned into a :class:`FileFormatError` naming the file.
+_H5_ERRORS = (OSError, KeyError, RuntimeError, ValueError, TypeError)
+
+
+def _damaged(path: Path, exc: BaseException) -> FileFormatError:
+    """The one-line error of a chamber file that h5py cannot read."""
+    text = " ".join(str(exc).split())[:120]
+    return FileFormatError(f"{path}: the chamber file is damaged and cannot be read ({text}); "
+                           "copy or record it again")
 
 
 # --------------------------------------------------------------------------------------------
@@ -173,21 +191,31 @@ class LazyFrames:
 
     def __getitem__(self, key: Any) -> np.ndarray:
         with _open_chamber(self.path) as f:
-            dset = f["frames"]
-            if isinstance(key, list | np.ndarray):
-                idx = np.asarray(key)
-                if idx.dtype == bool:
-                    if idx.shape != (self.shape[0],):
-                        raise IndexError(f"boolean index of shape {idx.shape} for {self.shape}")
-                    idx = np.flatnonzero(idx)
-                if idx.ndim != 1 or idx.dtype.kind not in "iu":
-                    raise IndexError("only 1-D integer or boolean index arrays are supported")
-                idx = np.where(idx < 0, idx + self.shape[0], idx).astype(np.intp)
-                if idx.size and (idx.min() < 0 or idx.max() >= self.shape[0]):
-                    raise IndexError(f"frame index out of range 0..{self.shape[0] - 1}")
-                uniq, inverse = np.unique(idx, return_inverse=True)
-                return dset[uniq][inverse]  # h5py needs increasing indices
-            return np.asarray(dset[key])
+            try:
+                dset = f["frames"]
+            except _H5_ERRORS as exc:
+                raise _damaged(self.path, exc) from None
+            try:
+                return self._read(dset, key)
+            except (OSError, RuntimeError) as exc:  # a damaged chunk, not a bad index
+                raise _damaged(self.path, exc) from None
+
+    def _read(self, dset: h5py.Dataset, key: Any) -> np.ndarray:
+        """The frames of ``key`` from the open ``frames`` dataset ``dset``."""
+        if isinstance(key, list | np.ndarray):
+            idx = np.asarray(key)
+            if idx.dtype == bool:
+                if idx.shape != (self.shape[0],):
+                    raise IndexError(f"boolean index of shape {idx.shape} for {self.shape}")
+                idx = np.flatnonzero(idx)
+            if idx.ndim != 1 or idx.dtype.kind not in "iu":
+                raise IndexError("only 1-D integer or boolean index arrays are supported")
+            idx = np.where(idx < 0, idx + self.shape[0], idx).astype(np.intp)
+            if idx.size and (idx.min() < 0 or idx.max() >= self.shape[0]):
+                raise IndexError(f"frame index out of range 0..{self.shape[0] - 1}")
+            uniq, inverse = np.unique(idx, return_inverse=True)
+            return dset[uniq][inverse]  # h5py needs increasing indices
+        return np.asarray(dset[key])
 
     def __array__(self, dtype: Any = None, copy: Any = None) -> np.ndarray:
         arr = self[()]
@@ -196,10 +224,17 @@ class LazyFrames:
     def iter_chunks(self, chunk: int = _COPY_CHUNK) -> Iterator[tuple[slice, np.ndarray]]:
         """Yield ``(slice, frames)`` blocks of at most ``chunk`` frames, in order."""
         with _open_chamber(self.path) as f:
-            dset = f["frames"]
+            try:
+                dset = f["frames"]
+            except _H5_ERRORS as exc:
+                raise _damaged(self.path, exc) from None
             for start in range(0, self.shape[0], chunk):
                 sl = slice(start, min(start + chunk, self.shape[0]))
-                yield sl, dset[sl]
+                try:
+                    block = dset[sl]
+                except (OSError, RuntimeError) as exc:  # a damaged chunk
+                    raise _damaged(self.path, exc) from None
+                yield sl, block
 
 
 # --------------------------------------------------------------------------------------------
@@ -294,7 +329,10 @@ def _chunk_series(values: Any, k: int, name: str) -> np.ndarray:
     arr = np.asarray(values)
     if arr.ndim == 0 and arr.dtype.kind in "biuf":
         arr = np.full(k, arr, dtype=np.float64)
-    check = as_temperature_c if name.endswith("_c") else as_float_array
+    if name == "fpa_c":
+        check = as_fpa_c
+    else:
+        check = as_temperature_c if name.endswith("_c") else as_float_array
     arr = check(arr, name, ndim=1)
     check_length(arr, k, name)
     return arr.astype(np.float64, copy=False)
@@ -534,7 +572,7 @@ def _open_chamber(path: Path) -> Iterator[h5py.File]:
         raise FileFormatError(f"{path}: no such file")
     try:
         f = h5py.File(path, "r")
-    except OSError as exc:
+    except _H5_ERRORS as exc:
         raise FileFormatError(f"{path}: {_open_problem(exc)}") from None
     try:
         yield f
@@ -571,36 +609,46 @@ def chamber_problems(path: str | os.PathLike[str]) -> list[str]:
         return ["no such file"]
     try:
         f = h5py.File(p, "r")
-    except OSError as exc:
+    except _H5_ERRORS as exc:
         return [_open_problem(exc)]
     problems: list[str] = []
     with f:
-        attrs = f.attrs
-        if "format" not in attrs:
-            problems.append("attribute 'format' is missing (not a thermocal chamber file?)")
-        elif _attr_to_python(attrs["format"]) != CHAMBER_FORMAT:
-            problems.append(
-                f"attribute 'format' is {_attr_to_python(attrs['format'])!r}, "
-                f"expected {CHAMBER_FORMAT!r}"
-            )
-        if "version" not in attrs:
-            problems.append("attribute 'version' is missing")
-        elif _attr_to_python(attrs["version"]) != CHAMBER_VERSION:
-            problems.append(
-                f"unsupported version {_attr_to_python(attrs['version'])!r} "
-                f"(this thermocal reads version {CHAMBER_VERSION})"
-            )
-        if "bit_depth" not in attrs:
-            problems.append("attribute 'bit_depth' is missing")
-        else:
-            try:
-                _check_bit_depth(_attr_to_python(attrs["bit_depth"]))
-            except InvalidInputError as exc:
-                problems.append(f"attribute {exc}")
-        n_frames = _frames_problems(f, problems)
-        for key in ALL_SERIES:
-            _series_problems(f, key, n_frames, problems)
+        try:
+            _file_problems(f, problems)
+        except _H5_ERRORS as exc:  # a damaged header, heap or B-tree
+            text = " ".join(str(exc).split())[:120]
+            problems.append(f"the chamber file is damaged and cannot be read ({text}); copy or "
+                            "record it again")
     return problems
+
+
+def _file_problems(f: h5py.File, problems: list[str]) -> None:
+    """Add the problems of the open chamber file ``f`` to ``problems``."""
+    attrs = f.attrs
+    if "format" not in attrs:
+        problems.append("attribute 'format' is missing (not a thermocal chamber file?)")
+    elif _attr_to_python(attrs["format"]) != CHAMBER_FORMAT:
+        problems.append(
+            f"attribute 'format' is {_attr_to_python(attrs['format'])!r}, "
+            f"expected {CHAMBER_FORMAT!r}"
+        )
+    if "version" not in attrs:
+        problems.append("attribute 'version' is missing")
+    elif _attr_to_python(attrs["version"]) != CHAMBER_VERSION:
+        problems.append(
+            f"unsupported version {_attr_to_python(attrs['version'])!r} "
+            f"(this thermocal reads version {CHAMBER_VERSION})"
+        )
+    if "bit_depth" not in attrs:
+        problems.append("attribute 'bit_depth' is missing")
+    else:
+        try:
+            _check_bit_depth(_attr_to_python(attrs["bit_depth"]))
+        except InvalidInputError as exc:
+            problems.append(f"attribute {exc}")
+    n_frames = _frames_problems(f, problems)
+    for key in ALL_SERIES:
+        _series_problems(f, key, n_frames, problems)
 
 
 def _frames_problems(f: h5py.File, problems: list[str]) -> int | None:
@@ -652,6 +700,11 @@ def _series_problems(f: h5py.File, key: str, n_frames: int | None, problems: lis
         problems.append(f"dataset {key!r} holds {n_bad} NaN or infinite value(s)")
     elif key.endswith("_c") and values.size and float(values.min()) <= ABSOLUTE_ZERO_C:
         problems.append(f"dataset {key!r} holds temperatures at or below absolute zero")
+    elif key == "fpa_c":
+        try:
+            as_fpa_c(values, "dataset 'fpa_c'")
+        except InvalidInputError as exc:
+            problems.append(str(exc))
 
 
 def validate_chamber(path: str | os.PathLike[str]) -> None:
@@ -701,14 +754,18 @@ def read_chamber(path: str | os.PathLike[str], *, frames: bool = True) -> Chambe
     p = Path(path)
     validate_chamber(p)
     with _open_chamber(p) as f:
-        attrs = {
-            key: _attr_to_python(value)
-            for key, value in f.attrs.items()
-            if key not in ("format", "version")
-        }
-        series = {key: np.asarray(f[key][()], dtype=np.float64) for key in ALL_SERIES if key in f}
-        dset = f["frames"]
-        data: np.ndarray | LazyFrames = dset[()] if frames else LazyFrames(p, dset.shape)
+        try:
+            attrs = {
+                key: _attr_to_python(value)
+                for key, value in f.attrs.items()
+                if key not in ("format", "version")
+            }
+            series = {key: np.asarray(f[key][()], dtype=np.float64)
+                      for key in ALL_SERIES if key in f}
+            dset = f["frames"]
+            data: np.ndarray | LazyFrames = dset[()] if frames else LazyFrames(p, dset.shape)
+        except _H5_ERRORS as exc:
+            raise _damaged(p, exc) from None
     try:
         return ChamberSession(data, attrs=attrs, **series)
     except InvalidInputError as exc:
@@ -748,8 +805,11 @@ def iter_chamber_frames(
     p = Path(path)
     validate_chamber(p)
     with _open_chamber(p) as f:
-        shape = f["frames"].shape
-        bit_depth = int(_attr_to_python(f.attrs["bit_depth"]))
+        try:
+            shape = f["frames"].shape
+            bit_depth = int(_attr_to_python(f.attrs["bit_depth"]))
+        except _H5_ERRORS as exc:
+            raise _damaged(p, exc) from None
     return _iter_frames(p, shape, int(chunk), bit_depth)
 
 
@@ -770,7 +830,8 @@ def _iter_frames(
 # EnvChamberCtrl import
 # --------------------------------------------------------------------------------------------
 
-#: Plausible FPA/housing temperatures, °C: outside, the 1/100 °C unit is probably wrong.
+#: Plausible housing temperatures, °C: outside, the 1/100 °C unit is probably wrong (FPA
+#: temperatures: :data:`thermocal._validate.FPA_RANGE_C`).
 _CAMERA_RANGE_C = (-60.0, 150.0)
 
 
@@ -819,8 +880,8 @@ def import_envchamberctrl_npz(
     ------
     FileFormatError
         If the file is not an ``.npz``, lacks a required array, has arrays of different lengths,
-        counts above 14 bits, or FPA/housing temperatures outside −60…150 °C after conversion
-        (a sign the unit is not 1/100 °C).
+        counts above 14 bits, or FPA temperatures outside −60…120 °C or housing temperatures
+        outside −60…150 °C after conversion (a sign the unit is not 1/100 °C).
     InvalidInputError
         If ``frame_rate_hz`` is not positive and finite.
     """
@@ -870,12 +931,12 @@ def import_envchamberctrl_npz(
     else:
         time_s = np.arange(m, dtype=np.float64) / float(frame_rate_hz)  # type: ignore[arg-type]
         attrs["frame_rate_hz"] = float(frame_rate_hz)  # type: ignore[arg-type]
-    lo, hi = _CAMERA_RANGE_C
-    for key, values in (("fpa", fpa_c), ("housing", housing_c)):
+    for key, values, (lo, hi) in (("fpa", fpa_c, FPA_RANGE_C),
+                                  ("housing", housing_c, _CAMERA_RANGE_C)):
         if values is not None and values.size and (values.min() < lo or values.max() > hi):
             raise FileFormatError(
                 f"{p}: {key!r} gives {values.min():.2f}..{values.max():.2f} °C after dividing "
-                "by 100; expected 1/100 °C values of a camera (-60..150 °C)"
+                f"by 100; expected 1/100 °C values of a camera ({lo:g}..{hi:g} °C)"
             )
     try:
         return ChamberSession(

@@ -21,7 +21,6 @@ from __future__ import annotations
 import contextlib
 import json
 import logging
-import math
 import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -32,11 +31,12 @@ import numpy as np
 import tifffile
 
 from thermocal._validate import (
-    ABSOLUTE_ZERO_C,
     TIFF_SUFFIXES,
     as_float_array,
+    as_fpa_c,
     as_frames,
     as_temperature_c,
+    check_fpa_c,
     check_length,
     check_suffix,
 )
@@ -100,25 +100,18 @@ def _read_only(arr: np.ndarray) -> np.ndarray:
 def _series_or_none(values: Any, n: int, name: str) -> np.ndarray | None:
     """Validate an optional per-frame series: finite, 1-D, length ``n``, float64, read-only.
 
-    Names ending in ``_c`` are temperatures and must lie above absolute zero.
+    Names ending in ``_c`` are temperatures and must lie above absolute zero; ``fpa_c`` must
+    lie within :data:`thermocal._validate.FPA_RANGE_C`.
     """
     if values is None:
         return None
-    check = as_temperature_c if name.endswith("_c") else as_float_array
+    if name == "fpa_c":
+        check = as_fpa_c
+    else:
+        check = as_temperature_c if name.endswith("_c") else as_float_array
     arr = check(values, name, ndim=1)
     check_length(arr, n, name)
     return _read_only(arr.astype(np.float64, copy=False))
-
-
-def _check_constant_c(value: Any, name: str) -> float:
-    """Return a finite temperature in °C above absolute zero as float, else InvalidInputError."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InvalidInputError(f"{name}: expected a temperature in °C, got {value!r}") from None
-    if not math.isfinite(v) or v <= ABSOLUTE_ZERO_C:
-        raise InvalidInputError(f"{name}: {v} °C is not a valid temperature")
-    return v
 
 
 # --------------------------------------------------------------------------------------------
@@ -486,9 +479,18 @@ def _sidecar_series(values: Any, key: str, n: int, json_path: Path) -> np.ndarra
         raise FileFormatError(
             f"{json_path}: {key!r} has {len(values)} values but the recording has {n} frames"
         )
-    arr = np.asarray(values, dtype=np.float64)
+    try:
+        arr = np.asarray(values, dtype=np.float64)
+    except OverflowError:  # an integer beyond float64
+        raise FileFormatError(f"{json_path}: {key!r} holds a number too large to be a "
+                              "reading") from None
     if not np.all(np.isfinite(arr)):
         raise FileFormatError(f"{json_path}: {key!r} holds NaN or infinite values")
+    if key == "fpa_c":
+        try:
+            as_fpa_c(arr, key)
+        except InvalidInputError as exc:
+            raise FileFormatError(f"{json_path}: {exc}") from None
     return arr
 
 
@@ -516,7 +518,8 @@ def read_recording(path: str | os.PathLike[str], *, fpa_c: float | None = None) 
         series, or counts above ``2**bit_depth - 1``; or if the sidecar is not valid JSON or one
         of its series is not a list of N finite numbers.
     InvalidInputError
-        If ``fpa_c`` is not a valid temperature.
+        If ``fpa_c`` is not a plausible FPA temperature
+        (:data:`thermocal._validate.FPA_RANGE_C`).
     """
     header = read_recording_header(path, fpa_c=fpa_c)
     data, info = _read_tiff_stack(header.path)
@@ -547,7 +550,7 @@ def read_recording_header(
     Raises as :func:`read_recording`; ``fpa_c`` replaces the sidecar's FPA series.
     """
     tiff_path = Path(path)
-    override = None if fpa_c is None else _check_constant_c(fpa_c, "fpa_c")
+    override = None if fpa_c is None else check_fpa_c(fpa_c, "fpa_c")
     json_path = sidecar_path(tiff_path)
     sidecar = _read_sidecar(json_path)
     bit_depth = _sidecar_bit_depth(sidecar, json_path)

@@ -22,6 +22,7 @@ gray levels registered onto the pivot (eq. 21), the FPA temperature ``(B,)`` nor
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import asdict, dataclass
 
 import numpy as np
@@ -50,9 +51,31 @@ __all__ = [
 
 
 
+#: Bounds of the integer sizes of :class:`ModelConfig` (inclusive). They hold every network
+#: thermocal ships or its presets train (the shipped ``N=7, μ=16, ξ=2, L=3, K=5, ν=4, ρ=2``; the
+#: paper's ``μ=64, L=4``) with room to experiment, and keep a configuration read from a damaged
+#: file from asking for absurd sizes: ``n_frames`` 1…31 (a burst; the paper uses 7), ``mu`` 1…256
+#: channels, ``xi`` 1…4, ``levels`` 0…6, ``kernel`` 1…15 (odd), ``degree`` 0…8 (the offset
+#: polynomial has ``(ν+1)²`` terms per frame), ``radial`` 0…8.
+SIZE_LIMITS: dict[str, tuple[int, int]] = {
+    "n_frames": (1, 31), "mu": (1, 256), "xi": (1, 4), "levels": (0, 6), "kernel": (1, 15),
+    "degree": (0, 8), "radial": (0, 8),
+}
+#: Largest ``ξ^L``: frames (and each inference tile) are zero-padded to a multiple of it, and
+#: training crops must be one (the shipped network: 8, the paper's: 16).
+MAX_MULTIPLE = 64
+#: The spectral band ``(λ1, λ2)`` must lie within these, m (a thermal camera's MWIR or LWIR band;
+#: the same bounds as a calibration file's).
+BAND_LIMITS_M = (1e-6, 30e-6)
+
+
 @dataclass(frozen=True)
 class ModelConfig:
     """Sizes of the network (the paper: ``mu=64, xi=2, levels=4``).
+
+    Every field is checked when it is made (:class:`~thermocal.errors.InvalidInputError`): the
+    sizes are integers within :data:`SIZE_LIMITS` with ``ξ^L <= MAX_MULTIPLE``, the switches
+    booleans, ``band_m`` within :data:`BAND_LIMITS_M`.
 
     Attributes
     ----------
@@ -134,23 +157,42 @@ class ModelConfig:
     calibrated: bool = False
 
     def __post_init__(self) -> None:
-        if self.variant not in VARIANTS:
-            raise InvalidInputError(f"variant {self.variant!r}: choose from {', '.join(VARIANTS)}")
+        for name, (lo, hi) in SIZE_LIMITS.items():
+            value = getattr(self, name)
+            if not isinstance(value, numbers.Integral) or isinstance(value, (bool, np.bool_)):
+                raise InvalidInputError(f"{name} must be an integer, got {value!r:.40}")
+            if not lo <= value <= hi:
+                raise InvalidInputError(f"{name} must be in {lo}…{hi}, got {value}")
+            object.__setattr__(self, name, int(value))
+        for name in ("fpa_input", "centre", "radiance", "radial_frames", "calibrated"):
+            value = getattr(self, name)
+            if not isinstance(value, (bool, np.bool_)):
+                raise InvalidInputError(f"{name} must be true or false, got {value!r:.40}")
+            object.__setattr__(self, name, bool(value))
+        if not isinstance(self.variant, str) or self.variant not in VARIANTS:
+            raise InvalidInputError(f"variant {self.variant!r:.40}: choose from "
+                                    f"{', '.join(VARIANTS)}")
         if self.centre and self.variant != "kpn":
             raise InvalidInputError("centre needs the offset block (variant 'kpn')")
-        if self.n_frames < 1 or self.mu < 1 or self.xi < 1 or self.levels < 0:
-            raise InvalidInputError(f"bad network sizes: {self}")
-        if self.kernel < 1 or self.kernel % 2 == 0:
-            raise InvalidInputError(f"kernel size must be odd and >= 1, got {self.kernel}")
-        if self.degree < 0:
-            raise InvalidInputError(f"offset degree must be >= 0, got {self.degree}")
-        if self.radial < 0:
-            raise InvalidInputError(f"radial degree must be >= 0, got {self.radial}")
+        if self.kernel % 2 == 0:
+            raise InvalidInputError(f"kernel size must be odd, got {self.kernel}")
+        if self.multiple > MAX_MULTIPLE:
+            raise InvalidInputError(
+                f"ξ^L = {self.xi}^{self.levels} = {self.multiple} is above {MAX_MULTIPLE} "
+                "(frames are padded to a multiple of it)"
+            )
         if self.radial_frames and not self.radial:
             raise InvalidInputError("radial_frames needs position terms (radial > 0)")
-        band = tuple(float(v) for v in self.band_m)  # a list when read back from JSON
-        if len(band) != 2 or not 0.0 < band[0] < band[1]:
-            raise InvalidInputError(f"band_m must be (λ1, λ2) in m, increasing; got {band}")
+        try:  # a list when read back from JSON
+            band = tuple(float(v) for v in self.band_m)
+        except (TypeError, ValueError):
+            raise InvalidInputError(f"band_m must be (λ1, λ2) in m; got {self.band_m!r:.60}"
+                                    ) from None
+        lo, hi = BAND_LIMITS_M
+        if len(band) != 2 or not lo <= band[0] < band[1] <= hi:
+            raise InvalidInputError(
+                f"band_m must be (λ1, λ2) in m, increasing, within {lo:g}…{hi:g}; got {band}"
+            )
         object.__setattr__(self, "band_m", band)
 
     @property

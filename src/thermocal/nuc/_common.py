@@ -1,13 +1,26 @@
-"""Input checks and helpers shared by the NUC methods."""
+"""Input checks and helpers shared by the NUC methods, and the writer of their output."""
 
 from __future__ import annotations
 
+import os
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from thermocal._validate import as_frames
+from thermocal._validate import TIFF_SUFFIXES, as_float_array, as_frames, check_suffix
 from thermocal.errors import InvalidInputError, ResolutionMismatchError
+
+#: Physical range of a detector's gain relative to the array's mean gain, ``(low, high)``. A
+#: microbolometer array's gains spread by a few per cent (pixels, columns) and its lens's
+#: vignetting dims the corners by up to a few tens of per cent; a per-pixel spread statistic that
+#: puts a detector beyond a factor 1.5 of the mean is the scene's, not the detector's: the
+#: constant-statistics (or constant-range) assumption failed at that pixel (on a slow walk over a
+#: uniform patch the pixel saw only its temporal noise). Dividing by such a "gain" multiplies
+#: every later scene change at that pixel by up to ``1/low``; with the former floor of 5 % of the
+#: mean that was 20x, which made torres-kalman diverge on 40-frame walks and UAV passes (issue 18,
+#: item 5). Harris1999, Pezoa2004, TorresKalman and hardie2000 keep their gains in this range.
+GAIN_RANGE = (2.0 / 3.0, 1.5)
 
 
 def as_nuc_frames(frames: Any, *, min_frames: int = 1, name: str = "frames") -> np.ndarray:
@@ -62,3 +75,47 @@ def check_int(value: Any, name: str, *, minimum: int = 1) -> int:
     if isinstance(value, bool) or not isinstance(value, int | np.integer) or value < minimum:
         raise InvalidInputError(f"{name}: expected an integer >= {minimum}, got {value!r}")
     return int(value)
+
+
+def write_counts_tiff(
+    path: str | os.PathLike[str], frames: Any, *, extra: dict[str, Any] | None = None
+) -> Path:
+    """Write counts-like frames (a NUC's output: not temperatures) as a float32 TIFF, atomically.
+
+    The TIFF's description (tifffile's JSON metadata) says ``"units": "counts"`` and
+    ``"radiometric": false``, with the entries of ``extra``. No temperature rule applies: counts
+    may be any finite number.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output ``.tiff``/``.tif``; its directory must exist.
+    frames : array_like, shape (H, W) or (N, H, W)
+        Counts-like values.
+    extra : dict, optional
+        Further JSON-serialisable description entries (e.g. ``{"method": "ecr"}``).
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    InvalidInputError
+        A wrong suffix, frames not 2-D or 3-D, empty, NaN or infinite, or beyond float32.
+        Nothing is written then.
+    """
+    import tifffile
+
+    from thermocal.io.atomic import atomic_path
+
+    out = check_suffix(path, TIFF_SUFFIXES, "a TIFF output")
+    arr = as_float_array(frames, "frames", ndim=(2, 3))
+    if 0 in arr.shape:
+        raise InvalidInputError(f"frames: empty image (shape {arr.shape})")
+    f32 = _as_float32(arr, "frames")
+    metadata = {"units": "counts", "radiometric": False, **(extra or {})}
+    with atomic_path(out) as tmp:
+        tifffile.imwrite(tmp, f32, photometric="minisblack", metadata=metadata,
+                         bigtiff=f32.nbytes > 2**31)
+    return out

@@ -25,7 +25,7 @@ from scipy import fft as sfft
 from scipy.ndimage import gaussian_filter1d
 
 from thermocal.errors import InvalidInputError
-from thermocal.nuc._common import as_nuc_frames, check_int, check_positive
+from thermocal.nuc._common import GAIN_RANGE, as_nuc_frames, check_int, check_positive
 
 __all__ = ["column_midway", "dct_denoise", "hardie2000", "tendero2012"]
 
@@ -115,11 +115,13 @@ def hardie2000(
         var_s = sxx / np.maximum(s1, 1.0) - m_s * m_s
         cov = sxs / np.maximum(s1, 1.0) - m_s * m_x
         if estimate_gain:
-            # a gain needs enough views and a scene that changed at that detector
+            # a gain needs enough views and a scene that changed at that detector, and must
+            # lie in the physical GAIN_RANGE (else the mean gain is kept: dividing by a fit
+            # of 0.2 made 40-frame walks diverge, issue 18)
             floor = np.float32(1e-2 * max(float(np.median(var_s)), 1e-6))
             fit = (s1 >= min_views) & (var_s > floor)
             g = np.where(fit, cov / np.maximum(var_s, floor), np.nan)
-            g = np.where(np.isfinite(g) & (g > 0.2) & (g < 5.0), g, np.nan)
+            g = np.where(np.isfinite(g) & (g > GAIN_RANGE[0]) & (g < GAIN_RANGE[1]), g, np.nan)
             g_mean = float(np.nanmean(g)) if np.isfinite(g).any() else 1.0
             g = np.where(np.isfinite(g), g / g_mean, 1.0).astype(np.float32)
         else:

@@ -9,7 +9,8 @@ from pathlib import Path
 
 import click
 
-from thermocal._validate import TIFF_SUFFIXES, check_output_file
+from thermocal._validate import TIFF_SUFFIXES, check_not_input, check_output_file
+from thermocal.errors import InvalidInputError, ResolutionMismatchError
 from thermocal.nuc.registry import NUC_METHODS, method_help
 
 
@@ -23,12 +24,23 @@ from thermocal.nuc.registry import NUC_METHODS, method_help
 )
 def nuc(frames: Path, method: str, out: Path) -> None:
     """Scene-based / single-frame nonuniformity correction of a recording."""
-    from thermocal.io.recording import read_recording, write_temperature_tiff
+    from thermocal.burst import check_burst
+    from thermocal.io.recording import read_recording
     from thermocal.nuc import correct_nonuniformity
+    from thermocal.nuc._common import write_counts_tiff
 
     check_output_file(out, TIFF_SUFFIXES)
+    check_not_input(out, frames)
     rec = read_recording(frames)
-    corrected = correct_nonuniformity(rec.frames, method=method)
-    write_temperature_tiff(out, corrected)
+    try:
+        check_burst(rec.frames, bit_depth=rec.bit_depth)  # no saturated or dead (constant) frames
+        corrected = correct_nonuniformity(rec.frames, method=method)
+    except ResolutionMismatchError:
+        raise
+    except InvalidInputError as exc:  # about the frames: name their file
+        if str(exc).startswith(str(frames)):
+            raise
+        raise InvalidInputError(f"{frames}: {exc}") from None
+    write_counts_tiff(out, corrected, extra={"method": method})  # counts-like, not °C
     n, h, w = corrected.shape
     click.echo(f"wrote {n} corrected frames of {w}x{h} ({method}) to {out}")

@@ -36,7 +36,13 @@ import cv2
 import numpy as np
 
 from thermocal.errors import InvalidInputError
-from thermocal.nuc._common import as_nuc_frames, as_one_frame, check_int, check_positive
+from thermocal.nuc._common import (
+    GAIN_RANGE,
+    as_nuc_frames,
+    as_one_frame,
+    check_int,
+    check_positive,
+)
 
 __all__ = [
     "Harris1999",
@@ -215,9 +221,11 @@ class _BlockMoments:
         return m, s
 
 
-def _floored(v: np.ndarray) -> np.ndarray:
-    """``v`` kept ≥ 5 % of its spatial mean (a gain-like map safe to divide by)."""
-    return np.maximum(v, np.float32(max(float(v.mean()), 1e-6) * 0.05))
+def _bounded_gain(v: np.ndarray) -> np.ndarray:
+    """A gain-like map ``v`` (a spread per pixel) clipped to ``GAIN_RANGE`` (2/3…3/2) times its
+    spatial mean: safe to divide by, and a detector's gain, not the scene's spread."""
+    m = max(float(v.mean()), 1e-6)
+    return np.clip(v, np.float32(GAIN_RANGE[0] * m), np.float32(GAIN_RANGE[1] * m))
 
 
 def _gain_offset_output(x: np.ndarray, gain: np.ndarray, offset: np.ndarray) -> np.ndarray:
@@ -238,7 +246,9 @@ class Harris1999(_ExponentialWindow):
     Each pixel sees, over time, a scene of the same mean and spread; its temporal mean ``m`` is
     then the offset and its mean absolute deviation ``d`` the gain (up to one global constant).
     Both are recursive means with weight ``max(1/n, 1/window)`` (cumulative at first, then an
-    exponential window of ``window`` frames so that drift is followed).
+    exponential window of ``window`` frames so that drift is followed). Safeguard: the gain is
+    kept within ``GAIN_RANGE`` (2/3…3/2) of its spatial mean (a pixel that saw little change has
+    a small ``d`` that is the scene's, not its gain).
 
     Parameters
     ----------
@@ -257,7 +267,7 @@ class Harris1999(_ExponentialWindow):
         self.mad += a * (np.abs(x - self.mean) - self.mad)
 
     def _correct(self, x: np.ndarray) -> np.ndarray:
-        d = _floored(self.mad)
+        d = _bounded_gain(self.mad)
         return (x - self.mean) / d * np.float32(d.mean()) + np.float32(self.mean.mean())
 
 
@@ -310,7 +320,8 @@ class Pezoa2004(_ExponentialWindow):
     the uniform model from its first two moments, ``x_min, x_max = m ∓ √3·s`` with ``m`` and
     ``s`` the recursive (exponentially windowed) temporal mean and standard deviation of the
     pixel — this is our reading of the enhancement, stated here because the estimator matters.
-    Output ``(x − x_min)/(x_max − x_min)`` rescaled to the mean range and minimum.
+    Output ``(x − x_min)/(x_max − x_min)`` rescaled to the mean range and minimum; the range is
+    kept within ``GAIN_RANGE`` (2/3…3/2) of its spatial mean.
 
     Parameters
     ----------
@@ -344,7 +355,7 @@ class Pezoa2004(_ExponentialWindow):
 
     def _correct(self, x: np.ndarray) -> np.ndarray:
         low = self.low
-        return _gain_offset_output(x, _floored(self.high - low), low)
+        return _gain_offset_output(x, _bounded_gain(self.high - low), low)
 
 
 # --------------------------------------------------------------------------------------------
@@ -358,12 +369,20 @@ class TorresKalman(StreamingNUC):
     Gain ``g`` and offset ``o`` of each pixel are states that drift slowly between blocks of
     ``block`` frames (a random walk with variances ``drift_gain``, ``drift_offset`` per block).
     Within a block the scene is assumed to have the same temporal mean ``μ`` and spread ``σ`` at
-    every pixel (the constant-statistics observation of the paper), so the block's per-pixel mean
-    ``m`` and standard deviation ``s`` measure ``g = s/σ`` and ``o = m − g·μ`` with ``μ``, ``σ``
-    set to the spatial means of ``m`` and ``s`` (which fixes the arbitrary global scale). One
-    scalar Kalman filter per pixel and state fuses the block measurements; the measurement
-    variance is taken from the spread of the measurements themselves across the frame (relative
-    ``measurement_noise``).
+    every pixel (the constant-statistics observation of the paper, its "spatiotemporal
+    diversity" condition), so the block's per-pixel mean ``m`` and standard deviation ``s``
+    measure ``g = s/σ`` and ``o = m − g·μ`` with ``μ``, ``σ`` set to the spatial means of ``m``
+    and ``s`` (which fixes the arbitrary global scale). One scalar Kalman filter per pixel and
+    state fuses the block measurements; the measurement variance is taken from the spread of the
+    measurements themselves across the frame.
+
+    Numerical safeguards (not in the paper's equations, which assume the diversity condition
+    holds at every pixel; the filter's form is unchanged): a gain measurement is bounded to
+    ``GAIN_RANGE`` (2/3…3/2) of the mean (where a pixel saw little change during a block,
+    ``s/σ`` is the scene's, not the detector's, and dividing by it made the output diverge);
+    the measurement variances are floored; and the covariance update is written
+    ``P⁺ = P⁻·R/(P⁻ + R)`` (equal to ``(1 − K)·P⁻``), positive whatever the rounding, so
+    ``0 < K < 1`` and the estimates stay convex combinations of bounded measurements.
 
     Parameters
     ----------
@@ -372,6 +391,10 @@ class TorresKalman(StreamingNUC):
     drift_gain, drift_offset : float
         Process-noise variances per block, relative to the measurement variance (defaults 0.02).
     """
+
+    #: Floors of the measurement variances: gain (dimensionless) and offset (counts²).
+    R_FLOOR_GAIN = 1e-6
+    R_FLOOR_OFFSET = 1e-4
 
     def __init__(
         self, *, block: int = 10, drift_gain: float = 0.02, drift_offset: float = 0.02
@@ -397,13 +420,14 @@ class TorresKalman(StreamingNUC):
         if block is None:
             return
         m, s = block
+        # safeguard: a gain measurement is a detector's gain, within GAIN_RANGE of the mean
         sigma = np.float32(max(float(s.mean()), 1e-6))
-        g_meas = np.maximum(s / sigma, np.float32(0.05))
+        g_meas = _bounded_gain(s) / sigma
         o_meas = m - g_meas * np.float32(m.mean())
         # Scalar filters, one per pixel and state; every pixel shares the same variances
         # (a spatially uniform prior), so P and K are scalars per state.
-        r_g = np.float32(max(float(g_meas.var()), 1e-8))
-        r_o = np.float32(max(float(o_meas.var()), 1e-8))
+        r_g = np.float32(max(float(g_meas.var()), self.R_FLOOR_GAIN))
+        r_o = np.float32(max(float(o_meas.var()), self.R_FLOOR_OFFSET))
         if self.n_blocks == 0:
             self.gain, self.offset = g_meas, o_meas
             self.p_gain, self.p_offset = r_g, r_o
@@ -413,7 +437,8 @@ class TorresKalman(StreamingNUC):
             kg, ko = pg / (pg + r_g), po / (po + r_o)
             self.gain += kg * (g_meas - self.gain)
             self.offset += ko * (o_meas - self.offset)
-            self.p_gain, self.p_offset = (1 - kg) * pg, (1 - ko) * po
+            # (1 − K)·P⁻ written so that it stays positive: P⁻·R/(P⁻ + R)
+            self.p_gain, self.p_offset = pg * r_g / (pg + r_g), po * r_o / (po + r_o)
         self.n_blocks += 1
 
     def _correct(self, x: np.ndarray) -> np.ndarray:

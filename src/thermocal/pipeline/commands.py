@@ -30,6 +30,7 @@ def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
            model: str | None, n_frames: int, stride: int, fpa_c: float | None,
            preview_every: int) -> None:
     """Turn a whole RECORDING (frames.tiff + sidecar) into one temperature map per pivot."""
+    from thermocal.errors import ThermocalError
     from thermocal.io.recording import read_recording_header
     from thermocal.pipeline.flight import FlightOptions, process_flight
 
@@ -40,6 +41,12 @@ def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
         task = bar.add_task("flight", total=total - total % stride or total)
         summary = process_flight(recording, out_dir, options,
                                  progress=lambda k: bar.advance(task, k))
+    if summary["processed"] == 0 and summary["skipped_already_done"] == 0:
+        # the summary and the log are written; exit 2 rather than report success
+        raise ThermocalError(
+            f"no temperature map made: all {summary['groups']} groups failed; the first, "
+            f"{summary.get('first_error')}; every group's error is in {Path(out_dir) / 'log.csv'}"
+        )
     click.echo(
         f"{summary['processed']} temperature maps written to {out_dir}/temps "
         f"({summary['skipped_already_done']} already done, {summary['failed']} failed) "

@@ -13,13 +13,29 @@ calibration applied to the pivot ``calibration``) through the estimation pipelin
                                     (lowest ECC correlation in the group), warnings, errors
     OUT/log.csv, OUT/summary.json   written at the end (frames per second per stage)
 
-A rerun with the same options resumes: pivots whose TIFF exists are skipped.
+A rerun with the same options resumes, and gives the same bytes as an uninterrupted run:
+
+* a pivot is finished once its preview, its map and then its log line are written (in that
+  order); a pivot is skipped only when its log line says it succeeded and its map checks out (a
+  readable float32 TIFF of the frame size, finite, with the logged mean); anything else is redone;
+* groups are registered in batches fixed by their place in the recording (:data:`BATCH_FRAMES`),
+  whatever was done before, so a group's map depends only on the recording and the options;
+* temporary files an interrupted run left in the output folders (:func:`atomic_path`'s names)
+  are removed, and a log line cut short is dropped; unreadable log lines and files that are not
+  named like an output are ignored.
+
+The output folders are created only once the options, the estimator and the recording have been
+checked: bad input leaves nothing behind.
 """
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import json
+import math
+import os
+import re
 import time
 import warnings
 from collections.abc import Callable
@@ -29,15 +45,23 @@ from typing import Any
 
 import numpy as np
 
+from thermocal.burst import check_burst, fpa_value
 from thermocal.errors import InvalidInputError, OutputError, RegistrationError
 from thermocal.estimation.base import Estimator
 from thermocal.estimation.pipeline import estimate
 from thermocal.estimation.registry import ESTIMATORS, make_estimator
 from thermocal.io.atomic import atomic_path, ensure_output_dir, write_json_atomic
-from thermocal.io.recording import iter_recording, read_recording_header, write_temperature_tiff
+from thermocal.io.recording import (
+    iter_recording,
+    read_recording_header,
+    read_temperature_tiff,
+    write_temperature_tiff,
+)
 from thermocal.registration.sequence import SequenceRegistration, register_sequence
 
-#: Frames registered together as one sequence (a batch of groups).
+#: Frames registered together as one sequence (a batch of groups). The batches are fixed by the
+#: groups' places in the recording (``BATCH_FRAMES // stride`` consecutive pivots each), never by
+#: what is left to do, so that a resumed run registers the same frames as an uninterrupted one.
 BATCH_FRAMES = 512
 
 
@@ -140,11 +164,11 @@ def process_flight(
         )
     n, stride = options.frames, options.stride
     pivots = pivots_of(header.n_frames, n, stride)
-    out = ensure_output_dir(Path(out_dir))
-    for sub in ("temps", "previews"):
-        ensure_output_dir(out / sub)
-    done = _finished_pivots(out)
     estimator = _estimator(options, header.frame_shape)
+    out = _output_dirs(Path(out_dir))  # only now: every check has passed
+    _remove_stale_temp_files(out)
+    _drop_cut_log_line(out / "log.jsonl")
+    done = _finished_pivots(out, pivots, options, header.frame_shape)
     tally = _Tally()
     reader = _FrameWindow(header.path, header.frame_shape, chunk=max(64, n))
     per_batch = max(1, BATCH_FRAMES // stride)
@@ -152,20 +176,32 @@ def process_flight(
     with open(out / "log.jsonl", "a", encoding="utf-8") as log:
         for b in range(0, len(pivots), per_batch):
             batch = pivots[b : b + per_batch]
-            todo = [p for p in batch if p not in done]
+            todo = [(b + i, p) for i, p in enumerate(batch) if p not in done]
             tally.skipped += len(batch) - len(todo)
             if progress and len(todo) < len(batch):
                 progress(stride * (len(batch) - len(todo)))
             if not todo:
                 continue
-            run = _register_batch(reader, estimator, todo, n, tally.times)
-            for pivot in todo:
-                entry = _process_pivot(run, pivot, header.series, estimator, options, out, tally)
-                log.write(json.dumps(entry) + "\n")
+            # the whole batch, done pivots included: the same frames as an uninterrupted run
+            run = _register_batch(reader, estimator, batch, n, tally.times)
+            for index, pivot in todo:
+                entry = _process_pivot(run, pivot, header.series, estimator, options, out, tally,
+                                       preview=_preview_due(options, index))
+                log.write(json.dumps(entry) + "\n")  # last: the pivot is finished
                 log.flush()
                 if progress:
                     progress(stride)
     return _finish(out, header.path, options, len(pivots), tally, time.perf_counter() - started)
+
+
+def _preview_due(options: FlightOptions, index: int) -> bool:
+    """Whether the ``index``-th pivot of the recording gets a preview (every ``preview_every``-th,
+    by its place in the recording, so that a resumed run makes the same ones)."""
+    return bool(options.preview_every) and index % options.preview_every == 0
+
+
+def _preview_title(options: FlightOptions, pivot: int) -> str:
+    return f"frame {pivot}, {options.method}"
 
 
 @dataclass
@@ -175,6 +211,7 @@ class _Tally:
     processed: int = 0
     skipped: int = 0
     failed: int = 0
+    first_error: str | None = None
     times: StageTimes = field(default_factory=StageTimes)
 
 
@@ -189,11 +226,11 @@ class _Batch:
     error: str | None
 
 
-def _register_batch(reader: _FrameWindow, estimator: Estimator, todo: list[int], n: int,
+def _register_batch(reader: _FrameWindow, estimator: Estimator, batch: list[int], n: int,
                     times: StageTimes) -> _Batch:
-    """Read the frames of the groups of ``todo`` (pivots) and register them as one sequence."""
+    """Read the frames of the groups of ``batch`` (pivots) and register them as one sequence."""
     t = time.perf_counter()
-    a, z = todo[0] - n // 2, todo[-1] - n // 2 + n
+    a, z = batch[0] - n // 2, batch[-1] - n // 2 + n
     frames = reader.frames(a, z)
     t = times.add("reading", t)
     try:
@@ -205,16 +242,25 @@ def _register_batch(reader: _FrameWindow, estimator: Estimator, todo: list[int],
 
 
 def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: Estimator,
-                   options: FlightOptions, out: Path, tally: _Tally) -> dict[str, Any]:
+                   options: FlightOptions, out: Path, tally: _Tally, *,
+                   preview: bool) -> dict[str, Any]:
     """Estimate one pivot's map from its group of ``run``, write it (and its preview) and
-    return its log entry; a group that cannot be estimated is logged with its error."""
+    return its log entry; a group that cannot be estimated is logged with its error.
+
+    The group's frames are validated first (saturated or dead frames, the FPA temperature), so
+    that a bad group says what is wrong with it rather than that its registration failed.
+    """
     n = options.frames
     first = pivot - n // 2
     fpa, time_s = series["fpa_c"], series["time_s"]
     entry = {"frame": pivot, "time_s": None if time_s is None else float(time_s[pivot]),
              "fpa_c": None if fpa is None else float(fpa[pivot]), "warnings": []}
     t = time.perf_counter()
+    group = run.frames[first - run.start : first - run.start + n]
     try:
+        _check_group(group, first)
+        if estimator.needs_fpa:
+            fpa_value(None if fpa is None else fpa[first : first + n], n)
         if run.error is not None:
             raise RegistrationError(run.error)
         homographies = None
@@ -226,7 +272,7 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             temp = estimate(
-                run.frames[first - run.start : first - run.start + n], estimator,
+                group, estimator,
                 fpa_c=None if fpa is None else fpa[first : first + n],
                 time_s=None if time_s is None else time_s[first : first + n],
                 pivot=n // 2, homographies=homographies).temperature_c
@@ -234,25 +280,42 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
     except (RegistrationError, InvalidInputError) as exc:
         entry["error"] = str(exc)
         tally.failed += 1
+        if tally.first_error is None:
+            tally.first_error = f"pivot {pivot}: {exc}"
         tally.times.add("estimate", t)
         return entry
     t = tally.times.add("estimate", t)
-    preview = bool(options.preview_every) and tally.processed % options.preview_every == 0
-    _write_pivot(out, pivot, temp, f"frame {pivot}, {options.method}" if preview else None)
+    _write_pivot(out, pivot, temp, _preview_title(options, pivot) if preview else None)
     entry["mean_c"] = float(temp.mean())
     tally.processed += 1
     tally.times.add("writing", t)
     return entry
 
 
+def _check_group(group: np.ndarray, first: int) -> None:
+    """The estimation pipeline's check of a group's frames (saturated, dead, constant), its
+    message naming the frame by its place in the recording."""
+    try:
+        check_burst(group)
+    except InvalidInputError as exc:
+        last = first + len(group) - 1
+        message = re.sub(r"^frames: frame (\d+)\b",
+                         lambda m: f"frame {first + int(m[1])} (group of frames {first}-{last})",
+                         str(exc))
+        if message == str(exc):
+            message = f"group of frames {first}-{last}: {exc}"
+        raise InvalidInputError(message) from None
+
+
 def _write_pivot(out: Path, pivot: int, temp: np.ndarray, preview_title: str | None) -> None:
-    """A pivot's temperature TIFF, and its preview when titled; each written atomically, so
-    that the finished ones stand when the disk fills."""
+    """A pivot's preview when titled, then its temperature TIFF; each written atomically, so
+    that the finished ones stand when the disk fills. The map comes last (before the log line
+    that its caller writes): a pivot interrupted before its log line is redone whole."""
     name = f"frame_{pivot:06d}"
     try:
-        write_temperature_tiff(out / "temps" / f"{name}.tiff", temp)
         if preview_title is not None:
             _preview(out / "previews" / f"{name}.png", temp, preview_title)
+        write_temperature_tiff(out / "temps" / f"{name}.tiff", temp)
     except OSError as exc:
         where = f"{exc.filename}: " if exc.filename else ""
         raise OutputError(
@@ -272,6 +335,7 @@ def _finish(out: Path, recording: Path, options: FlightOptions, groups: int, tal
         "processed": tally.processed,
         "skipped_already_done": tally.skipped,
         "failed": tally.failed,
+        **({"first_error": tally.first_error} if tally.first_error is not None else {}),
         "wall_time_s": elapsed,
         "frames_per_second": {
             stage: (frames_done / s if s > 0 else None) for stage, s in tally.times.seconds.items()
@@ -307,19 +371,121 @@ class _FrameWindow:
         return self._buffer[a - self._start : z - self._start]
 
 
-def _finished_pivots(out: Path) -> set[int]:
-    """Pivots already written by an earlier run (their TIFF exists)."""
-    return {int(p.stem.split("_")[1]) for p in (out / "temps").glob("frame_*.tiff")}
+def _output_dirs(out: Path) -> Path:
+    """Create ``out``, ``out/temps`` and ``out/previews`` (none of them when one of the paths is
+    taken by a file)."""
+    for path in (out, out / "temps", out / "previews"):
+        if path.exists() and not path.is_dir():
+            raise InvalidInputError(
+                f"{path}: exists and is a file; give a directory for the output")
+    log = out / "log.jsonl"
+    if log.exists() and not log.is_file():
+        raise InvalidInputError(f"{log}: is not a file; give another output directory")
+    for path in (out, out / "temps", out / "previews"):
+        ensure_output_dir(path)
+    return out
+
+
+#: Names of the temporary files of :func:`thermocal.io.atomic.atomic_path` (``.STEM.`` + the
+#: eight characters of :func:`tempfile.mkstemp` + the target's suffix) for each output folder.
+_TEMP_FILES = {
+    ".": re.compile(r"\.(log|summary)\.[a-z0-9_]{8}\.(csv|json)"),
+    "temps": re.compile(r"\.frame_\d{6,}\.[a-z0-9_]{8}\.tiff"),
+    "previews": re.compile(r"\.frame_\d{6,}\.[a-z0-9_]{8}\.png"),
+}
+
+
+def _remove_stale_temp_files(out: Path) -> None:
+    """Remove the temporary files a killed run left behind (only names a flight writes)."""
+    for sub, pattern in _TEMP_FILES.items():
+        with contextlib.suppress(OSError):
+            for path in (out / sub).iterdir():
+                if pattern.fullmatch(path.name) and path.is_file() and not path.is_symlink():
+                    with contextlib.suppress(OSError):
+                        path.unlink()
+
+
+def _drop_cut_log_line(log_path: Path) -> None:
+    """Cut a last log line that an interruption left without its newline (its pivot is redone),
+    so that the next line is appended on a line of its own."""
+    try:
+        data = log_path.read_bytes()
+    except FileNotFoundError:
+        return
+    if data and not data.endswith(b"\n"):
+        os.truncate(log_path, data.rfind(b"\n") + 1)
+
+
+def _finished_pivots(out: Path, pivots: list[int], options: FlightOptions,
+                     shape: tuple[int, int]) -> set[int]:
+    """Pivots an earlier run finished: the latest log line of the pivot says it succeeded and its
+    map checks out (:func:`_map_ok`). A missing preview of such a pivot is made from its map."""
+    logged = {e["frame"]: e for e in _read_log(out / "log.jsonl")}
+    done = set()
+    for index, pivot in enumerate(pivots):
+        entry = logged.get(pivot)
+        if entry is None or "error" in entry:
+            continue
+        name = f"frame_{pivot:06d}"
+        temp = _map_ok(out / "temps" / f"{name}.tiff", shape, entry.get("mean_c"))
+        if temp is None:
+            continue
+        png = out / "previews" / f"{name}.png"
+        if _preview_due(options, index) and not png.is_file():
+            _write_pivot_preview(png, temp, _preview_title(options, pivot))
+        done.add(pivot)
+    return done
+
+
+def _write_pivot_preview(png: Path, temp: np.ndarray, title: str) -> None:
+    try:
+        _preview(png, temp, title)
+    except OSError as exc:
+        where = f"{exc.filename}: " if exc.filename else ""
+        raise OutputError(f"{where}{exc.strerror or exc}; rerun to resume") from None
+
+
+def _map_ok(path: Path, shape: tuple[int, int], mean_c: Any) -> np.ndarray | None:
+    """The map at ``path`` if it is what a finished pivot wrote: a readable float32 TIFF of
+    ``shape``, finite, whose mean is the logged ``mean_c``; None otherwise (it is redone)."""
+    import tifffile
+
+    if not isinstance(mean_c, int | float) or isinstance(mean_c, bool):
+        return None
+    try:
+        with tifffile.TiffFile(path) as tif:
+            if len(tif.series) != 1 or tif.series[0].dtype != np.float32:
+                return None
+        temp = read_temperature_tiff(path)  # corrupt, truncated, NaN: FileFormatError
+    except Exception:  # missing, unreadable: tifffile raises many types on corrupt input
+        return None
+    if temp.shape != tuple(shape):
+        return None
+    mean = float(temp.mean())
+    if not math.isfinite(mean_c) or abs(mean - mean_c) > 1e-4 * max(1.0, abs(mean_c)):
+        return None
+    return temp
 
 
 def _read_log(log_path: Path) -> list[dict[str, Any]]:
+    """The latest entry of each pivot in the log, by pivot; lines that are not a JSON object
+    with an integer ``frame`` (cut by an interruption, edited) are ignored."""
     entries: dict[int, dict[str, Any]] = {}
-    for line in log_path.read_text(encoding="utf-8").splitlines():
+    try:
+        data = log_path.read_bytes()
+    except FileNotFoundError:
+        return []
+    for line in data.splitlines():
         try:
             entry = json.loads(line)
-        except json.JSONDecodeError:  # a line cut by an interruption
+        except (ValueError, RecursionError):  # a line cut short, not UTF-8, not JSON
             continue
-        entries[int(entry["frame"])] = entry  # the latest try of each pivot
+        if not isinstance(entry, dict):
+            continue
+        frame = entry.get("frame")
+        if isinstance(frame, bool) or not isinstance(frame, int):
+            continue
+        entries[frame] = entry  # the latest try of each pivot
     return [entries[k] for k in sorted(entries)]
 
 
@@ -330,9 +496,10 @@ def _write_csv(path: Path, entries: list[dict[str, Any]]) -> None:
         writer = csv.writer(f)
         writer.writerow(columns)
         for e in entries:
+            found = e.get("warnings")
+            warned = "; ".join(map(str, found)) if isinstance(found, list) else ""
             writer.writerow([e.get("frame"), e.get("time_s"), e.get("fpa_c"), e.get("mean_c"),
-                             e.get("registration_correlation"),
-                             "; ".join(e.get("warnings", [])), e.get("error", "")])
+                             e.get("registration_correlation"), warned, e.get("error", "")])
 
 
 __all__ = ["FlightOptions", "pivots_of", "process_flight"]

@@ -8,13 +8,20 @@ the blackbody temperature, the FPA sensor reading, the true housing and ambient 
 
 from __future__ import annotations
 
+import math
+import os
 from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
 import numpy as np
 
-from thermocal._validate import as_temperature_c
+from thermocal._validate import (
+    FPA_RANGE_C,
+    MAX_DATA_FRAMES,
+    as_temperature_c,
+    check_data_size,
+)
 from thermocal.camera.model import CameraModel, render
 from thermocal.camera.thermal import (
     ThermalParams,
@@ -26,6 +33,7 @@ from thermocal.camera.thermal import (
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import InvalidInputError
 from thermocal.radiometry import BandRadiance
+from thermocal.simulate._memory import frames_per_chunk, working_memory
 
 ORDERS = ("sweep", "sawtooth", "random")
 
@@ -58,25 +66,73 @@ class ChamberPlan:
             raise InvalidInputError(f"frames per point must be >= 1, got {self.frames_per_point}")
         if self.order not in ORDERS:
             raise InvalidInputError(f"unknown set-point order {self.order!r}; use {ORDERS}")
-        if self.interval_s <= 0:
+        # `not x > 0`, not `x <= 0`: NaN is refused too
+        if not (math.isfinite(self.interval_s) and self.interval_s > 0):
             raise InvalidInputError(f"frame interval must be > 0 s, got {self.interval_s}")
-        if self.rate_c_per_min <= 0:
+        if not (math.isfinite(self.rate_c_per_min) and self.rate_c_per_min > 0):
             raise InvalidInputError(f"ambient rate must be > 0 °C/min, got {self.rate_c_per_min}")
         if not 0.0 < self.emissivity <= 1.0:
             raise InvalidInputError(f"blackbody emissivity must be in (0, 1]: {self.emissivity}")
-        if self.duration_s is not None and self.duration_s <= 0:
+        if self.duration_s is not None and not (
+            math.isfinite(self.duration_s) and self.duration_s > 0
+        ):
             raise InvalidInputError(f"duration must be > 0 s, got {self.duration_s}")
 
     @property
     def n_frames(self) -> int:
-        """Number of frames in the session."""
+        """Number of frames in the session.
+
+        Raises :class:`InvalidInputError` beyond :data:`thermocal._validate.MAX_DATA_FRAMES`.
+        """
         duration = self.duration_s
         if duration is None:
             low, high = self.ambient_c
             duration = profile_duration_s(
                 self.profile, low_c=low, high_c=high, rate_c_per_min=self.rate_c_per_min
             )
-        return max(1, int(round(duration / self.interval_s)))
+        ratio = duration / self.interval_s
+        if not ratio <= MAX_DATA_FRAMES:  # inf and NaN too
+            raise InvalidInputError(
+                f"the chamber session would have {ratio:.3g} frames (duration / interval "
+                f"{duration:g} s / {self.interval_s:g} s), more than thermocal makes in one run "
+                f"({MAX_DATA_FRAMES:.3g}); shorten the duration or lengthen the interval"
+            )
+        return max(1, int(round(ratio)))
+
+
+#: Frames rendered at once (fewer for very large frames: :func:`frames_per_chunk`).
+CHUNK_FRAMES = 128
+
+
+def check_chamber_run(
+    plan: ChamberPlan,
+    frame_shape: tuple[int, int],
+    *,
+    thermal: ThermalParams = ThermalParams(),
+    folder: str | os.PathLike[str] | None = None,
+) -> None:
+    """Check, before any work, that ``plan`` can be simulated for frames of ``frame_shape``
+    ``(H, W)``: the FPA temperatures its ambient range gives are plausible
+    (:data:`thermocal._validate.FPA_RANGE_C`) and the session is a sane amount of data that
+    fits the memory and ``folder``'s free disk (:func:`thermocal._validate.check_data_size`).
+
+    Raises
+    ------
+    InvalidInputError
+        If not.
+    """
+    lo, hi = FPA_RANGE_C
+    for ambient in plan.ambient_c:
+        fpa = thermal.steady_fpa_c(ambient)
+        if not lo + 0.5 <= fpa <= hi - 0.5:  # the sensor's noise stays inside
+            raise InvalidInputError(
+                f"ambient range: an ambient of {ambient:g} °C puts the FPA at {fpa:g} °C, "
+                f"outside what a microbolometer core reports ({lo + 0.5:g}…{hi - 0.5:g} °C)"
+            )
+    n = plan.n_frames
+    chunk = frames_per_chunk(frame_shape, CHUNK_FRAMES)
+    check_data_size(n, frame_shape, "the chamber session", folder=folder,
+                    memory_bytes=working_memory(frame_shape, n, chunk))
 
 
 def blackbody_schedule(plan: ChamberPlan, *, rng: np.random.Generator) -> np.ndarray:
@@ -128,9 +184,12 @@ def simulate_chamber(
     *,
     seed: int = 0,
     thermal: ThermalParams = ThermalParams(),
-    chunk: int = 128,
+    chunk: int | None = None,
 ) -> Iterator[ChamberChunk]:
-    """Yield the session in chunks of at most ``chunk`` frames (memory stays bounded)."""
+    """Yield the session in chunks of at most ``chunk`` frames (memory stays bounded; default
+    :data:`CHUNK_FRAMES`, fewer for very large frames). The frames do not depend on ``chunk``."""
+    if chunk is None:
+        chunk = frames_per_chunk(camera.shape, CHUNK_FRAMES)
     rng = np.random.default_rng(seed)
     time_s = np.arange(plan.n_frames) * plan.interval_s
     low, high = plan.ambient_c
@@ -175,9 +234,12 @@ def write_simulated_chamber(
     """Simulate a session and stream it into a chamber HDF5 file; returns the number of frames.
 
     The file is written atomically: a failure leaves no file behind. ``progress(k)`` is called
-    after each chunk with the number of frames it added.
+    after each chunk with the number of frames it added. The run is checked first
+    (:func:`check_chamber_run`).
     """
     from thermocal.io.chamber import ChamberWriter
+
+    check_chamber_run(plan, camera.shape, thermal=thermal, folder=Path(path).parent)
 
     attrs = {
         "source": "thermocal simulate chamber",

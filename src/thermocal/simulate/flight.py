@@ -8,6 +8,8 @@ are kept, so that registration and multi-frame methods can be measured against t
 from __future__ import annotations
 
 import json
+import math
+import os
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -15,13 +17,14 @@ from pathlib import Path
 import numpy as np
 import tifffile
 
-from thermocal._validate import as_temperature_c
+from thermocal._validate import MAX_DATA_FRAMES, as_temperature_c, check_data_size, check_fpa_c
 from thermocal.camera.model import CameraModel, render
 from thermocal.camera.thermal import ThermalParams, ambient_profile, fpa_sensor, thermal_response
 from thermocal.errors import InvalidInputError
 from thermocal.registration.warp import render_views
 from thermocal.scenes import trajectory
 from thermocal.scenes.maps import make_long_map, make_map
+from thermocal.simulate._memory import frames_per_chunk, working_memory
 
 MOTIONS = ("walk", "hover", "uav")
 
@@ -127,12 +130,9 @@ def plan_flight(
     The camera has settled at a constant ambient that puts its FPA at ``fpa_c`` (°C); the FPA
     sensor reading is quantised and noisy (:func:`thermocal.camera.thermal.fpa_sensor`).
     """
-    if n_frames < 1:
-        raise InvalidInputError(f"a flight needs at least 1 frame, got {n_frames}")
-    if fps <= 0:
-        raise InvalidInputError(f"frame rate must be > 0, got {fps}")
+    _check_flight_numbers(n_frames, fps)
+    check_fpa_c(fpa_c, "fpa_c")
     scene = as_temperature_c(scene_c, "scene", ndim=2)
-    as_temperature_c(fpa_c, "fpa_c")
     rng = np.random.default_rng([seed, 0])
     h, w = camera.shape
     shape = map_shape_for(motion, n_frames, (w, h))
@@ -157,8 +157,53 @@ def plan_flight(
     )
 
 
-def iter_flight(plan: FlightPlan, camera: CameraModel, *, chunk: int = 64) -> Iterator[FlightChunk]:
-    """Render the flight ``chunk`` frames at a time (bounded memory for long recordings)."""
+def _check_flight_numbers(n_frames: int, fps: float) -> None:
+    if n_frames < 1:
+        raise InvalidInputError(f"a flight needs at least 1 frame, got {n_frames}")
+    if n_frames > MAX_DATA_FRAMES:
+        raise InvalidInputError(
+            f"a flight of {n_frames} frames is more than thermocal makes in one run "
+            f"({MAX_DATA_FRAMES:.3g}); use fewer frames")
+    if not (math.isfinite(fps) and fps > 0):  # NaN refused too
+        raise InvalidInputError(f"frame rate must be > 0 and finite, got {fps}")
+
+
+#: Frames rendered at once (fewer for very large frames: :func:`frames_per_chunk`).
+CHUNK_FRAMES = 64
+
+
+def check_flight_run(
+    n_frames: int,
+    frame_shape: tuple[int, int],
+    *,
+    motion: str = "walk",
+    fps: float = 30.0,
+    folder: str | os.PathLike[str] | None = None,
+) -> None:
+    """Check, before any work, that a flight of ``n_frames`` frames of ``frame_shape``
+    ``(H, W)`` is a sane amount of data that fits the memory and ``folder``'s free disk (raw
+    counts and the float32 truth: 6 bytes a pixel; :func:`thermocal._validate.check_data_size`).
+
+    Raises
+    ------
+    InvalidInputError
+        If not, or if ``n_frames`` or ``fps`` is out of range.
+    """
+    _check_flight_numbers(n_frames, fps)
+    h, w = frame_shape
+    map_h, map_w = map_shape_for(motion, n_frames, (w, h))
+    chunk = frames_per_chunk(frame_shape, CHUNK_FRAMES)
+    memory = working_memory(frame_shape, n_frames, chunk, extra_bytes=8.0 * map_h * map_w)
+    check_data_size(n_frames, frame_shape, "the flight", bytes_per_pixel=6.0, folder=folder,
+                    memory_bytes=memory)
+
+
+def iter_flight(plan: FlightPlan, camera: CameraModel, *, chunk: int | None = None
+                ) -> Iterator[FlightChunk]:
+    """Render the flight ``chunk`` frames at a time (bounded memory for long recordings; default
+    :data:`CHUNK_FRAMES`, fewer for very large frames). The frames do not depend on ``chunk``."""
+    if chunk is None:
+        chunk = frames_per_chunk(camera.shape, CHUNK_FRAMES)
     rng = np.random.default_rng([plan.seed, 1])
     h, w = camera.shape
     n = len(plan.time_s)
@@ -223,7 +268,7 @@ def write_simulated_flight(
     camera: CameraModel,
     *,
     extra: dict | None = None,
-    chunk: int = 64,
+    chunk: int | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> None:
     """Render a planned flight into ``out_dir`` chunk by chunk (the files of :func:`write_flight`).
