@@ -1,5 +1,6 @@
-"""Bad input on the command line (issue 18, item 5): one line on stderr, exit status 2, no
-traceback, nothing written, never an input overwritten; warnings as one clean line."""
+"""Bad input on the command line (issue 18, items 5 and 6): one line on stderr, exit status 2,
+no traceback, nothing written, never an input overwritten; warnings as one clean line. The table
+covers every command (item 6: at least 60 bad inputs)."""
 
 from __future__ import annotations
 
@@ -18,6 +19,7 @@ import pytest
 import tifffile
 
 from thermocal.cli import main
+from thermocal.nn.infer import shipped_model_path
 
 SIZE = "48x32"
 
@@ -52,6 +54,14 @@ def assert_refused(code: int, out: str, err: str, message: str) -> None:
     assert lines[0].startswith("thermocal: error: "), err
     assert "Traceback" not in err
     assert message in lines[0], lines[0]
+
+
+def main_ok(args: list) -> None:
+    """Run ``thermocal ARGS``, which is to succeed (the fixtures' set-up)."""
+    try:
+        main([str(a) for a in args])
+    except SystemExit as exc:  # pragma: no cover - a broken set-up
+        assert exc.code in (0, None), args
 
 
 @pytest.fixture(scope="module")
@@ -90,6 +100,20 @@ def inputs(tmp_path_factory) -> dict[str, Path]:
     with h5py.File(root / "fpa_centi.h5", "a") as f:
         f["fpa_c"][...] = f["fpa_c"][()] * 100
     (root / "weights.pt").write_bytes(b"not really weights")
+    (root / "empty.pt").write_bytes(b"")
+    (root / "notes.txt").write_text("a text file, not weights\n")
+    # a calibration of another size
+    main_ok(["simulate", "chamber", root / "small.h5", "--size", "40x24",
+             "--frames-per-point", "2"])
+    main_ok(["calibrate", root / "small.h5", "--method", "two-point", "--out",
+             root / "cal_small.h5"])
+    # a burst of 5 frames (the shipped network takes 7)
+    tifffile.imwrite(root / "rec5.tiff", tifffile.imread(rec)[:5], photometric="minisblack")
+    (root / "rec5.json").write_text(json.dumps({k: (v[:5] if isinstance(v, list) else v)
+                                                for k, v in sidecar.items()} | {"pivot": 2}))
+    # a recording whose sidecar is not JSON
+    shutil.copy(rec, root / "badjson.tiff")
+    (root / "badjson.json").write_text('{"fpa_c": [30, 30,')
     return {"root": root, "chamber": chamber, "flight": flight, "cal": root / "cal.h5",
             "cal2": root / "cal2.h5", "rec": rec}
 
@@ -222,15 +246,269 @@ CASES = [
      ["simulate", "chamber", "{tmp}/c.tiff", "--size", SIZE], "must end in .h5 or .hdf5"),
     ("bench-json-into-a-missing-folder",
      ["bench", "--quick", "--json", "{tmp}/missing/r.json"], "does not exist"),
+    # every command (issue 18, item 6)
+    # simulate chamber
+    ("simulate-chamber-size-malformed",
+     ["simulate", "chamber", "{tmp}/c.h5", "--size", "48by32"],
+     "size '48by32': expected WIDTHxHEIGHT"),
+    ("simulate-chamber-preset-unknown",
+     ["simulate", "chamber", "{tmp}/c.h5", "--size", SIZE, "--preset", "nope"],
+     "unknown camera preset 'nope'"),
+    ("simulate-chamber-frames-per-point-0",
+     ["simulate", "chamber", "{tmp}/c.h5", "--size", SIZE, "--frames-per-point", "0"],
+     "frames per point must be >= 1, got 0"),
+    ("simulate-chamber-emissivity-2",
+     ["simulate", "chamber", "{tmp}/c.h5", "--size", SIZE, "--emissivity", "2"],
+     "--emissivity must be <= 1, got 2"),
+    ("simulate-chamber-into-a-missing-folder",
+     ["simulate", "chamber", "{tmp}/missing/c.h5", "--size", SIZE],
+     "missing: output folder does not exist"),
+    # simulate flight
+    ("simulate-flight-frames-0",
+     ["simulate", "flight", "{tmp}/out", "--size", SIZE, "--frames", "0"],
+     "a flight needs at least 1 frame, got 0"),
+    ("simulate-flight-scene-missing",
+     ["simulate", "flight", "{tmp}/out", "--size", SIZE, "--scene", "{root}/nope.tiff"],
+     "nope.tiff: file not found"),
+    ("simulate-flight-size-zero",
+     ["simulate", "flight", "{tmp}/out", "--size", "0x32"],
+     "width and height must be between 8 and 8192"),
+    ("simulate-flight-into-a-file",
+     ["simulate", "flight", "{root}/notes.txt", "--size", SIZE], "notes.txt: exists and is a file"),
+    # calibrate
+    ("calibrate-chamber-missing",
+     ["calibrate", "{root}/nope.h5", "--out", "{tmp}/c.h5"], "nope.h5: no such file"),
+    ("calibrate-chamber-a-text-file",
+     ["calibrate", "{root}/notes.txt", "--out", "{tmp}/c.h5"],
+     "notes.txt: not a readable HDF5 file"),
+    ("calibrate-out-not-h5",
+     ["calibrate", "{root}/chamber.h5", "--out", "{tmp}/c.tiff"],
+     "c.tiff: the output must end in .h5 or .hdf5"),
+    ("calibrate-method-unknown",
+     ["calibrate", "{root}/chamber.h5", "--method", "nope", "--out", "{tmp}/c.h5"],
+     "Invalid value for '--method': 'nope'"),
+    # correct
+    ("correct-recording-missing",
+     ["correct", "{root}/nope.tiff", "--calibration", "{root}/cal.h5", "--out",
+      "{tmp}/t.tiff"], "nope.tiff: no such file"),
+    ("correct-calibration-of-another-size",
+     ["correct", "{root}/rec.tiff", "--calibration", "{root}/cal_small.h5", "--out",
+      "{tmp}/t.tiff"], "48x32 but the calibration is 40x24"),
+    ("correct-calibration-a-text-file",
+     ["correct", "{root}/rec.tiff", "--calibration", "{root}/notes.txt", "--out",
+      "{tmp}/t.tiff"], "notes.txt: unreadable calibration file"),
+    ("correct-sidecar-not-json",
+     ["correct", "{root}/badjson.tiff", "--calibration", "{root}/cal.h5", "--out",
+      "{tmp}/t.tiff"], "badjson.json: not valid JSON"),
+    ("correct-out-not-tiff",
+     ["correct", "{root}/rec.tiff", "--calibration", "{root}/cal.h5", "--out",
+      "{tmp}/t.png"], "t.png: the output must end in .tif or .tiff"),
+    # nuc
+    ("nuc-recording-missing",
+     ["nuc", "{root}/nope.tiff", "--method", "admire", "--out", "{tmp}/t.tiff"],
+     "nope.tiff: no such file"),
+    ("nuc-method-unknown",
+     ["nuc", "{root}/rec.tiff", "--method", "nope", "--out", "{tmp}/t.tiff"],
+     "Invalid value for '--method': 'nope'"),
+    ("nuc-out-into-a-missing-folder",
+     ["nuc", "{root}/rec.tiff", "--method", "admire", "--out", "{tmp}/missing/t.tiff"],
+     "missing: output folder does not exist"),
+    # estimate
+    ("estimate-mean-without-calibration",
+     ["estimate", "{root}/rec.tiff", "--method", "mean", "--out", "{tmp}/t.tiff"],
+     "--method mean needs a per-pixel calibration"),
+    ("estimate-calibration-without-calibration",
+     ["estimate", "{root}/rec.tiff", "--method", "calibration", "--out", "{tmp}/t.tiff"],
+     "--method calibration needs a per-pixel calibration"),
+    ("estimate-kpn-pivot-out-of-range",
+     ["estimate", "{root}/rec.tiff", "--pivot", "7", "--out", "{tmp}/t.tiff"],
+     "pivot 7 is outside the burst (frames 0..6)"),
+    ("estimate-mean-pivot-negative",
+     ["estimate", "{root}/rec.tiff", "--method", "mean", "--calibration", "{root}/cal.h5",
+      "--pivot", "-1", "--out", "{tmp}/t.tiff"], "pivot -1 is outside the burst (frames 0..6)"),
+    ("estimate-registered-with-the-shipped-network",
+     ["estimate", "{root}/rec.tiff", "--registered", "--out", "{tmp}/t.tiff"],
+     "(not --registered)"),
+    ("estimate-calibration-of-another-size",
+     ["estimate", "{root}/rec.tiff", "--method", "calibration", "--calibration",
+      "{root}/cal_small.h5", "--out", "{tmp}/t.tiff"],
+     "frames are 48x32 but the calibration is 40x24"),
+    ("estimate-mean-calibration-of-another-size",
+     ["estimate", "{root}/rec.tiff", "--method", "mean", "--calibration",
+      "{root}/cal_small.h5", "--out", "{tmp}/t.tiff"],
+     "frames are 48x32 but the calibration is 40x24"),
+    ("estimate-burst-of-the-wrong-length",
+     ["estimate", "{root}/rec5.tiff", "--out", "{tmp}/t.tiff"], "trained for N = 7 frames, got 5"),
+    ("estimate-model-empty-file",
+     ["estimate", "{root}/rec.tiff", "--model", "{root}/empty.pt", "--out", "{tmp}/t.tiff"],
+     "empty.pt: not a thermocal weights file"),
+    ("estimate-model-a-text-file",
+     ["estimate", "{root}/rec.tiff", "--model", "{root}/notes.txt", "--out", "{tmp}/t.tiff"],
+     "notes.txt: not a thermocal weights file"),
+    ("estimate-model-a-calibration-file",
+     ["estimate", "{root}/rec.tiff", "--model", "{root}/cal.h5", "--out", "{tmp}/t.tiff"],
+     "cal.h5: not a thermocal weights file"),
+    ("estimate-kpn-no-offset-not-shipped",
+     ["estimate", "{root}/rec.tiff", "--method", "kpn-no-offset", "--out", "{tmp}/t.tiff"],
+     "no kpn-no-offset model is shipped"),
+    ("estimate-e2e-with-a-kpn-model",
+     ["estimate", "{root}/rec.tiff", "--method", "e2e", "--model", "{shipped}", "--out",
+      "{tmp}/t.tiff"], "kpn_n7.pt holds a kpn model, not e2e"),
+    ("estimate-method-unknown",
+     ["estimate", "{root}/rec.tiff", "--method", "nope", "--out", "{tmp}/t.tiff"],
+     "Invalid value for '--method': 'nope'"),
+    # train (each refused before any training)
+    ("train-chamber-missing",
+     ["train", "--chamber", "{root}/nope.h5", "--out", "{tmp}/w.pt"], "nope.h5: no such file"),
+    ("train-chamber-a-text-file",
+     ["train", "--chamber", "{root}/notes.txt", "--out", "{tmp}/w.pt"],
+     "notes.txt: not a readable HDF5 file"),
+    ("train-init-not-weights",
+     ["train", "--init", "{root}/notes.txt", "--out", "{tmp}/w.pt"],
+     "notes.txt: not a thermocal weights file"),
+    ("train-init-missing",
+     ["train", "--init", "{root}/nope.pt", "--out", "{tmp}/w.pt"], "nope.pt: no such weights file"),
+    ("train-out-not-pt",
+     ["train", "--out", "{tmp}/w.h5"], "w.h5: the weights file must end in .pt"),
+    ("train-units-malformed",
+     ["train", "--units", "0-x", "--out", "{tmp}/w.pt"], "units '0-x': expected e.g. 0-23"),
+    ("train-fpa-range-reversed",
+     ["train", "--fpa-range-c", "50:10", "--out", "{tmp}/w.pt"],
+     "--fpa-range-c '50:10': A must be below B"),
+    ("train-steps-0",
+     ["train", "--steps", "0", "--out", "{tmp}/w.pt"], "--steps must be >= 1, got 0"),
+    ("train-steps-negative",
+     ["train", "--steps", "-5", "--out", "{tmp}/w.pt"], "--steps must be >= 1, got -5"),
+    ("train-preset-unknown",
+     ["train", "--preset", "nope", "--out", "{tmp}/w.pt"], "Invalid value for '--preset': 'nope'"),
+    ("train-val-units-among-training-units",
+     ["train", "--val-units", "3", "--out", "{tmp}/w.pt"],
+     "validation units must not be training units"),
+    pytest.param(
+        "train-device-cuda-without-a-gpu",
+        ["train", "--device", "cuda", "--out", "{tmp}/w.pt"],
+        "device cuda asked for, but PyTorch sees no GPU",
+        marks=pytest.mark.skipif("_has_gpu()", reason="this machine has a GPU")),
+    # flight
+    ("flight-recording-missing",
+     ["flight", "{root}/nope.tiff", "--method", "calibration", "--calibration",
+      "{root}/cal.h5", "--out", "{tmp}/out"], "nope.tiff: no such file"),
+    ("flight-sidecar-not-json",
+     ["flight", "{root}/badjson.tiff", "--method", "calibration", "--calibration",
+      "{root}/cal.h5", "--out", "{tmp}/out"], "badjson.json: not valid JSON"),
+    ("flight-frames-0",
+     ["flight", "{root}/rec.tiff", "--method", "calibration", "--calibration",
+      "{root}/cal.h5", "--frames", "0", "--out", "{tmp}/out"],
+     "--frames and --stride must be >= 1"),
+    ("flight-stride-0",
+     ["flight", "{root}/rec.tiff", "--method", "calibration", "--calibration",
+      "{root}/cal.h5", "--stride", "0", "--out", "{tmp}/out"],
+     "--frames and --stride must be >= 1"),
+    ("flight-calibration-of-another-size",
+     ["flight", "{root}/rec.tiff", "--method", "calibration", "--calibration",
+      "{root}/cal_small.h5", "--out", "{tmp}/out"],
+     "the calibration is 40x24 but the frames are 48x32"),
+    ("flight-mean-without-calibration",
+     ["flight", "{root}/rec.tiff", "--method", "mean", "--out", "{tmp}/out"],
+     "--method mean needs --calibration"),
+    ("flight-model-of-another-variant",
+     ["flight", "{root}/rec.tiff", "--method", "kpn-no-offset", "--model", "{shipped}",
+      "--out", "{tmp}/out"], "kpn_n7.pt holds a kpn model, not kpn-no-offset"),
+    ("flight-model-a-text-file",
+     ["flight", "{root}/rec.tiff", "--model", "{root}/notes.txt", "--out", "{tmp}/out"],
+     "notes.txt: not a thermocal weights file"),
+    # bench
+    ("bench-only-unknown",
+     ["bench", "--quick", "--only", "nope"], "Invalid value for '--only': 'nope'"),
+    ("bench-markdown-a-directory",
+     ["bench", "--quick", "--only", "simulator", "--markdown", "{root}/flight"],
+     "flight' is a directory"),
+    ("flight-recording-shorter-than-a-group",
+     ["flight", "{root}/rec5.tiff", "--out", "{tmp}/out"],
+     "the recording has 5 frames, fewer than a group of 7"),
+    ("flight-preview-every-negative",
+     ["flight", "{root}/rec.tiff", "--method", "calibration", "--calibration",
+      "{root}/cal.h5", "--preview-every", "-1", "--out", "{tmp}/out"],
+     "--preview-every must be >= 0"),
+    ("flight-calibration-a-weights-file",
+     ["flight", "{root}/rec.tiff", "--method", "calibration", "--calibration", "{shipped}",
+      "--out", "{tmp}/out"], "kpn_n7.pt: unreadable calibration file"),
+    ("flight-calibration-a-chamber-file-into-new-folders",
+     ["flight", "{root}/rec.tiff", "--method", "mean", "--calibration", "{root}/chamber.h5",
+      "--out", "{tmp}/new/out"], "chamber.h5: not a thermocal calibration file"),
+    ("flight-fpa-nan",
+     ["flight", "{root}/rec.tiff", "--method", "calibration", "--calibration",
+      "{root}/cal.h5", "--fpa-c", "nan", "--out", "{tmp}/out"],
+     "fpa_c: nan °C is not a plausible FPA temperature"),
+    ("flight-out-an-existing-file",
+     ["flight", "{root}/rec.tiff", "--method", "calibration", "--calibration",
+      "{root}/cal.h5", "--out", "{root}/notes.txt"], "notes.txt: exists and is a file"),
+    ("correct-calibration-a-chamber-file",
+     ["correct", "{root}/rec.tiff", "--calibration", "{root}/chamber.h5", "--out",
+      "{tmp}/t.tiff"], "chamber.h5: not a thermocal calibration file"),
+    ("calibrate-chamber-a-calibration-file",
+     ["calibrate", "{root}/cal.h5", "--out", "{tmp}/c.h5"],
+     "cal.h5: attribute 'format' is 'thermocal-calibration', expected 'thermocal-chamber'"),
+    ("nuc-out-a-directory",
+     ["nuc", "{root}/rec.tiff", "--method", "admire", "--out", "{root}/flight"],
+     "flight' is a directory"),
+    ("simulate-flight-scene-a-text-file",
+     ["simulate", "flight", "{tmp}/out", "--size", SIZE, "--scene", "{root}/notes.txt"],
+     "notes.txt: unknown file format"),
+    ("estimate-recording-a-directory",
+     ["estimate", "{root}/flight", "--out", "{tmp}/t.tiff"], "flight' is a directory"),
+    ("estimate-model-a-directory",
+     ["estimate", "{root}/rec.tiff", "--model", "{root}/flight", "--out", "{tmp}/t.tiff"],
+     "flight' is a directory"),
+    ("estimate-fpa-inf",
+     ["estimate", "{root}/rec.tiff", "--fpa-c", "inf", "--out", "{tmp}/t.tiff"],
+     "fpa_c: inf °C is not a plausible FPA temperature"),
+    ("train-chamber-a-calibration-file",
+     ["train", "--chamber", "{root}/cal.h5", "--out", "{tmp}/w.pt"],
+     "cal.h5: attribute 'format' is 'thermocal-calibration', expected 'thermocal-chamber'"),
+    ("train-chamber-a-directory",
+     ["train", "--chamber", "{root}/flight", "--out", "{tmp}/w.pt"], "flight' is a directory"),
+    ("train-init-a-calibration-file",
+     ["train", "--init", "{root}/cal.h5", "--out", "{tmp}/w.pt"],
+     "cal.h5: not a thermocal weights file"),
+    ("train-frames-0",
+     ["train", "--frames", "0", "--out", "{tmp}/w.pt"], "--frames must be >= 1, got 0"),
+    ("train-crop-larger-than-the-sensor",
+     ["train", "--crop", "1000", "--out", "{tmp}/w.pt"], "--crop 1000 is larger than the sensor"),
+    ("train-out-into-a-missing-folder",
+     ["train", "--out", "{tmp}/missing/w.pt"], "missing: output folder does not exist"),
+    ("train-resume-without-a-checkpoint",
+     ["train", "--resume", "--out", "{tmp}/w.pt"], "w.ckpt: no checkpoint to resume from"),
+    ("bench-markdown-into-a-missing-folder",
+     ["bench", "--quick", "--only", "simulator", "--markdown", "{tmp}/missing/r.md"],
+     "missing: output folder does not exist"),
+    ("demo-out-under-a-file",
+     ["demo", "--out", "{root}/notes.txt/sub"], "notes.txt/sub: cannot create the directory"),
+    # demo
+    ("demo-out-an-existing-file",
+     ["demo", "--out", "{root}/notes.txt"], "notes.txt: exists and is a file"),
 ]
 
 
-@pytest.mark.parametrize("args, message", [c[1:] for c in CASES], ids=[c[0] for c in CASES])
+def _has_gpu() -> bool:
+    import torch
+
+    return torch.cuda.is_available()
+
+
+def _case(case):
+    """A table row as a pytest parameter whose id is the row's name."""
+    name, *values = case.values if hasattr(case, "marks") else case
+    return pytest.param(*values, id=name, marks=getattr(case, "marks", ()))
+
+
+@pytest.mark.parametrize("args, message", [_case(c) for c in CASES])
 def test_bad_input_is_one_line_and_exit_2_and_changes_nothing(inputs, tmp_path, capsys, args,
                                                                message):
     root = inputs["root"]
     (tmp_path / "link.tiff").symlink_to(root / "rec.tiff")
-    args = [a.format(root=root, tmp=tmp_path, link=tmp_path / "link.tiff", rootname=root.name)
+    args = [a.format(root=root, tmp=tmp_path, link=tmp_path / "link.tiff", rootname=root.name,
+                     shipped=shipped_model_path("kpn"))
             for a in args]
     before = snapshot(root)
     code, out, err = run(args, capsys)
@@ -306,6 +584,7 @@ def interrupting_import(name, *args, **kwargs):
 builtins.__import__ = interrupting_import
 sys.argv = ["thermocal", "--version"]
 from thermocal.cli import main
+from thermocal.nn.infer import shipped_model_path
 main()
 """
 

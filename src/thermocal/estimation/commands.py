@@ -43,7 +43,7 @@ def estimate_file(
 
 
 @click.command("estimate")
-@click.argument("frames", type=click.Path(path_type=Path))
+@click.argument("frames", type=click.Path(dir_okay=False, path_type=Path))
 @click.option(
     "--out",
     "out",
@@ -59,7 +59,7 @@ def estimate_file(
 @click.option(
     "--model",
     "model_path",
-    type=click.Path(path_type=Path),
+    type=click.Path(dir_okay=False, path_type=Path),
     default=None,
     help="Weights file (default: the shipped model for --method).",
 )
@@ -72,7 +72,7 @@ def estimate_file(
 )
 @click.option(
     "--calibration",
-    type=click.Path(path_type=Path),
+    type=click.Path(dir_okay=False, path_type=Path),
     default=None,
     help="Per-pixel calibration file (thermocal calibrate), for --method "
     + "|".join(n for n, e in ESTIMATORS.items() if e.needs == "calibration") + ".",

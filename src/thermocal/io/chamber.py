@@ -24,8 +24,8 @@ streams frames to disk so that sessions larger than memory can be written.
 from __future__ import annotations
 
 import contextlib
+import math
 import os
-import zipfile
 from collections.abc import Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -67,6 +67,8 @@ OPTIONAL_SERIES: tuple[str, ...] = ("housing_c", "ambient_c")
 ALL_SERIES = REQUIRED_SERIES + OPTIONAL_SERIES
 _SERIES_CHUNK = 4096  # values per HDF5 chunk of a per-frame series
 _COPY_CHUNK = 256  # frames per block when copying frames into a file
+_HEAP_DAMAGED = ("the chamber file is damaged and cannot be read (a global heap's objects overrun "
+                 "it); copy or record it again")
 
 #: What h5py raises on a damaged file (a bad signature, heap, B-tree or object header): each is
 #: turned into a :class:`FileFormatError` naming the file.
@@ -565,6 +567,37 @@ def write_chamber(
 # --------------------------------------------------------------------------------------------
 
 
+def _global_heap_damaged(path: Path, head: int = 1 << 20) -> bool:
+    """Whether a global heap collection (``GCOL``, where HDF5 keeps variable-length strings) in
+    the first ``head`` bytes is inconsistent: libhdf5 loops for ever reading a string from a
+    collection whose object sizes overrun it. Each collection is walked object by object; its
+    last (free-space, index 0) object must end where the collection does."""
+    try:
+        with open(path, "rb") as fh:
+            data = fh.read(head)
+    except OSError:  # h5py reports it
+        return False
+    pos = data.find(b"GCOL")
+    while pos >= 0 and pos + 16 <= len(data):
+        end = pos + int.from_bytes(data[pos + 8:pos + 16], "little")
+        obj = pos + 16
+        while True:
+            if obj + 16 > min(end, len(data)):
+                # the free-space object is left out when fewer than 16 bytes remain
+                if obj > end and end <= len(data):
+                    return True
+                break
+            index = int.from_bytes(data[obj:obj + 2], "little")
+            size = int.from_bytes(data[obj + 8:obj + 16], "little")
+            if index == 0:
+                if size != end - obj:
+                    return True
+                break
+            obj += 16 + (size + 7) // 8 * 8
+        pos = data.find(b"GCOL", pos + 4)
+    return False
+
+
 @contextlib.contextmanager
 def _open_chamber(path: Path) -> Iterator[h5py.File]:
     """Open an HDF5 file for reading, turning failures into FileFormatError."""
@@ -607,6 +640,8 @@ def chamber_problems(path: str | os.PathLike[str]) -> list[str]:
     p = Path(path)
     if not p.is_file():
         return ["no such file"]
+    if _global_heap_damaged(p):
+        return [_HEAP_DAMAGED]
     try:
         f = h5py.File(p, "r")
     except _H5_ERRORS as exc:
@@ -667,7 +702,18 @@ def _frames_problems(f: h5py.File, problems: list[str]) -> int | None:
         return None
     if 0 in dset.shape:
         problems.append(f"dataset 'frames' is empty (shape {dset.shape})")
+    if _declares_too_much(f, dset):
+        problems.append(f"dataset 'frames' declares {dset.shape}: more than the file holds")
+        return None
     return int(dset.shape[0])
+
+
+def _declares_too_much(f: h5py.File, dset: h5py.Dataset) -> bool:
+    """Whether ``dset`` declares more bytes than the file can hold (a damaged header): reading
+    it would allocate them. A compressed dataset may hold up to 1032 times its size (gzip)."""
+    nbytes = math.prod(dset.shape) * dset.dtype.itemsize
+    size = os.path.getsize(f.filename)
+    return nbytes > (size if dset.compression is None else 1032 * size + (1 << 20))
 
 
 def _series_problems(f: h5py.File, key: str, n_frames: int | None, problems: list[str]) -> None:
@@ -689,6 +735,9 @@ def _series_problems(f: h5py.File, key: str, n_frames: int | None, problems: lis
             f"dataset {key!r} has {dset.shape[0]} values but 'frames' has {n_frames} frames"
         )
     if dset.dtype.kind not in "biuf":
+        return
+    if _declares_too_much(f, dset):
+        problems.append(f"dataset {key!r} declares {dset.shape}: more than the file holds")
         return
     try:
         values = np.asarray(dset[()], dtype=np.float64)
@@ -835,6 +884,16 @@ def _iter_frames(
 _CAMERA_RANGE_C = (-60.0, 150.0)
 
 
+#: What numpy and zipfile raise on a damaged .npz: many types (OSError, ValueError, BadZipFile,
+#: EOFError; a bad .npy header's tokenizer TokenError or SyntaxError; NotImplementedError for
+#: an unknown zip version; MemoryError for a huge declared shape). Nothing else runs inside.
+_NPZ_ERRORS = (Exception,)
+
+
+def _one_line(exc: BaseException) -> str:
+    return " ".join(str(exc).split())[:120] or type(exc).__name__
+
+
 def _centi_c(values: Any, key: str, path: Path) -> np.ndarray:
     """Convert an EnvChamberCtrl temperature in 1/100 °C to °C (float64)."""
     arr = np.asarray(values)
@@ -894,8 +953,8 @@ def import_envchamberctrl_npz(
             raise InvalidInputError(f"frame_rate_hz: must be positive, got {frame_rate_hz!r}")
     try:
         npz = np.load(p, allow_pickle=False)
-    except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-        raise FileFormatError(f"{p}: not a readable .npz file ({str(exc)[:120]})") from None
+    except _NPZ_ERRORS as exc:
+        raise FileFormatError(f"{p}: not a readable .npz file ({_one_line(exc)})") from None
     if not isinstance(npz, np.lib.npyio.NpzFile):
         raise FileFormatError(f"{p}: a single .npy array, expected an EnvChamberCtrl .npz")
     with npz:
@@ -917,8 +976,8 @@ def import_envchamberctrl_npz(
             blackbody_c = _centi_c(npz["blackbody"], "blackbody", p)
             housing_c = _centi_c(npz["housing"], "housing", p) if "housing" in npz.files else None
             time_ns = npz["time_ns"] if "time_ns" in npz.files else None
-        except (OSError, ValueError, zipfile.BadZipFile, EOFError) as exc:
-            raise FileFormatError(f"{p}: an array cannot be read ({str(exc)[:120]})") from None
+        except _NPZ_ERRORS as exc:
+            raise FileFormatError(f"{p}: an array cannot be read ({_one_line(exc)})") from None
     m = len(frames) if frames.ndim == 3 else 1
     attrs: dict[str, Any] = {"source": "EnvChamberCtrl", "source_file": p.name, "bit_depth": 14}
     if time_ns is not None:

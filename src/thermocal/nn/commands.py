@@ -128,7 +128,7 @@ def _experiment(*decls: str, **kwargs: Any):
 )
 @click.option(
     "--chamber",
-    type=click.Path(path_type=Path),
+    type=click.Path(dir_okay=False, path_type=Path),
     default=None,
     help="Fit the camera model on this chamber file (polynomial + radial) and train "
     "on it instead of the simulator preset.",

@@ -196,8 +196,11 @@ def load_model(path: str | os.PathLike[str]) -> tuple[KPN, Normalisation, dict[s
             warnings.simplefilter("ignore", UserWarning)
             payload = torch.load(p, map_location="cpu", weights_only=True)
     except Exception as exc:  # torch raises many types for a corrupt file
-        text = str(exc).strip()
-        detail = type(exc).__name__ + (f": {text.splitlines()[0][:100]}" if text else "")
+        # torch's messages run to paragraphs: their first sentence, at most 80 characters
+        text = str(exc).strip().splitlines()[0].split(". ")[0] if str(exc).strip() else ""
+        if len(text) > 80:
+            text = text[:80].rsplit(" ", 1)[0] + " …"
+        detail = type(exc).__name__ + (f": {text}" if text else "")
         raise FileFormatError(f"{p}: not a thermocal weights file (PyTorch cannot read it: "
                               f"{detail})") from None
     if not isinstance(payload, dict) or payload.get("format") != FORMAT:
