@@ -28,6 +28,7 @@ import h5py
 import numpy as np
 import pytest
 import tifffile
+from mutants import flip_bytes as _flip_bytes
 
 from thermocal.burst import check_burst
 from thermocal.camera.presets import make_camera
@@ -55,26 +56,6 @@ TIME_GUARD_S = 10
 
 
 # ---------------------------------------------------------------------------- byte mutants
-
-
-def _flip_bytes(data: bytes, rng) -> bytes:
-    b = bytearray(data)
-    kind = rng.integers(5)
-    if kind == 0:  # flip bits of 1…8 bytes anywhere
-        for pos in rng.integers(0, len(b), rng.integers(1, 9)):
-            b[pos] ^= int(rng.integers(1, 256))
-    elif kind == 1:  # truncate
-        del b[int(rng.integers(0, len(b))):]
-    elif kind == 2:  # zero a block
-        pos, n = int(rng.integers(0, len(b))), int(rng.integers(4, 257))
-        b[pos:pos + n] = bytes(len(b[pos:pos + n]))
-    elif kind == 3:  # one byte set to a random value
-        b[int(rng.integers(0, len(b)))] = int(rng.integers(0, 256))
-    else:  # a block moved elsewhere (overwriting)
-        n = int(rng.integers(4, 129))
-        src, dst = (int(v) for v in rng.integers(0, max(len(b) - n, 1), 2))
-        b[dst:dst + n] = b[src:src + n]
-    return bytes(b)
 
 
 def _flip_header_bytes(data: bytes, rng, head: int = 4096) -> bytes:

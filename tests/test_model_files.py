@@ -23,6 +23,7 @@ from pathlib import Path
 import h5py
 import numpy as np
 import pytest
+from mutants import flip_bytes as _flip_bytes
 
 from thermocal.calibration import (
     ThermocalWarning,
@@ -601,26 +602,6 @@ def test_the_shipped_weights_are_those_trained_bit_for_bit(tmp_path):
 
 #: Outcomes of a mutant: loads and gives the original's output / refused / anything else.
 SAME, REFUSED, DIFFERENT = "same", "refused", "different"
-
-
-def _flip_bytes(data: bytes, rng) -> bytes:
-    b = bytearray(data)
-    kind = rng.integers(5)
-    if kind == 0:  # flip bits of 1…8 bytes anywhere
-        for pos in rng.integers(0, len(b), rng.integers(1, 9)):
-            b[pos] ^= int(rng.integers(1, 256))
-    elif kind == 1:  # truncate
-        del b[int(rng.integers(0, len(b))):]
-    elif kind == 2:  # zero a block
-        pos, n = int(rng.integers(0, len(b))), int(rng.integers(4, 257))
-        b[pos:pos + n] = bytes(len(b[pos:pos + n]))
-    elif kind == 3:  # one byte set to a random value
-        b[int(rng.integers(0, len(b)))] = int(rng.integers(0, 256))
-    else:  # a block moved elsewhere (overwriting)
-        n = int(rng.integers(4, 129))
-        src, dst = (int(v) for v in rng.integers(0, max(len(b) - n, 1), 2))
-        b[dst:dst + n] = b[src:src + n]
-    return bytes(b)
 
 
 def _new_value(value, rng):
