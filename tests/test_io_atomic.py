@@ -153,3 +153,14 @@ def test_ensure_output_dir_below_a_file(tmp_path):
     f.write_text("x")
     with pytest.raises(InvalidInputError, match="cannot create"):
         ensure_output_dir(f / "sub")
+
+
+def test_temp_name_pattern_matches_the_names_atomic_path_gives(tmp_path):
+    from thermocal.io.atomic import atomic_path, temp_name_pattern
+
+    for target, stem in (("frame_000003.tiff", r"frame_\d{6,}"), ("log.csv", "log")):
+        with atomic_path(tmp_path / target) as tmp:
+            tmp.write_bytes(b"x")
+            suffix = "." + target.rsplit(".", 1)[1]
+            assert temp_name_pattern(stem, suffix).fullmatch(tmp.name), tmp.name
+            assert not temp_name_pattern(stem, suffix).fullmatch(target)

@@ -11,6 +11,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import re
 import tempfile
 from collections.abc import Iterator
 from pathlib import Path
@@ -20,7 +21,13 @@ import numpy as np
 
 from thermocal.errors import InvalidInputError, ThermocalError
 
-__all__ = ["atomic_path", "ensure_output_dir", "removing_new_dirs_on_error", "write_json_atomic"]
+__all__ = [
+    "atomic_path",
+    "ensure_output_dir",
+    "removing_new_dirs_on_error",
+    "temp_name_pattern",
+    "write_json_atomic",
+]
 
 #: The folders :func:`ensure_output_dir` created, one list per active
 #: :func:`removing_new_dirs_on_error` block.
@@ -46,6 +53,14 @@ def _temp_name_parts(target: Path) -> tuple[str, str]:
     suffix = target.suffix
     stem = target.name[: len(target.name) - len(suffix)] if suffix else target.name
     return f".{stem}.", suffix
+
+
+def temp_name_pattern(stem: str, suffix: str) -> re.Pattern[str]:
+    """The names :func:`atomic_path` gives the temporary files of targets named
+    ``STEM + suffix``, ``stem`` a regular expression (the prefix of :func:`_temp_name_parts`,
+    the eight characters :func:`tempfile.mkstemp` draws, the suffix): to find the ones a killed
+    run left behind, with :meth:`re.Pattern.fullmatch`."""
+    return re.compile(rf"\.{stem}\.[a-z0-9_]{{8}}{re.escape(suffix)}")
 
 
 @contextlib.contextmanager

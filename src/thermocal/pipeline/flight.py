@@ -50,7 +50,12 @@ from thermocal.errors import InvalidInputError, OutputError, RegistrationError
 from thermocal.estimation.base import Estimator
 from thermocal.estimation.pipeline import estimate
 from thermocal.estimation.registry import ESTIMATORS, make_estimator
-from thermocal.io.atomic import atomic_path, ensure_output_dir, write_json_atomic
+from thermocal.io.atomic import (
+    atomic_path,
+    ensure_output_dir,
+    temp_name_pattern,
+    write_json_atomic,
+)
 from thermocal.io.recording import (
     iter_recording,
     read_recording_header,
@@ -386,21 +391,22 @@ def _output_dirs(out: Path) -> Path:
     return out
 
 
-#: Names of the temporary files of :func:`thermocal.io.atomic.atomic_path` (``.STEM.`` + the
-#: eight characters of :func:`tempfile.mkstemp` + the target's suffix) for each output folder.
+#: The temporary files of :func:`~thermocal.io.atomic.atomic_path` for what a flight writes, by
+#: output folder.
 _TEMP_FILES = {
-    ".": re.compile(r"\.(log|summary)\.[a-z0-9_]{8}\.(csv|json)"),
-    "temps": re.compile(r"\.frame_\d{6,}\.[a-z0-9_]{8}\.tiff"),
-    "previews": re.compile(r"\.frame_\d{6,}\.[a-z0-9_]{8}\.png"),
+    ".": (temp_name_pattern("log", ".csv"), temp_name_pattern("summary", ".json")),
+    "temps": (temp_name_pattern(r"frame_\d{6,}", ".tiff"),),
+    "previews": (temp_name_pattern(r"frame_\d{6,}", ".png"),),
 }
 
 
 def _remove_stale_temp_files(out: Path) -> None:
     """Remove the temporary files a killed run left behind (only names a flight writes)."""
-    for sub, pattern in _TEMP_FILES.items():
+    for sub, patterns in _TEMP_FILES.items():
         with contextlib.suppress(OSError):
             for path in (out / sub).iterdir():
-                if pattern.fullmatch(path.name) and path.is_file() and not path.is_symlink():
+                if (any(p.fullmatch(path.name) for p in patterns) and path.is_file()
+                        and not path.is_symlink()):
                     with contextlib.suppress(OSError):
                         path.unlink()
 
