@@ -224,8 +224,6 @@ def _register_commands() -> None:
 
     for module, name in COMMANDS:
         command = getattr(importlib.import_module(module), name)
-        if command.name in OUTPUT_NOT_INPUT:
-            _refuse_output_as_input(command, *OUTPUT_NOT_INPUT[command.name])
         cli.add_command(command)
 
 
@@ -239,35 +237,6 @@ COMMANDS: list[tuple[str, str]] = [
     ("thermocal.pipeline.commands", "flight"),
     ("thermocal.bench", "bench"),
 ]
-
-#: Commands whose output must not be one of their inputs, checked here before they run
-#: (:func:`thermocal._validate.check_not_input`) because their modules do not check it
-#: themselves: command name → (the output's parameter, the inputs' parameters).
-OUTPUT_NOT_INPUT: dict[str, tuple[str, tuple[str, ...]]] = {
-    "train": ("out", ("chamber", "init")),
-    "flight": ("out_dir", ("recording", "calibration", "model")),
-}
-
-
-def _refuse_output_as_input(command: click.Command, out: str, inputs: tuple[str, ...]) -> None:
-    """Make ``command`` refuse, before it does anything, an output (its parameter ``out``) that
-    is one of its inputs (parameters ``inputs``)."""
-    import functools
-
-    run = command.callback
-    if run is None or getattr(run, "_checks_output", False):
-        return
-
-    @functools.wraps(run)
-    def checked(*args, **kwargs):
-        given = [kwargs.get(name) for name in inputs]
-        check_not_input(kwargs.get(out), *(g for g in given if g is not None and g != "shipped"),
-                        what="--out")
-        return run(*args, **kwargs)
-
-    checked._checks_output = True  # type: ignore[attr-defined]
-    command.callback = checked
-
 
 _register_commands()
 

@@ -286,6 +286,10 @@ def train(**opts: Any) -> None:
     import os
     import sys
 
+    from thermocal._validate import check_not_input
+
+    init = opts.get("init")
+    check_not_input(opts.get("out"), opts.get("chamber"), None if init == "shipped" else init)
     # OpenMP threads that sleep instead of spinning while they wait: on a shared machine a
     # spinning thread burns the core the other one needs (3x slower steps, measured).
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")

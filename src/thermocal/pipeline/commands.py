@@ -30,10 +30,12 @@ def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
            model: str | None, n_frames: int, stride: int, fpa_c: float | None,
            preview_every: int) -> None:
     """Turn a whole RECORDING (frames.tiff + sidecar) into one temperature map per pivot."""
+    from thermocal._validate import check_not_input
     from thermocal.errors import ThermocalError
     from thermocal.io.recording import read_recording_header
     from thermocal.pipeline.flight import FlightOptions, process_flight
 
+    check_not_input(out_dir, recording, calibration, model)
     options = FlightOptions(method=method, calibration=calibration, model=model, frames=n_frames,
                             stride=stride, fpa_c=fpa_c, preview_every=preview_every)
     total = read_recording_header(recording).n_frames
