@@ -45,6 +45,7 @@ from typing import Any
 
 import numpy as np
 
+from thermocal._validate import check_output_dir
 from thermocal.burst import check_burst, fpa_value
 from thermocal.errors import InvalidInputError, OutputError, RegistrationError
 from thermocal.estimation.base import Estimator
@@ -380,9 +381,7 @@ def _output_dirs(out: Path) -> Path:
     """Create ``out``, ``out/temps`` and ``out/previews`` (none of them when one of the paths is
     taken by a file)."""
     for path in (out, out / "temps", out / "previews"):
-        if path.exists() and not path.is_dir():
-            raise InvalidInputError(
-                f"{path}: exists and is a file; give a directory for the output")
+        check_output_dir(path)
     log = out / "log.jsonl"
     if log.exists() and not log.is_file():
         raise InvalidInputError(f"{log}: is not a file; give another output directory")
