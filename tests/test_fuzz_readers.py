@@ -540,6 +540,19 @@ def test_a_chamber_file_with_a_damaged_hdf5_header_is_refused_not_allocated(cham
     assert any("more than the file holds" in p for p in info.value.problems)
 
 
+def _read_chamber_in_subprocess(path):
+    """Read a chamber file in a fresh interpreter (a hang or a crash of libhdf5 cannot take the
+    test run with it): exit status 3 when it is refused with a ThermocalError."""
+    import subprocess
+    import sys
+
+    code = ("import sys; from thermocal.io.chamber import read_chamber\n"
+            "from thermocal.errors import ThermocalError\n"
+            "try:\n    read_chamber(sys.argv[1])\nexcept ThermocalError:\n    sys.exit(3)\n")
+    return subprocess.run([sys.executable, "-c", code, str(path)], timeout=5,
+                          capture_output=True)
+
+
 @pytest.mark.parametrize("name", ["token", "zipver"])
 def test_an_npz_that_numpy_cannot_parse_is_refused(npz_file, tmp_path, name):
     """Byte mutants of an EnvChamberCtrl .npz that raised tokenize.TokenError (a .npy header
@@ -568,20 +581,13 @@ def test_a_chamber_file_with_a_damaged_global_heap_does_not_hang(chamber_file, t
     second object (the 'preset' string) changed; libhdf5 never returned from reading the
     'format' attribute. Now refused before h5py opens the file (run in a subprocess, so that a
     hang fails the test instead of stopping the run)."""
-    import subprocess
-    import sys
-
     raw = bytearray(chamber_file.read_bytes())
     gcol = raw.find(b"GCOL")
     assert gcol > 0
     raw[gcol + 65] = 0x0A  # object 2's size: 4 → 2564 bytes, beyond the collection
     path = tmp_path / "heap.h5"
     path.write_bytes(bytes(raw))
-    code = ("import sys; from thermocal.io.chamber import read_chamber\n"
-            "from thermocal.errors import ThermocalError\n"
-            "try:\n    read_chamber(sys.argv[1])\nexcept ThermocalError:\n    sys.exit(3)\n")
-    proc = subprocess.run([sys.executable, "-c", code, str(path)], timeout=5,
-                          capture_output=True)
+    proc = _read_chamber_in_subprocess(path)
     assert proc.returncode == 3, proc.stderr[-500:]
 
 
@@ -590,9 +596,6 @@ def test_a_chamber_file_with_a_damaged_global_heap_does_not_hang(chamber_file, t
 def test_a_chamber_file_with_a_damaged_heap_reference_does_not_crash(chamber_file, tmp_path):
     """A byte mutant (chamber-h5, seed 101): the heap object index of a string attribute set
     from 1 to 250; reading the attribute kills the interpreter."""
-    import subprocess
-    import sys
-
     raw = bytearray(chamber_file.read_bytes())
     at = raw.find(b"GCOL") - 47
     if raw[at] != 1:
@@ -600,9 +603,5 @@ def test_a_chamber_file_with_a_damaged_heap_reference_does_not_crash(chamber_fil
     raw[at] = 0xFA
     path = tmp_path / "ref.h5"
     path.write_bytes(bytes(raw))
-    code = ("import sys; from thermocal.io.chamber import read_chamber\n"
-            "from thermocal.errors import ThermocalError\n"
-            "try:\n    read_chamber(sys.argv[1])\nexcept ThermocalError:\n    sys.exit(3)\n")
-    proc = subprocess.run([sys.executable, "-c", code, str(path)], timeout=5,
-                          capture_output=True)
+    proc = _read_chamber_in_subprocess(path)
     assert proc.returncode == 3, (proc.returncode, proc.stderr[-300:])
