@@ -17,22 +17,12 @@ import h5py
 import numpy as np
 import pytest
 import tifffile
+from cli_run import run
 
 from thermocal.cli import main
 from thermocal.nn.infer import shipped_model_path
 
 SIZE = "48x32"
-
-
-def run(args: list[str], capsys) -> tuple[int, str, str]:
-    """Run ``thermocal ARGS`` in this process: (exit status, stdout, stderr)."""
-    try:
-        main([str(a) for a in args])
-        code = 0
-    except SystemExit as exc:
-        code = exc.code if isinstance(exc.code, int) else 1
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 def snapshot(*folders: Path) -> dict[str, tuple[str, int]]:
@@ -253,7 +243,7 @@ CASES = [
      "size '48by32': expected WIDTHxHEIGHT"),
     ("simulate-chamber-preset-unknown",
      ["simulate", "chamber", "{tmp}/c.h5", "--size", SIZE, "--preset", "nope"],
-     "unknown camera preset 'nope'"),
+     "'nope' is not one of 'tau2', 'boson'"),
     ("simulate-chamber-frames-per-point-0",
      ["simulate", "chamber", "{tmp}/c.h5", "--size", SIZE, "--frames-per-point", "0"],
      "frames per point must be >= 1, got 0"),

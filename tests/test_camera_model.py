@@ -166,7 +166,7 @@ def test_render_without_rng_is_refused(small_camera):
 
 def test_unknown_preset_and_bad_sizes():
     with pytest.raises(InvalidInputError, match="unknown camera preset"):
-        make_camera("boson")
+        make_camera("lepton")
     with pytest.raises(InvalidInputError):
         make_camera("tau2", size=(4, 100000))
     with pytest.raises(InvalidInputError):

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from thermocal.camera.presets import make_camera
-from thermocal.errors import InvalidInputError, ResolutionMismatchError
+from thermocal.errors import InvalidInputError, OutsideDomainError, ResolutionMismatchError
 from thermocal.estimation import ESTIMATORS, Estimator, PreparedBurst, estimate, make_estimator
 from thermocal.estimation.calibrated import OzMean, PivotCalibration
 from thermocal.registration.warp import warp_to_pivot
@@ -40,8 +40,10 @@ class Recorder:
     n_frames = None
     needs_fpa = True
     accepts_registered = False
+    remedy = "record it again"
 
-    def __init__(self, *, per_frame: bool = False) -> None:
+    def __init__(self, *, per_frame: bool = False, outside: tuple[str, ...] = ()) -> None:
+        self.reasons = outside
         self.per_frame = per_frame
         self.seen: list[tuple] = []
         self.burst: PreparedBurst | None = None
@@ -52,6 +54,10 @@ class Recorder:
     def calibrate(self, frames, fpa_c, time_s):
         self.seen.append(("calibrate", frames.copy(), fpa_c))
         return frames.astype(np.float32) * 0.5 + np.arange(frames.shape[2], dtype=np.float32)
+
+    def outside(self, calibrated, fpa_c):
+        self.seen.append(("outside", calibrated.shape, fpa_c))
+        return self.reasons
 
     def estimate(self, burst):
         self.burst = burst
@@ -64,7 +70,7 @@ def test_pipeline_stages_in_order_on_the_filled_frames(flight):
     before = flight.frames.copy()
     est = estimate(flight.frames, rec, fpa_c=flight.fpa_c, homographies=flight.homographies)
     assert np.array_equal(flight.frames, before)  # the input is not changed
-    assert [s[0] for s in rec.seen] == ["check", "calibrate"]
+    assert [s[0] for s in rec.seen] == ["check", "calibrate", "outside"]
     filled = rec.seen[1][1]
     assert not np.array_equal(filled, flight.frames)  # the defects were replaced before …
     assert rec.seen[1][2] == pytest.approx(float(np.mean(flight.fpa_c)))  # … one FPA value
@@ -85,7 +91,7 @@ def test_pipeline_stages_in_order_on_the_filled_frames(flight):
 def test_per_frame_estimator_sees_no_registration(flight):
     rec = Recorder(per_frame=True)
     est = estimate(flight.frames, rec, fpa_c=30.0, pivot=1)
-    assert [s[0] for s in rec.seen] == ["check", "calibrate"]
+    assert [s[0] for s in rec.seen] == ["check", "calibrate", "outside"]
     assert np.array_equal(rec.seen[1][1], flight.frames)  # raw, not filled: nothing moves
     assert np.array_equal(est.temperature_c, rec.calibrate(flight.frames, None, None)[1])
     assert np.all(est.coverage == 1) and np.array_equal(est.homographies[1], np.eye(3))
@@ -214,3 +220,19 @@ def test_registry_and_estimators_agree_on_per_frame(flight):
             assert make_estimator(name, calibration=cal).per_frame == info.per_frame, name
     pytest.importorskip("torch")
     assert make_estimator("kpn").per_frame == ESTIMATORS["kpn"].per_frame
+
+
+def test_outside_the_domain_is_refused_unless_forced(flight):
+    """Stage 4's domain check: refused with every reason and the remedy in one line; with
+    ``force`` estimated all the same, the reasons kept in the Estimate."""
+    for per_frame in (False, True):
+        rec = Recorder(per_frame=per_frame, outside=("too hot", "too shiny"))
+        with pytest.raises(OutsideDomainError, match="^too hot; too shiny; record it again$"):
+            estimate(flight.frames, rec, fpa_c=flight.fpa_c, homographies=flight.homographies)
+        assert rec.burst is None  # refused before the estimate
+        est = estimate(flight.frames, Recorder(per_frame=per_frame, outside=("too hot",)),
+                       fpa_c=flight.fpa_c, homographies=flight.homographies, force=True)
+        assert est.outside == ("too hot",)
+    inside = estimate(flight.frames, Recorder(), fpa_c=flight.fpa_c,
+                      homographies=flight.homographies)
+    assert inside.outside == ()

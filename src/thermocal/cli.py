@@ -49,8 +49,12 @@ from thermocal._validate import (  # noqa: E402
     check_output_file,
     parse_range,
 )
+from thermocal.camera.presets import PRESETS  # noqa: E402
 from thermocal.errors import InvalidInputError, ThermocalError  # noqa: E402
 from thermocal.progress import progress_bar  # noqa: E402
+
+#: The camera families ``simulate`` offers (the registry: :data:`thermocal.camera.presets.PRESETS`).
+CAMERA_PRESETS = tuple(PRESETS)
 
 #: Most blackbody set points of a simulated chamber session.
 MAX_SETPOINTS = 1000
@@ -82,7 +86,8 @@ def simulate() -> None:
 @click.argument("out", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of noise and schedule.")
 @click.option("--unit", type=int, default=0, show_default=True, help="Camera unit of the preset.")
-@click.option("--preset", default="tau2", show_default=True, help="Camera preset.")
+@click.option("--preset", type=click.Choice(CAMERA_PRESETS), default="tau2", show_default=True,
+              help="Camera family (thermocal.camera.presets).")
 @click.option("--size", default="336x256", show_default=True, help="Frame size WxH.")
 @click.option(
     "--blackbody-c", default="10:70:10", show_default=True, help="Set points A:B:STEP, °C."
@@ -136,7 +141,8 @@ def simulate_chamber_cmd(
         emissivity=emissivity,
     )
     width, height = parse_size(size)
-    check_chamber_run(plan, (height, width), folder=out.parent)  # before the camera's maps
+    check_chamber_run(plan, (height, width), thermal=PRESETS[preset].thermal,
+                      folder=out.parent)  # before the camera's maps
     camera = make_camera(preset, unit=unit, size=(width, height))
     with progress_bar() as bar:
         task = bar.add_task("chamber", total=plan.n_frames)
@@ -154,7 +160,8 @@ def simulate_chamber_cmd(
 @click.option("--frames", "n_frames", type=int, default=7, show_default=True)
 @click.option("--seed", type=int, default=0, show_default=True)
 @click.option("--unit", type=int, default=0, show_default=True)
-@click.option("--preset", default="tau2", show_default=True)
+@click.option("--preset", type=click.Choice(CAMERA_PRESETS), default="tau2", show_default=True,
+              help="Camera family (thermocal.camera.presets).")
 @click.option("--size", default="336x256", show_default=True, help="Frame size WxH.")
 @click.option("--fpa-c", type=float, default=30.0, show_default=True, help="FPA temperature, °C.")
 @click.option(

@@ -21,6 +21,11 @@ class ResolutionMismatchError(InvalidInputError):
     """Frames whose size does not match a calibration, a model or each other."""
 
 
+class OutsideDomainError(InvalidInputError):
+    """Input outside what a model was fitted or trained on (its FPA or scene range, its camera
+    family); the message says why and what to do (calibrate, train, or ``--force``)."""
+
+
 class RegistrationError(ThermocalError):
     """Registration found no usable homography."""
 

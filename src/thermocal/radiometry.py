@@ -140,11 +140,37 @@ def planck_spectral_radiance(wavelength_m: Any, temp_k: Any) -> Any:
     return _scalar_or_array(FIRST_RADIATION_C1L / lam_b**5 * _inv_expm1(x))
 
 
-@functools.lru_cache(maxsize=64)
-def _band_rule(band_m: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
-    """Quadrature rule for the band integral: ``∫ B dλ ≈ Σ_j a_j / expm1(b_j / T)``.
+def _check_response(response: Any, band: tuple[float, float]) -> tuple[tuple[float, float], ...]:
+    """A spectral response as ``((λ_m, weight), ...)``: λ increasing, inside ``band``, weights
+    in ``[0, 1]`` and not all zero; ``()`` is a flat response (1 across the band)."""
+    if response is None or len(response) == 0:
+        return ()
+    try:
+        pairs = tuple((float(lam), float(w)) for lam, w in response)
+    except (TypeError, ValueError):
+        raise InvalidInputError(
+            f"spectral response: expected ((wavelength_m, weight), ...), got {response!r}"
+        ) from None
+    lam = np.array([p[0] for p in pairs])
+    w = np.array([p[1] for p in pairs])
+    if (len(pairs) < 2 or not np.all(np.isfinite(lam)) or not np.all(np.isfinite(w))
+            or np.any(np.diff(lam) <= 0) or lam[0] < band[0] * (1 - 1e-9)
+            or lam[-1] > band[1] * (1 + 1e-9) or w.min() < 0 or w.max() > 1 or w.max() == 0):
+        raise InvalidInputError(
+            "spectral response: need >= 2 points with increasing wavelengths inside the band "
+            f"{band} m and weights in [0, 1], not all 0"
+        )
+    return pairs
 
-    Returns ``b_j = c2 / λ_j`` in K and ``a_j = w_j c1L / λ_j⁵``.
+
+@functools.lru_cache(maxsize=64)
+def _band_rule(
+    band_m: tuple[float, float], response: tuple[tuple[float, float], ...] = ()
+) -> tuple[np.ndarray, np.ndarray]:
+    """Quadrature rule for the band integral: ``∫ s(λ) B dλ ≈ Σ_j a_j / expm1(b_j / T)``.
+
+    Returns ``b_j = c2 / λ_j`` in K and ``a_j = w_j s(λ_j) c1L / λ_j⁵``; ``s`` is the spectral
+    response, linear between the points of ``response`` (``()``: 1 across the band).
 
     Composite Gauss–Legendre over ln(λ) (``dλ = λ d ln λ``) from numpy's Legendre nodes.
     """
@@ -153,22 +179,28 @@ def _band_rule(band_m: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
     n_panels = max(1, math.ceil((s1 - s0) / _PANEL_WIDTH_LN))
     x, w = np.polynomial.legendre.leggauss(_NODES_PER_PANEL)
     edges = np.linspace(s0, s1, n_panels + 1)
+    if response:  # panels end at the response's kinks: the integrand is smooth within each
+        knots = np.log([p[0] for p in response])
+        edges = np.unique(np.concatenate([edges, knots[(knots > s0) & (knots < s1)]]))
     half = 0.5 * np.diff(edges)[:, None]
     mid = 0.5 * (edges[:-1] + edges[1:])[:, None]
     lam = np.exp(mid + half * x).ravel()
     weight = (half * w).ravel() * lam  # dλ = λ d(ln λ)
     b = SECOND_RADIATION_C2 / lam
     a = weight * FIRST_RADIATION_C1L / lam**5
+    if response:
+        a = a * np.interp(lam, [p[0] for p in response], [p[1] for p in response])
     b.flags.writeable = False
     a.flags.writeable = False
     return b, a
 
 
 def _band_integrals(
-    t: np.ndarray, band: tuple[float, float], *, derivative: bool
+    t: np.ndarray, band: tuple[float, float], *, derivative: bool,
+    response: tuple[tuple[float, float], ...] = (),
 ) -> tuple[np.ndarray, np.ndarray | None]:
     """Band radiance (and optionally dL/dT) for a float64 array of temperatures > 0 K."""
-    b, a = _band_rule(band)
+    b, a = _band_rule(band, response)
     flat = t.ravel()
     rad = np.empty(flat.shape, dtype=np.float64)
     der = np.empty(flat.shape, dtype=np.float64) if derivative else None
@@ -416,6 +448,10 @@ class BandRadiance:
     t_min_k, t_max_k : float
         Temperature range of the table in K (default 150–900 K). Values outside raise
         :class:`InvalidInputError`; make a wider table if you need one.
+    response : tuple of (float, float)
+        The camera's relative spectral response ``s(λ)`` as ``((λ_m, weight), ...)``, linear
+        between the points and 0 outside them; ``()`` (default) is a flat band:
+        ``L(T) = ∫ s(λ) B(λ, T) dλ`` over ``band_m``.
 
     Examples
     --------
@@ -427,9 +463,11 @@ class BandRadiance:
     band_m: tuple[float, float] = TAU2_BAND_M
     t_min_k: float = 150.0
     t_max_k: float = 900.0
+    response: tuple[tuple[float, float], ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "band_m", _check_band(self.band_m))
+        object.__setattr__(self, "response", _check_response(self.response, self.band_m))
         lo, hi = float(self.t_min_k), float(self.t_max_k)
         if not (math.isfinite(lo) and math.isfinite(hi) and 0.0 < lo and hi - lo >= 1.0):
             raise InvalidInputError(
@@ -443,7 +481,7 @@ class BandRadiance:
     def _tables(self) -> tuple[_Table, _Table, _Table, float, float]:
         n = max(2, math.ceil((self.t_max_k - self.t_min_k) / _T_STEP_K) + 1)
         t = np.linspace(self.t_min_k, self.t_max_k, n)
-        rad, der = _band_integrals(t, self.band_m, derivative=True)
+        rad, der = _band_integrals(t, self.band_m, derivative=True, response=self.response)
         assert der is not None
         if rad[0] < 1e-290:
             raise InvalidInputError(
@@ -552,10 +590,15 @@ TAU2 = BandRadiance()
 
 
 @functools.lru_cache(maxsize=16)
-def band_table(band_m: tuple[float, float] = TAU2_BAND_M) -> BandRadiance:
-    """A shared :class:`BandRadiance` for ``band_m`` (its tables are built once per process)."""
+def band_table(
+    band_m: tuple[float, float] = TAU2_BAND_M, response: tuple[tuple[float, float], ...] = ()
+) -> BandRadiance:
+    """A shared :class:`BandRadiance` for ``band_m`` and a spectral ``response`` (``()``: flat)
+    (its tables are built once per process)."""
     band = tuple(float(b) for b in band_m)
-    return TAU2 if band == TAU2.band_m else BandRadiance(band_m=band)
+    if band == TAU2.band_m and not response:
+        return TAU2
+    return BandRadiance(band_m=band, response=tuple(tuple(p) for p in response))
 
 
 # --------------------------------------------------------------------------------------------

@@ -6,11 +6,15 @@ Per pixel p and frame k (DESIGN.md, the papers' models made into one)::
            + O_p(t_fpa)                                offset drifting with the FPA temperature
            + H_p · (L(t_housing) − L(t_fpa))           housing/lens self-radiation, radial pattern
            + C_p · d t_fpa / dt                        transient term (Lin, Westfeld, Maas)
-           + temporal noise → round → clip to 0 … 2**bit_depth − 1
+           + D(t)                                      drift: warm-up and 1/f, uniform
+           + temporal noise (white, + row noise) → round → clip to 0 … 2**bit_depth − 1
 
-``G_p`` and ``O_p`` are cubic polynomials in ``t_fpa − t_ref`` (Oz et al. eq. 13, Nugent et al.);
-the column fixed-pattern noise (Oz et al. eq. 19 and an additive column term) is folded into them
-when a unit is made (:mod:`thermocal.camera.presets`). ``L`` is band radiance, W·m⁻²·sr⁻¹.
+``G_p`` and ``O_p`` are expansions in ``x = t_fpa − t_ref`` on a basis of the camera family
+(:func:`fpa_basis`): cubic polynomials (``tau2``; Oz et al. eq. 13, Nugent et al.) or exponentials
+(a bolometer whose response follows its thermistor-like resistance). The fixed-pattern noise is
+folded into them when a unit is made (:mod:`thermocal.camera.presets`). ``L`` is band radiance,
+W·m⁻²·sr⁻¹, through the family's spectral response. ``D(t)`` (0 for ``tau2``) depends on the time
+since the camera was switched on, so it is only rendered when frame times are given.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from typing import Any
 import numpy as np
 
 from thermocal._validate import as_float_array, as_temperature_c
+from thermocal.camera.thermal import ThermalParams
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import InvalidInputError, ResolutionMismatchError
 from thermocal.radiometry import TAU2, BandRadiance
@@ -35,9 +40,10 @@ class CameraModel:
     Parameters
     ----------
     gain : (4, H, W) array
-        Coefficients of ``G_p(t) = Σ_i gain[i] · (t − t_ref_c)^i``, counts per W·m⁻²·sr⁻¹.
+        Coefficients of ``G_p(t) = Σ_i gain[i] · φ_i(t − t_ref_c)`` (:func:`fpa_basis`; for
+        the default polynomial basis ``φ_i(x) = x^i``), counts per W·m⁻²·sr⁻¹.
     offset : (4, H, W) array
-        Coefficients of ``O_p(t)``, counts.
+        Coefficients of ``O_p(t)`` on the same basis, counts.
     housing : (H, W) array
         Self-radiation responsivity ``H_p``, counts per W·m⁻²·sr⁻¹ of ``L(t_housing) − L(t_fpa)``.
     transient : (H, W) array
@@ -56,6 +62,18 @@ class CameraModel:
         Output bits; counts are clipped to ``0 … 2**bit_depth − 1``.
     info : dict
         Where the unit came from (preset, unit number, drawn parameters).
+    fpa_scales_c : tuple of float
+        ``()`` for the polynomial basis; ``(θa, θb)`` in °C for the exponential basis.
+    row_noise_counts : float
+        Standard deviation of a per-frame offset of each row (temporal row noise), counts.
+    flicker_counts : float
+        RMS of a uniform 1/f offset noise (0.3 mHz … 0.5 Hz), counts; deterministic in time.
+    flicker_seed : int
+        Seed of the 1/f noise's phases (a unit's own).
+    warmup_counts, warmup_tau_s : float
+        Uniform offset ``warmup_counts · exp(−t / warmup_tau_s)`` after switch-on (``t`` s).
+    thermal : ThermalParams
+        The family's thermal lags and FPA sensor (what the simulators use by default).
     """
 
     gain: np.ndarray
@@ -69,6 +87,13 @@ class CameraModel:
     band: BandRadiance = TAU2
     bit_depth: int = 14
     info: dict[str, Any] = field(default_factory=dict)
+    fpa_scales_c: tuple[float, ...] = ()
+    row_noise_counts: float = 0.0
+    flicker_counts: float = 0.0
+    flicker_seed: int = 0
+    warmup_counts: float = 0.0
+    warmup_tau_s: float = 900.0
+    thermal: ThermalParams = ThermalParams()
 
     def __post_init__(self) -> None:
         shape = self.housing.shape
@@ -84,6 +109,12 @@ class CameraModel:
                 raise InvalidInputError(f"CameraModel.{name}: expected shape {shape}")
         if self.noise_sigma < 0:
             raise InvalidInputError("CameraModel.noise_sigma must be >= 0")
+        if len(self.fpa_scales_c) not in (0, POLY_ORDER - 1) or not all(
+                np.isfinite(t) and t != 0 for t in self.fpa_scales_c):
+            raise InvalidInputError("CameraModel.fpa_scales_c: () or two finite, non-zero °C")
+        if not (self.row_noise_counts >= 0 and self.flicker_counts >= 0
+                and self.warmup_tau_s > 0 and np.isfinite(self.warmup_counts)):
+            raise InvalidInputError("CameraModel: noise and drift terms must be >= 0")
 
     @property
     def shape(self) -> tuple[int, int]:
@@ -97,11 +128,25 @@ class CameraModel:
 
     def gain_at(self, fpa_c: float) -> np.ndarray:
         """``G_p(t_fpa)``, counts per W·m⁻²·sr⁻¹, ``(H, W)`` float32."""
-        return horner(self.gain, fpa_c - self.t_ref_c)
+        return _expand(self.gain, fpa_c - self.t_ref_c, self.fpa_scales_c)
 
     def offset_at(self, fpa_c: float) -> np.ndarray:
         """``O_p(t_fpa)``, counts, ``(H, W)`` float32."""
-        return horner(self.offset, fpa_c - self.t_ref_c)
+        return _expand(self.offset, fpa_c - self.t_ref_c, self.fpa_scales_c)
+
+    @property
+    def drifts(self) -> bool:
+        """Whether the unit has time-dependent terms (warm-up, 1/f noise)."""
+        return self.flicker_counts > 0 or self.warmup_counts != 0
+
+    def drift_at(self, time_s: Any) -> np.ndarray:
+        """``D(t)``: the uniform warm-up and 1/f offset at times ``time_s`` (s since switch-on),
+        counts, ``(N,)`` float64."""
+        t = as_float_array(time_s, "time_s", ndim=(0, 1)).reshape(-1).astype(np.float64)
+        out = self.warmup_counts * np.exp(-np.maximum(t, 0.0) / self.warmup_tau_s)
+        if self.flicker_counts > 0:
+            out = out + self.flicker_counts * _flicker(t, self.flicker_seed)
+        return out
 
     def without_transient(self) -> CameraModel:
         """The same unit with ``C_p = 0``: what a method that ignores the transient term assumes."""
@@ -122,6 +167,40 @@ class CameraModel:
             defects=self.defects[rows, cols].copy(),
             defect_counts=self.defect_counts[rows, cols].copy(),
         )
+
+
+def fpa_basis(x: float, scales_c: tuple[float, ...] = ()) -> np.ndarray:
+    """The basis ``φ_i(x)``, ``i = 0 … 3``, of the FPA-temperature expansions, ``x`` in °C
+    from the reference: ``x^i`` for ``scales_c = ()``; ``(1, x, θa·expm1(x/θa),
+    θb·expm1(x/θb))`` for ``scales_c = (θa, θb)``. Returns ``(4,)`` float64."""
+    if not scales_c:
+        return np.array([1.0, x, x * x, x * x * x])
+    return np.array([1.0, x] + [t * np.expm1(x / t) for t in scales_c])
+
+
+def _expand(coeffs: np.ndarray, x: float, scales_c: tuple[float, ...]) -> np.ndarray:
+    """``Σ_i coeffs[i] · φ_i(x)``, ``(H, W)`` float32 (Horner's rule for the polynomials)."""
+    if not scales_c:
+        return horner(coeffs, x)
+    phi = fpa_basis(float(x), scales_c).astype(np.float32)
+    out = coeffs[0] + coeffs[1] * phi[1]
+    for c, p in zip(coeffs[2:], phi[2:], strict=True):
+        out += c * p
+    return out
+
+
+def _flicker(t: np.ndarray, seed: int) -> np.ndarray:
+    """Unit-RMS 1/f noise at times ``t`` (s), deterministic in ``(t, seed)``: a sum of sines at
+    log-spaced frequencies (0.3 mHz … 0.5 Hz) with amplitudes ``∝ f^-1/2`` and random phases.
+
+    Written out because the noise must be the same whichever frames are rendered, and in
+    whatever chunks (a generator-drawn series is not)."""
+    rng = np.random.default_rng([0x1F, int(seed)])
+    freq = np.geomspace(3e-4, 0.5, 48)
+    amp = freq**-0.5
+    amp /= np.sqrt(np.sum(amp**2) / 2.0)  # RMS of the sum: sqrt(Σ a² / 2)
+    phase = rng.uniform(0.0, 2.0 * np.pi, freq.size)
+    return np.sin(2.0 * np.pi * t[:, None] * freq + phase) @ amp
 
 
 def horner(coeffs: np.ndarray, x: float) -> np.ndarray:
@@ -185,6 +264,7 @@ def expected_counts(
     fpa_rate_c_per_min: Any = 0.0,
     emissivity: float = 1.0,
     reflected_c: float | None = None,
+    time_s: Any = None,
 ) -> np.ndarray:
     """Noise-free, unquantised output of the camera, counts, ``(N, H, W)`` float32.
 
@@ -202,6 +282,9 @@ def expected_counts(
         ``d t_fpa / dt`` in °C/min (the transient term).
     emissivity, reflected_c
         Emissivity of the scene and the temperature (°C) of what it reflects.
+    time_s : float or (N,) array, optional
+        Time of each frame since the camera was switched on, s: adds the drift ``D(t)`` of a
+        unit that has one (:meth:`CameraModel.drift_at`); None: no drift.
     """
     radiance = _scene_radiance(model, scene_c, emissivity, reflected_c)
     fpa = as_temperature_c(fpa_c, "fpa_c", ndim=(0, 1))
@@ -213,6 +296,8 @@ def expected_counts(
     housing = fpa if housing_c is None else _per_frame(housing_c, n, "housing_c")
     as_temperature_c(housing, "housing_c")
     rate = _per_frame(fpa_rate_c_per_min, n, "fpa_rate_c_per_min")
+    drift = (model.drift_at(_per_frame(time_s, n, "time_s"))
+             if time_s is not None and model.drifts else np.zeros(n))
     self_radiance = (model.band.radiance(housing + ZERO_CELSIUS_K)
                      - model.band.radiance(fpa + ZERO_CELSIUS_K))
 
@@ -225,6 +310,8 @@ def expected_counts(
             frame += np.float32(self_radiance[k]) * model.housing
         if rate[k] != 0.0:
             frame += np.float32(rate[k]) * model.transient
+        if drift[k] != 0.0:
+            frame += np.float32(drift[k])
     return out
 
 
@@ -239,11 +326,13 @@ def render(
     reflected_c: float | None = None,
     rng: np.random.Generator | None = None,
     noise: bool = True,
+    time_s: Any = None,
 ) -> np.ndarray:
     """Raw frames the camera would give: :func:`expected_counts` + noise, rounded, clipped.
 
     Returns ``(N, H, W)`` uint16 counts in ``0 … 2**bit_depth − 1``; defective pixels output their
-    stuck value. ``rng`` is required when ``noise`` is True (seeded results only).
+    stuck value. ``rng`` is required when ``noise`` is True (seeded results only). ``time_s``:
+    as for :func:`expected_counts` (the drift of a unit that has one).
     """
     counts = expected_counts(
         model,
@@ -253,14 +342,19 @@ def render(
         fpa_rate_c_per_min=fpa_rate_c_per_min,
         emissivity=emissivity,
         reflected_c=reflected_c,
+        time_s=time_s,
     )
-    if noise and model.noise_sigma > 0:
+    if noise and (model.noise_sigma > 0 or model.row_noise_counts > 0):
         if rng is None:
             raise InvalidInputError("render: pass rng=np.random.default_rng(seed) for noise")
         for frame in counts:  # frame by frame: bounded temporary memory
-            frame += rng.standard_normal(frame.shape, dtype=np.float32) * np.float32(
-                model.noise_sigma
-            )
+            if model.noise_sigma > 0:
+                frame += rng.standard_normal(frame.shape, dtype=np.float32) * np.float32(
+                    model.noise_sigma
+                )
+            if model.row_noise_counts > 0:
+                frame += (rng.standard_normal(frame.shape[0], dtype=np.float32)
+                          * np.float32(model.row_noise_counts))[:, None]
     np.rint(counts, out=counts)
     np.clip(counts, 0, model.max_counts, out=counts)
     frames = counts.astype(np.uint16)
@@ -276,6 +370,7 @@ def invert(
     *,
     housing_c: Any = None,
     fpa_rate_c_per_min: Any = 0.0,
+    time_s: Any = None,
 ) -> np.ndarray:
     """Scene temperature (°C) from counts by inverting the model exactly (an oracle calibration).
 
@@ -298,6 +393,7 @@ def invert(
         _per_frame(fpa_c, n, "fpa_c"),
         housing_c=housing_c,
         fpa_rate_c_per_min=fpa_rate_c_per_min,
+        time_s=time_s,
     )
     zero_radiance = float(model.band.radiance(np.float32(ZERO_CELSIUS_K)))
     fpa = _per_frame(fpa_c, n, "fpa_c")

@@ -17,10 +17,21 @@ from thermocal.errors import InvalidInputError
 
 PROFILES = ("constant", "steps", "ramp", "sawtooth")
 
+#: Time after switch-on at which the simulators start a session or a flight, s (the camera has
+#: warmed up for half an hour, as a careful operator does; what drift remains shows).
+WARMED_UP_S = 1800.0
+
 
 @dataclass(frozen=True)
 class ThermalParams:
-    """Time constants (s), self-heating offsets (°C) and the FPA sensor of a camera."""
+    """Time constants (s), self-heating offsets (°C) and the FPA sensor of a camera.
+
+    ``tau_optics_s``: when > 0, what radiates onto the FPA (lens and inner housing) follows the
+    housing through one more first-order lag, so that the optics lag the ambient with a
+    second-order response; 0 (``tau2``): they are at the housing temperature. ``transient_lag_s``:
+    when > 0, the transient term of the camera model sees the FPA rate through a first-order lag
+    (a term that builds up and dies away after the FPA changes pace); 0: the rate itself.
+    """
 
     tau_housing_s: float = 300.0
     tau_fpa_s: float = 60.0
@@ -28,6 +39,8 @@ class ThermalParams:
     fpa_self_heating_c: float = 1.5
     sensor_quantum_c: float = 0.01
     sensor_noise_c: float = 0.01
+    tau_optics_s: float = 0.0
+    transient_lag_s: float = 0.0
 
     def steady_fpa_c(self, ambient_c: float) -> float:
         """FPA temperature once the camera has settled at a constant ambient, °C."""
@@ -40,13 +53,20 @@ class ThermalParams:
 
 @dataclass(frozen=True)
 class ThermalState:
-    """The camera's temperatures at each sample time, all ``(N,)``."""
+    """The camera's temperatures at each sample time, all ``(N,)``.
+
+    ``housing_c`` is the temperature of what radiates onto the FPA (the optics, with
+    :attr:`ThermalParams.tau_optics_s`); ``transient_rate_c_per_min`` the FPA rate as the
+    camera's transient term sees it (the rate itself unless ``transient_lag_s`` > 0): pass it as
+    ``fpa_rate_c_per_min`` to :func:`thermocal.camera.model.render`.
+    """
 
     time_s: np.ndarray
     ambient_c: np.ndarray
     housing_c: np.ndarray
     fpa_c: np.ndarray
     fpa_rate_c_per_min: np.ndarray
+    transient_rate_c_per_min: np.ndarray
 
 
 def profile_duration_s(
@@ -136,7 +156,9 @@ def thermal_response(
     target = housing + params.fpa_self_heating_c
     fpa = _lag(target, dt, params.tau_fpa_s)
     rate = 60.0 * (target - fpa) / params.tau_fpa_s
-    return ThermalState(t, amb, housing, fpa, rate)
+    optics = _lag(housing, dt, params.tau_optics_s) if params.tau_optics_s > 0 else housing
+    seen = _lag(rate, dt, params.transient_lag_s) if params.transient_lag_s > 0 else rate
+    return ThermalState(t, amb, optics, fpa, rate, seen)
 
 
 def fpa_sensor(

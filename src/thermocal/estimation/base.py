@@ -25,12 +25,16 @@ class Estimate:
         Frame → pivot homographies used.
     pivot : int
         The pivot frame's index in the burst.
+    outside : tuple of str
+        Why the burst lies outside the estimator's domain (:meth:`Estimator.outside`), when it
+        was estimated all the same (``force``); ``()`` inside.
     """
 
     temperature_c: np.ndarray
     coverage: np.ndarray
     homographies: np.ndarray
     pivot: int
+    outside: tuple[str, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -84,6 +88,8 @@ class Estimator(Protocol):
         Whether it estimates from the pivot frame alone.
     accepts_registered : bool
         Whether it may be given frames already registered onto the pivot.
+    remedy : str
+        What to do about a burst outside its domain (:meth:`outside`).
     """
 
     name: str
@@ -91,6 +97,7 @@ class Estimator(Protocol):
     needs_fpa: bool
     per_frame: bool
     accepts_registered: bool
+    remedy: str
 
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
         """Refuse a burst ``(N, H, W)`` it cannot take (size, length), before any work."""
@@ -101,6 +108,12 @@ class Estimator(Protocol):
         (°C, or the counts themselves); never changes ``frames``. ``fpa_c`` is the burst's FPA
         temperature as given (one value or one per frame, or None), ``time_s`` the frames'
         times (or None)."""
+        ...
+
+    def outside(self, calibrated: np.ndarray, fpa_c: float | None) -> tuple[str, ...]:
+        """Why a burst lies outside what the estimator was fitted or trained on, from its
+        :meth:`calibrate` output ``(N, H, W)`` and FPA temperature (°C): one clause per failed
+        check, ``()`` inside."""
         ...
 
     def estimate(self, burst: PreparedBurst) -> np.ndarray:

@@ -21,9 +21,15 @@ class _ThroughCalibration:
 
     n_frames = None
     needs_fpa = False
+    remedy = "calibrate over the conditions of this recording (`thermocal calibrate`)"
 
     def __init__(self, calibration: Calibration) -> None:
         self.calibration = calibration
+
+    def outside(self, calibrated: np.ndarray, fpa_c: float | None) -> tuple[str, ...]:
+        """``()``: a calibration's own range checks warn when it is applied (its
+        :class:`~thermocal.calibration.base.OutsideCalibrationRangeWarning`)."""
+        return ()
 
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
         shape = tuple(self.calibration.shape)

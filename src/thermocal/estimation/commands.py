@@ -24,11 +24,15 @@ def estimate_file(
     pivot: int | None = None,
     registered: bool = False,
     calibration: str | os.PathLike[str] | None = None,
+    force: bool = False,
 ) -> Path:
     """``thermocal estimate``: read a recording, estimate the pivot's temperature through the
     estimator ``method`` (:data:`~thermocal.estimation.registry.ESTIMATORS`), write it.
 
     The output (float32 °C TIFF, ``(H, W)``) is written atomically and only after every check.
+    A burst outside the estimator's domain is refused
+    (:class:`~thermocal.errors.OutsideDomainError`) unless ``force``, which writes it with a
+    warning that names why.
     """
     from thermocal.io.recording import read_recording, write_temperature_tiff
 
@@ -37,7 +41,11 @@ def estimate_file(
     estimator = make_estimator(method, model=model_path, calibration=calibration)
     rec = read_recording(frames_path, fpa_c=fpa_c)
     result = run_pipeline(rec.frames, estimator, fpa_c=rec.fpa_c, pivot=pivot,
-                          registered=registered)
+                          registered=registered, force=force)
+    if result.outside:
+        click.echo(f"thermocal: warning: {frames_path} lies outside what {method} was "
+                   f"trained or fitted on ({'; '.join(result.outside)}); estimated all the same "
+                   "(--force)", err=True)
     write_temperature_tiff(out, result.temperature_c)
     return out
 
@@ -77,6 +85,9 @@ def estimate_file(
     help="Per-pixel calibration file (thermocal calibrate), for --method "
     + "|".join(n for n, e in ESTIMATORS.items() if e.needs == "calibration") + ".",
 )
+@click.option("--force", is_flag=True,
+              help="Estimate a burst outside the method's domain (its FPA and scene range, its "
+              "camera family) instead of refusing it; a warning names why.")
 def estimate(
     frames: Path,
     out: Path,
@@ -86,6 +97,7 @@ def estimate(
     pivot: int | None,
     registered: bool,
     calibration: Path | None,
+    force: bool,
 ) -> None:
     """Estimate the scene temperature of a burst's pivot frame (by default the shipped network,
     Oz et al.'s KPN + offset; --method for the others).
@@ -101,5 +113,6 @@ def estimate(
         pivot=pivot,
         registered=registered,
         calibration=calibration,
+        force=force,
     )
     click.echo(f"wrote {out}", err=True)

@@ -8,7 +8,9 @@ One path for every estimator (:mod:`thermocal.estimation.registry`) and every ca
 2. **register** it onto the pivot (homographies given, taken as registered, or found:
    :func:`thermocal.burst.find_homographies`);
 3. **fill** its stuck pixels (:func:`thermocal.burst.fill_stuck_pixels`);
-4. **calibrate** each raw frame where it lies on the sensor (the estimator's per-pixel map);
+4. **calibrate** each raw frame where it lies on the sensor (the estimator's per-pixel map),
+   and check that the burst lies inside the estimator's domain (refused otherwise, unless
+   ``force``);
 5. **warp** the calibrated frames onto the pivot and check the overlap;
 6. **estimate** the pivot's temperature (the estimator) → :class:`Estimate`.
 """
@@ -27,11 +29,11 @@ from thermocal.burst import (
     fpa_value,
     pivot_index,
 )
-from thermocal.errors import InvalidInputError
+from thermocal.errors import InvalidInputError, OutsideDomainError
 from thermocal.estimation.base import Estimate, Estimator, PreparedBurst
 from thermocal.registration.warp import warp_to_pivot
 
-__all__ = ["estimate", "register_stage"]
+__all__ = ["domain_stage", "estimate", "register_stage"]
 
 
 def register_stage(
@@ -44,6 +46,21 @@ def register_stage(
     return find_homographies(frames, pivot, homographies)
 
 
+def domain_stage(estimator: Estimator, calibrated: np.ndarray, fpa_c: float | None, *,
+                 force: bool) -> tuple[str, ...]:
+    """Stage 4's check: why the burst lies outside ``estimator``'s domain (``()`` inside).
+
+    Raises
+    ------
+    OutsideDomainError
+        Outside, unless ``force``: one line with every reason and the estimator's remedy.
+    """
+    reasons = estimator.outside(calibrated, fpa_c)
+    if reasons and not force:
+        raise OutsideDomainError(f"{'; '.join(reasons)}; {estimator.remedy}")
+    return reasons
+
+
 def estimate(
     frames: Any,
     estimator: Estimator,
@@ -54,6 +71,7 @@ def estimate(
     registered: bool = False,
     homographies: Any = None,
     fill_defects: bool = True,
+    force: bool = False,
 ) -> Estimate:
     """The pivot frame's temperature of a raw burst through ``estimator``.
 
@@ -78,11 +96,17 @@ def estimate(
     fill_defects : bool
         Replace the burst's stuck pixels by their neighbours' median before calibrating
         (otherwise each leaves a short trail along the motion).
+    force : bool
+        Estimate a burst outside the estimator's domain all the same; the reasons are kept in
+        :attr:`Estimate.outside`.
 
     Raises
     ------
     InvalidInputError
         A bad burst (saturated, constant, wrong length or size), pivot or FPA temperature.
+    OutsideDomainError
+        The burst lies outside what the estimator was fitted or trained on (not with
+        ``force``).
     RegistrationError
         Registration failed or the frames do not overlap.
     """
@@ -95,8 +119,10 @@ def estimate(
         valid = np.zeros(arr.shape, dtype=bool)
         valid[p] = True
         hs = np.repeat(np.eye(3)[None], arr.shape[0], axis=0)
-        burst = PreparedBurst(arr, estimator.calibrate(arr, fpa_c, time_s), valid, hs, p, fpa)
-        return Estimate(estimator.estimate(burst), valid.sum(axis=0), hs, p)
+        calibrated = estimator.calibrate(arr, fpa_c, time_s)
+        outside = domain_stage(estimator, calibrated, fpa, force=force)
+        burst = PreparedBurst(arr, calibrated, valid, hs, p, fpa)
+        return Estimate(estimator.estimate(burst), valid.sum(axis=0), hs, p, outside)
     if registered and not estimator.accepts_registered:
         raise InvalidInputError(
             "each frame is calibrated where it lies on the sensor, before registration: give "
@@ -108,6 +134,7 @@ def estimate(
     filled = fill_stuck_pixels(arr, hs)[0] if fill_defects and not registered else arr
     # 4. calibrate
     calibrated = estimator.calibrate(filled, fpa_c if fpa is None else fpa, time_s)
+    outside = domain_stage(estimator, calibrated, fpa, force=force)
     # 5. warp
     if registered and homographies is None:
         warped = np.asarray(calibrated, dtype=np.float32)
@@ -118,4 +145,4 @@ def estimate(
     check_overlap(valid, p)
     # 6. estimate
     burst = PreparedBurst(filled, warped, valid, hs, p, fpa)
-    return Estimate(estimator.estimate(burst), valid.sum(axis=0), hs, p)
+    return Estimate(estimator.estimate(burst), valid.sum(axis=0), hs, p, outside)

@@ -35,7 +35,7 @@ import numpy as np
 from thermocal.burst import fill_stuck_pixels
 from thermocal.camera.model import CameraModel, render
 from thermocal.camera.presets import PRESETS, make_camera
-from thermocal.camera.thermal import ThermalParams, fpa_sensor
+from thermocal.camera.thermal import WARMED_UP_S, fpa_sensor
 from thermocal.errors import InvalidInputError
 from thermocal.nn.inputs import (
     calibrate_frames,
@@ -85,7 +85,8 @@ TRAIN_EXCLUDED_SCENES: frozenset[str] = frozenset(
     {"example_radiometric", "10_ir_fussbodenheizung", *EVAL_SCENES}
 )
 
-_THERMAL = ThermalParams()
+#: Frame rate of a synthetic burst, Hz (the Tau2's 9 Hz export rate).
+BURST_FPS = 9.0
 
 
 @dataclass(frozen=True)
@@ -586,15 +587,21 @@ def make_burst(
     if cfg.redraw_pixel_fpn:
         cam = redraw_pixel_fpn(cam, top + lo[0], left + lo[1], rng)
     fpa_true = float(rng.uniform(*cfg.fpa_range_c)) if fpa_c is None else float(fpa_c)
-    housing = fpa_true - _THERMAL.fpa_self_heating_c
+    housing = fpa_true - cam.thermal.fpa_self_heating_c
+    # frame times since switch-on, for a family that drifts (its draw only then: the others'
+    # bursts stay as they were)
+    times = (WARMED_UP_S + rng.uniform(0.0, 3600.0) + np.arange(n) / BURST_FPS
+             if cam.drifts else np.full(n, None))
     if cfg.sensor_motion:
         windows = [_without_defects(cam.crop(dy - lo[0], dx - lo[1], s, s)) for dy, dx in moves]
-        raw = np.concatenate([render(w, truth[i : i + 1], fpa_true, housing_c=housing, rng=rng)
+        raw = np.concatenate([render(w, truth[i : i + 1], fpa_true, housing_c=housing, rng=rng,
+                                     time_s=times[i])
                               for i, w in enumerate(windows)])
         cam = windows[pivot]
     else:
-        raw = render(cam, truth, fpa_true, housing_c=housing, rng=rng)
-    fpa_read = float(fpa_sensor(np.array([fpa_true]), _THERMAL, rng=rng)[0])
+        raw = render(cam, truth, fpa_true, housing_c=housing, rng=rng,
+                     time_s=times if cam.drifts else None)
+    fpa_read = float(fpa_sensor(np.array([fpa_true]), cam.thermal, rng=rng)[0])
 
     h_reg = trajectory.perturb_homographies(
         h_true,

@@ -28,6 +28,7 @@ from thermocal.nn.inputs import (
 )
 from thermocal.nn.model import KPN, frame_means
 from thermocal.nn.store import load_model, nominal_for
+from thermocal.nn.validity import REMEDY, Domain, outside_domain
 from thermocal.nn.variants import VARIANTS
 from thermocal.registration.warp import warp_to_pivot
 
@@ -202,10 +203,12 @@ class NetworkEstimator:
 
     needs_fpa = True
     per_frame = False
+    remedy = REMEDY
 
-    def __init__(self, model: KPN, norm: Normalisation) -> None:
+    def __init__(self, model: KPN, norm: Normalisation, domain: Domain | None = None) -> None:
         self.model = model
         self.norm = norm
+        self.domain = domain
         self.name = model.config.variant
         self.n_frames = model.config.n_frames
         # a calibrated network calibrates each frame where it lies on the sensor
@@ -217,13 +220,14 @@ class NetworkEstimator:
         """The network ``method`` from weights file ``path`` (default: the shipped one),
         refused when the file holds another variant."""
         path = Path(path) if path is not None else shipped_model_path(method)
-        model, norm, _ = load_model(path)
+        model, norm, content = load_model(path)
         if model.config.variant != method:
             raise InvalidInputError(
                 f"{path} holds a {model.config.variant} model, not {method}; pass the right "
                 "--model or --method"
             )
-        return cls(model, norm)
+        nominal = model.nominal.info if model.config.calibrated else None
+        return cls(model, norm, Domain.of_network(content["data"], nominal))
 
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
         n_model = self.model.config.n_frames
@@ -242,6 +246,14 @@ class NetworkEstimator:
         if not self.model.config.calibrated:
             return frames
         return calibrated_frames(self.model, frames, fpa_c)
+
+    def outside(self, calibrated: np.ndarray, fpa_c: float | None) -> tuple[str, ...]:
+        """:func:`thermocal.nn.validity.outside_domain` of the network's training domain (the
+        FPA range alone for a network of raw counts; nothing without a ``domain``)."""
+        if self.domain is None or fpa_c is None:
+            return ()
+        frames_c = calibrated if self.model.config.calibrated else None
+        return outside_domain(self.domain, frames_c, fpa_c)
 
     def estimate(self, burst: PreparedBurst) -> np.ndarray:
         p, valid = burst.pivot, burst.valid

@@ -18,7 +18,6 @@ import numpy as np
 from thermocal.calibration.base import fill_bad_pixels
 from thermocal.camera.model import CameraModel, invert
 from thermocal.camera.presets import CameraPreset, make_camera, radial_map
-from thermocal.camera.thermal import ThermalParams
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import InvalidInputError
 from thermocal.radiometry import band_table
@@ -33,8 +32,6 @@ __all__ = [
     "preset_nominal",
     "sensor_r2",
 ]
-
-_THERMAL = ThermalParams()
 
 
 @dataclass(frozen=True)
@@ -185,4 +182,4 @@ def calibrate_frames(nominal: CameraModel, counts: np.ndarray, fpa_c: Any) -> np
     ``(N, H, W)`` °C, float32, through that model's exact inverse at the reported FPA
     temperature ``fpa_c`` (°C, one or one per frame; the camera settled: housing = FPA − its
     self-heating)."""
-    return invert(nominal, counts, fpa_c, housing_c=fpa_c - _THERMAL.fpa_self_heating_c)
+    return invert(nominal, counts, fpa_c, housing_c=fpa_c - nominal.thermal.fpa_self_heating_c)

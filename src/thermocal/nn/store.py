@@ -36,7 +36,7 @@ import torch
 
 from thermocal.calibration.base import UnverifiedFileWarning
 from thermocal.camera.model import CameraModel
-from thermocal.camera.presets import CameraPreset
+from thermocal.camera.presets import CameraPreset, family_physics
 from thermocal.errors import FileFormatError, InvalidInputError
 from thermocal.io.atomic import atomic_path
 from thermocal.nn.data import BurstConfig
@@ -392,12 +392,15 @@ def _nominal_of(payload: dict[str, Any], config: ModelConfig) -> CameraModel:
         raise InvalidInputError("its camera model does not match the checksum stored with it")
     if not all(np.all(np.isfinite(m)) for m in maps.values()) or not np.all(maps["gain"][0] > 0):
         raise InvalidInputError("its camera model has non-finite or non-positive gain terms")
-    if params:
-        _preset_of(params)  # refused here, not when another frame size first needs it
+    # the family's physics beyond the maps (refused here, not when another frame size first
+    # needs the preset); a chamber fit is of the polynomial form
+    preset = _preset_of(params) if params else None
+    physics = family_physics(preset) if preset else {}
+    response = tuple(preset.spectral_response) if preset else ()
     return CameraModel(
         **maps, defects=np.zeros(maps["housing"].shape, bool),
         defect_counts=np.zeros(maps["housing"].shape, np.uint16),
-        **scalars, band=band_table(tuple(config.band_m)),
+        **scalars, **physics, band=band_table(tuple(config.band_m), response),
         info={"preset": params["name"] if params else None, "units": units,
               "preset_parameters": params},
     )
@@ -444,9 +447,8 @@ def _preset_of(params: dict[str, Any]) -> CameraPreset:
     """The :class:`~thermocal.camera.presets.CameraPreset` of stored parameters
     (:class:`InvalidInputError` for parameters it does not have)."""
     try:
-        return CameraPreset(**{k: tuple(v) if isinstance(v, list) else v
-                               for k, v in params.items()})
-    except TypeError as exc:
+        return CameraPreset.from_dict(params)
+    except (TypeError, InvalidInputError) as exc:
         raise InvalidInputError(f"its camera preset parameters are not thermocal's ({exc})"
                                 ) from None
 

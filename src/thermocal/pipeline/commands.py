@@ -26,9 +26,12 @@ from thermocal.progress import progress_bar
 @click.option("--fpa-c", type=float, default=None, help="FPA temperature, °C (overrides sidecar).")
 @click.option("--preview-every", type=int, default=1, show_default=True,
               help="A PNG preview every K pivots (0: none).")
+@click.option("--force", is_flag=True,
+              help="Estimate groups outside the method's domain (FPA or scene range, camera "
+              "family) instead of failing them; the log says why each is not validated.")
 def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
            model: str | None, n_frames: int, stride: int, fpa_c: float | None,
-           preview_every: int) -> None:
+           preview_every: int, force: bool) -> None:
     """Turn a whole RECORDING (frames.tiff + sidecar) into one temperature map per pivot."""
     from thermocal._validate import check_not_input
     from thermocal.errors import ThermocalError
@@ -37,7 +40,8 @@ def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
 
     check_not_input(out_dir, recording, calibration, model)
     options = FlightOptions(method=method, calibration=calibration, model=model, frames=n_frames,
-                            stride=stride, fpa_c=fpa_c, preview_every=preview_every)
+                            stride=stride, fpa_c=fpa_c, preview_every=preview_every,
+                            force=force)
     total = read_recording_header(recording).n_frames
     with progress_bar() as bar:
         task = bar.add_task("flight", total=total - total % stride or total)

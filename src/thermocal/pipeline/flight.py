@@ -82,6 +82,7 @@ class FlightOptions:
     stride: int = 7
     fpa_c: float | None = None
     preview_every: int = 1
+    force: bool = False
 
     def __post_init__(self) -> None:
         info = ESTIMATORS.get(self.method)
@@ -277,12 +278,15 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
                 run.sequence.correlation[local + 1 : local + n].min())
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            temp = estimate(
+            result = estimate(
                 group, estimator,
                 fpa_c=None if fpa is None else fpa[first : first + n],
                 time_s=None if time_s is None else time_s[first : first + n],
-                pivot=n // 2, homographies=homographies).temperature_c
+                pivot=n // 2, homographies=homographies, force=options.force)
+            temp = result.temperature_c
         entry["warnings"] = sorted({str(w.message) for w in caught})
+        if result.outside:  # estimated all the same (--force): why it is not validated
+            entry["warnings"].append(f"outside the domain (--force): {'; '.join(result.outside)}")
     except (RegistrationError, InvalidInputError) as exc:
         entry["error"] = str(exc)
         tally.failed += 1

@@ -24,6 +24,7 @@ from thermocal._validate import (
 )
 from thermocal.camera.model import CameraModel, render
 from thermocal.camera.thermal import (
+    WARMED_UP_S,
     ThermalParams,
     ambient_profile,
     fpa_sensor,
@@ -108,7 +109,7 @@ def check_chamber_run(
     plan: ChamberPlan,
     frame_shape: tuple[int, int],
     *,
-    thermal: ThermalParams = ThermalParams(),
+    thermal: ThermalParams | None = None,
     folder: str | os.PathLike[str] | None = None,
 ) -> None:
     """Check, before any work, that ``plan`` can be simulated for frames of ``frame_shape``
@@ -121,6 +122,7 @@ def check_chamber_run(
     InvalidInputError
         If not.
     """
+    thermal = thermal or ThermalParams()
     lo, hi = FPA_RANGE_C
     for ambient in plan.ambient_c:
         fpa = thermal.steady_fpa_c(ambient)
@@ -183,11 +185,14 @@ def simulate_chamber(
     plan: ChamberPlan = ChamberPlan(),
     *,
     seed: int = 0,
-    thermal: ThermalParams = ThermalParams(),
+    thermal: ThermalParams | None = None,
     chunk: int | None = None,
 ) -> Iterator[ChamberChunk]:
     """Yield the session in chunks of at most ``chunk`` frames (memory stays bounded; default
-    :data:`CHUNK_FRAMES`, fewer for very large frames). The frames do not depend on ``chunk``."""
+    :data:`CHUNK_FRAMES`, fewer for very large frames). The frames do not depend on ``chunk``.
+    ``thermal``: the camera's lags (default its family's, ``camera.thermal``); the session
+    starts :data:`~thermocal.camera.thermal.WARMED_UP_S` after switch-on."""
+    thermal = thermal or camera.thermal
     if chunk is None:
         chunk = frames_per_chunk(camera.shape, CHUNK_FRAMES)
     rng = np.random.default_rng(seed)
@@ -207,8 +212,9 @@ def simulate_chamber(
             effective_c[s],
             state.fpa_c[s],
             housing_c=state.housing_c[s],
-            fpa_rate_c_per_min=state.fpa_rate_c_per_min[s],
+            fpa_rate_c_per_min=state.transient_rate_c_per_min[s],
             rng=rng,
+            time_s=time_s[s] + WARMED_UP_S,
         )
         yield ChamberChunk(
             frames=frames,
@@ -228,7 +234,7 @@ def write_simulated_chamber(
     plan: ChamberPlan = ChamberPlan(),
     *,
     seed: int = 0,
-    thermal: ThermalParams = ThermalParams(),
+    thermal: ThermalParams | None = None,
     progress: Callable[[int], None] | None = None,
 ) -> int:
     """Simulate a session and stream it into a chamber HDF5 file; returns the number of frames.
@@ -239,6 +245,7 @@ def write_simulated_chamber(
     """
     from thermocal.io.chamber import ChamberWriter
 
+    thermal = thermal or camera.thermal
     check_chamber_run(plan, camera.shape, thermal=thermal, folder=Path(path).parent)
 
     attrs = {

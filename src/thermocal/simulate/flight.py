@@ -19,7 +19,13 @@ import tifffile
 
 from thermocal._validate import MAX_DATA_FRAMES, as_temperature_c, check_data_size, check_fpa_c
 from thermocal.camera.model import CameraModel, render
-from thermocal.camera.thermal import ThermalParams, ambient_profile, fpa_sensor, thermal_response
+from thermocal.camera.thermal import (
+    WARMED_UP_S,
+    ThermalParams,
+    ambient_profile,
+    fpa_sensor,
+    thermal_response,
+)
 from thermocal.errors import InvalidInputError
 from thermocal.registration.warp import render_views
 from thermocal.scenes import trajectory
@@ -123,13 +129,15 @@ def plan_flight(
     fpa_c: float = 30.0,
     fps: float = 30.0,
     seed: int = 0,
-    thermal: ThermalParams = ThermalParams(),
+    thermal: ThermalParams | None = None,
 ) -> FlightPlan:
     """Lay out a flight of ``camera`` over ``scene_c`` (°C map, any size: resized into a map).
 
     The camera has settled at a constant ambient that puts its FPA at ``fpa_c`` (°C); the FPA
     sensor reading is quantised and noisy (:func:`thermocal.camera.thermal.fpa_sensor`).
+    ``thermal``: default the camera family's (``camera.thermal``).
     """
+    thermal = thermal or camera.thermal
     _check_flight_numbers(n_frames, fps)
     check_fpa_c(fpa_c, "fpa_c")
     scene = as_temperature_c(scene_c, "scene", ndim=2)
@@ -151,7 +159,7 @@ def plan_flight(
         ambient_c=ambient,
         housing_c=state.housing_c,
         fpa_true_c=state.fpa_c,
-        fpa_rate_c_per_min=state.fpa_rate_c_per_min,
+        fpa_rate_c_per_min=state.transient_rate_c_per_min,  # as the transient term sees it
         fpa_c=fpa_sensor(state.fpa_c, thermal, rng=rng),
         seed=seed,
     )
@@ -217,6 +225,7 @@ def iter_flight(plan: FlightPlan, camera: CameraModel, *, chunk: int | None = No
             housing_c=plan.housing_c[s],
             fpa_rate_c_per_min=plan.fpa_rate_c_per_min[s],
             rng=rng,
+            time_s=plan.time_s[s] + WARMED_UP_S,
         )
         yield FlightChunk(
             start=start,
@@ -239,7 +248,7 @@ def simulate_flight(
     fpa_c: float = 30.0,
     fps: float = 30.0,
     seed: int = 0,
-    thermal: ThermalParams = ThermalParams(),
+    thermal: ThermalParams | None = None,
 ) -> Flight:
     """Fly ``camera`` over ``scene_c`` and return the whole flight in memory (short flights).
 

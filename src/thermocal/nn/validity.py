@@ -1,0 +1,146 @@
+"""Whether a burst lies inside what a network was trained on (numpy only).
+
+A network trained on synthetic bursts of one camera family is a model of that family, not of
+microbolometers in general: on another family it can be wrong by several °C with nothing in its
+output to show it (issue 18: 1.4–10 °C per burst on the ``boson`` family for the ``tau2``-trained
+shipped network). Before it runs, the burst is checked against the network's domain, read from
+its weights file:
+
+- the **FPA temperature** within the training range (``BurstConfig.fpa_range_c``);
+- the **scene**: the burst's median, through the network's own nominal calibration, within the
+  range of training scene levels, and its 1st–99th percentiles within the clip range;
+- the **family's fixed pattern**: the line pattern that the nominal calibration leaves must run
+  the way the family's does (``tau2``: columns, Oz et al. eq. 19). A camera whose lines run the
+  other way is not of the family, however plausible its counts.
+
+What no check at one FPA temperature can see (a family with the same line pattern but another
+response to the FPA temperature) is what the network's uncertainty must cover.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.ndimage import gaussian_filter
+
+from thermocal.camera.presets import CameraPreset
+
+__all__ = ["LINE_RATIO_MAX", "REMEDY", "Domain", "line_patterns", "outside_domain"]
+
+#: What to do about a burst outside the network's domain.
+REMEDY = ("train from a chamber session of this camera: `thermocal train --chamber`, or "
+          "calibrate it (`thermocal calibrate`); --force gives the estimate with its "
+          "uncertainty inflated")
+
+#: Largest ratio of the cross-line pattern to the family's own line pattern (°C / °C) of a
+#: burst of the family. ``tau2`` bursts through the shipped network's nominal calibration: at
+#: most 0.2 on the held-out set; ``boson`` bursts: at least 1.3 (benchmarks/physics.py).
+LINE_RATIO_MAX = 0.6
+
+#: σ of the high-pass that isolates the fixed pattern from the scene, px.
+_HIGH_PASS_PX = 6.0
+
+
+@dataclass(frozen=True)
+class Domain:
+    """What a network was trained on.
+
+    Attributes
+    ----------
+    fpa_range_c : (float, float)
+        FPA temperatures of the training bursts, °C.
+    scene_level_c : (float, float)
+        Range of the training scenes' mean temperatures, °C.
+    scene_clip_c : (float, float)
+        Range of every training pixel's temperature, °C.
+    family : str or None
+        The camera family (preset name) of the training units; None for a network trained on
+        one unit's chamber fit.
+    line_fpn : str or None
+        The family's line pattern: ``"column"`` or ``"row"`` (None: not checked).
+    """
+
+    fpa_range_c: tuple[float, float]
+    scene_level_c: tuple[float, float]
+    scene_clip_c: tuple[float, float]
+    family: str | None = None
+    line_fpn: str | None = None
+
+    @classmethod
+    def of_network(cls, data: dict[str, Any], nominal_info: dict[str, Any] | None) -> Domain:
+        """The domain of a network from its weights file's training ``data`` (the
+        :class:`~thermocal.nn.data.BurstConfig` stored there) and its nominal camera's
+        ``info`` (the family's preset parameters, when it is a preset's average)."""
+        params = (nominal_info or {}).get("preset_parameters")
+        family = line = None
+        if params:
+            preset = CameraPreset.from_dict(params)
+            family, line = preset.name, preset.fpn.split("-")[0]
+        return cls(tuple(data["fpa_range_c"]), tuple(data["temp_mean_range_c"]),
+                   tuple(data["temp_clip_c"]), family, line)
+
+
+def line_patterns(frames_c: np.ndarray) -> tuple[float, float]:
+    """The row and the column pattern of calibrated frames ``(N, H, W)`` °C: for each frame, the
+    spread (std) of the per-row (per-column) medians of its high-pass (the frame less a Gaussian
+    blur of σ = 6 px); the median over the frames. Returns ``(rows, columns)`` in °C.
+
+    A scene's edges spread over few pixels of a line, so the medians along lines keep the fixed
+    pattern and drop the scene."""
+    rows, cols = [], []
+    for frame in np.asarray(frames_c, dtype=np.float32):
+        high = frame - gaussian_filter(frame, _HIGH_PASS_PX, mode="nearest")
+        rows.append(float(np.std(np.median(high, axis=1))))
+        cols.append(float(np.std(np.median(high, axis=0))))
+    return float(np.median(rows)), float(np.median(cols))
+
+
+def outside_domain(domain: Domain, frames_c: np.ndarray | None, fpa_c: float
+                   ) -> tuple[str, ...]:
+    """Why a burst lies outside ``domain``: ``()`` when it lies inside.
+
+    Parameters
+    ----------
+    domain : Domain
+    frames_c : (N, H, W) float32 or None
+        The burst's raw frames through the network's nominal calibration, °C (where each frame
+        lies on the sensor, before warping); None (a network of raw counts): the FPA alone.
+    fpa_c : float
+        The burst's FPA temperature, °C.
+
+    Returns
+    -------
+    tuple of str
+        One clause per failed check, e.g. ``"the FPA temperature 55.0 °C is outside the 10–50 °C
+        the network was trained on"``.
+    """
+    reasons = []
+    lo, hi = domain.fpa_range_c
+    if not lo <= fpa_c <= hi:
+        reasons.append(f"the FPA temperature {fpa_c:.1f} °C is outside the {lo:g}–{hi:g} °C "
+                       "the network was trained on")
+    if frames_c is None:
+        return tuple(reasons)
+    level = float(np.median(frames_c))
+    lo, hi = domain.scene_level_c
+    if not lo <= level <= hi:
+        reasons.append(f"the scene's median {level:.1f} °C is outside the {lo:g}–{hi:g} °C of "
+                       "its training scenes")
+    p1, p99 = (float(v) for v in np.percentile(frames_c, [1, 99]))
+    lo, hi = domain.scene_clip_c
+    if p1 < lo or p99 > hi:
+        reasons.append(f"the scene spans {p1:.0f}…{p99:.0f} °C, beyond the {lo:g}…{hi:g} °C of "
+                       "its training scenes")
+    if domain.line_fpn in ("column", "row"):
+        rows, cols = line_patterns(frames_c)
+        own, cross = (cols, rows) if domain.line_fpn == "column" else (rows, cols)
+        if cross > LINE_RATIO_MAX * own:
+            other = "row" if domain.line_fpn == "column" else "column"
+            reasons.append(
+                f"its fixed pattern runs along {other}s ({cross:.2f} °C against {own:.2f} °C "
+                f"along {domain.line_fpn}s): not a camera of the {domain.family} family the "
+                "network was trained on"
+            )
+    return tuple(reasons)
