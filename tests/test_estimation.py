@@ -63,6 +63,9 @@ class Recorder:
         self.burst = burst
         return burst.warped[burst.pivot]
 
+    def uncertainty(self, burst, temperature_c, *, outside):
+        return np.full(temperature_c.shape, 9.0 if outside else 1.0, np.float32)
+
 
 def test_pipeline_stages_in_order_on_the_filled_frames(flight):
     rec = Recorder()
@@ -232,7 +235,7 @@ def test_outside_the_domain_is_refused_unless_forced(flight):
         assert rec.burst is None  # refused before the estimate
         est = estimate(flight.frames, Recorder(per_frame=per_frame, outside=("too hot",)),
                        fpa_c=flight.fpa_c, homographies=flight.homographies, force=True)
-        assert est.outside == ("too hot",)
+        assert est.outside == ("too hot",) and np.all(est.sigma_c == 9.0)
     inside = estimate(flight.frames, Recorder(), fpa_c=flight.fpa_c,
                       homographies=flight.homographies)
-    assert inside.outside == ()
+    assert inside.outside == () and np.all(inside.sigma_c == 1.0)

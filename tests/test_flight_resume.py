@@ -117,7 +117,9 @@ def test_interrupted_run_resumes_to_the_same_bytes(data, tmp_path, tmp_path_fact
         _interrupt_after(m, k)
         with pytest.raises(KeyboardInterrupt):
             process_flight(data / "flight" / "frames.tiff", out, options)
-    assert len(list((out / "temps").iterdir())) == k
+    maps = [p for p in (out / "temps").iterdir() if not p.stem.endswith("_sigma")]
+    sigmas = [p for p in (out / "temps").iterdir() if p.stem.endswith("_sigma")]
+    assert len(maps) == k and len(sigmas) == (k if method == "kpn" else 0)
     summary = process_flight(data / "flight" / "frames.tiff", out, options)
     assert summary["skipped_already_done"] == k
     assert summary["processed"] == summary["groups"] - k
@@ -407,3 +409,22 @@ def test_sigkill_then_rerun_gives_the_same_bytes(data, tmp_path):
     assert _outputs(out) == _outputs(tmp_path / "reference"), f"killed: {killed}"
     summary = json.loads((out / "summary.json").read_text())
     assert summary["processed"] + summary["skipped_already_done"] == summary["groups"] == 37
+
+
+def test_a_damaged_sigma_map_is_redone(data, tmp_path, tmp_path_factory):
+    """A finished pivot whose σ map is damaged is redone: the resumed outputs are the
+    uninterrupted run's, σ maps included."""
+    pytest.importorskip("torch")
+    options = _options(data, "kpn", stride=7)
+    reference = _reference(data, options, tmp_path_factory)
+    assert any(k.endswith("_sigma.tiff") for k in reference)
+    out = tmp_path / "out"
+    process_flight(data / "flight" / "frames.tiff", out, options)
+    damaged = sorted((out / "temps").glob("*_sigma.tiff"))[0]
+    damaged.write_bytes(damaged.read_bytes()[:-100])
+    summary = process_flight(data / "flight" / "frames.tiff", out, options)
+    assert summary["processed"] == 1 and summary["sigma_c"]["maps"] == summary["groups"]
+    got = _outputs(out)
+    log, ref_log = got.pop("log.jsonl").splitlines(), reference["log.jsonl"].splitlines()
+    assert log[: len(ref_log)] == ref_log and log[-1] == ref_log[0]  # pivot 3, redone the same
+    assert got == {k: v for k, v in reference.items() if k != "log.jsonl"}

@@ -67,6 +67,20 @@ def _network():
         return None, f"network skipped: {exc}"
 
 
+KPN_ROW = "KPN + offset (calibration-free)"
+
+
+def _coverage(estimate: np.ndarray, sigma: list[np.ndarray] | None, truth: np.ndarray,
+              valid: np.ndarray) -> dict[str, float]:
+    """Median σ and the share of pixels within 1σ and 2σ (nothing without σ)."""
+    if not sigma:
+        return {}
+    s = np.stack(sigma)[valid]
+    z = np.abs(estimate - truth)[valid] / s
+    return {"median_sigma_c": float(np.median(s)), "within_1sigma": float(np.mean(z <= 1)),
+            "within_2sigma": float(np.mean(z <= 2))}
+
+
 def _scores(estimate: np.ndarray, truth: np.ndarray, valid: np.ndarray) -> dict[str, float]:
     return {
         "mae_c": metrics.mae(estimate, truth, valid=valid),
@@ -96,6 +110,7 @@ def run_demo(out_dir: str | Path, *, unit: int = DEMO_UNIT, size=(336, 256),
                              fpa_c=FLIGHT_FPA_C, seed=seed + 1)
     pivots = [g * N_FRAMES + N_FRAMES // 2 for g in range(N_GROUPS)]
     estimates: dict[str, list[np.ndarray]] = {}
+    sigmas: dict[str, list[np.ndarray]] = {}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # e.g. the two-point used away from its FPA: shown below
         for pivot in pivots:
@@ -107,8 +122,9 @@ def run_demo(out_dir: str | Path, *, unit: int = DEMO_UNIT, size=(336, 256),
                 estimates.setdefault(name, []).append(est.temperature_c)
             if network is not None:
                 est = estimate(group, network, fpa_c=fpa)
-                estimates.setdefault("KPN + offset (calibration-free)", []).append(
-                    est.temperature_c)
+                estimates.setdefault(KPN_ROW, []).append(est.temperature_c)
+                if est.sigma_c is not None:
+                    sigmas.setdefault(KPN_ROW, []).append(est.sigma_c)
             oracle = invert(camera, flight.frames[pivot], flight.fpa_true_c[pivot],
                             housing_c=flight.housing_c[pivot])[0]
             estimates.setdefault("true camera model (oracle)", []).append(oracle)
@@ -116,18 +132,23 @@ def run_demo(out_dir: str | Path, *, unit: int = DEMO_UNIT, size=(336, 256),
     truth = flight.truth_c[pivots]
     # The unit's few dead and hot pixels carry no information: scored everywhere else.
     valid = np.broadcast_to(~camera.defects, truth.shape)
-    rows = [{"method": m, **_scores(np.stack(e), truth, valid)} for m, e in estimates.items()]
+    rows = [{"method": m, **_scores(np.stack(e), truth, valid),
+             **_coverage(np.stack(e), sigmas.get(m), truth, valid)} for m, e in estimates.items()]
 
     table = Table(title=(
         f"Tau2-class unit {unit} ({size[0]}x{size[1]}), never seen by the network; UAV pass over "
         f"the built-in aerial scene at FPA {FLIGHT_FPA_C:.0f} °C; {N_GROUPS} pivot frames of "
         f"{N_FRAMES}-frame groups; dead/hot pixels excluded"))
-    for col in ("method", "MAE °C", "RMSE °C", "within 0.5 °C"):
+    for col in ("method", "MAE °C", "RMSE °C", "within 0.5 °C", "median σ °C", "within 2σ"):
         table.add_column(col, justify="left" if col == "method" else "right")
     for r in rows:
+        has_sigma = "median_sigma_c" in r
         table.add_row(r["method"], f"{r['mae_c']:.3f}", f"{r['rmse_c']:.3f}",
-                      f"{100 * r['within_0.5c']:.1f} %")
+                      f"{100 * r['within_0.5c']:.1f} %",
+                      f"{r['median_sigma_c']:.2f}" if has_sigma else "–",
+                      f"{100 * r['within_2sigma']:.1f} %" if has_sigma else "–")
     console.print(table)
+    console.print("σ: the estimate's own standard uncertainty (– : none yet for calibrations)")
     if note:
         console.print(note)
 
@@ -137,6 +158,12 @@ def run_demo(out_dir: str | Path, *, unit: int = DEMO_UNIT, size=(336, 256),
         title=f"pivot frame {pivots[0]}, FPA {FLIGHT_FPA_C:.0f} °C, camera unit {unit}")}
     figures["error_cdf.png"] = error_cdf_figure(
         {m: np.stack(e) for m, e in estimates.items()}, truth, valid=valid)
+    if KPN_ROW in sigmas:
+        from thermocal.plotting import uncertainty_figure
+
+        figures["uncertainty.png"] = uncertainty_figure(
+            estimates[KPN_ROW][0], sigmas[KPN_ROW][0], truth[0], valid=~camera.defects,
+            title=f"{KPN_ROW}: pivot frame {pivots[0]} and its uncertainty")
     fig7 = _fig7_results()
     if fig7 is not None:
         from thermocal.plotting import mae_vs_frames_figure

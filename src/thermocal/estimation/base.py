@@ -28,6 +28,9 @@ class Estimate:
     outside : tuple of str
         Why the burst lies outside the estimator's domain (:meth:`Estimator.outside`), when it
         was estimated all the same (``force``); ``()`` inside.
+    sigma_c : (H, W) float32 or None
+        Standard uncertainty (1σ) of ``temperature_c``, °C (:meth:`Estimator.uncertainty`);
+        inflated outside the domain. None: the estimator has no uncertainty model.
     """
 
     temperature_c: np.ndarray
@@ -35,6 +38,7 @@ class Estimate:
     homographies: np.ndarray
     pivot: int
     outside: tuple[str, ...] = ()
+    sigma_c: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -118,4 +122,11 @@ class Estimator(Protocol):
 
     def estimate(self, burst: PreparedBurst) -> np.ndarray:
         """The pivot frame's temperature, °C ``(H, W)`` float32."""
+        ...
+
+    def uncertainty(self, burst: PreparedBurst, temperature_c: np.ndarray, *, outside: bool
+                    ) -> np.ndarray | None:
+        """The standard uncertainty (1σ, °C, ``(H, W)`` float32) of :meth:`estimate`'s
+        ``temperature_c``, inflated when the burst lies ``outside`` the domain; None without an
+        uncertainty model."""
         ...

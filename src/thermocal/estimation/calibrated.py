@@ -31,6 +31,11 @@ class _ThroughCalibration:
         :class:`~thermocal.calibration.base.OutsideCalibrationRangeWarning`)."""
         return ()
 
+    def uncertainty(self, burst: PreparedBurst, temperature_c: np.ndarray, *, outside: bool
+                    ) -> np.ndarray | None:
+        """None: a calibration's σ comes with its cross-validation report (not yet here)."""
+        return None
+
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
         shape = tuple(self.calibration.shape)
         if shape != frames.shape[1:]:

@@ -8,6 +8,7 @@ from pathlib import Path
 import click
 
 from thermocal._validate import TIFF_SUFFIXES, check_not_input, check_output_file
+from thermocal.errors import InvalidInputError
 from thermocal.estimation.pipeline import estimate as run_pipeline
 from thermocal.estimation.registry import ESTIMATORS, make_estimator, method_help
 
@@ -25,6 +26,7 @@ def estimate_file(
     registered: bool = False,
     calibration: str | os.PathLike[str] | None = None,
     force: bool = False,
+    sigma_out: str | os.PathLike[str] | None = None,
 ) -> Path:
     """``thermocal estimate``: read a recording, estimate the pivot's temperature through the
     estimator ``method`` (:data:`~thermocal.estimation.registry.ESTIMATORS`), write it.
@@ -32,13 +34,20 @@ def estimate_file(
     The output (float32 °C TIFF, ``(H, W)``) is written atomically and only after every check.
     A burst outside the estimator's domain is refused
     (:class:`~thermocal.errors.OutsideDomainError`) unless ``force``, which writes it with a
-    warning that names why.
+    warning that names why. ``sigma_out``: where to write its uncertainty (float32 °C, 1σ,
+    ``(H, W)``), refused before any work when the estimator has none.
     """
-    from thermocal.io.recording import read_recording, write_temperature_tiff
+    from thermocal.io.recording import read_recording, write_sigma_tiff, write_temperature_tiff
 
     out = check_output_file(out, TIFF_SUFFIXES)
     check_not_input(out, frames_path, calibration, model_path)
+    if sigma_out is not None:
+        sigma_out = check_output_file(sigma_out, TIFF_SUFFIXES)
+        check_not_input(sigma_out, frames_path, calibration, model_path, out)
     estimator = make_estimator(method, model=model_path, calibration=calibration)
+    if sigma_out is not None and not has_uncertainty(estimator):
+        raise InvalidInputError(f"--method {method} has no uncertainty model here: "
+                                f"{NO_SIGMA_REMEDY.get(method, NO_SIGMA_REMEDY['calibration'])}")
     rec = read_recording(frames_path, fpa_c=fpa_c)
     result = run_pipeline(rec.frames, estimator, fpa_c=rec.fpa_c, pivot=pivot,
                           registered=registered, force=force)
@@ -46,8 +55,30 @@ def estimate_file(
         click.echo(f"thermocal: warning: {frames_path} lies outside what {method} was "
                    f"trained or fitted on ({'; '.join(result.outside)}); estimated all the same "
                    "(--force)", err=True)
-    write_temperature_tiff(out, result.temperature_c)
+    if sigma_out is not None:  # σ first: a failure leaves neither file
+        write_sigma_tiff(sigma_out, result.sigma_c)
+    try:
+        write_temperature_tiff(out, result.temperature_c)
+    except Exception:
+        if sigma_out is not None:
+            Path(sigma_out).unlink(missing_ok=True)
+        raise
     return out
+
+
+#: What to do when an estimator has no uncertainty model.
+NO_SIGMA_REMEDY = {
+    "calibration": "a calibration's σ comes from its cross-validation (not yet available for "
+                   "estimates); use a network method",
+    "mean": "a calibration's σ comes from its cross-validation (not yet available for "
+            "estimates); use a network method",
+}
+
+
+def has_uncertainty(estimator) -> bool:
+    """Whether ``estimator`` gives σ (a network with its ``.sigma.json``; see
+    :meth:`~thermocal.estimation.base.Estimator.uncertainty`)."""
+    return getattr(estimator, "sigma_model", None) is not None
 
 
 @click.command("estimate")
@@ -87,7 +118,9 @@ def estimate_file(
 )
 @click.option("--force", is_flag=True,
               help="Estimate a burst outside the method's domain (its FPA and scene range, its "
-              "camera family) instead of refusing it; a warning names why.")
+              "camera family) instead of refusing it; a warning names why and σ is inflated.")
+@click.option("--sigma-out", type=click.Path(path_type=Path), default=None,
+              help="Also write the estimate's standard uncertainty (float32 TIFF, °C, 1σ).")
 def estimate(
     frames: Path,
     out: Path,
@@ -98,6 +131,7 @@ def estimate(
     registered: bool,
     calibration: Path | None,
     force: bool,
+    sigma_out: Path | None,
 ) -> None:
     """Estimate the scene temperature of a burst's pivot frame (by default the shipped network,
     Oz et al.'s KPN + offset; --method for the others).
@@ -114,5 +148,6 @@ def estimate(
         registered=registered,
         calibration=calibration,
         force=force,
+        sigma_out=sigma_out,
     )
     click.echo(f"wrote {out}", err=True)

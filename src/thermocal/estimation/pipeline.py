@@ -12,7 +12,7 @@ One path for every estimator (:mod:`thermocal.estimation.registry`) and every ca
    and check that the burst lies inside the estimator's domain (refused otherwise, unless
    ``force``);
 5. **warp** the calibrated frames onto the pivot and check the overlap;
-6. **estimate** the pivot's temperature (the estimator) → :class:`Estimate`.
+6. **estimate** the pivot's temperature and its uncertainty (the estimator) → :class:`Estimate`.
 """
 
 from __future__ import annotations
@@ -122,7 +122,7 @@ def estimate(
         calibrated = estimator.calibrate(arr, fpa_c, time_s)
         outside = domain_stage(estimator, calibrated, fpa, force=force)
         burst = PreparedBurst(arr, calibrated, valid, hs, p, fpa)
-        return Estimate(estimator.estimate(burst), valid.sum(axis=0), hs, p, outside)
+        return _estimate_of(estimator, burst, outside)
     if registered and not estimator.accepts_registered:
         raise InvalidInputError(
             "each frame is calibrated where it lies on the sensor, before registration: give "
@@ -145,4 +145,13 @@ def estimate(
     check_overlap(valid, p)
     # 6. estimate
     burst = PreparedBurst(filled, warped, valid, hs, p, fpa)
-    return Estimate(estimator.estimate(burst), valid.sum(axis=0), hs, p, outside)
+    return _estimate_of(estimator, burst, outside)
+
+
+def _estimate_of(estimator: Estimator, burst: PreparedBurst, outside: tuple[str, ...]
+                 ) -> Estimate:
+    """Stage 6: the estimate and its uncertainty."""
+    temperature = estimator.estimate(burst)
+    sigma = estimator.uncertainty(burst, temperature, outside=bool(outside))
+    return Estimate(temperature, burst.valid.sum(axis=0), burst.homographies, burst.pivot,
+                    outside, sigma)

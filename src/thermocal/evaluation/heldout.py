@@ -35,11 +35,14 @@ OTHER_UNIT = 7  # the unit whose two-point calibration the calibration-free base
 
 
 def eval_bursts(n_frames: int, *, quick: bool, register: bool = False,
-                units: tuple[int, ...] = EVAL_UNITS, preset="tau2"):
+                units: tuple[int, ...] = EVAL_UNITS, preset="tau2",
+                scenes: dict[str, np.ndarray] | None = None):
     """The fixed evaluation bursts: list of dicts (frames, truth, valid mask, fpa, unit, …);
-    ``units`` replaces the held-out camera units and ``preset`` (a name or a
-    :class:`~thermocal.camera.presets.CameraPreset`) the camera family (diagnoses only)."""
-    scenes = evaluation_scenes()
+    ``units`` replaces the held-out camera units, ``preset`` (a name or a
+    :class:`~thermocal.camera.presets.CameraPreset`) the camera family and ``scenes`` (name →
+    °C map) the held-out scenes (diagnoses, and the validation bursts of
+    :mod:`thermocal.evaluation.sigma_fit`)."""
+    scenes = evaluation_scenes() if scenes is None else scenes
     per_scene = 1 if quick else 4
     size = (336, 256)  # whole sensor frames: a network with position terms needs them
     out = []

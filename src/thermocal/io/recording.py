@@ -705,6 +705,30 @@ def write_temperature_tiff(path: str | os.PathLike[str], temps_c: Any) -> Path:
     return out
 
 
+def write_sigma_tiff(path: str | os.PathLike[str], sigma_c: Any) -> Path:
+    """Write standard uncertainties (1σ, °C, >= 0) as a float32 TIFF, atomically.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Output ``.tiff``/``.tif``; its directory must exist.
+    sigma_c : array_like, shape (H, W) or (N, H, W)
+        1σ of the temperatures beside it, °C.
+
+    Raises
+    ------
+    InvalidInputError
+        If ``sigma_c`` is not 2-D or 3-D, empty, negative, NaN or infinite. Nothing is written.
+    """
+    out = _check_tiff_name(path)
+    arr = as_float_array(sigma_c, "sigma_c", ndim=(2, 3)).astype(np.float32)
+    if 0 in arr.shape or not np.all(np.isfinite(arr)) or float(arr.min()) < 0:
+        raise InvalidInputError("sigma_c: need a non-empty map of finite σ >= 0 °C")
+    with atomic_path(out) as tmp:
+        tifffile.imwrite(tmp, arr, photometric="minisblack", bigtiff=arr.nbytes > 2**31)
+    return out
+
+
 def read_temperature_tiff(path: str | os.PathLike[str]) -> np.ndarray:
     """Read a temperature TIFF (°C) written by :func:`write_temperature_tiff` or another tool.
 

@@ -330,6 +330,25 @@ def train(**opts: Any) -> None:
         f"MAE {result.best_val_mae_c:.3f} °C; wrote {opts['out']}",
         err=True,
     )
+    if result.steps > 0:
+        _fit_sigma(opts["out"], chamber=opts["chamber"] is not None)
+
+
+def _fit_sigma(weights: Path, *, chamber: bool) -> None:
+    """Fit the trained network's σ model and write it beside the weights
+    (:mod:`thermocal.evaluation.sigma_fit`), or say why not."""
+    from thermocal.nn.uncertainty import sidecar_path
+
+    if chamber:  # its σ needs bursts of that camera's family, which thermocal cannot make
+        click.echo(f"no σ model for {weights}: a network trained on one camera's chamber fit "
+                   "gives estimates without uncertainty (--sigma-out refused)", err=True)
+        return
+    from thermocal.evaluation.sigma_fit import fit_network_sigma
+
+    sigma = fit_network_sigma(weights)
+    path = sigma.save(sidecar_path(weights))
+    click.echo(f"σ model (floor {sigma.floor_c:.2f} °C, fitted on {sigma.fitted_on['bursts']} "
+               f"bursts of units it never saw) written to {path}", err=True)
 
 
 def _apply_preset(ctx: click.Context, opts: dict[str, Any]) -> None:

@@ -28,6 +28,7 @@ from thermocal.nn.inputs import (
 )
 from thermocal.nn.model import KPN, frame_means
 from thermocal.nn.store import load_model, nominal_for
+from thermocal.nn.uncertainty import SigmaModel, sidecar_path
 from thermocal.nn.validity import REMEDY, Domain, outside_domain
 from thermocal.nn.variants import VARIANTS
 from thermocal.registration.warp import warp_to_pivot
@@ -205,10 +206,12 @@ class NetworkEstimator:
     per_frame = False
     remedy = REMEDY
 
-    def __init__(self, model: KPN, norm: Normalisation, domain: Domain | None = None) -> None:
+    def __init__(self, model: KPN, norm: Normalisation, domain: Domain | None = None,
+                 sigma_model: SigmaModel | None = None) -> None:
         self.model = model
         self.norm = norm
         self.domain = domain
+        self.sigma_model = sigma_model
         self.name = model.config.variant
         self.n_frames = model.config.n_frames
         # a calibrated network calibrates each frame where it lies on the sensor
@@ -227,7 +230,10 @@ class NetworkEstimator:
                 "--model or --method"
             )
         nominal = model.nominal.info if model.config.calibrated else None
-        return cls(model, norm, Domain.of_network(content["data"], nominal))
+        sidecar = sidecar_path(path)
+        sigma = (SigmaModel.load(sidecar, weights_sha256=content["sha256"])
+                 if sidecar.is_file() else None)
+        return cls(model, norm, Domain.of_network(content["data"], nominal), sigma)
 
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
         n_model = self.model.config.n_frames
@@ -254,6 +260,14 @@ class NetworkEstimator:
             return ()
         frames_c = calibrated if self.model.config.calibrated else None
         return outside_domain(self.domain, frames_c, fpa_c)
+
+    def uncertainty(self, burst: PreparedBurst, temperature_c: np.ndarray, *, outside: bool
+                    ) -> np.ndarray | None:
+        """σ of the network's σ model (:mod:`thermocal.nn.uncertainty`, the ``NAME.sigma.json``
+        beside its weights); None without one."""
+        if self.sigma_model is None:
+            return None
+        return self.sigma_model.sigma(burst.warped, burst.valid, temperature_c, outside=outside)
 
     def estimate(self, burst: PreparedBurst) -> np.ndarray:
         p, valid = burst.pivot, burst.valid

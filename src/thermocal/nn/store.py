@@ -177,7 +177,8 @@ def _nominal_sha256(maps: dict[str, np.ndarray], scalars: dict[str, Any],
 def load_model(path: str | os.PathLike[str]) -> tuple[KPN, Normalisation, dict[str, Any]]:
     """Read a weights file written by :func:`save_model`; the model is in eval mode.
 
-    Returns the model, its normalisation and the file's ``{"data": …, "meta": …}``. A
+    Returns the model, its normalisation and the file's ``{"data": …, "meta": …, "sha256": …}``
+    (the content's SHA-256; None for a file older than version 3). A
     calibrated model's nominal camera is the one stored in the file, checked against its SHA-256
     (a version-1 file that did not store it has it made again from the preset it names). Every
     check of the module's docstring is made, the checksums first and the network's size before
@@ -222,7 +223,8 @@ def load_model(path: str | os.PathLike[str]) -> tuple[KPN, Normalisation, dict[s
         raise FileFormatError(f"{p}: damaged weights file ({first[:160]})") from None
     model.eval()
     model.to(memory_format=torch.channels_last)  # faster CPU convolutions (oneDNN), same values
-    return model, norm, {"data": payload.get("data", {}), "meta": payload.get("meta", {})}
+    return model, norm, {"data": payload.get("data", {}), "meta": payload.get("meta", {}),
+                         "sha256": payload.get("sha256")}
 
 
 def _check_digest(p: Path, payload: dict[str, Any]) -> bool:

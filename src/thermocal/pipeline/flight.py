@@ -8,6 +8,8 @@ calibration applied to the pivot ``calibration``) through the estimation pipelin
 (:func:`thermocal.estimation.pipeline.estimate`). Outputs, each written atomically::
 
     OUT/temps/frame_000123.tiff     float32 °C (H, W), one per pivot
+    OUT/temps/frame_000123_sigma.tiff  its standard uncertainty, float32 °C (1σ), for an
+                                    estimator with an uncertainty model
     OUT/previews/frame_000123.png   a preview with a colour bar in °C
     OUT/log.jsonl                   one line per pivot: frame, time, FPA, registration quality
                                     (lowest ECC correlation in the group), warnings, errors
@@ -15,9 +17,10 @@ calibration applied to the pivot ``calibration``) through the estimation pipelin
 
 A rerun with the same options resumes, and gives the same bytes as an uninterrupted run:
 
-* a pivot is finished once its preview, its map and then its log line are written (in that
-  order); a pivot is skipped only when its log line says it succeeded and its map checks out (a
-  readable float32 TIFF of the frame size, finite, with the logged mean); anything else is redone;
+* a pivot is finished once its preview, its σ map, its map and then its log line are written
+  (in that order); a pivot is skipped only when its log line says it succeeded and its maps
+  check out (readable float32 TIFFs of the frame size, finite, with the logged means); anything
+  else is redone;
 * groups are registered in batches fixed by their place in the recording (:data:`BATCH_FRAMES`),
   whatever was done before, so a group's map depends only on the recording and the options;
 * temporary files an interrupted run left in the output folders (:func:`atomic_path`'s names)
@@ -61,6 +64,7 @@ from thermocal.io.recording import (
     iter_recording,
     read_recording_header,
     read_temperature_tiff,
+    write_sigma_tiff,
     write_temperature_tiff,
 )
 from thermocal.registration.sequence import SequenceRegistration, register_sequence
@@ -283,7 +287,7 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
                 fpa_c=None if fpa is None else fpa[first : first + n],
                 time_s=None if time_s is None else time_s[first : first + n],
                 pivot=n // 2, homographies=homographies, force=options.force)
-            temp = result.temperature_c
+            temp, sigma = result.temperature_c, result.sigma_c
         entry["warnings"] = sorted({str(w.message) for w in caught})
         if result.outside:  # estimated all the same (--force): why it is not validated
             entry["warnings"].append(f"outside the domain (--force): {'; '.join(result.outside)}")
@@ -295,8 +299,12 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
         tally.times.add("estimate", t)
         return entry
     t = tally.times.add("estimate", t)
-    _write_pivot(out, pivot, temp, _preview_title(options, pivot) if preview else None)
+    _write_pivot(out, pivot, temp, sigma, _preview_title(options, pivot) if preview else None)
     entry["mean_c"] = float(temp.mean())
+    if sigma is not None:
+        entry["sigma_mean_c"] = float(sigma.mean())
+        entry["sigma_median_c"] = float(np.median(sigma))
+        entry["sigma_p95_c"] = float(np.percentile(sigma, 95))
     tally.processed += 1
     tally.times.add("writing", t)
     return entry
@@ -317,14 +325,18 @@ def _check_group(group: np.ndarray, first: int) -> None:
         raise InvalidInputError(message) from None
 
 
-def _write_pivot(out: Path, pivot: int, temp: np.ndarray, preview_title: str | None) -> None:
-    """A pivot's preview when titled, then its temperature TIFF; each written atomically, so
-    that the finished ones stand when the disk fills. The map comes last (before the log line
-    that its caller writes): a pivot interrupted before its log line is redone whole."""
+def _write_pivot(out: Path, pivot: int, temp: np.ndarray, sigma: np.ndarray | None,
+                 preview_title: str | None) -> None:
+    """A pivot's preview when titled, its σ map when it has one, then its temperature TIFF;
+    each written atomically, so that the finished ones stand when the disk fills. The map comes
+    last (before the log line that its caller writes): a pivot interrupted before its log line
+    is redone whole."""
     name = f"frame_{pivot:06d}"
     try:
         if preview_title is not None:
             _preview(out / "previews" / f"{name}.png", temp, preview_title)
+        if sigma is not None:
+            write_sigma_tiff(out / "temps" / f"{name}_sigma.tiff", sigma)
         write_temperature_tiff(out / "temps" / f"{name}.tiff", temp)
     except OSError as exc:
         where = f"{exc.filename}: " if exc.filename else ""
@@ -346,6 +358,7 @@ def _finish(out: Path, recording: Path, options: FlightOptions, groups: int, tal
         "skipped_already_done": tally.skipped,
         "failed": tally.failed,
         **({"first_error": tally.first_error} if tally.first_error is not None else {}),
+        "sigma_c": _sigma_summary(_read_log(out / "log.jsonl")),
         "wall_time_s": elapsed,
         "frames_per_second": {
             stage: (frames_done / s if s > 0 else None) for stage, s in tally.times.seconds.items()
@@ -354,6 +367,16 @@ def _finish(out: Path, recording: Path, options: FlightOptions, groups: int, tal
     }
     write_json_atomic(out / "summary.json", summary)
     return summary
+
+
+def _sigma_summary(entries: list[dict[str, Any]]) -> dict[str, Any] | None:
+    """The maps' uncertainty: the median over the pivots of each map's median σ, and the
+    largest 95th percentile (°C); None when the estimator gives no σ."""
+    done = [e for e in entries if isinstance(e.get("sigma_median_c"), int | float)]
+    if not done:
+        return None
+    return {"median_of_medians": float(np.median([e["sigma_median_c"] for e in done])),
+            "max_p95": float(max(e["sigma_p95_c"] for e in done)), "maps": len(done)}
 
 
 class _FrameWindow:
@@ -398,7 +421,7 @@ def _output_dirs(out: Path) -> Path:
 #: output folder.
 _TEMP_FILES = {
     ".": (temp_name_pattern("log", ".csv"), temp_name_pattern("summary", ".json")),
-    "temps": (temp_name_pattern(r"frame_\d{6,}", ".tiff"),),
+    "temps": (temp_name_pattern(r"frame_\d{6,}(?:_sigma)?", ".tiff"),),
     "previews": (temp_name_pattern(r"frame_\d{6,}", ".png"),),
 }
 
@@ -438,6 +461,9 @@ def _finished_pivots(out: Path, pivots: list[int], options: FlightOptions,
         name = f"frame_{pivot:06d}"
         temp = _map_ok(out / "temps" / f"{name}.tiff", shape, entry.get("mean_c"))
         if temp is None:
+            continue
+        if "sigma_mean_c" in entry and _map_ok(out / "temps" / f"{name}_sigma.tiff", shape,
+                                               entry["sigma_mean_c"]) is None:
             continue
         png = out / "previews" / f"{name}.png"
         if _preview_due(options, index) and not png.is_file():

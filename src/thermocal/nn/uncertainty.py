@@ -1,0 +1,189 @@
+"""The network's uncertainty: a 1σ map (°C) beside each estimate (numpy/scipy only).
+
+Per pivot pixel ``p``::
+
+    σ²(p) = floor² + exp(c0 + c1·ln(s_p + 0.05) + c2·ln(g_p + 0.05) + c3·ln(1 / n_p))
+
+- ``s_p``: how much the views disagree, the standard deviation over the frames that see ``p`` of
+  the calibrated, warped frames (°C): the fixed pattern the nominal calibration leaves,
+  misregistration, noise;
+- ``g_p``: the estimate's local gradient (°C/px, Gaussian derivative of σ = 1 px), where a
+  registration error costs most;
+- ``n_p``: how many frames see ``p``;
+- ``floor``: what no view reveals, the unit's own level against the family's: fitted, and never
+  below :data:`UNIT_FLOOR_MIN_C`.
+
+The coefficients are fitted by minimising the Gaussian negative log-likelihood of the errors
+(a proper scoring rule) on bursts of the validation units over training scenes, never on the
+evaluation set, and stored in a JSON file beside the weights (``NAME.sigma.json``) with the
+SHA-256 of the weights they were fitted for. Outside the network's domain (``--force``) σ gains
+:attr:`SigmaModel.outside_c` in quadrature.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from scipy.ndimage import gaussian_gradient_magnitude
+from scipy.optimize import minimize
+
+from thermocal.errors import FileFormatError, InvalidInputError
+from thermocal.io.atomic import atomic_path
+
+__all__ = ["OUTSIDE_SIGMA_C", "UNIT_FLOOR_MIN_C", "SigmaModel", "features", "fit_sigma_model",
+           "sidecar_path"]
+
+#: The smallest σ of a calibration-free estimate, °C: the unit's own scalars (gain, offset, FPA
+#: coefficients) alone leave 0.34 °C mean absolute error on the most typical unit of the
+#: preset (``benchmarks/unit_spread.py``: 0.34–0.69 °C over 200 units), σ = MAE·√(π/2).
+UNIT_FLOOR_MIN_C = 0.34 * math.sqrt(math.pi / 2)
+
+#: σ added in quadrature to an estimate outside the network's domain (``--force``), °C: the
+#: scale of the errors of the tau2-trained network on bursts of the ``boson`` family (1.4–10 °C
+#: per burst, benchmarks/physics.py). Another family may err more; that is why it is refused.
+OUTSIDE_SIGMA_C = 6.0
+
+_FORMAT = "thermocal-sigma-model"
+_EPS = 0.05
+
+
+def features(warped: np.ndarray, valid: np.ndarray, temperature_c: np.ndarray
+             ) -> np.ndarray:
+    """The three features of each pivot pixel, ``(3, H, W)`` float64: ``ln(s + 0.05)``,
+    ``ln(g + 0.05)``, ``ln(1 / n)`` (see the module docstring); ``warped`` ``(N, H, W)`` °C and
+    ``valid`` ``(N, H, W)`` as the pipeline gives them."""
+    w = np.asarray(warped, dtype=np.float64)
+    v = np.asarray(valid, dtype=bool)
+    n = np.maximum(v.sum(axis=0), 1)
+    mean = (w * v).sum(axis=0) / n
+    spread = np.sqrt(((w - mean) ** 2 * v).sum(axis=0) / n)
+    grad = gaussian_gradient_magnitude(np.asarray(temperature_c, np.float64), 1.0,
+                                       mode="nearest")
+    return np.stack([np.log(spread + _EPS), np.log(grad + _EPS), -np.log(n)])
+
+
+@dataclass(frozen=True)
+class SigmaModel:
+    """A fitted σ model of one weights file (see the module docstring).
+
+    Attributes
+    ----------
+    floor_c : float
+        σ of the unit's own level, °C (>= :data:`UNIT_FLOOR_MIN_C`).
+    coef : (4,) tuple of float
+        ``c0 … c3``.
+    weights_sha256 : str or None
+        The content SHA-256 of the weights it was fitted for.
+    outside_c : float
+        σ added in quadrature outside the domain, °C.
+    fitted_on : dict
+        What it was fitted on (units, scenes, bursts, pixels, the NLL).
+    """
+
+    floor_c: float
+    coef: tuple[float, float, float, float]
+    weights_sha256: str | None = None
+    outside_c: float = OUTSIDE_SIGMA_C
+    fitted_on: dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.floor_c) and UNIT_FLOOR_MIN_C - 1e-9 <= self.floor_c <= 10.0
+                and len(self.coef) == 4 and all(math.isfinite(c) and abs(c) < 50 for c in self.coef)
+                and math.isfinite(self.outside_c) and 0.0 <= self.outside_c <= 100.0):
+            raise InvalidInputError(
+                f"σ model: floor {self.floor_c!r:.12} °C (>= {UNIT_FLOOR_MIN_C:.2f}), "
+                f"coefficients {self.coef!r:.60} or outside σ {self.outside_c!r:.12} out of range"
+            )
+
+    def sigma_of(self, feats: np.ndarray, *, outside: bool = False) -> np.ndarray:
+        """σ (°C, ``(H, W)`` float32) from :func:`features`; with ``outside``, inflated."""
+        c = np.asarray(self.coef)
+        log_var = c[0] + np.tensordot(c[1:], feats, axes=1)
+        var = self.floor_c**2 + np.exp(np.minimum(log_var, 10.0))
+        if outside:
+            var = var + self.outside_c**2
+        return np.sqrt(var).astype(np.float32)
+
+    def sigma(self, warped: np.ndarray, valid: np.ndarray, temperature_c: np.ndarray, *,
+              outside: bool = False) -> np.ndarray:
+        """σ (°C, ``(H, W)`` float32) of an estimate ``temperature_c`` from its burst."""
+        return self.sigma_of(features(warped, valid, temperature_c), outside=outside)
+
+    def save(self, path: str | os.PathLike[str]) -> Path:
+        """Write it as JSON (atomically)."""
+        text = json.dumps({"format": _FORMAT, "version": 1, **asdict(self)}, indent=1,
+                          sort_keys=True)
+        with atomic_path(Path(path)) as tmp:
+            Path(tmp).write_text(text + "\n", encoding="utf-8")
+        return Path(path)
+
+    @classmethod
+    def load(cls, path: str | os.PathLike[str], *, weights_sha256: str | None) -> SigmaModel:
+        """Read a σ model; refused unless it was fitted for the weights of ``weights_sha256``.
+
+        Raises
+        ------
+        FileFormatError
+            Not a σ model file, damaged, or fitted for other weights.
+        """
+        p = Path(path)
+        try:
+            d = json.loads(p.read_text(encoding="utf-8"))
+            if not isinstance(d, dict) or d.pop("format", None) != _FORMAT or \
+                    d.pop("version", None) != 1:
+                raise ValueError("not a thermocal σ model")
+            model = cls(float(d["floor_c"]), tuple(float(c) for c in d["coef"]),
+                        d.get("weights_sha256"), float(d.get("outside_c", OUTSIDE_SIGMA_C)),
+                        dict(d.get("fitted_on") or {}))
+        except (OSError, ValueError, KeyError, TypeError, InvalidInputError) as exc:
+            raise FileFormatError(f"{p}: not a usable σ model ({exc}); fit it again: "
+                                  "`python -m thermocal.evaluation.sigma_fit WEIGHTS.pt`"
+                                  ) from None
+        if weights_sha256 is not None and model.weights_sha256 != weights_sha256:
+            raise FileFormatError(f"{p}: fitted for other weights than the ones beside it; fit "
+                                  "it again: `python -m thermocal.evaluation.sigma_fit WEIGHTS.pt`")
+        return model
+
+
+def sidecar_path(weights: str | os.PathLike[str]) -> Path:
+    """Where a weights file's σ model lives: ``NAME.sigma.json`` beside ``NAME.pt``."""
+    p = Path(weights)
+    return p.with_name(p.stem + ".sigma.json")
+
+
+def fit_sigma_model(errors: np.ndarray, feats: np.ndarray, *, weights_sha256: str | None,
+                    fitted_on: dict[str, Any] | None = None) -> SigmaModel:
+    """Fit σ by minimising the mean Gaussian negative log-likelihood of ``errors``.
+
+    Parameters
+    ----------
+    errors : (M,) array
+        Estimate − truth of validation pixels, °C.
+    feats : (3, M) array
+        Their :func:`features`.
+    weights_sha256, fitted_on
+        Recorded in the model.
+    """
+    e2 = np.asarray(errors, np.float64) ** 2
+    f = np.asarray(feats, np.float64)
+    if e2.ndim != 1 or f.shape != (3, e2.size) or e2.size < 100 or not np.all(np.isfinite(e2)):
+        raise InvalidInputError("fit_sigma_model: need >= 100 finite errors and (3, M) features")
+
+    def nll(theta: np.ndarray) -> float:
+        floor2 = UNIT_FLOOR_MIN_C**2 + math.exp(theta[0])
+        var = floor2 + np.exp(np.minimum(theta[1] + theta[2:] @ f, 10.0))
+        return float(np.mean(np.log(var) + e2 / var))
+
+    start = np.array([math.log(0.05), math.log(max(float(e2.mean()), 1e-4)), 0.0, 0.0, 0.0])
+    best = minimize(nll, start, method="Nelder-Mead",
+                    options={"maxiter": 4000, "xatol": 1e-4, "fatol": 1e-7})
+    floor = math.sqrt(UNIT_FLOOR_MIN_C**2 + math.exp(best.x[0]))
+    info = dict(fitted_on or {}) | {"pixels": int(e2.size), "mean_nll": float(best.fun)}
+    return SigmaModel(floor, tuple(float(c) for c in best.x[1:]), weights_sha256,
+                      fitted_on=info)

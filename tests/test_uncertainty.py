@@ -1,0 +1,109 @@
+"""The network's σ model (issue 18, item 1): fitted by Gaussian NLL, never below the unit-level
+floor, tied to its weights, and written beside every estimate that asks for it."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import tifffile
+from cli_run import run
+
+from thermocal.errors import FileFormatError, InvalidInputError
+from thermocal.nn.uncertainty import (
+    OUTSIDE_SIGMA_C,
+    UNIT_FLOOR_MIN_C,
+    SigmaModel,
+    features,
+    fit_sigma_model,
+    sidecar_path,
+)
+
+pytest.importorskip("torch")
+
+
+def test_the_fit_recovers_a_known_sigma():
+    """Errors drawn with σ² = floor² + exp(c0 + c·f): the NLL fit finds σ to a few per cent."""
+    rng = np.random.default_rng(0)
+    f = rng.normal(0, 1, (3, 20000))
+    floor, coef = 0.6, np.array([-1.0, 0.5, 0.3, -0.2])
+    sigma = np.sqrt(floor**2 + np.exp(coef[0] + coef[1:] @ f))
+    model = fit_sigma_model(rng.normal(0, sigma), f, weights_sha256="x")
+    fitted = model.sigma_of(f)
+    assert np.median(np.abs(fitted / sigma - 1)) < 0.05
+    assert model.floor_c == pytest.approx(floor, abs=0.08)
+
+
+def test_the_floor_is_never_below_the_unit_spread():
+    rng = np.random.default_rng(1)
+    f = rng.normal(0, 1, (3, 5000))
+    model = fit_sigma_model(rng.normal(0, 0.01, 5000), f, weights_sha256=None)
+    assert model.floor_c >= UNIT_FLOOR_MIN_C - 1e-9
+    assert np.all(model.sigma_of(f) >= UNIT_FLOOR_MIN_C - 1e-6)
+    assert UNIT_FLOOR_MIN_C == pytest.approx(0.34 * math.sqrt(math.pi / 2))
+    with pytest.raises(InvalidInputError, match="floor"):
+        SigmaModel(0.1, (0.0, 0.0, 0.0, 0.0))
+
+
+def test_features_see_views_gradient_and_disagreement():
+    warped = np.zeros((4, 8, 8), np.float32)
+    valid = np.ones((4, 8, 8), bool)
+    valid[2:, :, :4] = False
+    warped[0, :, 6:] = 1.0
+    temp = np.zeros((8, 8), np.float32)
+    temp[:, 4:] = 5.0
+    spread, grad, inv_n = features(warped, valid, temp)
+    assert np.allclose(inv_n[:, :4], -np.log(2)) and np.allclose(inv_n[:, 4:], -np.log(4))
+    assert spread[0, 7] > spread[0, 4] and grad[0, 4] > grad[0, 0]
+
+
+def test_sidecar_round_trip_and_refusals(tmp_path):
+    model = SigmaModel(0.5, (-1.0, 0.1, 0.2, 0.3), "abc", fitted_on={"bursts": 3})
+    path = model.save(tmp_path / "m.sigma.json")
+    assert SigmaModel.load(path, weights_sha256="abc") == model
+    with pytest.raises(FileFormatError, match="other weights"):
+        SigmaModel.load(path, weights_sha256="def")
+    path.write_text(path.read_text().replace('"floor_c": 0.5', '"floor_c": -3'))
+    with pytest.raises(FileFormatError, match="not a usable σ model"):
+        SigmaModel.load(path, weights_sha256="abc")
+    assert sidecar_path(tmp_path / "kpn_n7.pt").name == "kpn_n7.sigma.json"
+
+
+def test_the_shipped_network_has_its_sigma_model():
+    from thermocal.nn.infer import NetworkEstimator
+
+    net = NetworkEstimator.from_file("kpn")
+    assert net.sigma_model is not None
+    assert net.sigma_model.floor_c >= UNIT_FLOOR_MIN_C - 1e-9
+    assert net.sigma_model.fitted_on["bursts"] >= 20
+    assert not set(net.sigma_model.fitted_on["units"]) & {*range(0, 24), *range(100, 105)}
+
+
+def test_estimate_writes_sigma_and_inflates_it_outside(tmp_path, capsys):
+    from thermocal.camera.presets import make_camera
+    from thermocal.io.recording import Recording, write_recording
+    from thermocal.scenes.procedural import procedural_scene
+    from thermocal.simulate.flight import simulate_flight
+
+    scene = procedural_scene((384, 384), rng=np.random.default_rng(3), kind="mixed")
+    for preset in ("tau2", "boson"):
+        fl = simulate_flight(scene, make_camera(preset, unit=104, size=(336, 256)), n_frames=7,
+                             motion="walk", fpa_c=25.0, seed=3)
+        path, _ = write_recording(tmp_path / f"{preset}.tiff",
+                                  Recording(fl.frames, fpa_c=fl.fpa_c))
+        out, sig = tmp_path / f"{preset}_t.tiff", tmp_path / f"{preset}_s.tiff"
+        code, _, err = run(["estimate", path, "--out", out, "--sigma-out", sig, "--force"],
+                           capsys)
+        assert code == 0, err
+        sigma = tifffile.imread(sig)
+        assert sigma.shape == (256, 336) and sigma.dtype == np.float32
+        if preset == "tau2":
+            assert UNIT_FLOOR_MIN_C - 1e-6 <= sigma.min() and np.median(sigma) < 1.5
+            error = np.abs(tifffile.imread(out) - fl.truth_c[fl.pivot])
+            assert 0.5 < np.mean(error <= 2 * sigma)  # a sanity check; coverage: benchmarks
+        else:
+            assert sigma.min() >= OUTSIDE_SIGMA_C and "warning" in err
+    code, _, err = run(["estimate", tmp_path / "tau2.tiff", "--out", tmp_path / "x.tiff",
+                        "--sigma-out", tmp_path / "tau2.tiff"], capsys)
+    assert code == 2 and "input" in err and not (tmp_path / "x.tiff").exists()
