@@ -48,8 +48,8 @@ def test_method_names_and_help_come_from_the_registries(command):
     flat = " ".join(text.split())
     for name, info in registry.items():
         assert f" {name} {info.summary} ({info.source})" in flat, (command, name)
-    if command != "correct":
-        assert f"[{'|'.join(registry)}]" in flat
+    if command != "correct":  # calibrate also offers auto (every method, the best kept)
+        assert f"[{'|'.join([*registry] + (['auto'] if command == 'calibrate' else []))}]" in flat
 
 
 def test_simulate_chamber_writes_a_valid_file(tmp_path, capsys):

@@ -96,6 +96,11 @@ class OutsideCalibrationRangeWarning(ThermocalWarning):
     """A calibration applied at FPA temperatures it was not fitted on."""
 
 
+class ProtocolWarning(ThermocalWarning):
+    """A chamber session that supports a calibration method only in part: the fit is made, but
+    degraded (:func:`thermocal.calibration.protocol.check_protocol`)."""
+
+
 class UnverifiedFileWarning(ThermocalWarning):
     """A model file written before thermocal stored checksums in it (a version-1 calibration, a
     version-1 or 2 weights file): read, but it cannot be checked for damage beyond its ranges."""

@@ -27,17 +27,9 @@ from thermocal.errors import (
 )
 
 _CALIBRATION_SUFFIXES = HDF5_SUFFIXES
-
-#: Why a method leaves chamber frames out of its fit by default (saturated frames apart).
-_LEFT_OUT_WHY = {
-    "two-point": "not at the two end set points with the FPA settled at the reference",
-    "one-point": "not at its three set points with the FPA settled at the reference",
-    "shutter": "not at the two end set points with the FPA settled at the reference",
-    "polynomial": "with a changing FPA (it fits the stable frames)",
-    "wolf2016": "with the FPA changing or away from the reference",
-    "lin": "not settled",
-    "lin-level": "not settled",
-}
+_REPORT_SUFFIXES = (".json",)
+#: ``--method``'s choice that fits every method the session supports and keeps the best.
+AUTO = "auto"
 
 
 def _fpa_ref_help() -> str:
@@ -45,70 +37,123 @@ def _fpa_ref_help() -> str:
     return f"Reference FPA temperature, °C ({takes})."
 
 
-@click.command(epilog=method_help())
+def _epilog() -> str:
+    return method_help() + (
+        f"\n\n\b\n{AUTO:<{max(map(len, CALIBRATION_METHODS))}}  cross-validate every method "
+        "the session supports and keep the one of lowest expected error"
+    )
+
+
+@click.command(epilog=_epilog())
 @click.argument("chamber", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--method", type=click.Choice(list(CALIBRATION_METHODS)), default="polynomial",
-              show_default=True, help="Calibration method (listed below).")
+@click.option("--method", type=click.Choice([*CALIBRATION_METHODS, AUTO]), default="polynomial",
+              show_default=True, help="Calibration method (listed below), or auto.")
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Calibration file to write (.h5).")
+@click.option("--report", "report_path", type=click.Path(dir_okay=False, path_type=Path),
+              default=None, help="Also write the cross-validation report here (.json).")
 @click.option("--fpa-ref-c", type=float, default=None, help=_fpa_ref_help())
 @click.option("--scene-term", type=click.Choice(["radiance", "t4", "linear"]), default="radiance",
               show_default=True, help="Scene term of the polynomial model.")
 @click.option("--radial", is_flag=True, help="Polynomial: keep only the radial fit (eq. 16–17).")
-def calibrate(chamber: Path, method: str, out: Path, fpa_ref_c: float | None, scene_term: str,
-              radial: bool) -> None:
-    """Fit a calibration to a chamber file (HDF5, or an EnvChamberCtrl .npz)."""
+def calibrate(chamber: Path, method: str, out: Path, report_path: Path | None,
+              fpa_ref_c: float | None, scene_term: str, radial: bool) -> None:
+    """Fit a calibration to a chamber file (HDF5, or an EnvChamberCtrl .npz), cross-validate it
+    (set points and FPA segments left out in turn) and store the report with it.
+
+    The session is first checked against the method's needs: a method it cannot support is
+    refused, saying what to record; one it supports in part is fitted with a warning."""
+    from dataclasses import replace
+
     from thermocal.calibration.dataset import prepare_chamber
-    from thermocal.calibration.registry import fit_calibration
+    from thermocal.calibration.report import auto_calibration, fit_with_report, ranking_line
+    from thermocal.io.atomic import write_json_atomic
 
     check_output_file(out, _CALIBRATION_SUFFIXES)
     check_not_input(out, chamber)
-    if radial and method != "polynomial":
+    if report_path is not None:
+        check_output_file(report_path, _REPORT_SUFFIXES)
+        check_not_input(report_path, chamber, what="--report")
+        try:
+            check_not_input(report_path, out)
+        except InvalidInputError:
+            raise InvalidInputError(f"--report {report_path} is the --out file; write the "
+                                    "report to another file") from None
+    if radial and method not in ("polynomial", AUTO):
         raise InvalidInputError("--radial applies to --method polynomial only")
     if fpa_ref_c is not None:
         check_fpa_c(fpa_ref_c, "--fpa-ref-c")
     data = prepare_chamber(chamber)
-    options: dict = {}
-    if method == "polynomial":
-        options["scene"] = scene_term
-    elif fpa_ref_c is not None and CALIBRATION_METHODS[method].takes_fpa_ref:
-        options["fpa_ref_c"] = fpa_ref_c
-    cal = fit_calibration(data, method, **options)
+    options = {name: _options(name, scene_term, fpa_ref_c) for name in CALIBRATION_METHODS}
+    if method == AUTO:
+        cal, report = auto_calibration(data, options=options)
+    else:
+        cal, report = fit_with_report(data, method, **options[method])
+    chosen = report.method
     if radial:
+        if chosen != "polynomial":
+            raise InvalidInputError(f"--radial applies to the polynomial model; auto chose "
+                                    f"{chosen}")
         cal = cal.radial()  # type: ignore[attr-defined]
+        report = replace(report, notes=[*report.notes, "cross-validated as the per-pixel fit "
+                                        "(--radial keeps its radial fit)"])
+    cal = replace(cal, info=cal.info | {"report": report.to_dict()})  # type: ignore[type-var]
     cal.save(out)
+    if report_path is not None:
+        write_json_atomic(report_path, {"chamber": str(chamber), "calibration": str(out)}
+                          | report.to_dict())
+    for text in report.warnings:
+        click.echo(f"thermocal: warning: {' '.join(text.split())}", err=True)
+    if report.ranking:
+        click.echo(ranking_line(report))
+        for r in report.ranking:
+            if "refused" in r:
+                why = r["refused"].split("; ")[0].removeprefix(f"{r['method']} ")
+                click.echo(f"  skipped {r['method']}: {why}")
     lo, hi = getattr(cal, "fpa_range", None) or cal.fpa_range_c  # type: ignore[attr-defined]
     info = getattr(cal, "info", None) or {}
     points = info.get("setpoints_c", data.setpoints_c)
-    used, left_out = frames_used(method, info, data.n_frames)
+    used, left_out = _frames_text(chosen, report.frames)
     click.echo(
-        f"{method} calibration of {data.frame_shape[1]}x{data.frame_shape[0]} from {used} "
+        f"{chosen} calibration of {data.frame_shape[1]}x{data.frame_shape[0]} from {used} "
         f"({len(points)} set points, FPA {lo:.2f}…{hi:.2f} °C, {int(cal.bad.sum())} bad pixels) "
         f"written to {out}{left_out}"
     )
+    for line in report.summary_lines():
+        click.echo(line)
+    if report_path is not None:
+        click.echo(f"  report written to {report_path}")
 
 
-def frames_used(method: str, info: dict, n_frames: int) -> tuple[str, str]:
+def _options(method: str, scene_term: str, fpa_ref_c: float | None) -> dict:
+    """The fitting options the command's flags give ``method``."""
+    if method == "polynomial":
+        return {"scene": scene_term}
+    if fpa_ref_c is not None and CALIBRATION_METHODS[method].takes_fpa_ref:
+        return {"fpa_ref_c": fpa_ref_c}
+    return {}
+
+
+def frames_used(method: str, info: dict, n_frames: int, options: dict | None = None
+                ) -> tuple[str, str]:
     """How many of the chamber's ``n_frames`` frames a fit used (``"252 of 840 frames"``) and
     why the others were left out (``"; left out: ..."``, or ``""``), from the fit's ``info``
-    (``frames_used``, ``excluded_frames``: the saturated ones, ...)."""
-    why = _LEFT_OUT_WHY.get(method, "outside its default selection")
-    if "frames_used" in info:
-        used = int(info["frames_used"])
-    elif "frames_used_s" in info:  # wolf2016: the S maps; its HW estimator uses more
-        used = int(info["frames_used_s"])
-    elif "stable_frames" in info and "unstable_frames" in info:  # lin
-        used = int(info["stable_frames"]) + int(info["unstable_frames"])
-    else:
+    (``frames_used``, ``excluded_frames``: the saturated ones, ...) and its ``options``."""
+    from thermocal.calibration.report import frame_counts
+
+    return _frames_text(method, frame_counts(method, info, n_frames, options))
+
+
+def _frames_text(method: str, counts: dict) -> tuple[str, str]:
+    """:func:`frames_used`'s text of :func:`~thermocal.calibration.report.frame_counts`."""
+    n_frames = counts.get("total", 0)
+    if counts.get("used") is None:
         return f"the chamber's {n_frames} frames", f"; frames used: not recorded by {method}"
-    saturated = int(info.get("excluded_frames", 0) or 0)
-    other = max(0, n_frames - used - saturated)
-    left = ([f"{other} {why}"] if other else []) + ([f"{saturated} saturated"] if saturated
-                                                   else [])
-    extra = (f"; {int(info['frames_used_hw'])} frames for its Hammerstein-Wiener estimator"
-             if "frames_used_hw" in info else "")
-    return f"{used} of {n_frames} frames", (f"; left out: {', '.join(left)}" if left else "") \
-        + extra
+    left = [f"{count} {why}" for why, count in counts.get("left_out", {}).items()]
+    extra = (f"; {counts['used_hw']} frames for its Hammerstein-Wiener estimator"
+             if "used_hw" in counts else "")
+    return f"{counts['used']} of {n_frames} frames", (
+        f"; left out: {', '.join(left)}" if left else "") + extra
 
 
 @click.command(epilog=method_help())

@@ -19,6 +19,7 @@ count) are excluded and counted.
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
@@ -249,7 +250,8 @@ def prepare_chamber(
         ),
         block=block,
         usable=usable,
-        info={"rate_smooth_s": rate_smooth_s, "settle_frames": settle_frames},
+        info={"rate_smooth_s": rate_smooth_s, "settle_frames": settle_frames,
+              "stable_c_per_min": stable_c_per_min, "unstable_c_per_min": unstable_c_per_min},
     )
 
 
@@ -267,16 +269,37 @@ def stability_mask(data: ChamberData, frames: str) -> np.ndarray:
     raise InvalidInputError(f"frames={frames!r}: choose from {', '.join(FRAME_SELECTIONS)}")
 
 
-def require_setpoints(
-    data: ChamberData, n: int, method: str, mask: np.ndarray | None = None
-) -> None:
-    """Raise :class:`FitError` unless the frames in ``mask`` cover at least ``n`` set points."""
+def describe_frames(data: ChamberData, frames: str) -> str:
+    """Words for a frame selection of :func:`stability_mask` (``"stable"``, ...), with its
+    threshold, for messages."""
+    stable = float(data.info.get("stable_c_per_min", 0.05))
+    unstable = float(data.info.get("unstable_c_per_min", 0.5))
+    return {"stable": f"the stable frames (FPA rate within ±{stable:g} °C/min)",
+            "settled": f"the settled frames (FPA rate within ±{unstable:g} °C/min)",
+            "all": "the frames"}.get(frames, f"the {frames} frames")
+
+
+def setpoints_of(data: ChamberData, mask: np.ndarray | None = None) -> np.ndarray:
+    """The distinct blackbody set points of the usable frames in ``mask``, °C (sorted)."""
     sel = data.usable if mask is None else (data.usable & mask)
-    found = np.unique(np.round(data.session.blackbody_c[sel], 6))
+    return np.unique(np.round(data.session.blackbody_c[sel], 6))
+
+
+def require_setpoints(
+    data: ChamberData, n: int, method: str, mask: np.ndarray | None = None, *,
+    frames: str = "the chamber data", record: str = "record more",
+) -> None:
+    """Raise :class:`FitError` unless the frames in ``mask`` cover at least ``n`` set points.
+
+    ``frames`` names the frames of ``mask`` in the message, ``record`` says what to record.
+    """
+    found = setpoints_of(data, mask)
     if found.size < n:
+        total = data.setpoints_c.size
+        of = f" of the session's {total}" if total > found.size else ""
         raise FitError(
-            f"{method} needs blackbody frames at >= {n} different set points, the chamber data "
-            f"give {found.size} ({', '.join(f'{v:g}' for v in found) or 'none'} °C); record more"
+            f"{method} needs blackbody frames at >= {n} different set points, {frames} give "
+            f"{found.size}{of} ({', '.join(f'{v:g}' for v in found) or 'none'} °C); {record}"
         )
 
 
@@ -286,26 +309,45 @@ def require_setpoints(
 MAX_FPA_CONDITION = 25.0
 
 
-def require_fpa_span(data: ChamberData, span_c: float, method: str,
-                     mask: np.ndarray | None = None, *, degree: int = 1) -> None:
-    """Raise :class:`FitError` unless the FPA temperatures in ``mask`` span ``span_c`` °C and
-    are spread over enough distinct levels for a polynomial of ``degree`` in them."""
-    sel = data.usable if mask is None else (data.usable & mask)
-    fpa = data.fpa_c[sel]
-    got = float(fpa.max() - fpa.min()) if fpa.size else 0.0
-    if got < span_c:
-        raise FitError(
-            f"{method} needs FPA temperatures spanning >= {span_c:g} °C, the chamber data span "
-            f"{got:.2f} °C; record while the chamber's ambient changes"
-        )
+def fpa_condition(fpa_c: np.ndarray, degree: int) -> float:
+    """Condition number of the normalised Vandermonde matrix of degree ``degree`` of the FPA
+    temperatures ``fpa_c`` (°C, ``(K,)``): how well they determine a polynomial in them (inf
+    for fewer distinct values than coefficients)."""
+    fpa = np.asarray(fpa_c, dtype=np.float64)
+    if fpa.size <= degree or np.ptp(fpa) == 0:
+        return math.inf
     x = (fpa - fpa.mean()) / fpa.std()
     sv = np.linalg.svd(np.vander(x, degree + 1, increasing=True) / np.sqrt(x.size),
                        compute_uv=False)
-    if sv[-1] * MAX_FPA_CONDITION < sv[0]:
+    return float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
+
+
+def require_fpa_span(data: ChamberData, span_c: float, method: str,
+                     mask: np.ndarray | None = None, *, degree: int = 1,
+                     frames: str = "the chamber data",
+                     record: str = "record while the chamber's ambient changes") -> None:
+    """Raise :class:`FitError` unless the FPA temperatures in ``mask`` span ``span_c`` °C and
+    are spread over enough distinct levels for a polynomial of ``degree`` in them.
+
+    ``frames`` names the frames of ``mask`` in the message, ``record`` says what to record.
+    """
+    sel = data.usable if mask is None else (data.usable & mask)
+    fpa = data.fpa_c[sel]
+    got = float(fpa.max() - fpa.min()) if fpa.size else 0.0
+    whole = data.fpa_c[data.usable]
+    total = float(np.ptp(whole)) if whole.size else 0.0
+    of = f" of the session's {total:.2f} °C" if total > got + 0.5 else ""
+    if got < span_c:
         raise FitError(
-            f"{method} needs the FPA at >= {degree + 1} well-spread temperatures, but the frames "
-            f"it can use hold it at fewer (condition {sv[0] / max(sv[-1], 1e-300):.0f}); record "
-            "while the ambient passes through more levels, or fit frames='settled'"
+            f"{method} needs FPA temperatures spanning >= {span_c:g} °C, {frames} span "
+            f"{got:.2f} °C{of}; {record}"
+        )
+    cond = fpa_condition(fpa, degree)
+    if cond > MAX_FPA_CONDITION:
+        raise FitError(
+            f"{method} needs the FPA at >= {degree + 1} well-spread temperatures, but {frames} "
+            f"hold it at fewer (condition {min(cond, 1e300):.0f}); record while the ambient "
+            "passes through more levels, or fit frames='settled'"
         )
 
 

@@ -56,6 +56,7 @@ from thermocal.calibration.base import (
 from thermocal.calibration.dataset import (
     STABLE,
     FrameScan,
+    describe_frames,
     fpa_rate_c_per_min,
     iter_frames,
     prepare_chamber,
@@ -296,8 +297,12 @@ def lin(
     data = prepare_chamber(session, rate_smooth_s=rate_smooth_s)
     band = band_for(tuple(band_m))
     stable = data.usable & (data.stability == STABLE)
-    require_setpoints(data, 4, "lin (the Planck curve of eq. 4)", stable)
-    require_fpa_span(data, 2.0, "lin (eq. 1, from stable frames)", stable, degree=2)
+    what = describe_frames(data, "stable")
+    require_setpoints(data, 4, "lin (the Planck curve of eq. 4)", stable, frames=what,
+                      record="record >= 4 set points with the FPA held still")
+    require_fpa_span(data, 2.0, "lin (eq. 1, from stable frames)", stable, degree=2,
+                     frames=what, record="record the FPA held still at >= 3 temperatures (the "
+                     "ambient in steps, each held until the FPA settles)")
     ref = float(np.median(data.fpa_c[stable])) if fpa_ref_c is None else float(fpa_ref_c)
     bb = np.round(data.session.blackbody_c, 6)
     points, group = np.unique(bb, return_inverse=True)

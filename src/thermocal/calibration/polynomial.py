@@ -38,6 +38,7 @@ from thermocal.calibration.base import (
 from thermocal.calibration.dataset import (
     ChamberData,
     FrameScan,
+    describe_frames,
     iter_frames,
     prepare_chamber,
     require_fpa_span,
@@ -301,9 +302,15 @@ def polynomial(
         if mask.shape != sel.shape:
             raise InvalidInputError(f"frame_mask: expected {sel.shape}, got {mask.shape}")
         sel &= mask
-    require_setpoints(data, 2, "the polynomial model", sel)
-    require_fpa_span(data, 4.0, "the polynomial model (cubic in the FPA temperature)", sel,
-                     degree=3)
+    what = describe_frames(data, frames) + (" in frame_mask" if frame_mask is not None else "")
+    require_setpoints(data, 2, "the polynomial model", sel, frames=what)
+    require_fpa_span(
+        data, 4.0, "the polynomial model (cubic in the FPA temperature)", sel, degree=3,
+        frames=what, record=(
+            "record the FPA held still at >= 4 temperatures (the ambient in steps, each held "
+            "until the FPA settles), or fit frames='settled'" if frames == "stable" else
+            "record while the chamber's ambient changes"),
+    )
     band = band_for(tuple(band_m))
     fpa = data.fpa_c
     used = np.flatnonzero(sel)

@@ -12,18 +12,21 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from thermocal.calibration.base import Calibration, UnverifiedFileWarning
+from thermocal.calibration.base import Calibration, ProtocolWarning, UnverifiedFileWarning
+from thermocal.calibration.dataset import prepare_chamber
 from thermocal.calibration.lin import LinCalibration, lin, lin_level
 from thermocal.calibration.polynomial import PolynomialCalibration, polynomial
+from thermocal.calibration.protocol import ProtocolCheck, ProtocolNeeds, check_protocol
 from thermocal.calibration.shutter import ShutterCalibration, shutter
 from thermocal.calibration.store import load_calibration
 from thermocal.calibration.two_point import TwoPointCalibration, one_point, two_point
 from thermocal.calibration.wolf2016 import Wolf2016Calibration, wolf2016
-from thermocal.errors import FileFormatError, InvalidInputError
+from thermocal.errors import FileFormatError, FitError, InvalidInputError
 
 __all__ = [
     "CALIBRATION_METHODS",
     "CalibrationInfo",
+    "check_session",
     "fit_calibration",
     "load_any_calibration",
     "upgrade_calibration",
@@ -50,6 +53,11 @@ class CalibrationInfo:
         What it does, in a line.
     takes_fpa_ref : bool
         Whether ``fit`` takes a reference FPA temperature ``fpa_ref_c`` (``--fpa-ref-c``).
+    needs : ProtocolNeeds
+        What a chamber session must hold for its fit (checked by
+        :func:`~thermocal.calibration.protocol.check_protocol`).
+    auto : bool
+        Whether ``--method auto`` tries it.
     """
 
     name: str
@@ -58,6 +66,15 @@ class CalibrationInfo:
     source: str
     summary: str
     takes_fpa_ref: bool = True
+    needs: ProtocolNeeds = ProtocolNeeds("all", 2)
+    auto: bool = True
+
+
+#: What the methods fitted at one reference FPA temperature need: two set points there.
+_AT_REFERENCE = ProtocolNeeds("reference", 2)
+#: Lin et al.: eq. 1 quadratic in the FPA temperature on stable frames, eq. 4 on >= 4 set points,
+#: eq. 2 on frames with a changing FPA.
+_LIN = ProtocolNeeds("stable", 4, fpa_span_c=2.0, fpa_levels=3, rate_term=True)
 
 
 #: ``--method`` name → calibration method, in the order ``--help`` lists them.
@@ -66,25 +83,34 @@ CALIBRATION_METHODS: dict[str, CalibrationInfo] = {
     for info in (
         CalibrationInfo("two-point", two_point, TwoPointCalibration, "Riou et al.",
                         "per-pixel gain and offset from two blackbody temperatures at one FPA "
-                        "temperature"),
+                        "temperature", needs=_AT_REFERENCE),
         CalibrationInfo("one-point", one_point, TwoPointCalibration, "Schulz & Caldwell",
-                        "one gain for the array, per-pixel offsets from one flat field"),
+                        "one gain for the array, per-pixel offsets from one flat field",
+                        needs=ProtocolNeeds("reference", 2, setpoints_option=("gain", 1))),
+        # its offsets come from shutter closures when applied, which a chamber session has none
+        # of: there it is two-point, so auto leaves it out
         CalibrationInfo("shutter", shutter, ShutterCalibration,
                         "Lin et al.'s baseline, FLIR GEV-style",
-                        "two-point gains; offsets re-read on the shutter every few minutes"),
+                        "two-point gains; offsets re-read on the shutter every few minutes",
+                        needs=_AT_REFERENCE, auto=False),
         CalibrationInfo("polynomial", polynomial, PolynomialCalibration,
                         "Oz et al. eq. 13–15; Nugent et al. 2013",
                         "per-pixel gain and offset cubic in the FPA temperature",
-                        takes_fpa_ref=False),
+                        takes_fpa_ref=False,
+                        needs=ProtocolNeeds("stable", 2, fpa_span_c=4.0, fpa_levels=4,
+                                            fallback=("settled", "all"))),
         CalibrationInfo("wolf2016", wolf2016, Wolf2016Calibration, "Wolf et al. 2016",
                         "per-pixel S0/S1/S2, Hammerstein–Wiener Ω, online LMS of the FPA "
-                        "temperature change"),
+                        "temperature change",
+                        needs=ProtocolNeeds("reference", 2, fpa_span_c=1.0, fpa_levels=2,
+                                            window_c=3.0, window_option="fpa_window_c",
+                                            fpa_both_ways=True)),
         CalibrationInfo("lin", lin, LinCalibration, "Lin et al.",
                         "2nd-order FPA projection, 3rd-order FPA-rate correction, Planck "
-                        "R/B/F/O fit"),
+                        "R/B/F/O fit", needs=_LIN),
         CalibrationInfo("lin-level", lin_level, LinCalibration,
                         "extension of Lin et al., not in the paper",
-                        "lin whose projection follows the scene level"),
+                        "lin whose projection follows the scene level", needs=_LIN),
     )
 }
 
@@ -106,14 +132,40 @@ def _info(method: str) -> CalibrationInfo:
     return info
 
 
-def fit_calibration(session: Any, method: str = "polynomial", **options: Any) -> Calibration:
+def check_session(session: Any, method: str, **options: Any) -> ProtocolCheck:
+    """Check a chamber session (a session, prepared data or a path) against the needs of the
+    registered ``method`` (:func:`~thermocal.calibration.protocol.check_protocol`): its
+    refusal, its warnings and the options to fit with."""
+    smooth = {"rate_smooth_s": options["rate_smooth_s"]} if "rate_smooth_s" in options else {}
+    return check_protocol(prepare_chamber(session, **smooth), method, _info(method).needs,
+                          **options)
+
+
+def fit_calibration(session: Any, method: str = "polynomial", *, check: bool = True,
+                    **options: Any) -> Calibration:
     """Fit calibration ``method`` (a key of :data:`CALIBRATION_METHODS`) to a chamber session.
 
     ``session`` is a :class:`~thermocal.io.chamber.ChamberSession`, a prepared
     :class:`~thermocal.calibration.dataset.ChamberData`, or the path of a chamber ``.h5`` /
     EnvChamberCtrl ``.npz``; ``options`` go to the method's ``fit`` function.
+
+    With ``check`` (the default) the session is first checked against the method's needs
+    (:func:`check_session`): a session that cannot support the
+    method raises :class:`~thermocal.errors.FitError` saying what to record, one that supports it
+    in part warns (:class:`~thermocal.calibration.base.ProtocolWarning`) and may be fitted to a
+    fallback frame selection (polynomial: the settled frames when the FPA never holds still).
     """
-    return _info(method).fit(session, **options)
+    info = _info(method)
+    if not check:
+        return info.fit(session, **options)
+    smooth = {"rate_smooth_s": options["rate_smooth_s"]} if "rate_smooth_s" in options else {}
+    data = prepare_chamber(session, **smooth)
+    verdict = check_protocol(data, method, info.needs, **options)
+    if not verdict.ok:
+        raise FitError(verdict.refusal)
+    for text in verdict.warnings:
+        warnings.warn(text, ProtocolWarning, stacklevel=2)
+    return info.fit(data, **verdict.options)
 
 
 def load_any_calibration(path: str | Path) -> Calibration:

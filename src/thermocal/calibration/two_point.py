@@ -278,7 +278,7 @@ def two_point(
     t = [_mean_scene_c(data, groups == g, band) for g in (0, 1)]
     used = data.fpa_c[groups >= 0]
     info = calibration_info(data.session) | scan.report() | {
-        "setpoints_c": [lo, hi], "frames_used": int((groups >= 0).sum()),
+        "setpoints_c": [lo, hi], "frames_used": scan.n_seen,
         "stable_frames_used": int(((groups >= 0) & (data.stability == STABLE)).sum()),
     }
     return _two_point_from_means(
@@ -321,15 +321,19 @@ def one_point(
                 f"reference FPA {ref:.2f} °C to estimate it, found {points.size}"
             )
         chosen += [float(points[0]), float(points[-1])]
+    # one group per distinct set point (the flat field may be an end point too)
+    distinct = sorted(set(chosen))
     groups = np.full(data.n_frames, -1)
-    for g, value in enumerate(chosen):
+    for g, value in enumerate(distinct):
         sel = near & (np.abs(bb - value) < 1e-6)
         if not sel.any():
             raise FitError(f"no frame at blackbody {value:g} °C near FPA {ref:.2f} °C")
-        groups[sel & (groups < 0)] = g
+        groups[sel] = g
     scan = FrameScan(data.frame_shape, data.session.bit_depth)
-    means, _ = group_means(data, groups, len(chosen), chunk=chunk, scan=scan)
-    temps = [_mean_scene_c(data, groups == g, band) for g in range(len(chosen))]
+    group_mean, _ = group_means(data, groups, len(distinct), chunk=chunk, scan=scan)
+    order = [distinct.index(v) for v in chosen]
+    means = group_mean[order]
+    temps = [_mean_scene_c(data, groups == g, band) for g in order]
     rad = [float(band.radiance(t + ZERO_CELSIUS_K)) for t in temps]
     bad = scan.saturated_pixels()
     if gain is None:
@@ -342,7 +346,8 @@ def one_point(
     offset = means[0] - gain * rad[0]
     bad = bad | robust_outliers(offset, mads=4 * outlier_mads)
     used = data.fpa_c[groups >= 0]
-    info = calibration_info(data.session) | scan.report() | {"setpoints_c": chosen}
+    info = calibration_info(data.session) | scan.report() | {
+        "setpoints_c": distinct, "frames_used": scan.n_seen}
     return TwoPointCalibration(
         gain=np.full(offset.shape, gain, dtype=np.float32),
         offset=offset.astype(np.float32),

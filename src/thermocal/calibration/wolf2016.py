@@ -43,6 +43,7 @@ from typing import Any
 import numpy as np
 from scipy.ndimage import uniform_filter
 
+from thermocal._validate import SATURATED_FRACTION, saturated_fraction
 from thermocal.calibration.base import (
     band_for,
     calibration_info,
@@ -55,6 +56,7 @@ from thermocal.calibration.base import (
 )
 from thermocal.calibration.dataset import (
     FrameScan,
+    describe_frames,
     iter_frames,
     prepare_chamber,
     require_fpa_span,
@@ -514,9 +516,14 @@ def wolf2016(
     first = int(np.flatnonzero(data.usable)[0])
     ref = float(data.fpa_c[first]) if fpa_ref_c is None else float(fpa_ref_c)
     near = data.usable & stability_mask(data, frames) & (np.abs(data.fpa_c - ref) <= fpa_window_c)
-    require_setpoints(data, 2, "wolf2016 (S0, S1, S2 of eq. 7-9)", near)
-    require_fpa_span(data, 1.0, f"wolf2016 (S2 of eq. 7-9, frames within ±{fpa_window_c:g} °C "
-                     f"of {ref:.2f} °C)", near)
+    what = (f"{describe_frames(data, frames)} within ±{fpa_window_c:g} °C of the reference FPA "
+            f"{ref:.2f} °C")
+    require_setpoints(data, 2, "wolf2016 (S0, S1, S2 of eq. 7-9)", near, frames=what,
+                      record="record >= 2 set points with the FPA near the reference, or choose "
+                      "another fpa_ref_c")
+    require_fpa_span(data, 1.0, "wolf2016 (S2 of eq. 7-9)", near, frames=what,
+                     record="record the FPA at two temperatures >= 1 °C apart near the "
+                     "reference, or widen fpa_window_c")
     x_all = np.asarray(band.radiance(data.scene_c + ZERO_CELSIUS_K), dtype=np.float64)
     dt_all = data.fpa_c - ref
     h, w = data.frame_shape
@@ -583,14 +590,18 @@ def wolf2016(
     good = ~bad
     s2_hp, norm = _s2_highpass(s2, bad, window)
     s2_mean = float(s2[good].mean())
+    hw_saturated: list[int] = []
     for idx, block in iter_frames(data.session, hw_idx, chunk=chunk):
-        for i, frame in zip(idx, block, strict=True):
+        over = saturated_fraction(block, data.session.bit_depth) > SATURATED_FRACTION
+        hw_saturated.extend(int(i) for i in idx[over])
+        for i, frame in zip(idx[~over], block[~over], strict=True):
             x0 = frame.astype(np.float32) * s0 + s1
             d_hat = _lms_fixed_point(x0, s2_hp, norm)
             lms_dt[i] = d_hat
             mean_model[i] = float(x0[good].mean()) + s2_mean * d_hat
     excluded = np.zeros(data.n_frames, dtype=bool)
     excluded[scan.excluded] = True
+    excluded[hw_saturated] = True
     valid = hw_sel & np.isfinite(mean_model) & ~excluded
     # Resample on a uniform grid of the session's frame interval (the ARX model needs equal
     # steps), run by run: a gap of more than 5 frame intervals in the session (another chamber
@@ -616,7 +627,9 @@ def wolf2016(
     sim = np.concatenate([hw.simulate(dgrid[seg == s]) for s in np.unique(seg)])
     used = data.fpa_c[valid]
     info = calibration_info(data.session) | scan.report() | {
-        "frames_used_s": int(near.sum()),
+        "excluded_frames": int(excluded.sum()),
+        "excluded_frame_indices": [int(i) for i in np.flatnonzero(excluded)[:50]],
+        "frames_used_s": scan.n_seen,
         "frames_used_hw": int(valid.sum()),
         "lms_fixed_point_rms_c": float(np.sqrt(np.nanmean((lms_dt - dt_all)[valid] ** 2))),
         "hw_rms_residual": float(np.sqrt(np.mean((sim - omega) ** 2))),

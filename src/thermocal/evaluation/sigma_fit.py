@@ -88,8 +88,8 @@ def fit_network_sigma(weights: str | os.PathLike[str], *, per_scene: int = 3, se
         pick = rng.choice(err.size, size=min(PIXELS_PER_BURST, err.size), replace=False)
         errors.append(err[pick])
         feats.append(f[:, pick])
-    fitted_on = {"units": sorted({int(b["unit"]) for b in bursts}), "scenes": sorted(scenes), "bursts": len(bursts),
-                 "frames_per_burst": model.config.n_frames}
+    fitted_on = {"units": sorted({int(b["unit"]) for b in bursts}), "scenes": sorted(scenes),
+                 "bursts": len(bursts), "frames_per_burst": model.config.n_frames}
     return fit_sigma_model(np.concatenate(errors), np.concatenate(feats, axis=1),
                            weights_sha256=content["sha256"], fitted_on=fitted_on)
 

@@ -1,0 +1,650 @@
+"""How well a calibration will do: cross-validated on the chamber session it was fitted to.
+
+:func:`cross_validate` refits a method with parts of the session left out and measures, on the
+frames left out, the mean absolute error of the scene temperature it gives against the
+blackbody's (radiance-equivalent) temperature, °C:
+
+- *leave one set point out*: each blackbody set point in turn (the lowest and highest are
+  extrapolations in the scene level, reported apart);
+- *leave one FPA segment out*: the FPA range of the session cut into ``fpa_segments`` contiguous
+  segments of equal width, each in turn (the two at the ends are extrapolations in the FPA
+  temperature, reported apart).
+
+``expected_mae_c``, the error to expect from the calibration within the ranges it covers, is the
+mean error of every frame of the interior folds (the interpolations). A frame is scored in the
+fold that left it out, through the method's own ``apply`` run over the whole session in time
+order (``wolf2016``'s stream and ``lin``'s FPA rate need the recording whole): what the method
+learns as frames stream by is not the truth, so it is no leak.
+
+The refits run on a sample of the session: a mosaic of ``16`` pixel tiles spread over the frame
+(every method's fit is per pixel, or uses the pixels' mean; tiles keep the neighbours that
+``wolf2016``'s LMS and the bad-pixel filling look at) and at most ``max_frames`` frames, so that
+a report costs a few seconds on a 160x120 session whatever the method.
+
+The report (:class:`CalibrationReport`) also states the ranges the session covers (scene, FPA
+temperature and FPA rate: the errors are measured at the FPA rates the session holds, so a
+session whose FPA only rises says nothing of a falling one, and its report says so), the frames
+the fit used and why it left the others out, and the protocol's warnings; it is stored in the
+calibration file (``info["report"]``, JSON) and read back by :func:`report_of`.
+
+:func:`fit_with_report` checks the protocol
+(:func:`~thermocal.calibration.registry.check_session`), fits and cross-validates one method
+(``thermocal calibrate``); :func:`auto_calibration`
+cross-validates every method the session supports and keeps the one of lowest expected error
+(``--method auto``).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+
+from thermocal._validate import SATURATED_FRACTION, saturated_fraction
+from thermocal.calibration.base import Calibration, ThermocalWarning
+from thermocal.calibration.dataset import ChamberData, iter_frames, prepare_chamber
+from thermocal.errors import InvalidInputError, ThermocalError
+from thermocal.io.chamber import ChamberSession
+
+__all__ = [
+    "CalibrationReport",
+    "auto_calibration",
+    "cross_validate",
+    "fit_with_report",
+    "frame_counts",
+    "report_of",
+    "sample_chamber",
+]
+
+#: Pixels the refits see by default: 16 tiles of 8x8 spread over the frame.
+DEFAULT_PIXELS = 1024
+#: Tiles of the pixel sample, per side.
+TILES_PER_SIDE = 4
+#: Frames the refits see at most (every k-th frame beyond: the FPA rates and stability classes
+#: stay those of the whole session).
+MAX_FRAMES = 2000
+#: FPA segments left out in turn.
+FPA_SEGMENTS = 4
+#: Version of the report's layout in a calibration file.
+REPORT_VERSION = 1
+
+
+@dataclass(frozen=True)
+class CalibrationReport:
+    """A calibration's cross-validation and what its chamber session covered.
+
+    Attributes
+    ----------
+    method : str
+        The calibration method.
+    expected_mae_c : float or None
+        Mean absolute error to expect within the covered ranges, °C: the mean over every frame
+        of the interior folds (None when no interior fold could be refitted; ``notes`` say why).
+    folds : list of dict
+        One per fold: ``kind`` (``"setpoint"`` or ``"fpa"``), ``held_out`` (the set point, °C,
+        or the FPA segment ``[low, high]``, °C), ``extrapolation`` (an end fold), ``frames``
+        (frames scored) and ``mae_c``, or ``error`` (why it could not be refitted).
+    fpa_range_c, scene_range_c : (float, float)
+        FPA temperatures and scene (radiance-equivalent) temperatures the session covers, °C.
+    fpa_rate_c_per_min : (float, float)
+        Lowest and highest FPA rate in the session, °C/min.
+    frames : dict
+        ``total``, ``used`` (by the fit), ``left_out`` (reason → count).
+    sample : dict
+        The refits' sample: ``pixels``, ``frames``.
+    warnings : list of str
+        What the protocol lacks for this method (the fit is degraded, not refused).
+    notes : list of str
+        Anything else worth knowing (folds that could not be refitted, ...).
+    options : dict
+        The options the method was fitted with (JSON values).
+    ranking : list of dict
+        ``--method auto``: every candidate, best first: ``method`` and ``expected_mae_c``, or
+        ``refused`` (why it could not be fitted); empty otherwise.
+    """
+
+    method: str
+    expected_mae_c: float | None
+    folds: list[dict[str, Any]]
+    fpa_range_c: tuple[float, float]
+    scene_range_c: tuple[float, float]
+    fpa_rate_c_per_min: tuple[float, float]
+    frames: dict[str, Any] = field(default_factory=dict)
+    sample: dict[str, int] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+    notes: list[str] = field(default_factory=list)
+    options: dict[str, Any] = field(default_factory=dict)
+    ranking: list[dict[str, Any]] = field(default_factory=list)
+
+    @property
+    def extrapolated_mae_c(self) -> float | None:
+        """Mean absolute error of the end folds' frames (the extrapolations), °C, or None."""
+        done = [f for f in self.folds if f["extrapolation"] and f.get("mae_c") is not None]
+        frames = sum(f["frames"] for f in done)
+        return sum(f["mae_c"] * f["frames"] for f in done) / frames if frames else None
+
+    def by_scene(self) -> list[dict[str, Any]]:
+        """The set-point folds: MAE by scene level (``held_out``: the set point, °C)."""
+        return [f for f in self.folds if f["kind"] == "setpoint"]
+
+    def by_fpa(self) -> list[dict[str, Any]]:
+        """The FPA folds: MAE by FPA temperature (``held_out``: the segment, °C)."""
+        return [f for f in self.folds if f["kind"] == "fpa"]
+
+    def to_dict(self) -> dict[str, Any]:
+        """The report as JSON values (a calibration file's ``info["report"]``, ``--report``)."""
+        return {
+            "version": REPORT_VERSION,
+            "method": self.method,
+            "expected_mae_c": self.expected_mae_c,
+            "fpa_range_c": list(self.fpa_range_c),
+            "scene_range_c": list(self.scene_range_c),
+            "fpa_rate_c_per_min": list(self.fpa_rate_c_per_min),
+            "frames": self.frames,
+            "mae_by_scene_c": [_row(f) for f in self.by_scene()],
+            "mae_by_fpa_c": [_row(f) for f in self.by_fpa()],
+            "sample": self.sample,
+            "warnings": list(self.warnings),
+            "notes": list(self.notes),
+            "options": self.options,
+            **({"auto_ranking": self.ranking} if self.ranking else {}),
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> CalibrationReport:
+        """The report of :meth:`to_dict`; :class:`InvalidInputError` if it is not one."""
+        try:
+            folds = [{"kind": "setpoint", **f} for f in d.get("mae_by_scene_c", [])] + [
+                {"kind": "fpa", **f} for f in d.get("mae_by_fpa_c", [])]
+            mae = d["expected_mae_c"]
+            return cls(
+                method=str(d["method"]),
+                expected_mae_c=None if mae is None else float(mae),
+                folds=folds,
+                fpa_range_c=_pair(d["fpa_range_c"]),
+                scene_range_c=_pair(d["scene_range_c"]),
+                fpa_rate_c_per_min=_pair(d["fpa_rate_c_per_min"]),
+                frames=dict(d.get("frames", {})),
+                sample=dict(d.get("sample", {})),
+                warnings=[str(w) for w in d.get("warnings", [])],
+                notes=[str(n) for n in d.get("notes", [])],
+                options=dict(d.get("options", {})),
+                ranking=[dict(r) for r in d.get("auto_ranking", [])],
+            )
+        except (KeyError, TypeError, ValueError) as exc:
+            raise InvalidInputError(f"not a calibration report ({type(exc).__name__}: "
+                                    f"{str(exc)[:80]})") from None
+
+    def summary_lines(self) -> list[str]:
+        """The report in 3–4 lines for the terminal (its warnings apart)."""
+        failed = [f for f in self.folds if f.get("mae_c") is None and not f["extrapolation"]]
+        if self.expected_mae_c is None:
+            extra = self.extrapolated_mae_c
+            lines = [f"  expected error: not measured ({'; '.join(self.notes[:1]) or 'no fold'})"
+                     + ("" if extra is None else f"; {extra:.2f} °C MAE on the extrapolations")]
+        else:
+            n_sp = sum(1 for f in self.by_scene() if not f["extrapolation"])
+            n_fpa = sum(1 for f in self.by_fpa() if not f["extrapolation"])
+            cannot = f", {len(failed)} of them not refittable" if failed else ""
+            lines = [f"  expected error {self.expected_mae_c:.2f} °C MAE (cross-validated: {n_sp} "
+                     f"set point(s) and {n_fpa} FPA segment(s) left out in turn{cannot})"]
+        scene = _table(self.by_scene(), lambda f: f"{f['held_out']:g}")
+        fpa = _table(self.by_fpa(), lambda f: f"{f['held_out'][0]:.1f}…{f['held_out'][1]:.1f}")
+        lines.append(f"  MAE by set point °C: {scene}; by FPA °C: {fpa} (* extrapolated)")
+        lo, hi = self.scene_range_c
+        flo, fhi = self.fpa_range_c
+        rlo, rhi = self.fpa_rate_c_per_min
+        rates = [n for n in self.notes if n.startswith("the FPA never")]
+        lines.append(f"  covers scene {lo:.1f}…{hi:.1f} °C, FPA {flo:.1f}…{fhi:.1f} °C at "
+                     f"{rlo:+.2f}…{rhi:+.2f} °C/min" + (f" ({rates[0].split(' (')[0]}: errors "
+                                                        "measured at these rates only)"
+                                                        if rates else ""))
+        return lines
+
+
+def _row(fold: dict[str, Any]) -> dict[str, Any]:
+    return {k: v for k, v in fold.items() if k != "kind"}
+
+
+def _pair(value: Any) -> tuple[float, float]:
+    lo, hi = (float(v) for v in value)
+    return lo, hi
+
+
+def _table(folds: list[dict[str, Any]], label: Any) -> str:
+    """``"10: 0.12*, 20: 0.08, ..."`` (``-``: the fold could not be refitted)."""
+    if not folds:
+        return "none"
+    cells = []
+    for f in folds:
+        value = "-" if f.get("mae_c") is None else f"{f['mae_c']:.2f}"
+        cells.append(f"{label(f)}: {value}{'*' if f['extrapolation'] else ''}")
+    return ", ".join(cells)
+
+
+def report_of(calibration: Calibration) -> CalibrationReport | None:
+    """The report stored with a calibration (``info["report"]``), or None (an older file)."""
+    stored = (getattr(calibration, "info", None) or {}).get("report")
+    return None if stored is None else CalibrationReport.from_dict(stored)
+
+
+# --------------------------------------------------------------------------------- sampling
+
+
+def _tile_index(n: int, tiles: int, size: int) -> np.ndarray:
+    """Indices of ``tiles`` runs of ``size`` spread evenly over ``0 … n−1`` (all of them when
+    they would overlap)."""
+    if tiles * size >= n:
+        return np.arange(n)
+    starts = np.round(np.linspace(0, n - size, tiles)).astype(np.int64)
+    return (starts[:, None] + np.arange(size)[None]).ravel()
+
+
+def sample_chamber(data: ChamberData, *, pixels: int = DEFAULT_PIXELS,
+                   max_frames: int = MAX_FRAMES, chunk: int = 64
+                   ) -> tuple[ChamberData, np.ndarray, np.ndarray]:
+    """A small copy of a prepared session for refits, its saturated frames, and which frames of
+    the session it holds.
+
+    Returns the session reduced to a mosaic of ``TILES_PER_SIDE²`` tiles (about ``pixels``
+    pixels in all, spread over the frame) and at most ``max_frames`` frames (every k-th), in
+    memory, with the series of ``data`` (FPA rates and stability classes of the whole session);
+    and a bool ``(M',)`` of its frames that are saturated on the whole frame (more than
+    :data:`~thermocal._validate.SATURATED_FRACTION` of their pixels clipped), which no method
+    applies to; and the indices ``(M',)`` of its frames in ``data``.
+    """
+    if pixels < 16:
+        raise InvalidInputError(f"the report's pixel sample must be >= 16 pixels, got {pixels}")
+    if max_frames < 2:
+        raise InvalidInputError(f"the report's frame sample must be >= 2 frames, got {max_frames}")
+    h, w = data.frame_shape
+    side = max(1, int(math.sqrt(pixels)) // TILES_PER_SIDE)
+    rows = _tile_index(h, TILES_PER_SIDE, side)
+    cols = _tile_index(w, TILES_PER_SIDE, side)
+    step = -(-data.n_frames // max_frames)
+    index = np.arange(0, data.n_frames, step)
+    s = data.session
+    bit_depth = s.bit_depth
+    crop = np.empty((index.size, rows.size, cols.size), dtype=np.uint16)
+    saturated = np.zeros(index.size, dtype=bool)
+    pos = 0
+    for _, block in iter_frames(s, index, chunk=chunk):
+        k = len(block)
+        tiles = block[:, rows][:, :, cols]
+        crop[pos:pos + k] = tiles
+        saturated[pos:pos + k] = np.maximum(saturated_fraction(block, bit_depth),
+                                            saturated_fraction(tiles, bit_depth)) \
+            > SATURATED_FRACTION  # the whole frame's, or the sample's (which apply refuses)
+        pos += k
+
+    def sub(series: np.ndarray | None) -> np.ndarray | None:
+        return None if series is None else np.asarray(series)[index]
+
+    session = ChamberSession(crop, blackbody_c=s.blackbody_c[index], fpa_c=s.fpa_c[index],
+                             time_s=s.time_s[index], housing_c=sub(s.housing_c),
+                             ambient_c=sub(s.ambient_c), attrs=dict(s.attrs))
+    small = replace(data, session=session, scene_c=data.scene_c[index], fpa_c=data.fpa_c[index],
+                    time_s=data.time_s[index],
+                    fpa_rate_c_per_min=data.fpa_rate_c_per_min[index],
+                    stability=data.stability[index], block=data.block[index],
+                    usable=data.usable[index], info=dict(data.info))
+    return small, saturated, index
+
+
+# --------------------------------------------------------------------------------- folds
+
+
+def setpoint_folds(data: ChamberData) -> list[tuple[dict[str, Any], np.ndarray]]:
+    """Leave-one-set-point-out folds: ``(description, frames held out (M,) bool)`` for each set
+    point of the usable frames; the lowest and highest are extrapolations."""
+    bb = np.round(data.session.blackbody_c, 6)
+    points = data.setpoints_c
+    return [({"kind": "setpoint", "held_out": float(p),
+              "extrapolation": bool(i in (0, points.size - 1))}, data.usable & (bb == p))
+            for i, p in enumerate(points)]
+
+
+def fpa_folds(data: ChamberData, segments: int = FPA_SEGMENTS
+              ) -> list[tuple[dict[str, Any], np.ndarray]]:
+    """Leave-one-FPA-segment-out folds: the usable frames' FPA range cut into ``segments``
+    contiguous segments of equal width; the two at the ends are extrapolations. Empty when the
+    FPA spans less than 0.5 °C per segment."""
+    fpa = data.fpa_c[data.usable]
+    if fpa.size == 0:
+        return []
+    lo, hi = float(fpa.min()), float(fpa.max())
+    if hi - lo < 0.5 * segments:
+        return []
+    edges = np.linspace(lo, hi, segments + 1)
+    which = np.clip(np.searchsorted(edges, data.fpa_c, side="right") - 1, 0, segments - 1)
+    return [({"kind": "fpa", "held_out": [float(edges[i]), float(edges[i + 1])],
+              "extrapolation": bool(i in (0, segments - 1))}, data.usable & (which == i))
+            for i in range(segments)]
+
+
+# --------------------------------------------------------------------------------- scoring
+
+
+def frame_errors(calibration: Calibration, data: ChamberData, scored: np.ndarray) -> np.ndarray:
+    """Mean absolute error of each frame's scene temperature, °C, ``(M,)`` (NaN where not
+    scored): ``calibration`` applied to the ``scored`` frames of ``data``, in time order, as one
+    recording, against ``data.scene_c``."""
+    out = np.full(data.n_frames, np.nan)
+    idx = np.flatnonzero(scored)
+    if idx.size == 0:
+        return out
+    frames = np.asarray(data.session.frames[idx])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ThermocalWarning)  # refits applied outside their range
+        est = calibration.apply(frames, fpa_c=data.fpa_c[idx], time_s=data.time_s[idx])
+    out[idx] = np.abs(est - data.scene_c[idx, None, None].astype(np.float32)).mean(
+        axis=(1, 2), dtype=np.float64)
+    return out
+
+
+def _fit(data: ChamberData, method: str, options: dict[str, Any]) -> Calibration:
+    from thermocal.calibration.registry import CALIBRATION_METHODS
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ThermocalWarning)
+        return CALIBRATION_METHODS[method].fit(data, **options)
+
+
+def fixed_reference(calibration: Calibration, method: str) -> dict[str, float]:
+    """The reference FPA temperature of a fit as the option that fixes it in a refit
+    (``fpa_ref_c``), for the methods that take one; ``{}`` for the others."""
+    from thermocal.calibration.registry import CALIBRATION_METHODS
+
+    if not CALIBRATION_METHODS[method].takes_fpa_ref:
+        return {}
+    ref = getattr(calibration, "fpa_ref_c", None)
+    if ref is None:
+        ref = getattr(calibration, "t_ref_c", None)
+    return {} if ref is None else {"fpa_ref_c": float(ref)}
+
+
+def cross_validate(
+    session: Any,
+    method: str,
+    *,
+    calibration: Calibration | None = None,
+    fpa_segments: int = FPA_SEGMENTS,
+    pixels: int = DEFAULT_PIXELS,
+    max_frames: int = MAX_FRAMES,
+    counts: dict[str, Any] | None = None,
+    protocol_warnings: list[str] | None = None,
+    **options: Any,
+) -> CalibrationReport:
+    """Cross-validate calibration ``method`` on a chamber session.
+
+    Parameters
+    ----------
+    session : ChamberData, ChamberSession or path
+        The chamber session the calibration is fitted to.
+    method : str
+        A key of :data:`~thermocal.calibration.registry.CALIBRATION_METHODS`.
+    calibration : Calibration, optional
+        The fit on the whole session; its reference FPA temperature is kept in every refit
+        (default: that of a fit on the sample).
+    fpa_segments : int
+        FPA segments left out in turn (>= 3: two ends and an interior).
+    pixels, max_frames : int
+        Size of the refits' sample (:func:`sample_chamber`).
+    counts : dict, optional
+        The fit's frame counts (:func:`frame_counts`) for the report.
+    protocol_warnings : list of str, optional
+        The protocol's warnings for this method, for the report.
+    **options
+        The method's fitting options.
+
+    Returns
+    -------
+    CalibrationReport
+    """
+    if fpa_segments < 3:
+        raise InvalidInputError(f"fpa_segments must be >= 3, got {fpa_segments}")
+    data = prepare_chamber(session)
+    if not data.usable.any():
+        raise InvalidInputError("the chamber session has no usable frame to cross-validate")
+    small, saturated, index = sample_chamber(data, pixels=pixels, max_frames=max_frames)
+    scorable = small.usable & ~saturated
+    notes: list[str] = []
+    options = dict(options)
+    if options.get("frame_mask") is not None:  # polynomial: a mask of the session's frames
+        mask = np.asarray(options["frame_mask"], dtype=bool)
+        if mask.shape != (data.n_frames,):
+            raise InvalidInputError(f"frame_mask: expected {(data.n_frames,)}, got {mask.shape}")
+        options["frame_mask"] = mask[index]
+    if calibration is None:
+        calibration = _fit(small, method, options)
+    refit_options = options | fixed_reference(calibration, method)
+    errors: list[np.ndarray] = []  # per-frame errors of the interior folds
+    folds = []
+    for desc, held in setpoint_folds(small) + fpa_folds(small, fpa_segments):
+        held = held & scorable
+        if not held.any():
+            continue
+        try:
+            cal = _fit(replace(small, usable=small.usable & ~held), method, refit_options)
+            err = frame_errors(cal, small, scorable)[held]
+            if not np.all(np.isfinite(err)):
+                raise InvalidInputError("the refit gives non-finite temperatures")
+        except ThermocalError as exc:
+            folds.append(desc | {"frames": int(held.sum()), "mae_c": None,
+                                 "error": " ".join(str(exc).split())[:200]})
+            continue
+        folds.append(desc | {"frames": int(held.sum()), "mae_c": float(np.mean(err))})
+        if not desc["extrapolation"]:
+            errors.append(err)
+    failed = [f for f in folds if f.get("mae_c") is None and not f["extrapolation"]]
+    if failed:
+        notes.append(f"{len(failed)} interior fold(s) could not be refitted without their "
+                     f"frames ({failed[0]['error']})")
+    expected = float(np.mean(np.concatenate(errors))) if errors else None
+    if expected is None:
+        notes.append("no interior set point or FPA segment could be left out and refitted")
+    usable = data.usable
+    scene = data.scene_c[usable]
+    rate = data.fpa_rate_c_per_min[usable]
+    fpa = data.fpa_c[usable]
+    notes.extend(_rate_notes(data, rate))
+    return CalibrationReport(
+        method=method,
+        expected_mae_c=expected,
+        folds=folds,
+        fpa_range_c=(float(fpa.min()), float(fpa.max())),
+        scene_range_c=(float(scene.min()), float(scene.max())),
+        fpa_rate_c_per_min=(float(rate.min()), float(rate.max())),
+        frames=dict(counts or {}),
+        sample={"pixels": int(small.frame_shape[0] * small.frame_shape[1]),
+                "frames": int(small.n_frames)},
+        warnings=list(protocol_warnings or []),
+        notes=notes,
+        options=_json_options(options),
+    )
+
+
+def _json_options(options: dict[str, Any]) -> dict[str, Any]:
+    """The options as JSON values for the report (tuples as lists, other objects by their
+    ``repr``; a frame mask left out)."""
+    out: dict[str, Any] = {}
+    for key, value in options.items():
+        if isinstance(value, np.ndarray):
+            continue  # a frame mask: not worth storing
+        if isinstance(value, np.generic):
+            value = value.item()
+        if isinstance(value, tuple):
+            value = list(value)
+        out[key] = value if isinstance(value, str | int | float | bool | list | None) else repr(
+            value)
+    return out
+
+
+def _rate_notes(data: ChamberData, rate: np.ndarray) -> list[str]:
+    """A note when the FPA never falls, or never rises, in the session: the errors are measured
+    at the FPA rates it covers only."""
+    stable = float(data.info.get("stable_c_per_min", 0.05))
+    rises, falls = bool(np.any(rate > stable)), bool(np.any(rate < -stable))
+    if rises and falls:
+        return []
+    how = "never changes" if not (rises or falls) else ("never falls" if rises else
+                                                         "never rises")
+    return [f"the FPA {how} in this session ({rate.min():+.2f}…{rate.max():+.2f} °C/min): the "
+            "errors are measured at these FPA rates only"]
+
+
+# --------------------------------------------------------------------------- frames used
+
+#: Why a method leaves chamber frames out of its fit by default (saturated frames apart).
+LEFT_OUT_WHY = {
+    "two-point": "not at the two end set points with the FPA settled at the reference",
+    "one-point": "not at its set points with the FPA settled at the reference",
+    "shutter": "not at the two end set points with the FPA settled at the reference",
+    "polynomial": "with a changing FPA (it fits the stable frames)",
+    "wolf2016": "with the FPA changing or away from the reference",
+    "lin": "taken while the blackbody settled",
+    "lin-level": "taken while the blackbody settled",
+}
+#: ``LEFT_OUT_WHY`` of the polynomial model by its ``frames`` option.
+_POLYNOMIAL_WHY = {
+    "settled": "with a fast-changing FPA (it fits the settled frames)",
+    "all": "taken while the blackbody settled",
+}
+
+
+def frame_counts(method: str, info: dict[str, Any], n_frames: int,
+                 options: dict[str, Any] | None = None) -> dict[str, Any]:
+    """The true frame counts of a fit, from its ``info``: ``total`` (the session's
+    ``n_frames``), ``used`` (None when the method does not record it), ``left_out`` (reason →
+    count: the saturated frames apart from the others) and, for wolf2016, ``used_hw`` (the frames
+    of its Hammerstein-Wiener estimator)."""
+    why = LEFT_OUT_WHY.get(method, "outside its default selection")
+    if method == "polynomial":
+        why = _POLYNOMIAL_WHY.get(str((options or {}).get("frames", "stable")), why)
+    if "frames_used" in info:
+        used = int(info["frames_used"])
+    elif "frames_used_s" in info:  # wolf2016: the S maps; its HW estimator uses more
+        used = int(info["frames_used_s"])
+    elif "stable_frames" in info and "unstable_frames" in info:  # lin
+        used = int(info["stable_frames"]) + int(info["unstable_frames"])
+    else:
+        return {"total": n_frames, "used": None, "left_out": {}}
+    saturated = int(info.get("excluded_frames", 0) or 0)
+    other = max(0, n_frames - used - saturated)
+    left = ({why: other} if other else {}) | ({"saturated": saturated} if saturated else {})
+    out: dict[str, Any] = {"total": n_frames, "used": used, "left_out": left}
+    if "frames_used_hw" in info:
+        out["used_hw"] = int(info["frames_used_hw"])
+    return out
+
+
+# --------------------------------------------------------------------------- fit and report
+
+
+def fit_with_report(session: Any, method: str, **options: Any
+                    ) -> tuple[Calibration, CalibrationReport]:
+    """Check the protocol, fit ``method`` to the whole session and cross-validate it.
+
+    Raises :class:`~thermocal.errors.FitError` with the protocol's refusal (what the session
+    lacks, what to record); the protocol's warnings go into the report (not warned).
+    """
+    from thermocal.calibration.registry import check_session, fit_calibration
+    from thermocal.errors import FitError
+
+    data = prepare_chamber(session)
+    verdict = check_session(data, method, **options)
+    if not verdict.ok:
+        raise FitError(verdict.refusal)
+    cal = fit_calibration(data, method, check=False, **verdict.options)
+    report = cross_validate(
+        data, method, calibration=cal, protocol_warnings=verdict.warnings,
+        counts=frame_counts(method, getattr(cal, "info", {}), data.n_frames, verdict.options),
+        **verdict.options,
+    )
+    return cal, report
+
+
+def auto_calibration(session: Any, *, options: dict[str, dict[str, Any]] | None = None,
+                     methods: tuple[str, ...] | None = None
+                     ) -> tuple[Calibration, CalibrationReport]:
+    """``--method auto``: cross-validate every candidate the protocol supports, fit the one of
+    lowest expected error to the whole session.
+
+    Parameters
+    ----------
+    session : ChamberData, ChamberSession or path
+    options : dict, optional
+        Fitting options by method name.
+    methods : tuple of str, optional
+        The candidates (default: the registry's methods with ``auto``).
+
+    Returns
+    -------
+    (Calibration, CalibrationReport)
+        The chosen fit and its report, whose ``ranking`` lists every candidate, best first,
+        and the refused ones with why.
+
+    Raises
+    ------
+    FitError
+        When no candidate can be fitted and cross-validated (the refusals, in one line).
+    """
+    from thermocal.calibration.registry import CALIBRATION_METHODS, check_session, fit_calibration
+    from thermocal.errors import FitError
+
+    data = prepare_chamber(session)
+    names = methods or tuple(n for n, c in CALIBRATION_METHODS.items() if c.auto)
+    measured: dict[str, tuple[CalibrationReport, dict[str, Any]]] = {}
+    refused: list[dict[str, Any]] = []
+    for name in names:
+        verdict = check_session(data, name, **(options or {}).get(name, {}))
+        if not verdict.ok:
+            refused.append({"method": name, "refused": verdict.refusal})
+            continue
+        try:
+            report = cross_validate(data, name, protocol_warnings=verdict.warnings,
+                                    **verdict.options)
+        except ThermocalError as exc:
+            refused.append({"method": name, "refused": " ".join(str(exc).split())})
+            continue
+        if report.expected_mae_c is None and report.extrapolated_mae_c is None:
+            refused.append({"method": name, "refused": "not cross-validated: "
+                            + "; ".join(report.notes)})
+            continue
+        measured[name] = (report, verdict.options)
+    if not measured:
+        why = "; ".join(f"{r['method']}: {r['refused']}" for r in refused)
+        raise FitError(f"no calibration method can be fitted to this session ({why})")
+    order = sorted(measured, key=lambda n: _rank_key(measured[n][0]))
+    best = order[0]
+    report, fit_options = measured[best]
+    cal = fit_calibration(data, best, check=False, **fit_options)
+    ranking = [{"method": n, "expected_mae_c": measured[n][0].expected_mae_c}
+               | ({} if measured[n][0].expected_mae_c is not None else
+                  {"extrapolated_mae_c": measured[n][0].extrapolated_mae_c}) for n in order]
+    report = replace(
+        report, ranking=ranking + refused,
+        frames=frame_counts(best, getattr(cal, "info", {}), data.n_frames, fit_options),
+    )
+    return cal, report
+
+
+def _rank_key(report: CalibrationReport) -> tuple[bool, float]:
+    """Auto's order: by expected error; the methods measured on extrapolations only after."""
+    if report.expected_mae_c is not None:
+        return False, report.expected_mae_c
+    return True, report.extrapolated_mae_c if report.extrapolated_mae_c is not None else math.inf
+
+
+def ranking_line(report: CalibrationReport) -> str:
+    """``--method auto``'s ranking in a line: each candidate's expected MAE, best first (``x``:
+    measured on extrapolations only), and the refused ones."""
+    kept = [f"{r['method']} {r['expected_mae_c']:.2f}" if r["expected_mae_c"] is not None
+            else f"{r['method']} {r['extrapolated_mae_c']:.2f}x" for r in report.ranking
+            if "refused" not in r]
+    out = f"auto: expected MAE °C {', '.join(kept)}; chose {report.method}"
+    refused = [r["method"] for r in report.ranking if "refused" in r]
+    return out + (f"; not supported by this session: {', '.join(refused)}" if refused else "")
