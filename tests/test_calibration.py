@@ -416,11 +416,24 @@ def test_calibrate_and_correct_commands(fit_run, eval_run, camera, tmp_path, cap
     temps = read_temperature_tiff(tmp_path / "t.tiff")
     assert temps.shape == (12, 48, 64)
     assert score(temps, truth[sel], camera) < 0.15
-    # --fpa-c overrides the sidecar: a wrong constant FPA gives a warning and a wrong answer
-    code, out, err = run_cli(["correct", str(tmp_path / "rec.tiff"), "--calibration",
-                              str(cal_path), "--fpa-c", "60", "--out",
-                              str(tmp_path / "t2.tiff")], capsys)
-    assert code == 0 and "leave the calibrated range" in err
+    # --fpa-c overrides the sidecar: an FPA outside the calibrated range is refused (exit 2,
+    # one line, nothing written) …
+    t2 = tmp_path / "t2.tiff"
+    args = ["correct", str(tmp_path / "rec.tiff"), "--calibration", str(cal_path), "--fpa-c",
+            "60", "--out", str(t2), "--sigma-out", str(tmp_path / "s2.tiff")]
+    code, out, err = run_cli(args, capsys)
+    assert code == 2 and "FPA temperature 60.0…60.0 °C is outside" in err, err
+    assert "--force" in err and len(err.strip().splitlines()) == 1 and not t2.exists()
+    # … and with --force corrected with a warning, its σ grown with the distance outside
+    code, out, err = run_cli([*args, "--force"], capsys)
+    assert code == 0 and "leave the calibrated range" in err and "(--force)" in err
+    inside = run_cli(["correct", str(tmp_path / "rec.tiff"), "--calibration", str(cal_path),
+                      "--out", str(tmp_path / "t3.tiff"), "--sigma-out",
+                      str(tmp_path / "s3.tiff")], capsys)
+    assert inside[0] == 0, inside[2]
+    far, near = (read_temperature_tiff(tmp_path / n) for n in ("s2.tiff", "s3.tiff"))
+    assert far.shape == near.shape == (12, 48, 64)
+    assert float(far.min()) > float(near.max())
 
 
 def test_commands_reject_bad_input(fit_run, tmp_path, capsys):

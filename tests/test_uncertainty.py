@@ -107,3 +107,31 @@ def test_estimate_writes_sigma_and_inflates_it_outside(tmp_path, capsys):
     code, _, err = run(["estimate", tmp_path / "tau2.tiff", "--out", tmp_path / "x.tiff",
                         "--sigma-out", tmp_path / "tau2.tiff"], capsys)
     assert code == 2 and "input" in err and not (tmp_path / "x.tiff").exists()
+
+
+def test_fuzzed_sigma_models_are_refused_or_sane(tmp_path):
+    """200 byte-level mutants of the shipped σ model: each is refused with FileFormatError or
+    reads as the very same model (its SHA-256: a changed number cannot pass); nothing else."""
+    from mutants import flip_bytes
+
+    from thermocal.nn.infer import shipped_model_path
+
+    original = sidecar_path(shipped_model_path("kpn"))
+    data = original.read_bytes()
+    same = SigmaModel.load(original, weights_sha256=None)
+    rng = np.random.default_rng(18)
+    feats = np.zeros((3, 4, 4))
+    outcomes = {"refused": 0, "read": 0}
+    for i in range(200):
+        path = tmp_path / f"m{i}.sigma.json"
+        path.write_bytes(flip_bytes(data, rng))
+        try:
+            model = SigmaModel.load(path, weights_sha256=None)
+        except FileFormatError as exc:
+            assert len(str(exc).splitlines()) == 1
+            outcomes["refused"] += 1
+            continue
+        sigma = model.sigma_of(feats)
+        assert model == same and np.all(np.isfinite(sigma))
+        outcomes["read"] += 1
+    assert outcomes["refused"] > 150

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from thermocal import metrics
-from thermocal.calibration import fit_calibration
+from thermocal.calibration.report import fit_with_report
 from thermocal.camera.model import invert
 from thermocal.camera.presets import make_camera
 from thermocal.estimation.calibrated import PivotCalibration
@@ -50,11 +50,12 @@ def calibrate_in_chamber(camera, *, seed: int, tmp: Path) -> dict:
     )
     path = tmp / "chamber.h5"
     write_simulated_chamber(path, camera, plan, seed=seed)
+    # each with its cross-validation report, which gives its uncertainty
     return {
-        f"two-point (FPA {TWO_POINT_FPA_C:.0f} °C)": fit_calibration(
-            path, method="two-point", fpa_ref_c=TWO_POINT_FPA_C),
-        "polynomial (per pixel, FPA-dependent)": fit_calibration(
-            path, method="polynomial", scene="radiance", frames="settled"),
+        f"two-point (FPA {TWO_POINT_FPA_C:.0f} °C)": fit_with_report(
+            path, "two-point", fpa_ref_c=TWO_POINT_FPA_C)[0],
+        "polynomial (per pixel, FPA-dependent)": fit_with_report(
+            path, "polynomial", scene="radiance", frames="settled")[0],
     }
 
 
@@ -111,6 +112,7 @@ def run_demo(out_dir: str | Path, *, unit: int = DEMO_UNIT, size=(336, 256),
     pivots = [g * N_FRAMES + N_FRAMES // 2 for g in range(N_GROUPS)]
     estimates: dict[str, list[np.ndarray]] = {}
     sigmas: dict[str, list[np.ndarray]] = {}
+    outside: set[str] = set()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # e.g. the two-point used away from its FPA: shown below
         for pivot in pivots:
@@ -118,8 +120,13 @@ def run_demo(out_dir: str | Path, *, unit: int = DEMO_UNIT, size=(336, 256),
             group = flight.frames[first:first + N_FRAMES]
             fpa = flight.fpa_c[first:first + N_FRAMES]
             for name, cal in calibrations.items():
-                est = estimate(group, PivotCalibration(cal), fpa_c=fpa)
+                # force: the two-point is shown away from its FPA, outside its range
+                est = estimate(group, PivotCalibration(cal), fpa_c=fpa, force=True)
                 estimates.setdefault(name, []).append(est.temperature_c)
+                if est.sigma_c is not None:
+                    sigmas.setdefault(name, []).append(est.sigma_c)
+                if est.outside:
+                    outside.add(name)
             if network is not None:
                 est = estimate(group, network, fpa_c=fpa)
                 estimates.setdefault(KPN_ROW, []).append(est.temperature_c)
@@ -143,12 +150,15 @@ def run_demo(out_dir: str | Path, *, unit: int = DEMO_UNIT, size=(336, 256),
         table.add_column(col, justify="left" if col == "method" else "right")
     for r in rows:
         has_sigma = "median_sigma_c" in r
-        table.add_row(r["method"], f"{r['mae_c']:.3f}", f"{r['rmse_c']:.3f}",
+        table.add_row(r["method"] + (" †" if r["method"] in outside else ""),
+                      f"{r['mae_c']:.3f}", f"{r['rmse_c']:.3f}",
                       f"{100 * r['within_0.5c']:.1f} %",
                       f"{r['median_sigma_c']:.2f}" if has_sigma else "–",
                       f"{100 * r['within_2sigma']:.1f} %" if has_sigma else "–")
     console.print(table)
-    console.print("σ: the estimate's own standard uncertainty (– : none yet for calibrations)")
+    console.print("σ: each estimate's own standard uncertainty (calibrations: from their "
+                  "cross-validation; the network: its σ model); † outside its calibrated range "
+                  "(estimated with --force, σ grown)")
     if note:
         console.print(note)
 
@@ -179,6 +189,7 @@ def run_demo(out_dir: str | Path, *, unit: int = DEMO_UNIT, size=(336, 256),
         "pivots": pivots,
         "seed": seed,
         "rows": rows,
+        "outside_range": sorted(outside),
         "wall_time_s": time.perf_counter() - started,
     }
     write_json_atomic(out / "results.json", results)

@@ -10,6 +10,7 @@ import warnings
 from pathlib import Path
 
 import click
+import numpy as np
 
 from thermocal._validate import (
     HDF5_SUFFIXES,
@@ -164,29 +165,76 @@ def _frames_text(method: str, counts: dict) -> tuple[str, str]:
               help="FPA temperature for every frame, °C (default: the sidecar's fpa_c).")
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Temperature TIFF to write (float32 °C, (N, H, W)).")
-def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path) -> None:
+@click.option("--sigma-out", type=click.Path(dir_okay=False, path_type=Path), default=None,
+              help="Also write the temperatures' standard uncertainty (float32 TIFF, °C, 1σ, "
+              "(N, H, W)), from the calibration's cross-validation report.")
+@click.option("--force", is_flag=True,
+              help="Correct frames outside the calibration's FPA or scene range instead of "
+              "refusing them; their σ grows with the distance outside.")
+def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path,
+            sigma_out: Path | None, force: bool) -> None:
     """Turn a recording's raw frames into temperatures (°C) with a calibration file of any
-    method (the file records which)."""
+    method (the file records which). Frames outside the FPA and scene ranges of the
+    calibration's chamber session are refused unless --force."""
     from thermocal.calibration.base import ThermocalWarning
     from thermocal.calibration.registry import load_any_calibration
-    from thermocal.io.recording import read_recording, write_temperature_tiff
+    from thermocal.calibration.uncertainty import REMEDY, CalibrationSigma
+    from thermocal.errors import OutsideDomainError
+    from thermocal.io.recording import read_recording, write_sigma_tiff, write_temperature_tiff
 
     check_output_file(out, TIFF_SUFFIXES)
     check_not_input(out, frames, calibration_path)
+    if sigma_out is not None:
+        check_output_file(sigma_out, TIFF_SUFFIXES)
+        check_not_input(sigma_out, frames, calibration_path, out)
     if fpa_c is not None:
         check_fpa_c(fpa_c, "--fpa-c")
     cal = load_any_calibration(calibration_path)
+    model = CalibrationSigma.of(cal)
+    if sigma_out is not None and model is None:
+        raise InvalidInputError(f"{calibration_path} has no cross-validation report (made by an "
+                                "older thermocal, or none could be measured): calibrate again "
+                                "to get its uncertainty")
     rec = read_recording(frames, fpa_c=fpa_c)
+    if sigma_out is not None and rec.fpa_c is None:
+        raise InvalidInputError(f"{frames}: no FPA temperature, which σ depends on: give --fpa-c "
+                                "or a sidecar with fpa_c")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", ThermocalWarning)
         try:
             temps = cal.apply(rec.frames, fpa_c=rec.fpa_c, time_s=rec.time_s)
         except InvalidInputError as exc:
             raise _naming_the_input(exc, frames, calibration_path) from None
+    outside = () if model is None else model.outside(
+        temps, () if rec.fpa_c is None else rec.fpa_c)
+    if outside and not force:
+        raise OutsideDomainError(f"{frames}: {'; '.join(outside)}; {REMEDY}")
     for w in caught:
         click.echo(f"thermocal: warning: {' '.join(str(w.message).split())}", err=True)
-    write_temperature_tiff(out, temps)
-    click.echo(f"wrote {temps.shape[0]} temperature frame(s) to {out}")
+    if outside:
+        click.echo(f"thermocal: warning: {frames} lies outside the calibration's ranges "
+                   f"({'; '.join(outside)}); corrected all the same (--force)", err=True)
+    if sigma_out is not None:  # σ first: a failure leaves neither file
+        write_sigma_tiff(sigma_out, model.sigma(temps, rec.fpa_c,
+                                                rate_c_per_min=_rates(rec)))
+    try:
+        write_temperature_tiff(out, temps)
+    except Exception:
+        if sigma_out is not None:
+            Path(sigma_out).unlink(missing_ok=True)
+        raise
+    click.echo(f"wrote {temps.shape[0]} temperature frame(s) to {out}"
+               + (f" and their σ to {sigma_out}" if sigma_out is not None else ""))
+
+
+def _rates(rec) -> np.ndarray | None:
+    """The recording's FPA rate per frame, °C/min (smoothed as a chamber session's), or None
+    when its frame times or FPA series are not known."""
+    from thermocal.calibration.dataset import RATE_SMOOTH_S, fpa_rate_c_per_min
+
+    if rec.time_s is None or rec.fpa_c is None or len(rec.time_s) < 2:
+        return None
+    return fpa_rate_c_per_min(rec.fpa_c, rec.time_s, smooth_s=RATE_SMOOTH_S)
 
 
 def _naming_the_input(exc: InvalidInputError, frames: Path, calibration: Path

@@ -202,10 +202,15 @@ class ChamberData:
         }
 
 
+#: Window of the local line that gives a chamber session's FPA rate, s (a quantised, noisy
+#: sensor makes raw differences noisy).
+RATE_SMOOTH_S = 60.0
+
+
 def prepare_chamber(
     session: Any,
     *,
-    rate_smooth_s: float = 60.0,
+    rate_smooth_s: float = RATE_SMOOTH_S,
     settle_frames: int = 0,
     stable_c_per_min: float = 0.05,
     unstable_c_per_min: float = 0.5,

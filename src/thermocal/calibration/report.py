@@ -104,6 +104,9 @@ class CalibrationReport:
     ranking : list of dict
         ``--method auto``: every candidate, best first: ``method`` and ``expected_mae_c``, or
         ``refused`` (why it could not be fitted); empty otherwise.
+    by_rate : list of dict
+        The interior folds' MAE by bin of |FPA rate|: ``rate_c_per_min`` (``[low, high]``,
+        high None for the last), ``frames``, ``mae_c``; empty in a report made before it.
     """
 
     method: str
@@ -118,6 +121,7 @@ class CalibrationReport:
     notes: list[str] = field(default_factory=list)
     options: dict[str, Any] = field(default_factory=dict)
     ranking: list[dict[str, Any]] = field(default_factory=list)
+    by_rate: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def extrapolated_mae_c(self) -> float | None:
@@ -146,6 +150,7 @@ class CalibrationReport:
             "frames": self.frames,
             "mae_by_scene_c": [_row(f) for f in self.by_scene()],
             "mae_by_fpa_c": [_row(f) for f in self.by_fpa()],
+            "mae_by_fpa_rate_c": self.by_rate,
             "sample": self.sample,
             "warnings": list(self.warnings),
             "notes": list(self.notes),
@@ -173,6 +178,7 @@ class CalibrationReport:
                 notes=[str(n) for n in d.get("notes", [])],
                 options=dict(d.get("options", {})),
                 ranking=[dict(r) for r in d.get("auto_ranking", [])],
+                by_rate=[dict(r) for r in d.get("mae_by_fpa_rate_c", [])],
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise InvalidInputError(f"not a calibration report ({type(exc).__name__}: "
@@ -422,6 +428,7 @@ def cross_validate(
         calibration = _fit(small, method, options)
     refit_options = options | fixed_reference(calibration, method)
     errors: list[np.ndarray] = []  # per-frame errors of the interior folds
+    rates: list[np.ndarray] = []  # and their frames' FPA rates, °C/min
     folds = []
     for desc, held in setpoint_folds(small) + fpa_folds(small, fpa_segments):
         held = held & scorable
@@ -439,11 +446,13 @@ def cross_validate(
         folds.append(desc | {"frames": int(held.sum()), "mae_c": float(np.mean(err))})
         if not desc["extrapolation"]:
             errors.append(err)
+            rates.append(small.fpa_rate_c_per_min[held])
     failed = [f for f in folds if f.get("mae_c") is None and not f["extrapolation"]]
     if failed:
         notes.append(f"{len(failed)} interior fold(s) could not be refitted without their "
                      f"frames ({failed[0]['error']})")
     expected = float(np.mean(np.concatenate(errors))) if errors else None
+    by_rate = (_by_rate(np.concatenate(errors), np.concatenate(rates)) if errors else [])
     if expected is None:
         notes.append("no interior set point or FPA segment could be left out and refitted")
     usable = data.usable
@@ -464,7 +473,24 @@ def cross_validate(
         warnings=list(protocol_warnings or []),
         notes=notes,
         options=_json_options(options),
+        by_rate=by_rate,
     )
+
+
+#: Edges of the FPA-rate bins of :attr:`CalibrationReport.by_rate`, |°C/min|.
+RATE_EDGES = (0.0, 0.05, 0.2, 0.5, 1.0, 2.0, math.inf)
+
+
+def _by_rate(errors: np.ndarray, rates: np.ndarray) -> list[dict[str, Any]]:
+    """The interior folds' MAE by |FPA rate| bin (:data:`RATE_EDGES`), bins with frames only."""
+    out = []
+    speed = np.abs(rates)
+    for lo, hi in zip(RATE_EDGES[:-1], RATE_EDGES[1:], strict=True):
+        sel = (speed >= lo) & (speed < hi)
+        if sel.any():
+            out.append({"rate_c_per_min": [lo, hi if math.isfinite(hi) else None],
+                        "frames": int(sel.sum()), "mae_c": float(errors[sel].mean())})
+    return out
 
 
 def _json_options(options: dict[str, Any]) -> dict[str, Any]:
@@ -546,7 +572,9 @@ def frame_counts(method: str, info: dict[str, Any], n_frames: int,
 
 def fit_with_report(session: Any, method: str, **options: Any
                     ) -> tuple[Calibration, CalibrationReport]:
-    """Check the protocol, fit ``method`` to the whole session and cross-validate it.
+    """Check the protocol, fit ``method`` to the whole session and cross-validate it: the
+    calibration, with the report stored in it (``info["report"]``: its uncertainty,
+    :mod:`thermocal.calibration.uncertainty`), and the report.
 
     Raises :class:`~thermocal.errors.FitError` with the protocol's refusal (what the session
     lacks, what to record); the protocol's warnings go into the report (not warned).
@@ -564,7 +592,7 @@ def fit_with_report(session: Any, method: str, **options: Any
         counts=frame_counts(method, getattr(cal, "info", {}), data.n_frames, verdict.options),
         **verdict.options,
     )
-    return cal, report
+    return replace(cal, info=cal.info | {"report": report.to_dict()}), report
 
 
 def auto_calibration(session: Any, *, options: dict[str, dict[str, Any]] | None = None,

@@ -8,6 +8,7 @@ from typing import Any
 import numpy as np
 
 from thermocal.calibration.base import Calibration
+from thermocal.calibration.uncertainty import REMEDY, CalibrationSigma
 from thermocal.errors import ResolutionMismatchError
 from thermocal.estimation.base import Estimate, PreparedBurst
 from thermocal.estimation.pipeline import estimate
@@ -21,20 +22,28 @@ class _ThroughCalibration:
 
     n_frames = None
     needs_fpa = False
-    remedy = "calibrate over the conditions of this recording (`thermocal calibrate`)"
+    remedy = REMEDY
 
     def __init__(self, calibration: Calibration) -> None:
         self.calibration = calibration
+        self.sigma_model = CalibrationSigma.of(calibration)
 
     def outside(self, calibrated: np.ndarray, fpa_c: float | None) -> tuple[str, ...]:
-        """``()``: a calibration's own range checks warn when it is applied (its
-        :class:`~thermocal.calibration.base.OutsideCalibrationRangeWarning`)."""
-        return ()
+        """The FPA and scene ranges of the calibration's chamber session
+        (:meth:`~thermocal.calibration.uncertainty.CalibrationSigma.outside`; the FPA only when
+        the burst has one); ``()`` for a calibration without a report (an older file)."""
+        if self.sigma_model is None:
+            return ()
+        return self.sigma_model.outside(calibrated, () if fpa_c is None else fpa_c)
 
     def uncertainty(self, burst: PreparedBurst, temperature_c: np.ndarray, *, outside: bool
                     ) -> np.ndarray | None:
-        """None: a calibration's σ comes with its cross-validation report (not yet here)."""
-        return None
+        """σ from the calibration's cross-validation report, growing outside its ranges
+        (:class:`~thermocal.calibration.uncertainty.CalibrationSigma`); None without a report
+        or without the burst's FPA temperature."""
+        if self.sigma_model is None or burst.fpa_c is None:
+            return None
+        return self.sigma_model.sigma(temperature_c, burst.fpa_c)
 
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
         shape = tuple(self.calibration.shape)

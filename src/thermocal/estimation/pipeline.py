@@ -114,7 +114,9 @@ def estimate(
     arr = check_burst(frames, registered=registered)
     p = pivot_index(pivot, arr.shape[0])
     estimator.check(arr, registered=registered, homographies=homographies)
-    fpa = fpa_value(fpa_c, arr.shape[0]) if estimator.needs_fpa else None
+    # the burst's FPA temperature: required by some estimators, used by all that get one (their
+    # domain and uncertainty)
+    fpa = fpa_value(fpa_c, arr.shape[0]) if estimator.needs_fpa or fpa_c is not None else None
     if estimator.per_frame:  # the pivot frame alone: its calibration, not registered
         valid = np.zeros(arr.shape, dtype=bool)
         valid[p] = True
@@ -133,7 +135,7 @@ def estimate(
     # 3. fill stuck pixels
     filled = fill_stuck_pixels(arr, hs)[0] if fill_defects and not registered else arr
     # 4. calibrate
-    calibrated = estimator.calibrate(filled, fpa_c if fpa is None else fpa, time_s)
+    calibrated = estimator.calibrate(filled, fpa if estimator.needs_fpa else fpa_c, time_s)
     outside = domain_stage(estimator, calibrated, fpa, force=force)
     # 5. warp
     if registered and homographies is None:

@@ -22,6 +22,7 @@ SHA-256 of the weights they were fitted for. Outside the network's domain (``--f
 
 from __future__ import annotations
 
+import hashlib
 import json
 import math
 import os
@@ -115,10 +116,15 @@ class SigmaModel:
         """σ (°C, ``(H, W)`` float32) of an estimate ``temperature_c`` from its burst."""
         return self.sigma_of(features(warped, valid, temperature_c), outside=outside)
 
+    def digest(self) -> str:
+        """SHA-256 (hex) of its content (the canonical JSON of its fields)."""
+        text = json.dumps(asdict(self), sort_keys=True, allow_nan=False)
+        return hashlib.sha256(text.encode("utf-8")).hexdigest()
+
     def save(self, path: str | os.PathLike[str]) -> Path:
-        """Write it as JSON (atomically)."""
-        text = json.dumps({"format": _FORMAT, "version": 1, **asdict(self)}, indent=1,
-                          sort_keys=True)
+        """Write it as JSON (atomically), with the SHA-256 of its content."""
+        text = json.dumps({"format": _FORMAT, "version": 1, **asdict(self),
+                           "sha256": self.digest()}, indent=1, sort_keys=True)
         with atomic_path(Path(path)) as tmp:
             Path(tmp).write_text(text + "\n", encoding="utf-8")
         return Path(path)
@@ -130,7 +136,7 @@ class SigmaModel:
         Raises
         ------
         FileFormatError
-            Not a σ model file, damaged, or fitted for other weights.
+            Not a σ model file, damaged (its SHA-256), or fitted for other weights.
         """
         p = Path(path)
         try:
@@ -138,9 +144,12 @@ class SigmaModel:
             if not isinstance(d, dict) or d.pop("format", None) != _FORMAT or \
                     d.pop("version", None) != 1:
                 raise ValueError("not a thermocal σ model")
+            stored = d.pop("sha256", None)
             model = cls(float(d["floor_c"]), tuple(float(c) for c in d["coef"]),
                         d.get("weights_sha256"), float(d.get("outside_c", OUTSIDE_SIGMA_C)),
                         dict(d.get("fitted_on") or {}))
+            if stored != model.digest():
+                raise ValueError("its content does not match its SHA-256")
         except (OSError, ValueError, KeyError, TypeError, InvalidInputError) as exc:
             raise FileFormatError(f"{p}: not a usable σ model ({exc}); fit it again: "
                                   "`python -m thermocal.evaluation.sigma_fit WEIGHTS.pt`"

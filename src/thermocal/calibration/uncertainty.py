@@ -1,0 +1,143 @@
+"""A calibration's uncertainty and domain, from its cross-validation report (numpy only).
+
+For a temperature ``T`` (°C) measured at FPA temperature ``t`` (°C)::
+
+    σ(T, t, r) = √(π/2) · [ (m_scene(T) + m_fpa(t)) / 2 · f(r)  +  k_scene · d_scene(T)
+                            + k_fpa · d_fpa(t) ]
+
+- ``m_scene``, ``m_fpa``: the cross-validated MAE of the report's interior folds (set points left
+  out; FPA segments left out), interpolated at ``T`` and ``t`` (:class:`CalibrationReport`). The
+  folds score single frames, so the noise (NETD) and the unmodelled drift are in them;
+- ``f(r)``: the report's MAE at the FPA rate ``r`` (°C/min; its bin of ``mae_by_fpa_rate_c``)
+  over its MAE at all rates: a method without a rate term errs most while the FPA changes. Where
+  the rate is not known (a burst of a fraction of a second) ``f = 1``: the error averaged over
+  the rates of the chamber session;
+- ``d_scene``, ``d_fpa``: how far ``T`` and ``t`` lie outside the ranges the session covers, °C
+  (0 inside);
+- ``k_scene``, ``k_fpa``: how fast the error grew on the report's extrapolation folds (its end
+  set points and end FPA segments, left out in turn): their excess MAE over the interior's per
+  °C of extrapolation, never below :data:`MIN_GROWTH_PER_C`. Outside the ranges σ keeps growing
+  with the distance: it is not clipped;
+- ``√(π/2)``: a Gaussian's σ from its MAE.
+
+:func:`outside` says why frames lie outside what a calibration was fitted on (FPA temperature,
+scene temperature); the product refuses them unless ``--force``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from thermocal.calibration.base import Calibration
+from thermocal.calibration.report import CalibrationReport, report_of
+
+__all__ = ["MIN_GROWTH_PER_C", "REMEDY", "CalibrationSigma", "FPA_MARGIN_C"]
+
+#: The least growth of the error outside the calibrated ranges, °C of MAE per °C outside.
+MIN_GROWTH_PER_C = 0.02
+#: FPA temperatures this close outside the session's range are inside (the sensor's noise), °C.
+FPA_MARGIN_C = 0.5
+#: What to do about frames outside a calibration's ranges.
+REMEDY = ("calibrate over these conditions (a chamber session that covers them: `thermocal "
+          "calibrate`); --force gives the temperatures with their uncertainty grown")
+
+_GAUSS = math.sqrt(math.pi / 2)
+
+
+def _interior_curve(folds: list[dict[str, Any]], where: Any) -> tuple[np.ndarray, np.ndarray]:
+    """``(x, mae)`` of the interior folds that were refitted, sorted by ``x = where(fold)``."""
+    pts = sorted((where(f), f["mae_c"]) for f in folds
+                 if not f["extrapolation"] and f.get("mae_c") is not None)
+    return np.array([p[0] for p in pts]), np.array([p[1] for p in pts])
+
+
+def _growth(folds: list[dict[str, Any]], interior: float, distance: Any) -> float:
+    """Excess MAE per °C of the extrapolation folds (their MAE above ``interior``, over how far
+    each extrapolates, ``distance(fold)`` °C), at least :data:`MIN_GROWTH_PER_C`."""
+    rates = [max(0.0, f["mae_c"] - interior) / max(distance(f), 1e-6) for f in folds
+             if f["extrapolation"] and f.get("mae_c") is not None]
+    return max([MIN_GROWTH_PER_C, *rates])
+
+
+@dataclass(frozen=True)
+class CalibrationSigma:
+    """σ of a calibration's temperatures and the ranges it covers (see the module docstring)."""
+
+    report: CalibrationReport
+
+    @classmethod
+    def of(cls, calibration: Calibration) -> CalibrationSigma | None:
+        """From the report stored in ``calibration``; None without one (an older file) or when
+        the report measured no error."""
+        report = report_of(calibration)
+        if report is None or report.expected_mae_c is None:
+            return None
+        return cls(report)
+
+    def _curves(self) -> tuple:
+        r = self.report
+        scene = _interior_curve(r.by_scene(), lambda f: float(f["held_out"]))
+        fpa = _interior_curve(r.by_fpa(), lambda f: 0.5 * sum(f["held_out"]))
+        points = sorted(float(f["held_out"]) for f in r.by_scene())
+        step = float(np.min(np.diff(points))) if len(points) > 1 else 10.0
+        k_scene = _growth(r.by_scene(), r.expected_mae_c, lambda f: step)
+        k_fpa = _growth(r.by_fpa(), r.expected_mae_c,
+                        lambda f: 0.5 * (f["held_out"][1] - f["held_out"][0]))
+        return scene, fpa, k_scene, k_fpa
+
+    def rate_factor(self, rate_c_per_min: Any) -> np.ndarray:
+        """``f(r)`` of each rate (°C/min; ``(N,)``): the MAE of its bin over the overall MAE
+        (1 for a rate the session never had, or a report without rate bins)."""
+        rate = np.abs(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1))
+        out = np.ones(rate.shape)
+        mean = self.report.expected_mae_c
+        for b in self.report.by_rate:
+            lo, hi = b["rate_c_per_min"]
+            sel = (rate >= lo) & (rate < (math.inf if hi is None else hi))
+            out[sel] = b["mae_c"] / mean if mean else 1.0
+        return out
+
+    def sigma(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None
+              ) -> np.ndarray:
+        """σ (°C, float32, the shape of ``temps_c``: ``(H, W)`` or ``(N, H, W)``) of
+        temperatures at FPA temperature ``fpa_c`` (°C: one, or one per frame) changing at
+        ``rate_c_per_min`` (°C/min, one or one per frame; None: not known)."""
+        temps = np.asarray(temps_c, dtype=np.float64)
+        frames = temps if temps.ndim == 3 else temps[None]
+        fpa = np.broadcast_to(np.asarray(fpa_c, dtype=np.float64).reshape(-1), frames.shape[:1])
+        factor = (np.ones(frames.shape[0]) if rate_c_per_min is None else np.broadcast_to(
+            self.rate_factor(rate_c_per_min), frames.shape[:1]))
+        (sx, sm), (fx, fm), k_scene, k_fpa = self._curves()
+        mean = self.report.expected_mae_c
+        m_scene = np.interp(frames, sx, sm) if sx.size else np.full(frames.shape, mean)
+        m_fpa = np.interp(fpa, fx, fm) if fx.size else np.full(fpa.shape, mean)
+        lo, hi = self.report.scene_range_c
+        d_scene = np.maximum(lo - frames, 0.0) + np.maximum(frames - hi, 0.0)
+        flo, fhi = self.report.fpa_range_c
+        d_fpa = np.maximum(flo - fpa, 0.0) + np.maximum(fpa - fhi, 0.0)
+        mae = (0.5 * (m_scene + m_fpa[:, None, None]) * factor[:, None, None]
+               + k_scene * d_scene + (k_fpa * d_fpa)[:, None, None])
+        out = (_GAUSS * mae).astype(np.float32)
+        return out if temps.ndim == 3 else out[0]
+
+    def outside(self, temps_c: np.ndarray, fpa_c: Any) -> tuple[str, ...]:
+        """Why frames lie outside the session's ranges: their FPA temperatures (more than
+        :data:`FPA_MARGIN_C` beyond), or their scene (its 1st–99th percentile beyond the
+        blackbody's range); ``()`` inside."""
+        reasons = []
+        fpa = np.asarray(fpa_c, dtype=np.float64).reshape(-1)
+        flo, fhi = self.report.fpa_range_c
+        if fpa.size and (fpa.min() < flo - FPA_MARGIN_C or fpa.max() > fhi + FPA_MARGIN_C):
+            reasons.append(f"the FPA temperature {fpa.min():.1f}…{fpa.max():.1f} °C is outside "
+                           f"the {flo:.1f}…{fhi:.1f} °C the {self.report.method} calibration "
+                           "was fitted on")
+        lo, hi = self.report.scene_range_c
+        p1, p99 = (float(v) for v in np.percentile(temps_c, [1, 99]))
+        if p1 < lo or p99 > hi:
+            reasons.append(f"the scene spans {p1:.1f}…{p99:.1f} °C, beyond the blackbody's "
+                           f"{lo:.1f}…{hi:.1f} °C of its chamber session")
+        return tuple(reasons)

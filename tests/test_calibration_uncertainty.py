@@ -1,0 +1,116 @@
+"""A calibration's σ and domain from its cross-validation report (issue 18, items 1–2)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from thermocal.calibration.report import CalibrationReport, fit_with_report
+from thermocal.calibration.uncertainty import MIN_GROWTH_PER_C, CalibrationSigma
+from thermocal.camera.presets import make_camera
+from thermocal.errors import OutsideDomainError
+from thermocal.estimation.calibrated import OzMean, PivotCalibration
+from thermocal.estimation.pipeline import estimate
+from thermocal.simulate.chamber import ChamberPlan, write_simulated_chamber
+from thermocal.simulate.flight import simulate_flight
+
+G = math.sqrt(math.pi / 2)
+
+
+def _report(**kw) -> CalibrationReport:
+    folds = [
+        {"kind": "setpoint", "held_out": 10.0, "extrapolation": True, "frames": 5, "mae_c": 0.5},
+        {"kind": "setpoint", "held_out": 20.0, "extrapolation": False, "frames": 5, "mae_c": 0.2},
+        {"kind": "setpoint", "held_out": 30.0, "extrapolation": False, "frames": 5, "mae_c": 0.4},
+        {"kind": "setpoint", "held_out": 40.0, "extrapolation": True, "frames": 5, "mae_c": 0.6},
+        {"kind": "fpa", "held_out": [20.0, 25.0], "extrapolation": True, "frames": 5,
+         "mae_c": 1.3},
+        {"kind": "fpa", "held_out": [25.0, 30.0], "extrapolation": False, "frames": 5,
+         "mae_c": 0.3},
+        {"kind": "fpa", "held_out": [30.0, 35.0], "extrapolation": True, "frames": 5,
+         "mae_c": 0.3},
+    ]
+    args = {"method": "polynomial", "expected_mae_c": 0.3, "folds": folds,
+            "fpa_range_c": (20.0, 35.0), "scene_range_c": (10.0, 40.0),
+            "fpa_rate_c_per_min": (-0.5, 0.5),
+            "by_rate": [{"rate_c_per_min": [0.0, 0.05], "frames": 5, "mae_c": 0.15},
+                        {"rate_c_per_min": [0.5, 1.0], "frames": 5, "mae_c": 0.6}]}
+    return CalibrationReport(**(args | kw))
+
+
+def test_sigma_inside_follows_the_cross_validation():
+    """Inside both ranges: √(π/2) × the mean of the interpolated scene and FPA MAEs."""
+    model = CalibrationSigma(_report())
+    s = model.sigma(np.array([[20.0, 25.0, 30.0]]), 27.5)
+    np.testing.assert_allclose(s[0], G * 0.5 * (np.array([0.2, 0.3, 0.4]) + 0.3), rtol=1e-6)
+    # the rate: settled frames are better, fast ones worse; unknown rates average
+    slow, fast = (model.sigma(np.array([[25.0]]), 27.5, rate_c_per_min=[r])[0, 0]
+                  for r in (0.01, -0.7))
+    assert slow == pytest.approx(G * 0.3 * 0.5, rel=1e-5)
+    assert fast == pytest.approx(G * 0.3 * 2.0, rel=1e-5)
+
+
+def test_sigma_grows_outside_without_bound():
+    """Outside, σ grows linearly with the distance at the end folds' measured rate."""
+    model = CalibrationSigma(_report())
+    fpa_rate = (1.3 - 0.3) / 2.5  # excess MAE of the low end segment over half its width
+    inside = model.sigma(np.array([[25.0]]), 27.5)[0, 0]
+    for d in (1.0, 10.0, 100.0):
+        out = model.sigma(np.array([[25.0]]), 20.0 - d)[0, 0]
+        m_fpa = 0.3  # interpolated MAE clamps at the end of the interior curve
+        expected = G * (0.5 * (0.3 + m_fpa) + fpa_rate * d)
+        assert out == pytest.approx(expected, rel=1e-5) and out > inside
+    hot = model.sigma(np.array([[140.0]]), 27.5)[0, 0]
+    scene_rate = (0.6 - 0.3) / 10.0
+    assert hot == pytest.approx(G * (0.5 * (0.4 + 0.3) + scene_rate * 100.0), rel=1e-5)
+    flat = CalibrationSigma(_report(folds=[f | {"mae_c": 0.1} for f in _report().folds]))
+    assert flat.sigma(np.array([[25.0]]), 45.0)[0, 0] == pytest.approx(
+        G * (0.1 + MIN_GROWTH_PER_C * 10.0), rel=1e-5)
+
+
+def test_outside_names_the_fpa_and_the_scene():
+    model = CalibrationSigma(_report())
+    assert model.outside(np.full((2, 4, 4), 25.0), [27.0, 28.0]) == ()
+    (why,) = model.outside(np.full((1, 4, 4), 25.0), [36.0])
+    assert "FPA temperature 36.0…36.0 °C is outside the 20.0…35.0 °C" in why
+    (why,) = model.outside(np.full((1, 4, 4), 55.0), [27.0])
+    assert "scene spans 55.0…55.0 °C" in why
+
+
+def test_report_survives_json_with_its_rate_bins():
+    r = _report()
+    again = CalibrationReport.from_dict(r.to_dict())
+    assert again.by_rate == r.by_rate and again.folds == r.folds
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("calsigma")
+    camera = make_camera("tau2", unit=3, size=(64, 48))
+    plan = ChamberPlan(setpoints_c=(0.0, 10.0, 20.0, 30.0, 40.0, 50.0), frames_per_point=2,
+                       profile="sawtooth", ambient_c=(15.0, 35.0), rate_c_per_min=0.25,
+                       interval_s=20.0)
+    write_simulated_chamber(tmp / "c.h5", camera, plan, seed=1)
+    cal, report = fit_with_report(tmp / "c.h5", "polynomial", frames="settled")
+    return camera, cal, report
+
+
+def test_estimators_refuse_outside_and_give_sigma(fitted):
+    camera, cal, report = fitted
+    assert CalibrationSigma.of(cal).report == CalibrationReport.from_dict(report.to_dict())
+    scene = 15.0 + 10.0 * np.random.default_rng(0).random((96, 96))
+    fpa_in = 0.5 * sum(report.fpa_range_c)
+    inside = simulate_flight(scene, camera, n_frames=5, motion="walk", fpa_c=fpa_in, seed=1)
+    for estimator in (PivotCalibration(cal), OzMean(cal)):
+        est = estimate(inside.frames, estimator, fpa_c=inside.fpa_c)
+        assert est.outside == () and est.sigma_c.shape == (48, 64)
+        assert np.all(est.sigma_c > 0)
+    hot = simulate_flight(scene, camera, n_frames=5, motion="walk",
+                          fpa_c=report.fpa_range_c[1] + 8.0, seed=1)
+    with pytest.raises(OutsideDomainError, match="FPA temperature .* is outside"):
+        estimate(hot.frames, PivotCalibration(cal), fpa_c=hot.fpa_c)
+    forced = estimate(hot.frames, PivotCalibration(cal), fpa_c=hot.fpa_c, force=True)
+    normal = estimate(inside.frames, PivotCalibration(cal), fpa_c=inside.fpa_c)
+    assert forced.outside and float(np.median(forced.sigma_c)) > float(np.median(normal.sigma_c))
