@@ -161,3 +161,16 @@ def test_flight_end_to_end_through_the_cli(setup, tmp_path, method, capsys):
         assert np.median(err) < limit, (method, pivot, float(np.median(err)))
     assert sorted(p.name for p in (out / "previews").iterdir()) == [
         "frame_000003.png", "frame_000017.png"]
+
+
+def test_fpa_rates_come_from_the_whole_recording_when_it_is_long_enough():
+    """A calibration's σ depends on the FPA rate: taken from the recording's series when they
+    span the smoothing window, else unknown (None)."""
+    from thermocal.pipeline.flight import _fpa_rates
+
+    t = np.arange(0.0, 300.0, 1.0)
+    rates = _fpa_rates({"fpa_c": 20.0 + t / 60.0, "time_s": t})
+    assert rates is not None and np.allclose(rates, 1.0, atol=1e-6)
+    assert _fpa_rates({"fpa_c": 20.0 + t[:30] / 60.0, "time_s": t[:30]}) is None
+    assert _fpa_rates({"fpa_c": None, "time_s": t}) is None
+    assert _fpa_rates({"fpa_c": np.ones(300), "time_s": t[::-1].copy()}) is None

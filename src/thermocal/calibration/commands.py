@@ -229,12 +229,16 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
 
 def _rates(rec) -> np.ndarray | None:
     """The recording's FPA rate per frame, °C/min (smoothed as a chamber session's), or None
-    when its frame times or FPA series are not known."""
+    when its frame times or FPA series are not known, or it is shorter than the smoothing window
+    (a few seconds of a quantised sensor cannot show the rate)."""
     from thermocal.calibration.dataset import RATE_SMOOTH_S, fpa_rate_c_per_min
 
-    if rec.time_s is None or rec.fpa_c is None or len(rec.time_s) < 2:
+    if rec.time_s is None or rec.fpa_c is None or np.ptp(rec.time_s) < RATE_SMOOTH_S:
         return None
-    return fpa_rate_c_per_min(rec.fpa_c, rec.time_s, smooth_s=RATE_SMOOTH_S)
+    try:
+        return fpa_rate_c_per_min(rec.fpa_c, rec.time_s, smooth_s=RATE_SMOOTH_S)
+    except InvalidInputError:  # times not increasing: the σ of all rates
+        return None
 
 
 def _naming_the_input(exc: InvalidInputError, frames: Path, calibration: Path

@@ -105,8 +105,12 @@ class CalibrationReport:
         ``--method auto``: every candidate, best first: ``method`` and ``expected_mae_c``, or
         ``refused`` (why it could not be fitted); empty otherwise.
     by_rate : list of dict
-        The interior folds' MAE by bin of |FPA rate|: ``rate_c_per_min`` (``[low, high]``,
-        high None for the last), ``frames``, ``mae_c``; empty in a report made before it.
+        The interior folds' MAE and σ by bin of |FPA rate|: ``rate_c_per_min`` (``[low,
+        high]``, high None for the last), ``frames``, ``mae_c``, ``sigma_c``; empty in a report
+        made before it.
+    sigma_c : float or None
+        The σ that covers the interior folds' pixel errors as a Gaussian's would
+        (:func:`coverage_sigma`), °C; None in a report made before it.
     """
 
     method: str
@@ -122,6 +126,7 @@ class CalibrationReport:
     options: dict[str, Any] = field(default_factory=dict)
     ranking: list[dict[str, Any]] = field(default_factory=list)
     by_rate: list[dict[str, Any]] = field(default_factory=list)
+    sigma_c: float | None = None
 
     @property
     def extrapolated_mae_c(self) -> float | None:
@@ -151,6 +156,7 @@ class CalibrationReport:
             "mae_by_scene_c": [_row(f) for f in self.by_scene()],
             "mae_by_fpa_c": [_row(f) for f in self.by_fpa()],
             "mae_by_fpa_rate_c": self.by_rate,
+            "expected_sigma_c": self.sigma_c,
             "sample": self.sample,
             "warnings": list(self.warnings),
             "notes": list(self.notes),
@@ -179,6 +185,8 @@ class CalibrationReport:
                 options=dict(d.get("options", {})),
                 ranking=[dict(r) for r in d.get("auto_ranking", [])],
                 by_rate=[dict(r) for r in d.get("mae_by_fpa_rate_c", [])],
+                sigma_c=None if d.get("expected_sigma_c") is None else float(
+                    d["expected_sigma_c"]),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise InvalidInputError(f"not a calibration report ({type(exc).__name__}: "
@@ -334,21 +342,41 @@ def fpa_folds(data: ChamberData, segments: int = FPA_SEGMENTS
 # --------------------------------------------------------------------------------- scoring
 
 
-def frame_errors(calibration: Calibration, data: ChamberData, scored: np.ndarray) -> np.ndarray:
-    """Mean absolute error of each frame's scene temperature, °C, ``(M,)`` (NaN where not
-    scored): ``calibration`` applied to the ``scored`` frames of ``data``, in time order, as one
-    recording, against ``data.scene_c``."""
-    out = np.full(data.n_frames, np.nan)
+def frame_errors(calibration: Calibration, data: ChamberData, scored: np.ndarray
+                 ) -> tuple[np.ndarray, np.ndarray]:
+    """The absolute error of each pixel of the ``scored`` frames of ``data`` (°C, ``(M, P)``,
+    NaN in the frames not scored) and each frame's mean of it (``(M,)``): ``calibration``
+    applied to those frames, in time order, as one recording, against ``data.scene_c``."""
+    pixels = int(np.prod(data.frame_shape))
+    out = np.full((data.n_frames, pixels), np.nan, dtype=np.float32)
     idx = np.flatnonzero(scored)
     if idx.size == 0:
-        return out
+        return out, np.full(data.n_frames, np.nan)
     frames = np.asarray(data.session.frames[idx])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ThermocalWarning)  # refits applied outside their range
         est = calibration.apply(frames, fpa_c=data.fpa_c[idx], time_s=data.time_s[idx])
-    out[idx] = np.abs(est - data.scene_c[idx, None, None].astype(np.float32)).mean(
-        axis=(1, 2), dtype=np.float64)
-    return out
+    out[idx] = np.abs(est - data.scene_c[idx, None, None].astype(np.float32)).reshape(
+        idx.size, pixels)
+    return out, out.mean(axis=1, dtype=np.float64)
+
+
+def coverage_sigma(abs_errors: np.ndarray) -> float:
+    """The σ that best covers ``abs_errors`` (°C, any shape) as a Gaussian's would: the one
+    whose shares of errors within 1σ and 2σ come closest (least squares) to 68.3 % and 95.4 %.
+
+    Errors are seldom Gaussian (a calibration errs most in a few frames: the FPA changing, a set
+    point far from the others); √(π/2)·MAE then states a σ that covers too much at 1σ and too
+    little at 2σ. This one balances the two."""
+    e = np.sort(np.asarray(abs_errors, dtype=np.float64).ravel())
+    e = e[np.isfinite(e)]
+    if e.size == 0:
+        return math.nan
+    candidates = np.geomspace(max(float(np.quantile(e, 0.05)), 1e-4),
+                              max(float(e[-1]), 1e-3), 400)
+    within = lambda k: np.searchsorted(e, k * candidates, side="right") / e.size  # noqa: E731
+    loss = (within(1.0) - 0.6827) ** 2 + (within(2.0) - 0.9545) ** 2
+    return float(candidates[int(np.argmin(loss))])
 
 
 def _fit(data: ChamberData, method: str, options: dict[str, Any]) -> Calibration:
@@ -436,7 +464,8 @@ def cross_validate(
             continue
         try:
             cal = _fit(replace(small, usable=small.usable & ~held), method, refit_options)
-            err = frame_errors(cal, small, scorable)[held]
+            pix, err = frame_errors(cal, small, scorable)
+            pix, err = pix[held], err[held]
             if not np.all(np.isfinite(err)):
                 raise InvalidInputError("the refit gives non-finite temperatures")
         except ThermocalError as exc:
@@ -445,13 +474,14 @@ def cross_validate(
             continue
         folds.append(desc | {"frames": int(held.sum()), "mae_c": float(np.mean(err))})
         if not desc["extrapolation"]:
-            errors.append(err)
+            errors.append(pix)
             rates.append(small.fpa_rate_c_per_min[held])
     failed = [f for f in folds if f.get("mae_c") is None and not f["extrapolation"]]
     if failed:
         notes.append(f"{len(failed)} interior fold(s) could not be refitted without their "
                      f"frames ({failed[0]['error']})")
     expected = float(np.mean(np.concatenate(errors))) if errors else None
+    sigma = coverage_sigma(np.concatenate(errors)) if errors else None
     by_rate = (_by_rate(np.concatenate(errors), np.concatenate(rates)) if errors else [])
     if expected is None:
         notes.append("no interior set point or FPA segment could be left out and refitted")
@@ -474,6 +504,7 @@ def cross_validate(
         notes=notes,
         options=_json_options(options),
         by_rate=by_rate,
+        sigma_c=sigma,
     )
 
 
@@ -482,14 +513,17 @@ RATE_EDGES = (0.0, 0.05, 0.2, 0.5, 1.0, 2.0, math.inf)
 
 
 def _by_rate(errors: np.ndarray, rates: np.ndarray) -> list[dict[str, Any]]:
-    """The interior folds' MAE by |FPA rate| bin (:data:`RATE_EDGES`), bins with frames only."""
+    """The interior folds' MAE and :func:`coverage_sigma` by |FPA rate| bin
+    (:data:`RATE_EDGES`), bins with frames only; ``errors`` ``(M, P)`` per pixel, ``rates``
+    ``(M,)``."""
     out = []
     speed = np.abs(rates)
     for lo, hi in zip(RATE_EDGES[:-1], RATE_EDGES[1:], strict=True):
         sel = (speed >= lo) & (speed < hi)
         if sel.any():
             out.append({"rate_c_per_min": [lo, hi if math.isfinite(hi) else None],
-                        "frames": int(sel.sum()), "mae_c": float(errors[sel].mean())})
+                        "frames": int(sel.sum()), "mae_c": float(np.mean(errors[sel])),
+                        "sigma_c": coverage_sigma(errors[sel])})
     return out
 
 

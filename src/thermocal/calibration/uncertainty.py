@@ -2,16 +2,18 @@
 
 For a temperature ``T`` (°C) measured at FPA temperature ``t`` (°C)::
 
-    σ(T, t, r) = √(π/2) · [ (m_scene(T) + m_fpa(t)) / 2 · f(r)  +  k_scene · d_scene(T)
-                            + k_fpa · d_fpa(t) ]
+    σ(T, t, r) = s(r) · (m_scene(T) + m_fpa(t)) / (2·m)  +  √(π/2) · [k_scene · d_scene(T)
+                                                                + k_fpa · d_fpa(t)]
 
 - ``m_scene``, ``m_fpa``: the cross-validated MAE of the report's interior folds (set points left
   out; FPA segments left out), interpolated at ``T`` and ``t`` (:class:`CalibrationReport`). The
   folds score single frames, so the noise (NETD) and the unmodelled drift are in them;
-- ``f(r)``: the report's MAE at the FPA rate ``r`` (°C/min; its bin of ``mae_by_fpa_rate_c``)
-  over its MAE at all rates: a method without a rate term errs most while the FPA changes. Where
-  the rate is not known (a burst of a fraction of a second) ``f = 1``: the error averaged over
-  the rates of the chamber session;
+- ``m``: the report's expected MAE (all interior folds); ``s(r)``: the σ that covers the interior
+  folds' pixel errors at the FPA rate ``r`` (°C/min; its bin of ``mae_by_fpa_rate_c``) as a
+  Gaussian's would (:func:`~thermocal.calibration.report.coverage_sigma`): a method without a
+  rate term errs most while the FPA changes. Where the rate is not known (a burst of a fraction
+  of a second) ``s`` is that of all the interior folds' errors (``expected_sigma_c``). A report
+  made before it stored σ: ``s = √(π/2)·MAE``;
 - ``d_scene``, ``d_fpa``: how far ``T`` and ``t`` lie outside the ranges the session covers, °C
   (0 inside);
 - ``k_scene``, ``k_fpa``: how fast the error grew on the report's extrapolation folds (its end
@@ -89,16 +91,19 @@ class CalibrationSigma:
                         lambda f: 0.5 * (f["held_out"][1] - f["held_out"][0]))
         return scene, fpa, k_scene, k_fpa
 
-    def rate_factor(self, rate_c_per_min: Any) -> np.ndarray:
-        """``f(r)`` of each rate (°C/min; ``(N,)``): the MAE of its bin over the overall MAE
-        (1 for a rate the session never had, or a report without rate bins)."""
+    def _overall_sigma(self) -> float:
+        r = self.report
+        return r.sigma_c if r.sigma_c is not None else _GAUSS * r.expected_mae_c
+
+    def rate_sigma(self, rate_c_per_min: Any) -> np.ndarray:
+        """``s(r)`` of each rate (°C/min; ``(N,)``), °C: its bin's σ (the overall σ for a rate
+        the session never had; ``√(π/2)·MAE`` of its bin in a report without bin σ)."""
         rate = np.abs(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1))
-        out = np.ones(rate.shape)
-        mean = self.report.expected_mae_c
+        out = np.full(rate.shape, self._overall_sigma())
         for b in self.report.by_rate:
             lo, hi = b["rate_c_per_min"]
             sel = (rate >= lo) & (rate < (math.inf if hi is None else hi))
-            out[sel] = b["mae_c"] / mean if mean else 1.0
+            out[sel] = b["sigma_c"] if b.get("sigma_c") is not None else _GAUSS * b["mae_c"]
         return out
 
     def sigma(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None
@@ -109,8 +114,8 @@ class CalibrationSigma:
         temps = np.asarray(temps_c, dtype=np.float64)
         frames = temps if temps.ndim == 3 else temps[None]
         fpa = np.broadcast_to(np.asarray(fpa_c, dtype=np.float64).reshape(-1), frames.shape[:1])
-        factor = (np.ones(frames.shape[0]) if rate_c_per_min is None else np.broadcast_to(
-            self.rate_factor(rate_c_per_min), frames.shape[:1]))
+        level = (np.full(frames.shape[0], self._overall_sigma()) if rate_c_per_min is None
+                 else np.broadcast_to(self.rate_sigma(rate_c_per_min), frames.shape[:1]))
         (sx, sm), (fx, fm), k_scene, k_fpa = self._curves()
         mean = self.report.expected_mae_c
         m_scene = np.interp(frames, sx, sm) if sx.size else np.full(frames.shape, mean)
@@ -119,9 +124,9 @@ class CalibrationSigma:
         d_scene = np.maximum(lo - frames, 0.0) + np.maximum(frames - hi, 0.0)
         flo, fhi = self.report.fpa_range_c
         d_fpa = np.maximum(flo - fpa, 0.0) + np.maximum(fpa - fhi, 0.0)
-        mae = (0.5 * (m_scene + m_fpa[:, None, None]) * factor[:, None, None]
-               + k_scene * d_scene + (k_fpa * d_fpa)[:, None, None])
-        out = (_GAUSS * mae).astype(np.float32)
+        shape = 0.5 * (m_scene + m_fpa[:, None, None]) / mean
+        growth = k_scene * d_scene + (k_fpa * d_fpa)[:, None, None]
+        out = (level[:, None, None] * shape + _GAUSS * growth).astype(np.float32)
         return out if temps.ndim == 3 else out[0]
 
     def outside(self, temps_c: np.ndarray, fpa_c: Any) -> tuple[str, ...]:

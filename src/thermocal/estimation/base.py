@@ -58,7 +58,10 @@ class PreparedBurst:
         Frame → pivot.
     pivot : int
     fpa_c : float or None
-        The burst's FPA temperature, °C (the mean of the frames'), where the estimator needs one.
+        The burst's FPA temperature, °C (the mean of the frames'), where it has one.
+    fpa_rate_c_per_min : float or None
+        How fast the FPA temperature changed at the burst, °C/min, where known (from the whole
+        recording: a burst's own fraction of a second cannot show it); for the uncertainty.
     """
 
     frames: np.ndarray
@@ -67,6 +70,7 @@ class PreparedBurst:
     homographies: np.ndarray
     pivot: int
     fpa_c: float | None
+    fpa_rate_c_per_min: float | None = None
 
 
 @runtime_checkable

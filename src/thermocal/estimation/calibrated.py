@@ -39,11 +39,12 @@ class _ThroughCalibration:
     def uncertainty(self, burst: PreparedBurst, temperature_c: np.ndarray, *, outside: bool
                     ) -> np.ndarray | None:
         """σ from the calibration's cross-validation report, growing outside its ranges
-        (:class:`~thermocal.calibration.uncertainty.CalibrationSigma`); None without a report
-        or without the burst's FPA temperature."""
+        (:class:`~thermocal.calibration.uncertainty.CalibrationSigma`), at the burst's FPA rate
+        where known; None without a report or without the burst's FPA temperature."""
         if self.sigma_model is None or burst.fpa_c is None:
             return None
-        return self.sigma_model.sigma(temperature_c, burst.fpa_c)
+        rate = None if burst.fpa_rate_c_per_min is None else [burst.fpa_rate_c_per_min]
+        return self.sigma_model.sigma(temperature_c, burst.fpa_c, rate_c_per_min=rate)
 
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
         shape = tuple(self.calibration.shape)

@@ -72,6 +72,7 @@ def estimate(
     homographies: Any = None,
     fill_defects: bool = True,
     force: bool = False,
+    fpa_rate_c_per_min: float | None = None,
 ) -> Estimate:
     """The pivot frame's temperature of a raw burst through ``estimator``.
 
@@ -99,6 +100,9 @@ def estimate(
     force : bool
         Estimate a burst outside the estimator's domain all the same; the reasons are kept in
         :attr:`Estimate.outside`.
+    fpa_rate_c_per_min : float, optional
+        How fast the FPA temperature changed at the burst, °C/min (from the whole recording),
+        for the estimators whose uncertainty depends on it (the calibrations).
 
     Raises
     ------
@@ -123,7 +127,7 @@ def estimate(
         hs = np.repeat(np.eye(3)[None], arr.shape[0], axis=0)
         calibrated = estimator.calibrate(arr, fpa_c, time_s)
         outside = domain_stage(estimator, calibrated, fpa, force=force)
-        burst = PreparedBurst(arr, calibrated, valid, hs, p, fpa)
+        burst = PreparedBurst(arr, calibrated, valid, hs, p, fpa, fpa_rate_c_per_min)
         return _estimate_of(estimator, burst, outside)
     if registered and not estimator.accepts_registered:
         raise InvalidInputError(
@@ -146,7 +150,7 @@ def estimate(
         warped, valid = warp_to_pivot(calibrated, hs)
     check_overlap(valid, p)
     # 6. estimate
-    burst = PreparedBurst(filled, warped, valid, hs, p, fpa)
+    burst = PreparedBurst(filled, warped, valid, hs, p, fpa, fpa_rate_c_per_min)
     return _estimate_of(estimator, burst, outside)
 
 

@@ -50,6 +50,7 @@ import numpy as np
 
 from thermocal._validate import check_output_dir
 from thermocal.burst import check_burst, fpa_value
+from thermocal.calibration.dataset import RATE_SMOOTH_S, fpa_rate_c_per_min
 from thermocal.errors import InvalidInputError, OutputError, RegistrationError
 from thermocal.estimation.base import Estimator
 from thermocal.estimation.pipeline import estimate
@@ -176,6 +177,7 @@ def process_flight(
     n, stride = options.frames, options.stride
     pivots = pivots_of(header.n_frames, n, stride)
     estimator = _estimator(options, header.frame_shape)
+    series = header.series | {"fpa_rate_c_per_min": _fpa_rates(header.series)}
     out = _output_dirs(Path(out_dir))  # only now: every check has passed
     _remove_stale_temp_files(out)
     _drop_cut_log_line(out / "log.jsonl")
@@ -196,7 +198,7 @@ def process_flight(
             # the whole batch, done pivots included: the same frames as an uninterrupted run
             run = _register_batch(reader, estimator, batch, n, tally.times)
             for index, pivot in todo:
-                entry = _process_pivot(run, pivot, header.series, estimator, options, out, tally,
+                entry = _process_pivot(run, pivot, series, estimator, options, out, tally,
                                        preview=_preview_due(options, index))
                 log.write(json.dumps(entry) + "\n")  # last: the pivot is finished
                 log.flush()
@@ -286,7 +288,9 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
                 group, estimator,
                 fpa_c=None if fpa is None else fpa[first : first + n],
                 time_s=None if time_s is None else time_s[first : first + n],
-                pivot=n // 2, homographies=homographies, force=options.force)
+                pivot=n // 2, homographies=homographies, force=options.force,
+                fpa_rate_c_per_min=None if series["fpa_rate_c_per_min"] is None
+                else float(series["fpa_rate_c_per_min"][pivot]))
             temp, sigma = result.temperature_c, result.sigma_c
         entry["warnings"] = sorted({str(w.message) for w in caught})
         if result.outside:  # estimated all the same (--force): why it is not validated
@@ -308,6 +312,20 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
     tally.processed += 1
     tally.times.add("writing", t)
     return entry
+
+
+def _fpa_rates(series: dict[str, Any]) -> np.ndarray | None:
+    """The recording's FPA rate at each frame, °C/min, smoothed as a chamber session's (what a
+    calibration's uncertainty depends on); None without FPA temperatures and frame times, or for
+    a recording shorter than the smoothing window (a quantised sensor over a few seconds cannot
+    tell a steady FPA from one changing by a degree a minute)."""
+    fpa, time_s = series.get("fpa_c"), series.get("time_s")
+    if fpa is None or time_s is None or len(fpa) < 2 or np.ptp(time_s) < RATE_SMOOTH_S:
+        return None
+    try:
+        return fpa_rate_c_per_min(fpa, time_s, smooth_s=RATE_SMOOTH_S)
+    except InvalidInputError:  # times not increasing: no rate, the average σ
+        return None
 
 
 def _check_group(group: np.ndarray, first: int) -> None:
