@@ -580,8 +580,12 @@ main()
 
 
 def test_ctrl_c_while_the_modules_load_is_one_line_and_status_130():
+    import signal
+
+    # SIGINT as in a terminal, even when the tests run in a background job (which ignores it)
     proc = subprocess.run([sys.executable, "-c", _INTERRUPT_WHILE_LOADING],
-                          capture_output=True, text=True, timeout=120, check=False)
+                          capture_output=True, text=True, timeout=120, check=False,
+                          preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     assert proc.returncode == 130, proc.stderr
     assert proc.stderr == "thermocal: interrupted\n"
     assert proc.stdout == ""

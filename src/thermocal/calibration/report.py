@@ -105,7 +105,7 @@ class CalibrationReport:
         ``--method auto``: every candidate, best first: ``method`` and ``expected_mae_c``, or
         ``refused`` (why it could not be fitted); empty otherwise.
     by_rate : list of dict
-        The interior folds' MAE and σ by bin of |FPA rate|: ``rate_c_per_min`` (``[low,
+        The interior folds' MAE and σ by bin of the absolute FPA rate: ``rate_c_per_min`` (``[low,
         high]``, high None for the last), ``frames``, ``mae_c``, ``sigma_c``; empty in a report
         made before it.
     sigma_c : float or None
@@ -508,12 +508,12 @@ def cross_validate(
     )
 
 
-#: Edges of the FPA-rate bins of :attr:`CalibrationReport.by_rate`, |°C/min|.
+#: Edges of the FPA-rate bins of :attr:`CalibrationReport.by_rate`, absolute rates in °C/min.
 RATE_EDGES = (0.0, 0.05, 0.2, 0.5, 1.0, 2.0, math.inf)
 
 
 def _by_rate(errors: np.ndarray, rates: np.ndarray) -> list[dict[str, Any]]:
-    """The interior folds' MAE and :func:`coverage_sigma` by |FPA rate| bin
+    """The interior folds' MAE and :func:`coverage_sigma` by bin of the absolute FPA rate
     (:data:`RATE_EDGES`), bins with frames only; ``errors`` ``(M, P)`` per pixel, ``rates``
     ``(M,)``."""
     out = []

@@ -49,8 +49,14 @@ def estimate_file(
         raise InvalidInputError(f"--method {method} has no uncertainty model here: "
                                 f"{NO_SIGMA_REMEDY.get(method, NO_SIGMA_REMEDY['calibration'])}")
     rec = read_recording(frames_path, fpa_c=fpa_c)
-    result = run_pipeline(rec.frames, estimator, fpa_c=rec.fpa_c, pivot=pivot,
-                          registered=registered, force=force)
+    try:
+        result = run_pipeline(rec.frames, estimator, fpa_c=rec.fpa_c, pivot=pivot,
+                              registered=registered, force=force)
+    except InvalidInputError as exc:  # a burst's fault: name the file it came from
+        text = str(exc)
+        if text.startswith(str(frames_path)):
+            raise
+        raise type(exc)(f"{frames_path}: {text}") from None
     if result.outside:
         click.echo(f"thermocal: warning: {frames_path} lies outside what {method} was "
                    f"trained or fitted on ({'; '.join(result.outside)}); estimated all the same "
