@@ -832,6 +832,7 @@ def _fuzz_one(reader, n, cal_files, apply_args, weights_file, tmp_path, seed, re
     else:
         counts = fuzz("calibration", Path(cal_files[reader]),
                       lambda p: cal_output(p, apply_args), n, seed, tmp_path, reseal=reseal)
+    print(f"{reader}{' (resealed)' if reseal else ''}: {counts}")  # the counts, with -s
     assert sum(counts.values()) == n, counts
     assert counts.get(REFUSED, 0) > (n // 10 if reseal else n // 2), counts
     return counts
