@@ -46,10 +46,12 @@ def test_sigma_inside_follows_the_cross_validation():
     s = model.sigma(np.array([[20.0, 25.0, 30.0]]), 27.5)
     np.testing.assert_allclose(s[0], G * 0.5 * (np.array([0.2, 0.3, 0.4]) + 0.3), rtol=1e-6)
     # the rate: settled frames are better, fast ones worse; unknown rates average
-    slow, fast = (model.sigma(np.array([[25.0]]), 27.5, rate_c_per_min=[r])[0, 0]
-                  for r in (0.01, -0.7))
+    slow, fast, faster = (model.sigma(np.array([[25.0]]), 27.5, rate_c_per_min=[r])[0, 0]
+                          for r in (0.01, -0.5, 1.0))
     assert slow == pytest.approx(G * 0.3 * 0.5, rel=1e-5)
     assert fast == pytest.approx(G * 0.3 * 2.0, rel=1e-5)
+    # faster than the session ever changed (0.5 °C/min): σ grows with the rate
+    assert faster == pytest.approx(2.0 * fast, rel=1e-5)
 
 
 def test_sigma_grows_outside_without_bound():
@@ -77,6 +79,9 @@ def test_outside_names_the_fpa_and_the_scene():
     assert "FPA temperature 36.0…36.0 °C is outside the 20.0…35.0 °C" in why
     (why,) = model.outside(np.full((1, 4, 4), 55.0), [27.0])
     assert "scene spans 55.0…55.0 °C" in why
+    assert model.outside(np.full((1, 4, 4), 25.0), [27.0], rate_c_per_min=[0.6]) == ()
+    (why,) = model.outside(np.full((1, 4, 4), 25.0), [27.0], rate_c_per_min=[-0.9])
+    assert "FPA changes at up to 0.90 °C/min, faster than the 0.50 °C/min" in why
 
 
 def test_report_survives_json_with_its_rate_bins():

@@ -205,8 +205,9 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
             temps = cal.apply(rec.frames, fpa_c=rec.fpa_c, time_s=rec.time_s)
         except InvalidInputError as exc:
             raise _naming_the_input(exc, frames, calibration_path) from None
+    rates = _rates(rec)
     outside = () if model is None else model.outside(
-        temps, () if rec.fpa_c is None else rec.fpa_c)
+        temps, () if rec.fpa_c is None else rec.fpa_c, rate_c_per_min=rates)
     if outside and not force:
         raise OutsideDomainError(f"{frames}: {'; '.join(outside)}; {REMEDY}")
     for w in caught:
@@ -215,8 +216,7 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
         click.echo(f"thermocal: warning: {frames} lies outside the calibration's ranges "
                    f"({'; '.join(outside)}); corrected all the same (--force)", err=True)
     if sigma_out is not None:  # σ first: a failure leaves neither file
-        write_sigma_tiff(sigma_out, model.sigma(temps, rec.fpa_c,
-                                                rate_c_per_min=_rates(rec)))
+        write_sigma_tiff(sigma_out, model.sigma(temps, rec.fpa_c, rate_c_per_min=rates))
     try:
         write_temperature_tiff(out, temps)
     except Exception:

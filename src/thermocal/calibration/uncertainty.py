@@ -22,8 +22,9 @@ For a temperature ``T`` (°C) measured at FPA temperature ``t`` (°C)::
   with the distance: it is not clipped;
 - ``√(π/2)``: a Gaussian's σ from its MAE.
 
-:func:`outside` says why frames lie outside what a calibration was fitted on (FPA temperature,
-scene temperature); the product refuses them unless ``--force``.
+:meth:`CalibrationSigma.outside` says why frames lie outside what a calibration was fitted on
+(FPA temperature, scene temperature, FPA rate); the product refuses them unless ``--force``.
+Faster FPA rates than the session's fastest grow σ in proportion to the rate.
 """
 
 from __future__ import annotations
@@ -37,12 +38,14 @@ import numpy as np
 from thermocal.calibration.base import Calibration
 from thermocal.calibration.report import CalibrationReport, report_of
 
-__all__ = ["MIN_GROWTH_PER_C", "REMEDY", "CalibrationSigma", "FPA_MARGIN_C"]
+__all__ = ["FPA_MARGIN_C", "MIN_GROWTH_PER_C", "RATE_MARGIN", "REMEDY", "CalibrationSigma"]
 
 #: The least growth of the error outside the calibrated ranges, °C of MAE per °C outside.
 MIN_GROWTH_PER_C = 0.02
 #: FPA temperatures this close outside the session's range are inside (the sensor's noise), °C.
 FPA_MARGIN_C = 0.5
+#: FPA rates up to this many times the session's fastest are inside (the rate estimate's noise).
+RATE_MARGIN = 1.25
 #: What to do about frames outside a calibration's ranges.
 REMEDY = ("calibrate over these conditions (a chamber session that covers them: `thermocal "
           "calibrate`); --force gives the temperatures with their uncertainty grown")
@@ -99,12 +102,23 @@ class CalibrationSigma:
         """``s(r)`` of each rate (°C/min; ``(N,)``), °C: its bin's σ (the overall σ for a rate
         the session never had; ``√(π/2)·MAE`` of its bin in a report without bin σ)."""
         rate = np.abs(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1))
+        top = self.max_rate_c_per_min
         out = np.full(rate.shape, self._overall_sigma())
         for b in self.report.by_rate:
             lo, hi = b["rate_c_per_min"]
-            sel = (rate >= lo) & (rate < (math.inf if hi is None else hi))
+            sel = (np.minimum(rate, top) >= lo) & (np.minimum(rate, top) < (
+                math.inf if hi is None else hi))
             out[sel] = b["sigma_c"] if b.get("sigma_c") is not None else _GAUSS * b["mae_c"]
+        # faster than the session ever changed: the error of a rate term left out grows with
+        # the rate, so σ grows in proportion beyond the fastest rate it covered
+        faster = rate > top
+        out[faster] *= rate[faster] / max(top, 1e-3)
         return out
+
+    @property
+    def max_rate_c_per_min(self) -> float:
+        """The fastest |FPA rate| of the chamber session, °C/min."""
+        return float(max(abs(v) for v in self.report.fpa_rate_c_per_min))
 
     def sigma(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None
               ) -> np.ndarray:
@@ -129,11 +143,19 @@ class CalibrationSigma:
         out = (level[:, None, None] * shape + _GAUSS * growth).astype(np.float32)
         return out if temps.ndim == 3 else out[0]
 
-    def outside(self, temps_c: np.ndarray, fpa_c: Any) -> tuple[str, ...]:
+    def outside(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None
+                ) -> tuple[str, ...]:
         """Why frames lie outside the session's ranges: their FPA temperatures (more than
-        :data:`FPA_MARGIN_C` beyond), or their scene (its 1st–99th percentile beyond the
-        blackbody's range); ``()`` inside."""
+        :data:`FPA_MARGIN_C` beyond), their scene (its 1st–99th percentile beyond the
+        blackbody's range), or their FPA rates (°C/min, where known: faster than
+        :data:`RATE_MARGIN` times the session's fastest); ``()`` inside."""
         reasons = []
+        if rate_c_per_min is not None and np.size(rate_c_per_min):
+            fastest = float(np.max(np.abs(rate_c_per_min)))
+            if fastest > RATE_MARGIN * self.max_rate_c_per_min + 0.05:
+                reasons.append(f"the FPA changes at up to {fastest:.2f} °C/min, faster than the "
+                               f"{self.max_rate_c_per_min:.2f} °C/min of the "
+                               f"{self.report.method} calibration's chamber session")
         fpa = np.asarray(fpa_c, dtype=np.float64).reshape(-1)
         flo, fhi = self.report.fpa_range_c
         if fpa.size and (fpa.min() < flo - FPA_MARGIN_C or fpa.max() > fhi + FPA_MARGIN_C):

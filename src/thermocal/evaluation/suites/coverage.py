@@ -108,7 +108,7 @@ def _run_calibration(cal, model: CalibrationSigma, run: physics.Run, rng) -> dic
         for i, r in zip(sel, rate, strict=True):
             temp = est[i].reshape(-1)[pick]
             err = temp - run.truth_c[i]
-            outside = model.outside(temp, [s.fpa_c[i]])
+            outside = model.outside(temp, [s.fpa_c[i]], rate_c_per_min=[r])
             sigma = model.sigma(temp[None, None], [s.fpa_c[i]], rate_c_per_min=[r])[0, 0]
             silent += int(not outside and _silent(float(np.abs(err).mean()), sigma))
             kept["forced" if outside else "accepted"].append((err, sigma))
