@@ -427,6 +427,15 @@ def _same_file(a: Path, b: Path) -> bool:
         return False
 
 
+def check_outputs_differ(first: str | os.PathLike[str], second: str | os.PathLike[str] | None,
+                         names: tuple[str, str]) -> None:
+    """Refuse two outputs of one command that are the same file (after resolving links):
+    ``names`` are their options, e.g. ``("--sigma-out", "--out")``."""
+    if second is not None and Path(first).resolve() == Path(second).resolve():
+        raise InvalidInputError(f"{names[0]} {first} is the {names[1]} file; write it to "
+                                "another file")
+
+
 def check_not_input(out: str | os.PathLike[str] | None,
                     *inputs: str | os.PathLike[str] | None, what: str = "--out") -> None:
     """Refuse an output that is one of the command's inputs (never overwrite an input).

@@ -18,6 +18,7 @@ from thermocal._validate import (
     check_fpa_c,
     check_not_input,
     check_output_file,
+    check_outputs_differ,
 )
 from thermocal.calibration.registry import CALIBRATION_METHODS, method_help
 from thermocal.errors import (
@@ -75,11 +76,7 @@ def calibrate(chamber: Path, method: str, out: Path, report_path: Path | None,
     if report_path is not None:
         check_output_file(report_path, _REPORT_SUFFIXES)
         check_not_input(report_path, chamber, what="--report")
-        try:
-            check_not_input(report_path, out)
-        except InvalidInputError:
-            raise InvalidInputError(f"--report {report_path} is the --out file; write the "
-                                    "report to another file") from None
+        check_outputs_differ(report_path, out, ("--report", "--out"))
     if radial and method not in ("polynomial", AUTO):
         raise InvalidInputError("--radial applies to --method polynomial only")
     if fpa_ref_c is not None:
@@ -186,7 +183,8 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
     check_not_input(out, frames, calibration_path)
     if sigma_out is not None:
         check_output_file(sigma_out, TIFF_SUFFIXES)
-        check_not_input(sigma_out, frames, calibration_path, out)
+        check_not_input(sigma_out, frames, calibration_path, what="--sigma-out")
+        check_outputs_differ(sigma_out, out, ("--sigma-out", "--out"))
     if fpa_c is not None:
         check_fpa_c(fpa_c, "--fpa-c")
     cal = load_any_calibration(calibration_path)

@@ -7,7 +7,12 @@ from pathlib import Path
 
 import click
 
-from thermocal._validate import TIFF_SUFFIXES, check_not_input, check_output_file
+from thermocal._validate import (
+    TIFF_SUFFIXES,
+    check_not_input,
+    check_output_file,
+    check_outputs_differ,
+)
 from thermocal.errors import InvalidInputError
 from thermocal.estimation.pipeline import estimate as run_pipeline
 from thermocal.estimation.registry import ESTIMATORS, make_estimator, method_help
@@ -43,7 +48,8 @@ def estimate_file(
     check_not_input(out, frames_path, calibration, model_path)
     if sigma_out is not None:
         sigma_out = check_output_file(sigma_out, TIFF_SUFFIXES)
-        check_not_input(sigma_out, frames_path, calibration, model_path, out)
+        check_not_input(sigma_out, frames_path, calibration, model_path, what="--sigma-out")
+        check_outputs_differ(sigma_out, out, ("--sigma-out", "--out"))
     estimator = make_estimator(method, model=model_path, calibration=calibration)
     if sigma_out is not None and not has_uncertainty(estimator):
         raise InvalidInputError(f"--method {method} has no uncertainty model here: "
