@@ -108,10 +108,15 @@ def test_estimators_refuse_outside_and_give_sigma(fitted):
     scene = 15.0 + 10.0 * np.random.default_rng(0).random((96, 96))
     fpa_in = 0.5 * sum(report.fpa_range_c)
     inside = simulate_flight(scene, camera, n_frames=5, motion="walk", fpa_c=fpa_in, seed=1)
+    sigmas = []
     for estimator in (PivotCalibration(cal), OzMean(cal)):
         est = estimate(inside.frames, estimator, fpa_c=inside.fpa_c)
         assert est.outside == () and est.sigma_c.shape == (48, 64)
         assert np.all(est.sigma_c > 0)
+        sigmas.append(est.sigma_c)
+    # eq. 9's mean adds the standard error over its views (its σ_cal at its own, slightly
+    # different temperatures): above one frame's σ where the views disagree
+    assert np.all(sigmas[1] >= sigmas[0] - 0.02) and np.median(sigmas[1] - sigmas[0]) > 0
     hot = simulate_flight(scene, camera, n_frames=5, motion="walk",
                           fpa_c=report.fpa_range_c[1] + 8.0, seed=1)
     with pytest.raises(OutsideDomainError, match="FPA temperature .* is outside"):

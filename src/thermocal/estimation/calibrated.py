@@ -72,6 +72,20 @@ class OzMean(_ThroughCalibration):
         mean = (burst.warped * burst.valid).sum(axis=0) / np.maximum(count, 1)
         return mean.astype(np.float32)
 
+    def uncertainty(self, burst: PreparedBurst, temperature_c: np.ndarray, *, outside: bool
+                    ) -> np.ndarray | None:
+        """The calibration's σ of one frame, combined with the standard error of the mean over
+        the views (their spread over √n: misregistration and what the calibration leaves show
+        there): ``√(σ_cal² + s²/n)``. The calibration's own error does not average away over
+        views of the same unit, so it is kept whole."""
+        sigma = super().uncertainty(burst, temperature_c, outside=outside)
+        if sigma is None:
+            return None
+        n = np.maximum(burst.valid.sum(axis=0), 1)
+        w = burst.warped.astype(np.float64)
+        spread2 = ((w - temperature_c) ** 2 * burst.valid).sum(axis=0) / n
+        return np.sqrt(sigma.astype(np.float64) ** 2 + spread2 / n).astype(np.float32)
+
 
 class PivotCalibration(_ThroughCalibration):
     """The pivot frame through a per-frame calibration (``apply`` with the frames' FPA
