@@ -117,7 +117,7 @@ class CalibrationSigma:
 
     @property
     def max_rate_c_per_min(self) -> float:
-        """The fastest |FPA rate| of the chamber session, °C/min."""
+        """The fastest FPA rate (absolute) of the chamber session, °C/min."""
         return float(max(abs(v) for v in self.report.fpa_rate_c_per_min))
 
     def sigma(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None
