@@ -10,8 +10,9 @@ from cli_run import run
 from thermocal.camera.presets import make_camera
 from thermocal.errors import OutsideDomainError
 from thermocal.estimation.pipeline import estimate
+from thermocal.metrics import line_patterns
 from thermocal.nn.infer import NetworkEstimator
-from thermocal.nn.validity import LINE_RATIO_MAX, Domain, line_patterns, outside_domain
+from thermocal.nn.validity import LINE_RATIO_MAX, Domain, outside_domain
 from thermocal.scenes.procedural import procedural_scene
 from thermocal.simulate.flight import simulate_flight
 

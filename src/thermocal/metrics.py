@@ -19,6 +19,7 @@ import math
 from typing import Any
 
 import numpy as np
+from scipy.ndimage import gaussian_filter
 from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
 from thermocal._validate import as_float_array
@@ -29,6 +30,7 @@ __all__ = [
     "cosine_similarity",
     "error_cdf",
     "fraction_within",
+    "line_patterns",
     "mae",
     "netd",
     "netd_map",
@@ -454,3 +456,22 @@ def netd(flat_low: Any, flat_high: Any, t_low_c: float, t_high_c: float) -> floa
             "are they at different blackbody temperatures?"
         )
     return value
+
+
+#: σ of the high-pass that isolates a fixed line pattern from the scene, px.
+LINE_HIGH_PASS_PX = 6.0
+
+
+def line_patterns(frames_c: np.ndarray) -> tuple[float, float]:
+    """The row and the column pattern of calibrated frames ``(N, H, W)`` °C: for each frame, the
+    spread (std) of the per-row (per-column) medians of its high-pass (the frame less a Gaussian
+    blur of σ = 6 px); the median over the frames. Returns ``(rows, columns)`` in °C.
+
+    A scene's edges spread over few pixels of a line, so the medians along lines keep the fixed
+    pattern and drop the scene."""
+    rows, cols = [], []
+    for frame in np.asarray(frames_c, dtype=np.float32):
+        high = frame - gaussian_filter(frame, LINE_HIGH_PASS_PX, mode="nearest")
+        rows.append(float(np.std(np.median(high, axis=1))))
+        cols.append(float(np.std(np.median(high, axis=0))))
+    return float(np.median(rows)), float(np.median(cols))

@@ -23,7 +23,9 @@ For a temperature ``T`` (°C) measured at FPA temperature ``t`` (°C)::
 - ``√(π/2)``: a Gaussian's σ from its MAE.
 
 :meth:`CalibrationSigma.outside` says why frames lie outside what a calibration was fitted on
-(FPA temperature, scene temperature, FPA rate); the product refuses them unless ``--force``.
+(FPA temperature, scene temperature, FPA rate, and frames of another camera: a fixed line
+pattern left that the calibration's own camera does not leave); the product refuses them
+unless ``--force``.
 Faster FPA rates than the session's fastest grow σ in proportion to the rate.
 """
 
@@ -37,8 +39,10 @@ import numpy as np
 
 from thermocal.calibration.base import Calibration
 from thermocal.calibration.report import CalibrationReport, report_of
+from thermocal.metrics import line_patterns
 
-__all__ = ["FPA_MARGIN_C", "MIN_GROWTH_PER_C", "RATE_MARGIN", "REMEDY", "CalibrationSigma"]
+__all__ = ["FPA_MARGIN_C", "LINE_PATTERN_MAX_C", "MIN_GROWTH_PER_C", "RATE_MARGIN", "REMEDY",
+           "CalibrationSigma"]
 
 #: The least growth of the error outside the calibrated ranges, °C of MAE per °C outside.
 MIN_GROWTH_PER_C = 0.02
@@ -46,6 +50,15 @@ MIN_GROWTH_PER_C = 0.02
 FPA_MARGIN_C = 0.5
 #: FPA rates up to this many times the session's fastest are inside (the rate estimate's noise).
 RATE_MARGIN = 1.25
+#: The largest fixed line pattern (rows or columns, °C: :func:`thermocal.metrics.line_patterns`)
+#: a calibration may leave in its own camera's frames. Its own unit leaves 0.03–0.07 °C; another
+#: unit of the family 2.5, another family 1.7–2.6 (96×72 frames, a real aerial scene); real
+#: scenes with long straight edges add up to 0.4 (benchmarks/kpn.py's held-out scenes).
+LINE_PATTERN_MAX_C = 0.8
+#: Frames of a recording the line-pattern check looks at (spread evenly), and the least frame
+#: side it needs.
+_PATTERN_FRAMES = 16
+_PATTERN_MIN_SIDE = 32
 #: What to do about frames outside a calibration's ranges.
 REMEDY = ("calibrate over these conditions (a chamber session that covers them: `thermocal "
           "calibrate`); --force gives the temperatures with their uncertainty grown")
@@ -145,10 +158,12 @@ class CalibrationSigma:
 
     def outside(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None
                 ) -> tuple[str, ...]:
-        """Why frames lie outside the session's ranges: their FPA temperatures (more than
-        :data:`FPA_MARGIN_C` beyond), their scene (its 1st–99th percentile beyond the
-        blackbody's range), or their FPA rates (°C/min, where known: faster than
-        :data:`RATE_MARGIN` times the session's fastest); ``()`` inside."""
+        """Why frames lie outside what the calibration was fitted on: their FPA temperatures
+        (more than :data:`FPA_MARGIN_C` beyond the session's), their FPA rates (°C/min, where
+        known: faster than :data:`RATE_MARGIN` times the session's fastest), a fixed line
+        pattern left in them (``(N, H, W)`` frames of at least 32 px a side: more than
+        :data:`LINE_PATTERN_MAX_C`, so another camera's), or their scene (its 1st–99th
+        percentile beyond the blackbody's range); ``()`` inside."""
         reasons = []
         if rate_c_per_min is not None and np.size(rate_c_per_min):
             fastest = float(np.max(np.abs(rate_c_per_min)))
@@ -162,6 +177,16 @@ class CalibrationSigma:
             reasons.append(f"the FPA temperature {fpa.min():.1f}…{fpa.max():.1f} °C is outside "
                            f"the {flo:.1f}…{fhi:.1f} °C the {self.report.method} calibration "
                            "was fitted on")
+        temps = np.asarray(temps_c)
+        if temps.ndim == 3 and min(temps.shape[1:]) >= _PATTERN_MIN_SIDE:
+            pick = np.unique(np.linspace(0, temps.shape[0] - 1, _PATTERN_FRAMES).astype(int))
+            rows, cols = line_patterns(temps[pick])
+            if max(rows, cols) > LINE_PATTERN_MAX_C:
+                lines = "rows" if rows > cols else "columns"
+                reasons.append(f"a fixed pattern of {max(rows, cols):.2f} °C along {lines} is "
+                               f"left (the camera a calibration was made for keeps under "
+                               f"{LINE_PATTERN_MAX_C:g} °C): not the camera this "
+                               f"{self.report.method} calibration was made for")
         lo, hi = self.report.scene_range_c
         p1, p99 = (float(v) for v in np.percentile(temps_c, [1, 99]))
         if p1 < lo or p99 > hi:

@@ -23,11 +23,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.ndimage import gaussian_filter
 
 from thermocal.camera.presets import CameraPreset
+from thermocal.metrics import line_patterns
 
-__all__ = ["LINE_RATIO_MAX", "REMEDY", "Domain", "line_patterns", "outside_domain"]
+__all__ = ["LINE_RATIO_MAX", "REMEDY", "Domain", "outside_domain"]
 
 #: What to do about a burst outside the network's domain.
 REMEDY = ("train from a chamber session of this camera: `thermocal train --chamber`, or "
@@ -38,10 +38,6 @@ REMEDY = ("train from a chamber session of this camera: `thermocal train --chamb
 #: burst of the family. ``tau2`` bursts through the shipped network's nominal calibration: at
 #: most 0.2 on the held-out set; ``boson`` bursts: at least 1.3 (benchmarks/physics.py).
 LINE_RATIO_MAX = 0.6
-
-#: σ of the high-pass that isolates the fixed pattern from the scene, px.
-_HIGH_PASS_PX = 6.0
-
 
 @dataclass(frozen=True)
 class Domain:
@@ -80,21 +76,6 @@ class Domain:
             family, line = preset.name, preset.fpn.split("-")[0]
         return cls(tuple(data["fpa_range_c"]), tuple(data["temp_mean_range_c"]),
                    tuple(data["temp_clip_c"]), family, line)
-
-
-def line_patterns(frames_c: np.ndarray) -> tuple[float, float]:
-    """The row and the column pattern of calibrated frames ``(N, H, W)`` °C: for each frame, the
-    spread (std) of the per-row (per-column) medians of its high-pass (the frame less a Gaussian
-    blur of σ = 6 px); the median over the frames. Returns ``(rows, columns)`` in °C.
-
-    A scene's edges spread over few pixels of a line, so the medians along lines keep the fixed
-    pattern and drop the scene."""
-    rows, cols = [], []
-    for frame in np.asarray(frames_c, dtype=np.float32):
-        high = frame - gaussian_filter(frame, _HIGH_PASS_PX, mode="nearest")
-        rows.append(float(np.std(np.median(high, axis=1))))
-        cols.append(float(np.std(np.median(high, axis=0))))
-    return float(np.median(rows)), float(np.median(cols))
 
 
 def outside_domain(domain: Domain, frames_c: np.ndarray | None, fpa_c: float
