@@ -214,7 +214,9 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
         click.echo(f"thermocal: warning: {frames} lies outside the calibration's ranges "
                    f"({'; '.join(outside)}); corrected all the same (--force)", err=True)
     if sigma_out is not None:  # σ first: a failure leaves neither file
-        write_sigma_tiff(sigma_out, model.sigma(temps, rec.fpa_c, rate_c_per_min=rates))
+        since = None if rec.time_s is None else np.asarray(rec.time_s) - rec.time_s[0]
+        write_sigma_tiff(sigma_out, model.sigma(temps, rec.fpa_c, rate_c_per_min=rates,
+                                                time_since_start_s=since))
     try:
         write_temperature_tiff(out, temps)
     except Exception:

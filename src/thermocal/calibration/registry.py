@@ -58,6 +58,9 @@ class CalibrationInfo:
         :func:`~thermocal.calibration.protocol.check_protocol`).
     auto : bool
         Whether ``--method auto`` tries it.
+    learns_online : bool
+        Whether its ``apply`` learns as frames stream by (an online estimator that starts cold
+        on every recording): its report then measures the error by time since the start.
     """
 
     name: str
@@ -68,6 +71,7 @@ class CalibrationInfo:
     takes_fpa_ref: bool = True
     needs: ProtocolNeeds = ProtocolNeeds("all", 2)
     auto: bool = True
+    learns_online: bool = False
 
 
 #: What the methods fitted at one reference FPA temperature need: two set points there.
@@ -104,7 +108,8 @@ CALIBRATION_METHODS: dict[str, CalibrationInfo] = {
                         "temperature change",
                         needs=ProtocolNeeds("reference", 2, fpa_span_c=1.0, fpa_levels=2,
                                             window_c=3.0, window_option="fpa_window_c",
-                                            fpa_both_ways=True)),
+                                            fpa_both_ways=True),
+                        learns_online=True),
         CalibrationInfo("lin", lin, LinCalibration, "Lin et al.",
                         "2nd-order FPA projection, 3rd-order FPA-rate correction, Planck "
                         "R/B/F/O fit", needs=_LIN),

@@ -111,6 +111,11 @@ class CalibrationReport:
     sigma_c : float or None
         The σ that covers the interior folds' pixel errors as a Gaussian's would
         (:func:`coverage_sigma`), °C; None in a report made before it.
+    by_time : list of dict
+        For a method that learns as frames stream by (``wolf2016``'s LMS: it errs most at
+        first; :attr:`~thermocal.calibration.registry.CalibrationInfo.learns_online`), the same
+        by time since the session began (``time_s``: ``[low, high]`` s, :data:`TIME_EDGES`);
+        empty for the others and in a report made before it.
     """
 
     method: str
@@ -127,6 +132,7 @@ class CalibrationReport:
     ranking: list[dict[str, Any]] = field(default_factory=list)
     by_rate: list[dict[str, Any]] = field(default_factory=list)
     sigma_c: float | None = None
+    by_time: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def extrapolated_mae_c(self) -> float | None:
@@ -157,6 +163,7 @@ class CalibrationReport:
             "mae_by_fpa_c": [_row(f) for f in self.by_fpa()],
             "mae_by_fpa_rate_c": self.by_rate,
             "expected_sigma_c": self.sigma_c,
+            "mae_by_time_since_start_c": self.by_time,
             "sample": self.sample,
             "warnings": list(self.warnings),
             "notes": list(self.notes),
@@ -187,6 +194,7 @@ class CalibrationReport:
                 by_rate=[dict(r) for r in d.get("mae_by_fpa_rate_c", [])],
                 sigma_c=None if d.get("expected_sigma_c") is None else float(
                     d["expected_sigma_c"]),
+                by_time=[dict(r) for r in d.get("mae_by_time_since_start_c", [])],
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise InvalidInputError(f"not a calibration report ({type(exc).__name__}: "
@@ -457,6 +465,7 @@ def cross_validate(
     refit_options = options | fixed_reference(calibration, method)
     errors: list[np.ndarray] = []  # per-frame errors of the interior folds
     rates: list[np.ndarray] = []  # and their frames' FPA rates, °C/min
+    since: list[np.ndarray] = []  # and their time since the session began, s
     folds = []
     for desc, held in setpoint_folds(small) + fpa_folds(small, fpa_segments):
         held = held & scorable
@@ -476,6 +485,7 @@ def cross_validate(
         if not desc["extrapolation"]:
             errors.append(pix)
             rates.append(small.fpa_rate_c_per_min[held])
+            since.append(small.time_s[held] - small.time_s[0])
     failed = [f for f in folds if f.get("mae_c") is None and not f["extrapolation"]]
     if failed:
         notes.append(f"{len(failed)} interior fold(s) could not be refitted without their "
@@ -483,6 +493,10 @@ def cross_validate(
     expected = float(np.mean(np.concatenate(errors))) if errors else None
     sigma = coverage_sigma(np.concatenate(errors)) if errors else None
     by_rate = (_by_rate(np.concatenate(errors), np.concatenate(rates)) if errors else [])
+    from thermocal.calibration.registry import CALIBRATION_METHODS
+
+    by_time = (_binned(np.concatenate(errors), np.concatenate(since), TIME_EDGES, "time_s")
+               if errors and CALIBRATION_METHODS[method].learns_online else [])
     if expected is None:
         notes.append("no interior set point or FPA segment could be left out and refitted")
     usable = data.usable
@@ -505,6 +519,7 @@ def cross_validate(
         options=_json_options(options),
         by_rate=by_rate,
         sigma_c=sigma,
+        by_time=by_time,
     )
 
 
@@ -516,12 +531,23 @@ def _by_rate(errors: np.ndarray, rates: np.ndarray) -> list[dict[str, Any]]:
     """The interior folds' MAE and :func:`coverage_sigma` by bin of the absolute FPA rate
     (:data:`RATE_EDGES`), bins with frames only; ``errors`` ``(M, P)`` per pixel, ``rates``
     ``(M,)``."""
+    return _binned(errors, np.abs(rates), RATE_EDGES, "rate_c_per_min")
+
+
+#: Edges of the bins of time since a recording began, s (:attr:`CalibrationReport.by_time`).
+TIME_EDGES = (0.0, 60.0, 300.0, 900.0, 1800.0, math.inf)
+
+
+def _binned(errors: np.ndarray, values: np.ndarray, edges: tuple[float, ...], key: str
+            ) -> list[dict[str, Any]]:
+    """MAE and :func:`coverage_sigma` of ``errors`` ``(M, P)`` by bin of ``values`` ``(M,)``
+    (``edges``), bins with frames only: ``key`` (``[low, high]``, high None for the last),
+    ``frames``, ``mae_c``, ``sigma_c``."""
     out = []
-    speed = np.abs(rates)
-    for lo, hi in zip(RATE_EDGES[:-1], RATE_EDGES[1:], strict=True):
-        sel = (speed >= lo) & (speed < hi)
+    for lo, hi in zip(edges[:-1], edges[1:], strict=True):
+        sel = (values >= lo) & (values < hi)
         if sel.any():
-            out.append({"rate_c_per_min": [lo, hi if math.isfinite(hi) else None],
+            out.append({key: [lo, hi if math.isfinite(hi) else None],
                         "frames": int(sel.sum()), "mae_c": float(np.mean(errors[sel])),
                         "sigma_c": coverage_sigma(errors[sel])})
     return out

@@ -23,9 +23,7 @@ For a temperature ``T`` (°C) measured at FPA temperature ``t`` (°C)::
 - ``√(π/2)``: a Gaussian's σ from its MAE.
 
 :meth:`CalibrationSigma.outside` says why frames lie outside what a calibration was fitted on
-(FPA temperature, scene temperature, FPA rate, and frames of another camera: a fixed line
-pattern left that the calibration's own camera does not leave); the product refuses them
-unless ``--force``.
+(FPA temperature, scene temperature, FPA rate); the product refuses them unless ``--force``.
 Faster FPA rates than the session's fastest grow σ in proportion to the rate.
 """
 
@@ -39,10 +37,8 @@ import numpy as np
 
 from thermocal.calibration.base import Calibration
 from thermocal.calibration.report import CalibrationReport, report_of
-from thermocal.metrics import line_patterns
 
-__all__ = ["FPA_MARGIN_C", "LINE_PATTERN_MAX_C", "MIN_GROWTH_PER_C", "RATE_MARGIN", "REMEDY",
-           "CalibrationSigma"]
+__all__ = ["FPA_MARGIN_C", "MIN_GROWTH_PER_C", "RATE_MARGIN", "REMEDY", "CalibrationSigma"]
 
 #: The least growth of the error outside the calibrated ranges, °C of MAE per °C outside.
 MIN_GROWTH_PER_C = 0.02
@@ -50,15 +46,8 @@ MIN_GROWTH_PER_C = 0.02
 FPA_MARGIN_C = 0.5
 #: FPA rates up to this many times the session's fastest are inside (the rate estimate's noise).
 RATE_MARGIN = 1.25
-#: The largest fixed line pattern (rows or columns, °C: :func:`thermocal.metrics.line_patterns`)
-#: a calibration may leave in its own camera's frames. Its own unit leaves 0.03–0.07 °C; another
-#: unit of the family 2.5, another family 1.7–2.6 (96×72 frames, a real aerial scene); real
-#: scenes with long straight edges add up to 0.4 (benchmarks/kpn.py's held-out scenes).
-LINE_PATTERN_MAX_C = 0.8
-#: Frames of a recording the line-pattern check looks at (spread evenly), and the least frame
-#: side it needs.
-_PATTERN_FRAMES = 16
-_PATTERN_MIN_SIDE = 32
+#: Frames a bin of the report's error by time since the start needs to be used.
+_MIN_BIN_FRAMES = 10
 #: What to do about frames outside a calibration's ranges.
 REMEDY = ("calibrate over these conditions (a chamber session that covers them: `thermocal "
           "calibrate`); --force gives the temperatures with their uncertainty grown")
@@ -128,21 +117,39 @@ class CalibrationSigma:
         out[faster] *= rate[faster] / max(top, 1e-3)
         return out
 
+    def start_sigma(self, time_since_start_s: Any) -> np.ndarray:
+        """σ of each frame's time since its recording began (s; ``(N,)``), °C: its bin of the
+        report's ``mae_by_time_since_start_c`` where that bin holds at least
+        :data:`_MIN_BIN_FRAMES` frames, 0 elsewhere (no start-up seen)."""
+        t = np.asarray(time_since_start_s, dtype=np.float64).reshape(-1)
+        out = np.zeros(t.shape)
+        for b in self.report.by_time:
+            if b["frames"] < _MIN_BIN_FRAMES or b.get("sigma_c") is None:
+                continue
+            lo, hi = b["time_s"]
+            out[(t >= lo) & (t < (math.inf if hi is None else hi))] = b["sigma_c"]
+        return out
+
     @property
     def max_rate_c_per_min(self) -> float:
         """The fastest FPA rate (absolute) of the chamber session, °C/min."""
         return float(max(abs(v) for v in self.report.fpa_rate_c_per_min))
 
-    def sigma(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None
-              ) -> np.ndarray:
+    def sigma(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None,
+              time_since_start_s: Any = None) -> np.ndarray:
         """σ (°C, float32, the shape of ``temps_c``: ``(H, W)`` or ``(N, H, W)``) of
         temperatures at FPA temperature ``fpa_c`` (°C: one, or one per frame) changing at
-        ``rate_c_per_min`` (°C/min, one or one per frame; None: not known)."""
+        ``rate_c_per_min`` (°C/min, one or one per frame; None: not known), taken
+        ``time_since_start_s`` after their recording began (s; None: not known): the level is
+        at least the report's σ of that time, for a method that learns as frames stream by."""
         temps = np.asarray(temps_c, dtype=np.float64)
         frames = temps if temps.ndim == 3 else temps[None]
         fpa = np.broadcast_to(np.asarray(fpa_c, dtype=np.float64).reshape(-1), frames.shape[:1])
         level = (np.full(frames.shape[0], self._overall_sigma()) if rate_c_per_min is None
                  else np.broadcast_to(self.rate_sigma(rate_c_per_min), frames.shape[:1]))
+        if time_since_start_s is not None:
+            level = np.maximum(level, np.broadcast_to(self.start_sigma(time_since_start_s),
+                                                      frames.shape[:1]))
         (sx, sm), (fx, fm), k_scene, k_fpa = self._curves()
         mean = self.report.expected_mae_c
         m_scene = np.interp(frames, sx, sm) if sx.size else np.full(frames.shape, mean)
@@ -160,10 +167,8 @@ class CalibrationSigma:
                 ) -> tuple[str, ...]:
         """Why frames lie outside what the calibration was fitted on: their FPA temperatures
         (more than :data:`FPA_MARGIN_C` beyond the session's), their FPA rates (°C/min, where
-        known: faster than :data:`RATE_MARGIN` times the session's fastest), a fixed line
-        pattern left in them (``(N, H, W)`` frames of at least 32 px a side: more than
-        :data:`LINE_PATTERN_MAX_C`, so another camera's), or their scene (its 1st–99th
-        percentile beyond the blackbody's range); ``()`` inside."""
+        known: faster than :data:`RATE_MARGIN` times the session's fastest), or their scene
+        (its 1st–99th percentile beyond the blackbody's range); ``()`` inside."""
         reasons = []
         if rate_c_per_min is not None and np.size(rate_c_per_min):
             fastest = float(np.max(np.abs(rate_c_per_min)))
@@ -177,16 +182,6 @@ class CalibrationSigma:
             reasons.append(f"the FPA temperature {fpa.min():.1f}…{fpa.max():.1f} °C is outside "
                            f"the {flo:.1f}…{fhi:.1f} °C the {self.report.method} calibration "
                            "was fitted on")
-        temps = np.asarray(temps_c)
-        if temps.ndim == 3 and min(temps.shape[1:]) >= _PATTERN_MIN_SIDE:
-            pick = np.unique(np.linspace(0, temps.shape[0] - 1, _PATTERN_FRAMES).astype(int))
-            rows, cols = line_patterns(temps[pick])
-            if max(rows, cols) > LINE_PATTERN_MAX_C:
-                lines = "rows" if rows > cols else "columns"
-                reasons.append(f"a fixed pattern of {max(rows, cols):.2f} °C along {lines} is "
-                               f"left (the camera a calibration was made for keeps under "
-                               f"{LINE_PATTERN_MAX_C:g} °C): not the camera this "
-                               f"{self.report.method} calibration was made for")
         lo, hi = self.report.scene_range_c
         p1, p99 = (float(v) for v in np.percentile(temps_c, [1, 99]))
         if p1 < lo or p99 > hi:

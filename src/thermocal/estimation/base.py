@@ -62,6 +62,9 @@ class PreparedBurst:
     fpa_rate_c_per_min : float or None
         How fast the FPA temperature changed at the burst, °C/min, where known (from the whole
         recording: a burst's own fraction of a second cannot show it); for the uncertainty.
+    time_since_start_s : float or None
+        How long after its recording began the burst was taken, s, where known (an online
+        calibration errs most at first); for the uncertainty.
     """
 
     frames: np.ndarray
@@ -71,6 +74,7 @@ class PreparedBurst:
     pivot: int
     fpa_c: float | None
     fpa_rate_c_per_min: float | None = None
+    time_since_start_s: float | None = None
 
 
 @runtime_checkable

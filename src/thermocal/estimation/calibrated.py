@@ -40,11 +40,14 @@ class _ThroughCalibration:
                     ) -> np.ndarray | None:
         """σ from the calibration's cross-validation report, growing outside its ranges
         (:class:`~thermocal.calibration.uncertainty.CalibrationSigma`), at the burst's FPA rate
-        where known; None without a report or without the burst's FPA temperature."""
+        and time since its recording began where known; None without a report or without the
+        burst's FPA temperature."""
         if self.sigma_model is None or burst.fpa_c is None:
             return None
         rate = None if burst.fpa_rate_c_per_min is None else [burst.fpa_rate_c_per_min]
-        return self.sigma_model.sigma(temperature_c, burst.fpa_c, rate_c_per_min=rate)
+        since = None if burst.time_since_start_s is None else [burst.time_since_start_s]
+        return self.sigma_model.sigma(temperature_c, burst.fpa_c, rate_c_per_min=rate,
+                                      time_since_start_s=since)
 
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
         shape = tuple(self.calibration.shape)

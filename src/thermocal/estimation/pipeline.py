@@ -73,6 +73,7 @@ def estimate(
     fill_defects: bool = True,
     force: bool = False,
     fpa_rate_c_per_min: float | None = None,
+    time_since_start_s: float | None = None,
 ) -> Estimate:
     """The pivot frame's temperature of a raw burst through ``estimator``.
 
@@ -103,6 +104,9 @@ def estimate(
     fpa_rate_c_per_min : float, optional
         How fast the FPA temperature changed at the burst, °C/min (from the whole recording),
         for the estimators whose uncertainty depends on it (the calibrations).
+    time_since_start_s : float, optional
+        How long after its recording began the burst was taken, s (for an online
+        calibration's uncertainty).
 
     Raises
     ------
@@ -127,7 +131,8 @@ def estimate(
         hs = np.repeat(np.eye(3)[None], arr.shape[0], axis=0)
         calibrated = estimator.calibrate(arr, fpa_c, time_s)
         outside = domain_stage(estimator, calibrated, fpa, force=force)
-        burst = PreparedBurst(arr, calibrated, valid, hs, p, fpa, fpa_rate_c_per_min)
+        burst = PreparedBurst(arr, calibrated, valid, hs, p, fpa, fpa_rate_c_per_min,
+                              time_since_start_s)
         return _estimate_of(estimator, burst, outside)
     if registered and not estimator.accepts_registered:
         raise InvalidInputError(
@@ -150,7 +155,8 @@ def estimate(
         warped, valid = warp_to_pivot(calibrated, hs)
     check_overlap(valid, p)
     # 6. estimate
-    burst = PreparedBurst(filled, warped, valid, hs, p, fpa, fpa_rate_c_per_min)
+    burst = PreparedBurst(filled, warped, valid, hs, p, fpa, fpa_rate_c_per_min,
+                          time_since_start_s)
     return _estimate_of(estimator, burst, outside)
 
 

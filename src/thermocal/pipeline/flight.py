@@ -290,7 +290,8 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
                 time_s=None if time_s is None else time_s[first : first + n],
                 pivot=n // 2, homographies=homographies, force=options.force,
                 fpa_rate_c_per_min=None if series["fpa_rate_c_per_min"] is None
-                else float(series["fpa_rate_c_per_min"][pivot]))
+                else float(series["fpa_rate_c_per_min"][pivot]),
+                time_since_start_s=None if time_s is None else float(time_s[pivot] - time_s[0]))
             temp, sigma = result.temperature_c, result.sigma_c
         entry["warnings"] = sorted({str(w.message) for w in caught})
         if result.outside:  # estimated all the same (--force): why it is not validated

@@ -105,11 +105,13 @@ def _run_calibration(cal, model: CalibrationSigma, run: physics.Run, rng) -> dic
     for k in np.unique(run.part):
         sel = np.flatnonzero(run.part == k)
         rate = fpa_rate_c_per_min(s.fpa_c[sel], s.time_s[sel], smooth_s=RATE_SMOOTH_S)
-        for i, r in zip(sel, rate, strict=True):
+        since = s.time_s[sel] - s.time_s[sel][0]
+        for i, r, t in zip(sel, rate, since, strict=True):
             temp = est[i].reshape(-1)[pick]
             err = temp - run.truth_c[i]
             outside = model.outside(temp, [s.fpa_c[i]], rate_c_per_min=[r])
-            sigma = model.sigma(temp[None, None], [s.fpa_c[i]], rate_c_per_min=[r])[0, 0]
+            sigma = model.sigma(temp[None, None], [s.fpa_c[i]], rate_c_per_min=[r],
+                                time_since_start_s=[t])[0, 0]
             silent += int(not outside and _silent(float(np.abs(err).mean()), sigma))
             kept["forced" if outside else "accepted"].append((err, sigma))
     out = {"frames": int(s.n_frames), "refused": len(kept["forced"]), "silent_over_1c": silent,
