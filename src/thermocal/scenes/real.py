@@ -21,7 +21,6 @@ import io
 import logging
 import math
 import os
-import struct
 from collections.abc import Iterator
 from dataclasses import replace
 from importlib.resources import files
@@ -32,6 +31,8 @@ import numpy as np
 
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import FileFormatError, InvalidInputError
+from thermocal.io.fff import FFF_MAGICS, parse_fff_record
+from thermocal.io.rjpeg import scan_jpeg
 from thermocal.radiometry import FlirPlanck
 
 __all__ = [
@@ -44,12 +45,6 @@ __all__ = [
 
 _JPEG_MAGIC = b"\xff\xd8\xff"
 _TIFF_MAGICS = (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+")
-_FFF_MAGICS = (b"FFF\x00", b"AFF\x00")
-_FLIR_APP1 = b"FLIR\x00"
-
-# FFF record types (exiftool, FLIR.pm: "FLIR record directory").
-_FFF_RAW_DATA = 1
-_FFF_CAMERA_INFO = 32
 
 
 # --------------------------------------------------------------------------------------------
@@ -110,7 +105,7 @@ def load_scene(
                 "a TIFF holds temperatures already"
             )
         celsius = _load_tiff(data, p, scale)
-    elif head in _FFF_MAGICS:
+    elif head in FFF_MAGICS:
         raw, planck = _parse_fff(data, p)
         if emissivity is not None:
             planck = replace(planck, emissivity=emissivity)
@@ -249,45 +244,10 @@ def _finish(celsius: Any, p: Path) -> np.ndarray:
     return arr.astype(np.float32)
 
 
-def _scan_jpeg(data: bytes) -> tuple[bool, str]:
-    """Walk the JPEG marker segments: (has a FLIR APP1 segment, ``"ok"|"truncated"|"corrupt"``).
-
-    Written by hand because flyr reads only the APP1 segments and accepts a file cut short in
-    its image data; a marker walk is a few lines and needs no decoder.
-    """
-    n = len(data)
-    pos = 2
-    has_flir = False
-    while pos + 4 <= n:
-        if data[pos] != 0xFF:
-            return has_flir, "corrupt"
-        marker = data[pos + 1]
-        if marker == 0xFF:  # fill byte
-            pos += 1
-            continue
-        if marker == 0x01 or 0xD0 <= marker <= 0xD7:  # standalone markers
-            pos += 2
-            continue
-        if marker == 0xD9:  # end of image before any scan
-            return has_flir, "corrupt"
-        (length,) = struct.unpack_from(">H", data, pos + 2)
-        if marker == 0xE1 and data[pos + 4 : pos + 9] == _FLIR_APP1:
-            has_flir = True
-        if pos + 2 + length > n:
-            return has_flir, "truncated"
-        if marker == 0xDA:  # start of scan: entropy-coded data, then EOI
-            # In entropy-coded data 0xFF is followed by 0x00 or a restart marker, so FF D9 after
-            # the scan header can only be the end-of-image marker.
-            found = data.find(b"\xff\xd9", pos + 2 + length) != -1
-            return has_flir, "ok" if found else "truncated"
-        pos += 2 + length
-    return has_flir, "truncated"
-
-
 def _load_rjpeg(data: bytes, p: Path, emissivity: float | None) -> np.ndarray:
     import flyr  # imported here: only needed for R-JPEG files
 
-    has_flir, state = _scan_jpeg(data)
+    has_flir, state = scan_jpeg(data)
     if state == "corrupt":
         raise FileFormatError(f"{p}: corrupt JPEG (bad marker segment structure)")
     if state == "truncated" and not has_flir:
@@ -360,113 +320,6 @@ def _load_tiff(data: bytes, p: Path, kelvin_per_count: float) -> np.ndarray:
 
 
 def _parse_fff(data: bytes, p: Path) -> tuple[np.ndarray, FlirPlanck]:
-    """Parse a FLIR FFF file: raw counts (record 1) and camera info (record 32).
-
-    Written by hand because ``flyr.unpack`` only accepts JPEGs (it looks for FLIR APP1 segments
-    and fails on a bare FFF file with "no metadata encountered"), and its record-directory reader
-    ignores the directory offset from the header. The layout follows exiftool's FLIR.pm:
-    a 64-byte header (``"FFF\\0"``, creator, int32 version at 0x14, directory offset at 0x18,
-    entry count at 0x1c; big-endian unless the version only makes sense little-endian), then
-    32-byte directory entries (int16 type, int16 subtype, int32 version, int32 index, int32
-    offset, int32 length, ...).
-    """
-    if data[:4] not in _FFF_MAGICS:
-        raise FileFormatError(f"{p}: not a FLIR FFF file (no 'FFF' signature)")
-    if len(data) < 64:
-        raise FileFormatError(f"{p}: truncated FFF file (header is {len(data)} of 64 bytes)")
-    order = ">"
-    version, dir_offset, n_entries = struct.unpack_from(">III", data, 0x14)
-    if not 100 <= version < 200:
-        order = "<"
-        version, dir_offset, n_entries = struct.unpack_from("<III", data, 0x14)
-        if not 100 <= version < 200:
-            raise FileFormatError(f"{p}: unsupported FFF version in header")
-    if dir_offset + 32 * n_entries > len(data):
-        raise FileFormatError(f"{p}: truncated FFF file (record directory cut short)")
-    records: dict[int, tuple[int, int, int]] = {}
-    for k in range(n_entries):
-        rtype, subtype, _ver, _idx, offset, length = struct.unpack_from(
-            order + "HHIIII", data, dir_offset + 32 * k
-        )
-        if rtype and rtype not in records:
-            records[rtype] = (subtype, offset, length)
-    for rtype, what in ((_FFF_RAW_DATA, "raw data"), (_FFF_CAMERA_INFO, "camera info")):
-        if rtype not in records:
-            raise FileFormatError(f"{p}: FFF file has no {what} record")
-        _, offset, length = records[rtype]
-        if offset + length > len(data):
-            raise FileFormatError(
-                f"{p}: truncated FFF file ({what} record ends at byte {offset + length}, "
-                f"file has {len(data)})"
-            )
-    if records[_FFF_CAMERA_INFO][2] < 0x310:
-        raise FileFormatError(f"{p}: FFF camera info record is too short for Planck constants")
-    raw = _fff_raw(data, records[_FFF_RAW_DATA], p)
-    planck = _fff_camera_info(data, records[_FFF_CAMERA_INFO][1], p)
-    return raw, planck
-
-
-def _record_order(data: bytes, offset: int) -> str:
-    """Byte order of a record: its first int16 is small (e.g. 2) in the record's own order."""
-    (check,) = struct.unpack_from("<H", data, offset)
-    return "<" if check < 0x100 else ">"
-
-
-def _fff_raw(data: bytes, record: tuple[int, int, int], p: Path) -> np.ndarray:
-    subtype, offset, length = record
-    if length < 32:
-        raise FileFormatError(f"{p}: FFF raw data record is too short")
-    order = _record_order(data, offset)
-    width, height = struct.unpack_from(order + "HH", data, offset + 2)
-    payload = data[offset + 32 : offset + length]
-    if payload[:4] == b"\x89PNG":  # subtype 3: PNG with byte-swapped 16-bit samples
-        import cv2
-
-        img = cv2.imdecode(np.frombuffer(payload, np.uint8), cv2.IMREAD_UNCHANGED)
-        if img is None or img.dtype != np.uint16:
-            raise FileFormatError(f"{p}: corrupt PNG in FFF raw data record")
-        raw = img.byteswap()
-    else:
-        n = width * height
-        if width == 0 or height == 0 or len(payload) < 2 * n:
-            raise FileFormatError(
-                f"{p}: FFF raw data record holds {len(payload)} bytes, need {2 * n} for "
-                f"{width}x{height} (subtype {subtype})"
-            )
-        raw = np.frombuffer(payload, dtype=np.dtype(order + "u2"), count=n).reshape(height, width)
-    if raw.shape != (height, width):
-        raise FileFormatError(f"{p}: FFF raw image is {raw.shape}, header says {height}x{width}")
-    return raw.astype(np.uint16)  # native byte order, a copy the caller owns
-
-
-def _fff_camera_info(data: bytes, offset: int, p: Path) -> FlirPlanck:
-    """Camera-info record fields (exiftool FLIR::CameraInfo byte offsets; temperatures in K)."""
-    o = _record_order(data, offset)
-
-    def f32(rel: int) -> float:
-        return float(struct.unpack_from(o + "f", data, offset + rel)[0])
-
-    o_val = struct.unpack_from(o + "i", data, offset + 0x308)[0]
-    humidity = f32(0x3C)
-    try:
-        return FlirPlanck(
-            f32(0x58),  # Planck R1
-            f32(0x30C),  # Planck R2
-            f32(0x5C),  # Planck B
-            f32(0x60),  # Planck F
-            float(o_val),  # Planck O (int32)
-            emissivity=f32(0x20),
-            distance_m=f32(0x24),
-            reflected_c=f32(0x28) - ZERO_CELSIUS_K,
-            atmosphere_c=f32(0x2C) - ZERO_CELSIUS_K,
-            ir_window_c=f32(0x30) - ZERO_CELSIUS_K,
-            ir_window_transmission=f32(0x34),
-            humidity=humidity / 100.0 if humidity > 2.0 else humidity,
-            alpha1=f32(0x70),
-            alpha2=f32(0x74),
-            beta1=f32(0x78),
-            beta2=f32(0x7C),
-            x=f32(0x80),
-        )
-    except InvalidInputError as exc:
-        raise FileFormatError(f"{p}: invalid camera-info record in FFF file ({exc})") from None
+    """An FFF file's raw counts and Planck constants (:func:`thermocal.io.fff.parse_fff_record`)."""
+    frame = parse_fff_record(data, str(p))
+    return frame.raw, frame.planck

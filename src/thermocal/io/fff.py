@@ -1,0 +1,447 @@
+"""FLIR FFF records: one frame of raw counts with its calibration and metadata.
+
+An FFF record (``"FFF\\0"`` or ``"AFF\\0"``) is what a FLIR core writes for one frame: a 64-byte
+header, a directory of 32-byte entries, and the records it points to. The same record is the
+unit of the other FLIR formats:
+
+* a bare ``.fff`` file is one record (big- or little-endian);
+* a FLIR **SEQ** file is a series of FFF records, one per frame, back to back;
+* a FLIR **CSQ** file is the same series with the raw counts of each frame JPEG-LS compressed
+  (decoded with ``imagecodecs.jpegls_decode``);
+* a FLIR radiometric JPEG (R-JPEG) carries one record split across its FLIR APP1 segments
+  (:mod:`thermocal.io.rjpeg`).
+
+Parsed by hand because no maintained library reads them: ``flyr`` accepts only JPEGs and fails
+on the Tau2-core DJI layout, exiftool is a Perl program (not a Python dependency) and flirpy's
+SEQ splitter shells out to it. The layout follows exiftool's ``FLIR.pm``: the raw-data record
+(type 1) holds width and height at bytes 2 and 4 and the counts from byte 32 — plain uint16 in the
+record's byte order, a PNG with byte-swapped samples, a TIFF, or JPEG-LS; the camera-info record
+(type 32) holds the Planck constants and object parameters (read by
+:mod:`thermocal.scenes.real`), the camera's model strings at 0xD4…0x170, the field of view at
+0x1B4 and the time of the frame at 0x384; the GPS record (type 43) holds position, altitude,
+speed and track.
+
+:func:`parse_fff_record` turns the bytes of one record into an :class:`FffFrame`;
+:func:`index_fff_series` finds the records of a SEQ/CSQ file without reading their pixels, so
+that a long file can be streamed (:func:`read_fff_series_frame`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime as _dt
+import io
+import math
+import struct
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from thermocal.constants import ZERO_CELSIUS_K
+from thermocal.errors import FileFormatError, InvalidInputError
+from thermocal.radiometry import FlirPlanck
+
+# The camera-info decoder (Planck constants, object and atmosphere parameters) and the record
+# byte-order rule are shared with the scene loader rather than written twice.
+
+__all__ = [
+    "FFF_MAGICS",
+    "FffFrame",
+    "fff_frame_shape",
+    "fff_raw_codec",
+    "index_fff_series",
+    "parse_fff_record",
+    "planck_from_metadata",
+    "read_fff_series_frame",
+]
+
+#: The signatures an FFF record starts with.
+FFF_MAGICS: tuple[bytes, ...] = (b"FFF\x00", b"AFF\x00")
+
+_RAW_DATA = 1
+_CAMERA_INFO = 32
+_GPS_INFO = 43
+_HEADER = 64
+_MAX_GAP = 1 << 16  # most bytes of padding looked through between two records of a series
+_ENTRY = 32
+
+
+@dataclass(frozen=True)
+class FffFrame:
+    """One FFF record, decoded.
+
+    Attributes
+    ----------
+    raw : numpy.ndarray, uint16, shape (H, W)
+        Raw counts (native byte order).
+    planck : FlirPlanck
+        The record's Planck constants and object/atmosphere parameters.
+    metadata : dict
+        JSON-serialisable: ``creator``, ``camera_model``, ``camera_part_number``,
+        ``camera_serial_number``, ``camera_software``, ``lens_model``, ``field_of_view_deg``,
+        ``frame_rate_hz``, ``datetime`` (ISO 8601 with the camera's time zone, or None),
+        ``time_epoch_s`` (s since 1970 UTC, or None), ``planck`` (the fields of
+        :class:`FlirPlanck`; see :func:`planck_from_metadata`) and ``gps`` (a dict of
+        ``latitude``, ``longitude`` (signed degrees), ``altitude_m``, ``speed``, ``track_deg``,
+        ``map_datum``; or None).
+    """
+
+    raw: np.ndarray
+    planck: FlirPlanck
+    metadata: dict[str, Any]
+
+
+def planck_from_metadata(metadata: dict[str, Any]) -> FlirPlanck:
+    """The :class:`FlirPlanck` of a frame's metadata (its ``"planck"`` entry)."""
+    try:
+        return FlirPlanck(**metadata["planck"])
+    except (KeyError, TypeError):
+        raise FileFormatError("frame metadata has no FLIR Planck constants") from None
+
+
+# --------------------------------------------------------------------------------------------
+# directory
+# --------------------------------------------------------------------------------------------
+def _directory(
+    buf: Any, base: int, limit: int, name: str
+) -> tuple[str, str, dict[int, tuple[int, int, int]], int]:
+    """Header and directory of the record at ``buf[base:]``.
+
+    Returns (byte order, creator, records, end of the directory relative to ``base``).
+
+    ``records`` maps a record type to ``(subtype, offset, length)``, offsets relative to
+    ``base``. ``limit`` is the number of bytes available from ``base`` (checks truncation).
+    """
+    head = bytes(buf[base : base + _HEADER])
+    if head[:4] not in FFF_MAGICS:
+        raise FileFormatError(f"{name}: not a FLIR FFF record (no 'FFF' signature)")
+    if len(head) < _HEADER:
+        raise FileFormatError(f"{name}: truncated FFF record (header is {len(head)} of 64 bytes)")
+    order = ">"
+    version, dir_offset, n_entries = struct.unpack_from(">III", head, 0x14)
+    if not 100 <= version < 200:
+        order = "<"
+        version, dir_offset, n_entries = struct.unpack_from("<III", head, 0x14)
+        if not 100 <= version < 200:
+            raise FileFormatError(f"{name}: unsupported FFF version in the record header")
+    if n_entries > 4096 or dir_offset + _ENTRY * n_entries > limit:
+        raise FileFormatError(f"{name}: truncated FFF record (record directory cut short)")
+    table = bytes(buf[base + dir_offset : base + dir_offset + _ENTRY * n_entries])
+    records: dict[int, tuple[int, int, int]] = {}
+    for k in range(n_entries):
+        rtype, subtype, _ver, _idx, offset, length = struct.unpack_from(
+            order + "HHIIII", table, _ENTRY * k
+        )
+        if rtype and rtype not in records:
+            records[rtype] = (subtype, offset, length)
+    creator = head[4:20].split(b"\x00")[0].decode("latin-1").strip()
+    return order, creator, records, dir_offset + _ENTRY * n_entries
+
+
+def _record_end(records: dict[int, tuple[int, int, int]], dir_end: int) -> int:
+    return max([dir_end, *(off + length for _, off, length in records.values())])
+
+
+def fff_frame_shape(data: bytes, name: str) -> tuple[int, int]:
+    """``(H, W)`` of the raw image of the FFF record at the start of ``data`` (header only).
+
+    ``data`` need only hold the header, the directory and the first 32 bytes of the raw record.
+    """
+    _, _, records, _ = _directory(data, 0, len(data), name)
+    if _RAW_DATA not in records:
+        raise FileFormatError(f"{name}: FFF record has no raw data record")
+    _, offset, _ = records[_RAW_DATA]
+    if offset + 6 > len(data):
+        raise FileFormatError(f"{name}: truncated FFF record (raw data record cut short)")
+    order = fff_record_order(data, offset)
+    width, height = struct.unpack_from(order + "HH", data, offset + 2)
+    return int(height), int(width)
+
+
+def fff_raw_codec(data: bytes) -> str:
+    """How the raw image of the record at the start of ``data`` is stored: ``"plain"``,
+    ``"png"``, ``"tiff"`` or ``"jpegls"``; ``"unknown"`` when ``data`` does not reach it."""
+    try:
+        _, _, records, _ = _directory(data, 0, len(data), "")
+        _, off, _ = records[_RAW_DATA]
+    except (FileFormatError, KeyError, struct.error):
+        return "unknown"
+    magic = data[off + 32 : off + 36]
+    if len(magic) < 4:
+        return "unknown"
+    if magic == b"\x89PNG":
+        return "png"
+    if magic in (b"II*\x00", b"MM\x00*"):
+        return "tiff"
+    if magic[:3] == b"\xff\xd8\xff":  # JPEG-LS: SOF55 (FF F7), or a SPIFF header first
+        return "jpegls"
+    return "plain"
+
+
+# --------------------------------------------------------------------------------------------
+# one record
+# --------------------------------------------------------------------------------------------
+def parse_fff_record(data: bytes, name: str) -> FffFrame:
+    """Decode one FFF record (the bytes of a ``.fff`` file, one SEQ/CSQ frame, or an R-JPEG's
+    joined FLIR segments).
+
+    Parameters
+    ----------
+    data : bytes
+        The record, starting with ``"FFF\\0"``.
+    name : str
+        What to call it in error messages (the file, and the frame for a series).
+
+    Raises
+    ------
+    FileFormatError
+        A missing signature, an unknown version, a truncated record, no raw-data or camera-info
+        record, a raw image that does not match its declared size, or invalid Planck constants.
+    """
+    _, creator, records, _ = _directory(data, 0, len(data), name)
+    for rtype, what in ((_RAW_DATA, "raw data"), (_CAMERA_INFO, "camera info")):
+        if rtype not in records:
+            raise FileFormatError(f"{name}: FFF record has no {what} record")
+        _, offset, length = records[rtype]
+        if rtype == _RAW_DATA:
+            # the raw record may declare a few bytes of padding past the end of the last frame
+            # of a series (Thermimage's SampleCSQ.csq); its decoder checks that it is whole
+            length = min(length, max(32, len(data) - offset))
+        if offset + length > len(data):
+            raise FileFormatError(
+                f"{name}: truncated FFF record ({what} record ends at byte {offset + length}, "
+                f"only {len(data)} bytes)"
+            )
+    cam_off, cam_len = records[_CAMERA_INFO][1], records[_CAMERA_INFO][2]
+    if cam_len < 0x310:
+        raise FileFormatError(f"{name}: FFF camera info record is too short for Planck constants")
+    raw = _raw_image(data, records[_RAW_DATA], name)
+    planck = fff_camera_info(data, cam_off, Path(name))
+    meta = _camera_metadata(data, cam_off, cam_len)
+    meta["creator"] = creator
+    meta["planck"] = dataclasses.asdict(planck)
+    meta["gps"] = None
+    if _GPS_INFO in records:
+        _, g_off, g_len = records[_GPS_INFO]
+        if g_len >= 0x68 and g_off + g_len <= len(data):
+            meta["gps"] = _gps(data, g_off)
+    return FffFrame(raw, planck, meta)
+
+
+def _raw_image(data: bytes, record: tuple[int, int, int], name: str) -> np.ndarray:
+    subtype, offset, length = record
+    if length < 32:
+        raise FileFormatError(f"{name}: FFF raw data record is too short")
+    order = fff_record_order(data, offset)
+    width, height = struct.unpack_from(order + "HH", data, offset + 2)
+    payload = data[offset + 32 : offset + length]
+    if payload[:3] == b"\xff\xd8\xff" and not payload.rstrip(b"\x00").endswith(b"\xff\xd9"):
+        raise FileFormatError(f"{name}: truncated FFF record (compressed raw image cut short)")
+    try:
+        if payload[:4] == b"\x89PNG":  # PNG with byte-swapped 16-bit samples
+            import cv2
+
+            img = cv2.imdecode(np.frombuffer(payload, np.uint8), cv2.IMREAD_UNCHANGED)
+            if img is None or img.dtype != np.uint16:
+                raise ValueError("not a 16-bit PNG")
+            raw = img.byteswap()
+        elif payload[:4] in (b"II*\x00", b"MM\x00*"):  # a TIFF (some DJI/FLIR cores)
+            import tifffile
+
+            raw = tifffile.imread(io.BytesIO(payload))
+        elif payload[:3] == b"\xff\xd8\xff":  # JPEG-LS (CSQ frames)
+            import imagecodecs
+
+            raw = imagecodecs.jpegls_decode(payload)
+        else:
+            n = width * height
+            if width == 0 or height == 0 or len(payload) < 2 * n:
+                raise FileFormatError(
+                    f"{name}: FFF raw data record holds {len(payload)} bytes, need {2 * n} for "
+                    f"{width}x{height} (subtype {subtype}); truncated?"
+                )
+            raw = np.frombuffer(payload, np.dtype(order + "u2"), count=n).reshape(height, width)
+    except FileFormatError:
+        raise
+    except Exception as exc:  # decoders raise many types on corrupt data
+        raise FileFormatError(
+            f"{name}: corrupt compressed raw image ({type(exc).__name__}: {str(exc)[:80]})"
+        ) from None
+    raw = np.asarray(raw)
+    if raw.shape != (height, width) or raw.dtype.kind not in "ui":
+        raise FileFormatError(
+            f"{name}: FFF raw image is {raw.dtype} {raw.shape}, its record says {height}x{width}"
+        )
+    return raw.astype(np.uint16)  # native byte order, a copy the caller owns
+
+
+def _text(data: bytes, start: int, size: int) -> str:
+    return data[start : start + size].split(b"\x00")[0].decode("latin-1").strip()
+
+
+def _camera_metadata(data: bytes, off: int, length: int) -> dict[str, Any]:
+    """Strings, field of view, frame rate and time of a camera-info record (exiftool offsets)."""
+    order = fff_record_order(data, off)
+    meta: dict[str, Any] = {
+        "camera_model": _text(data, off + 0xD4, 32),
+        "camera_part_number": _text(data, off + 0xF4, 16),
+        "camera_serial_number": _text(data, off + 0x104, 16),
+        "camera_software": _text(data, off + 0x114, 16),
+        "lens_model": _text(data, off + 0x170, 32),
+        "field_of_view_deg": float(struct.unpack_from(order + "f", data, off + 0x1B4)[0]),
+        "datetime": None,
+        "time_epoch_s": None,
+        "frame_rate_hz": None,
+    }
+    if length >= 0x38E:
+        # exiftool: int32u seconds since 1970 (UTC), int32u whose low 16 bits are the
+        # milliseconds, int16s time-zone offset in minutes (west positive)
+        sec, sub, tz_min = struct.unpack_from(order + "IIh", data, off + 0x384)
+        ms = sub & 0xFFFF
+        if sec > 0 and ms < 1000:
+            tz = _dt.timezone(_dt.timedelta(minutes=-tz_min))
+            when = _dt.datetime.fromtimestamp(sec, _dt.UTC).astimezone(tz)
+            meta["datetime"] = when.replace(microsecond=1000 * ms).isoformat(
+                timespec="milliseconds"
+            )
+            meta["time_epoch_s"] = sec + ms / 1000.0
+    if length >= 0x466:
+        meta["frame_rate_hz"] = int(struct.unpack_from(order + "H", data, off + 0x464)[0])
+    return meta
+
+
+def _gps(data: bytes, off: int) -> dict[str, Any] | None:
+    """The GPS record (exiftool FLIR::GPSInfo); None when it is marked invalid."""
+    (valid_le,) = struct.unpack_from("<I", data, off)
+    order = "<" if valid_le < 0x10000 else ">"
+    (valid,) = struct.unpack_from(order + "I", data, off)
+    lat, lon, alt = struct.unpack_from(order + "ddf", data, off + 0x10)
+    if not (abs(lat) <= 90 and abs(lon) <= 180):
+        order = "<" if order == ">" else ">"
+        (valid,) = struct.unpack_from(order + "I", data, off)
+        lat, lon, alt = struct.unpack_from(order + "ddf", data, off + 0x10)
+    if valid != 1 or not all(math.isfinite(v) for v in (lat, lon, alt)):
+        return None
+    lat_ref, lon_ref = _text(data, off + 0x08, 2), _text(data, off + 0x0A, 2)
+    lat = -abs(lat) if lat_ref == "S" else abs(lat) if lat_ref == "N" else lat
+    lon = -abs(lon) if lon_ref == "W" else abs(lon) if lon_ref == "E" else lon
+    speed, track = struct.unpack_from(order + "ff", data, off + 0x4C)
+    return {
+        "latitude": float(lat),
+        "longitude": float(lon),
+        "altitude_m": float(alt),
+        "speed": float(speed),
+        "speed_ref": _text(data, off + 0x44, 2),
+        "track_deg": float(track),
+        "map_datum": _text(data, off + 0x58, 16),
+    }
+
+
+# --------------------------------------------------------------------------------------------
+# series (SEQ, CSQ)
+# --------------------------------------------------------------------------------------------
+def index_fff_series(buf: Any, size: int, name: str) -> list[tuple[int, int]]:
+    """``(offset, length)`` of every FFF record of a SEQ/CSQ file, reading only their headers.
+
+    ``buf`` is the file's bytes or a memory map of them (``size`` bytes). Records follow one
+    another; up to 64 KiB between them (padding) are skipped to the next ``"FFF\\0"``, and
+    bytes after the last record with no signature within 64 KiB are ignored.
+
+    Raises
+    ------
+    FileFormatError
+        No record at the start, or a record that runs past the end of the file (truncated).
+    """
+    out: list[tuple[int, int]] = []
+    pos = 0
+    while pos + 4 <= size:
+        where = f"{name} (frame {len(out)})" if out else name
+        _, _, records, dir_end = _directory(buf, pos, size - pos, where)
+        end = _record_end(records, dir_end)
+        if _RAW_DATA not in records:
+            raise FileFormatError(f"{where}: FFF record has no raw data record")
+        if pos + end > size and not _only_padding_missing(buf, pos, records, size):
+            raise FileFormatError(
+                f"{where}: truncated (the record needs {end} bytes, the file has {size - pos} "
+                "left)"
+            )
+        end = min(end, size - pos)
+        out.append((pos, end))
+        nxt = pos + end
+        if bytes(buf[nxt : nxt + 4]) in FFF_MAGICS:
+            pos = nxt
+            continue
+        # padding between records: look for the next signature close by (bounded, so that
+        # indexing stays linear in the file size); bytes after the last record are ignored
+        window = bytes(buf[nxt : nxt + _MAX_GAP])
+        hits = [k for k in (window.find(m) for m in FFF_MAGICS) if k != -1]
+        if not hits:
+            break
+        pos = nxt + min(hits)
+    if not out:
+        raise FileFormatError(f"{name}: no FFF record found")
+    return out
+
+
+def _only_padding_missing(
+    buf: Any, pos: int, records: dict[int, tuple[int, int, int]], size: int
+) -> bool:
+    """True if a record cut short by the end of the file lacks only the padding of its
+    compressed raw image (the last frame of Thermimage's SampleCSQ.csq): everything else is
+    there and the JPEG-LS stream ends with its end-of-image marker."""
+    for rtype, (_, off, length) in records.items():
+        if rtype != _RAW_DATA and pos + off + length > size:
+            return False
+    _, off, length = records[_RAW_DATA]
+    shortfall = pos + off + length - size
+    if not 0 < shortfall <= 16:
+        return False
+    tail = bytes(buf[max(pos + off, size - 4) : size])
+    return tail.endswith(b"\xff\xd9")
+
+
+def read_fff_series_frame(buf: Any, entry: tuple[int, int], name: str) -> FffFrame:
+    """Decode the record ``entry = (offset, length)`` of :func:`index_fff_series`."""
+    offset, length = entry
+    return parse_fff_record(bytes(buf[offset : offset + length]), name)
+
+
+def fff_record_order(data: bytes, offset: int) -> str:
+    """Byte order of a record: its first int16 is small (e.g. 2) in the record's own order."""
+    (check,) = struct.unpack_from("<H", data, offset)
+    return "<" if check < 0x100 else ">"
+
+
+def fff_camera_info(data: bytes, offset: int, p: Path) -> FlirPlanck:
+    """Camera-info record fields (exiftool FLIR::CameraInfo byte offsets; temperatures in K)."""
+    o = fff_record_order(data, offset)
+
+    def f32(rel: int) -> float:
+        return float(struct.unpack_from(o + "f", data, offset + rel)[0])
+
+    o_val = struct.unpack_from(o + "i", data, offset + 0x308)[0]
+    humidity = f32(0x3C)
+    try:
+        return FlirPlanck(
+            f32(0x58),  # Planck R1
+            f32(0x30C),  # Planck R2
+            f32(0x5C),  # Planck B
+            f32(0x60),  # Planck F
+            float(o_val),  # Planck O (int32)
+            emissivity=f32(0x20),
+            distance_m=f32(0x24),
+            reflected_c=f32(0x28) - ZERO_CELSIUS_K,
+            atmosphere_c=f32(0x2C) - ZERO_CELSIUS_K,
+            ir_window_c=f32(0x30) - ZERO_CELSIUS_K,
+            ir_window_transmission=f32(0x34),
+            humidity=humidity / 100.0 if humidity > 2.0 else humidity,
+            alpha1=f32(0x70),
+            alpha2=f32(0x74),
+            beta1=f32(0x78),
+            beta2=f32(0x7C),
+            x=f32(0x80),
+        )
+    except InvalidInputError as exc:
+        raise FileFormatError(f"{p}: invalid camera-info record in FFF file ({exc})") from None

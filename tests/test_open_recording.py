@@ -1,0 +1,529 @@
+"""Tests for thermocal.io.open (open_recording) and the FLIR/DualTauUAV readers behind it.
+
+Real files come from ``shared/data`` (read there, never copied): their metadata must equal the
+exiftool dumps beside them. Synthetic files are written here in every supported format.
+"""
+
+from __future__ import annotations
+
+import io
+import json
+import re
+import struct
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+
+from thermocal.errors import FileFormatError, InvalidInputError
+from thermocal.io.chamber import import_envchamberctrl_npz
+from thermocal.io.dualtau import interpolate_fpa_readings
+from thermocal.io.fff import parse_fff_record, planck_from_metadata
+from thermocal.io.open import FORMATS, open_recording
+from thermocal.io.recording import Recording, write_recording
+from thermocal.radiometry import FlirPlanck
+
+K0 = 273.15
+
+
+# --------------------------------------------------------------------------------------------
+# helpers: exiftool dumps, synthetic FLIR files
+# --------------------------------------------------------------------------------------------
+def _dump(path: Path) -> dict[str, str]:
+    out: dict[str, str] = {}
+    for line in path.read_text("utf-8").splitlines():
+        key, sep, value = line.partition(":")
+        if sep:
+            out.setdefault(key.strip(), value.strip())
+    return out
+
+
+def _num(text: str) -> float:
+    return float(re.match(r"[-+]?[\d.]+", text).group(0))
+
+
+def _dms(text: str) -> float:
+    d, m, s, ref = re.match(r"(\d+) deg (\d+)' ([\d.]+)\" ([NSEW])", text).groups()
+    value = float(d) + float(m) / 60 + float(s) / 3600
+    return -value if ref in "SW" else value
+
+
+def _real(shared_data: Path, *parts: str) -> Path:
+    path = shared_data.joinpath(*parts)
+    if not path.is_file():
+        pytest.skip(f"{path} not found")
+    return path
+
+
+def _check_against_dump(meta: dict, raw: np.ndarray, dump: dict[str, str]) -> None:
+    """Metadata and raw image of one frame equal exiftool's dump (to its printed precision)."""
+    planck = meta["planck"]
+    shape = (int(dump["Raw Thermal Image Height"]), int(dump["Raw Thermal Image Width"]))
+    assert raw.shape == shape
+    for key, name in (("r1", "Planck R1"), ("r2", "Planck R2"), ("b", "Planck B"),
+                      ("f", "Planck F"), ("o", "Planck O")):
+        assert planck[key] == pytest.approx(_num(dump[name]), rel=1e-7), name
+    assert planck["emissivity"] == pytest.approx(_num(dump["Emissivity"]), abs=0.005)
+    assert planck["distance_m"] == pytest.approx(_num(dump["Object Distance"]), abs=0.005)
+    for key, name in (("reflected_c", "Reflected Apparent Temperature"),
+                      ("atmosphere_c", "Atmospheric Temperature"),
+                      ("ir_window_c", "IR Window Temperature")):
+        assert planck[key] == pytest.approx(_num(dump[name]), abs=0.05), name
+    assert planck["ir_window_transmission"] == pytest.approx(_num(dump["IR Window Transmission"]),
+                                                             abs=0.005)
+    assert planck["humidity"] * 100 == pytest.approx(_num(dump["Relative Humidity"]), abs=0.05)
+    for key, name in (("alpha1", "Atmospheric Trans Alpha 1"),
+                      ("alpha2", "Atmospheric Trans Alpha 2"),
+                      ("beta1", "Atmospheric Trans Beta 1"), ("beta2", "Atmospheric Trans Beta 2"),
+                      ("x", "Atmospheric Trans X")):
+        assert planck[key] == pytest.approx(_num(dump[name]), abs=5e-7), name
+    assert meta["camera_model"] == dump["Camera Model"]
+    assert meta["camera_serial_number"] == dump["Camera Serial Number"]
+    assert meta["camera_part_number"] == dump["Camera Part Number"]
+    assert meta["camera_software"] == dump["Camera Software"]
+    assert meta["creator"] == dump["Creator Software"]
+    assert meta["field_of_view_deg"] == pytest.approx(_num(dump["Field Of View"]), abs=0.05)
+    assert meta["frame_rate_hz"] == int(dump["Frame Rate"])
+    # the FLIR record's time: "2018:11:05 12:14:43.084+01:00"
+    assert meta["datetime"].replace("-", ":").replace("T", " ")[:19] == dump[
+        "Date/Time Original"][:19]
+    assert meta["datetime"][19:] == dump["Date/Time Original"][19:]
+    assert int(raw.max()) - int(raw.min()) == int(dump["Raw Value Range"])
+    if "GPS Latitude" in dump:
+        gps = meta["gps"]
+        assert gps["latitude"] == pytest.approx(_dms(dump["GPS Latitude"]), abs=0.01 / 3600)
+        assert gps["longitude"] == pytest.approx(_dms(dump["GPS Longitude"]), abs=0.01 / 3600)
+        assert gps["altitude_m"] == pytest.approx(_num(dump["GPS Altitude"]), abs=0.05)
+        assert gps["map_datum"] == dump["GPS Map Datum"]
+
+
+def _fff(raw: np.ndarray, *, order: str = ">", codec: str = "plain", r1: float = 16000.0,
+         r2: float = 0.02, b: float = 1430.0, f: float = 1.0, o: int = -300,
+         emissivity: float = 0.9, model: str = "Synthetic Tau2", epoch: int = 1_700_000_000,
+         ms: int = 0, gps: tuple[float, float, float] | None = None) -> bytes:
+    """One FFF record in byte order ``order`` (exiftool FLIR.pm layout)."""
+    h, w = raw.shape
+    if codec == "plain":
+        payload = raw.astype(order + "u2").tobytes()
+    elif codec == "jpegls":
+        import imagecodecs
+
+        payload = imagecodecs.jpegls_encode(raw.astype(np.uint16))
+    elif codec == "tiff":
+        import tifffile
+
+        buf = io.BytesIO()
+        tifffile.imwrite(buf, raw.astype(np.uint16))
+        payload = buf.getvalue()
+    else:
+        raise AssertionError(codec)
+    rec_raw = bytearray(32)
+    struct.pack_into(order + "HHH", rec_raw, 0, 2, w, h)
+    rec_raw += payload
+    cam = bytearray(0x480)
+    struct.pack_into(order + "H", cam, 0, 2)
+    for off, val in ((0x20, emissivity), (0x24, 10.0), (0x28, 20.0 + K0), (0x2C, 15.0 + K0),
+                     (0x30, 20.0 + K0), (0x34, 1.0), (0x3C, 0.4), (0x58, r1), (0x5C, b),
+                     (0x60, f), (0x70, 0.006569), (0x74, 0.01262), (0x78, -0.002276),
+                     (0x7C, -0.00667), (0x80, 1.9), (0x1B4, 24.0), (0x30C, r2)):
+        struct.pack_into(order + "f", cam, off, val)
+    cam[0xD4 : 0xD4 + len(model)] = model.encode()
+    struct.pack_into(order + "i", cam, 0x308, o)
+    struct.pack_into(order + "IIh", cam, 0x384, epoch, ms, -60)
+    struct.pack_into(order + "H", cam, 0x464, 30)
+    records = [(1, 2, bytes(rec_raw)), (32, 1, bytes(cam))]
+    if gps is not None:
+        g = bytearray(0x68)
+        struct.pack_into(order + "I", g, 0, 1)
+        g[8:10], g[10:12] = (b"N\x00" if gps[0] >= 0 else b"S\x00"), (
+            b"E\x00" if gps[1] >= 0 else b"W\x00")
+        struct.pack_into(order + "ddf", g, 0x10, abs(gps[0]), abs(gps[1]), gps[2])
+        g[0x58:0x5D] = b"WGS84"
+        records.append((43, 1, bytes(g)))
+    head = bytearray(64)
+    head[:4] = b"FFF\x00"
+    head[4:8] = b"SYNT"
+    struct.pack_into(order + "III", head, 0x14, 100, 64, len(records))
+    offset = 64 + 32 * len(records)
+    directory, body = bytearray(), bytearray()
+    for k, (rtype, sub, data) in enumerate(records):
+        entry = bytearray(32)
+        struct.pack_into(order + "HHIIII", entry, 0, rtype, sub, 100, k + 1,
+                         offset + len(body), len(data))
+        directory += entry
+        body += data
+    return bytes(head + directory + body)
+
+
+def _rjpeg(record: bytes, *, parts: int = 2, xmp: str | None = None) -> bytes:
+    """A JPEG carrying ``record`` in ``parts`` FLIR APP1 segments (and an optional XMP)."""
+    buf = io.BytesIO()
+    Image.new("RGB", (16, 12), (90, 20, 40)).save(buf, "JPEG")
+    jpeg = buf.getvalue()
+    size = -(-len(record) // parts)
+    segs = b""
+    if xmp is not None:
+        body = b"http://ns.adobe.com/xap/1.0/\x00" + xmp.encode()
+        segs += b"\xff\xe1" + struct.pack(">H", len(body) + 2) + body
+    for k in range(parts):
+        body = b"FLIR\x00\x01" + bytes([k, parts - 1]) + record[k * size : (k + 1) * size]
+        segs += b"\xff\xe1" + struct.pack(">H", len(body) + 2) + body
+    return jpeg[:2] + segs + jpeg[2:]
+
+
+def _dji_xmp(core_c: int) -> str:
+    return ('<x:xmpmeta xmlns:x="adobe:ns:meta/"><rdf:RDF><rdf:Description '
+            'drone-dji:AbsoluteAltitude="100.5" drone-dji:RelativeAltitude="50.25" '
+            'drone-dji:GimbalPitchDegree="-90.0" drone-dji:FlightYawDegree="12.5" '
+            f'FLIR:CentralTemperature="{core_c}"/></rdf:RDF></x:xmpmeta>')
+
+
+def _frames(n: int, h: int = 6, w: int = 8, seed: int = 0) -> np.ndarray:
+    return np.random.default_rng(seed).integers(1000, 16000, (n, h, w)).astype(np.uint16)
+
+
+# --------------------------------------------------------------------------------------------
+# real files
+# --------------------------------------------------------------------------------------------
+def test_fff_big_endian_equals_exiftool(shared_data):
+    path = _real(shared_data, "flirpy", "frame_000000.fff")
+    dump = _dump(_real(shared_data, "flirpy", "frame_000000.txt"))
+    src = open_recording(path)
+    assert (src.format, src.n_frames, src.frame_shape) == ("fff", 1, (512, 640))
+    (chunk,) = list(src.iter_frames())
+    assert chunk.frames.dtype == np.uint16 and chunk.fpa_c is None
+    meta = chunk.metadata[0]
+    _check_against_dump(meta, chunk.frames[0], dump)
+    gps = meta["gps"]
+    assert gps["speed"] == pytest.approx(_num(dump["GPS Speed"]), abs=0.005)
+    assert gps["track_deg"] == pytest.approx(_num(dump["GPS Track"]), abs=0.005)
+    assert planck_from_metadata(meta) == FlirPlanck(**meta["planck"])
+    reference = FlirPlanck.from_exiftool_text(shared_data / "flirpy" / "frame_000000.txt")
+    temp = planck_from_metadata(meta).raw_to_temperature_c(chunk.frames[0])
+    np.testing.assert_allclose(temp, reference.raw_to_temperature_c(chunk.frames[0]), atol=0.01)
+
+
+def test_rjpeg_dji_tau2_equals_exiftool(shared_data):
+    path = _real(shared_data, "recordings", "dji_xtr_tau2.jpg")
+    dump = _dump(_real(shared_data, "recordings", "dji_xtr_tau2.txt"))
+    src = open_recording(path)
+    assert (src.format, src.n_frames, src.frame_shape, src.bit_depth) == ("rjpeg", 1, (512, 640),
+                                                                          16)
+    rec = src.read_all()
+    meta = rec.extra["frame_metadata"][0]
+    _check_against_dump(meta, rec.frames[0], dump)
+    assert meta["make"] == dump["Make"] and meta["model"] == dump["Camera Model Name"]
+    # the Tau2 core's temperature, whole °C: the FPA series, flagged as coarse
+    assert meta["core_c"] == _num(dump["Central Temperature"]) == 26.0
+    assert rec.fpa_c.tolist() == [26.0] and rec.extra["fpa_measured"] == [True]
+    assert src.fpa_resolution_c == 1.0
+    assert meta["absolute_altitude_m"] == pytest.approx(_num(dump["Absolute Altitude"]))
+    assert meta["relative_altitude_m"] == pytest.approx(_num(dump["Relative Altitude"]))
+    for key, name in (("gimbal_roll_deg", "Gimbal Roll Degree"),
+                      ("gimbal_yaw_deg", "Gimbal Yaw Degree"),
+                      ("gimbal_pitch_deg", "Gimbal Pitch Degree"),
+                      ("flight_roll_deg", "Flight Roll Degree"),
+                      ("flight_yaw_deg", "Flight Yaw Degree"),
+                      ("flight_pitch_deg", "Flight Pitch Degree")):
+        assert meta["attitude"][key] == pytest.approx(_num(dump[name])), name
+    json.dumps(rec.extra)  # per-frame metadata is JSON-serialisable
+    temp = planck_from_metadata(meta).raw_to_temperature_c(rec.frames[0])
+    assert -20 < float(np.median(temp)) < 80
+
+
+def test_fff_little_endian_real_file(shared_data):
+    path = _real(shared_data, "recordings", "flirpy_frame_le.fff")
+    src = open_recording(path)
+    assert (src.format, src.frame_shape) == ("fff", (240, 320))
+    rec = src.read_all()
+    meta = rec.extra["frame_metadata"][0]
+    assert meta["camera_model"].startswith("FLIR T420")
+    assert meta["planck"]["o"] == -5588.0 and meta["planck"]["b"] == pytest.approx(1420.1)
+    temp = planck_from_metadata(meta).raw_to_temperature_c(rec.frames[0])
+    assert 0 < float(temp.min()) < float(temp.max()) < 100
+
+
+def test_csq_real_file(shared_data):
+    path = _real(shared_data, "recordings", "thermimage_sample.csq")
+    src = open_recording(path)
+    assert (src.format, src.n_frames, src.frame_shape) == ("csq", 8, (768, 1024))
+    chunks = list(src.iter_frames(3))
+    assert [len(c) for c in chunks] == [3, 3, 2]
+    time_s = np.concatenate([c.time_s for c in chunks])
+    np.testing.assert_allclose(np.diff(time_s), 1 / 30, atol=0.002)
+    meta = chunks[0].metadata[0]
+    assert meta["camera_model"].startswith("FLIR T1030sc")
+    frames = np.concatenate([c.frames for c in chunks])
+    temp = planck_from_metadata(meta).raw_to_temperature_c(frames)
+    assert 0 < float(np.median(temp)) < 60
+
+
+def test_rjpeg_scenes_equal_flyr(shared_data):
+    """Every FLIR R-JPEG of scenes/ (PNG and plain raw layouts, 8 camera models): the counts
+    and constants read here give flyr's temperatures (load_scene)."""
+    from thermocal.scenes.real import load_scene
+
+    paths = sorted((shared_data / "scenes").glob("*.jpg"))
+    if not paths:
+        pytest.skip("no scenes in shared/data")
+    for path in paths:
+        rec = open_recording(path).read_all()
+        meta = rec.extra["frame_metadata"][0]
+        temp = planck_from_metadata(meta).raw_to_temperature_c(rec.frames[0])
+        np.testing.assert_allclose(temp, load_scene(path), atol=1e-3, err_msg=path.name)
+
+
+# --------------------------------------------------------------------------------------------
+# synthetic FLIR files
+# --------------------------------------------------------------------------------------------
+@pytest.mark.parametrize("order", [">", "<"])
+@pytest.mark.parametrize("codec", ["plain", "tiff", "jpegls"])
+def test_fff_synthetic_both_byte_orders(tmp_path, order, codec):
+    raw = _frames(1)[0]
+    path = tmp_path / "one.fff"
+    path.write_bytes(_fff(raw, order=order, codec=codec, gps=(-20.5, 43.25, 812.5), ms=250))
+    src = open_recording(path)
+    assert src.format == ("csq" if codec == "jpegls" else "fff")
+    rec = src.read_all()
+    np.testing.assert_array_equal(rec.frames[0], raw)
+    meta = rec.extra["frame_metadata"][0]
+    assert meta["planck"]["r1"] == 16000.0 and meta["planck"]["o"] == -300.0
+    assert meta["planck"]["emissivity"] == pytest.approx(0.9)
+    assert meta["planck"]["reflected_c"] == pytest.approx(20.0, abs=1e-4)
+    assert meta["camera_model"] == "Synthetic Tau2"
+    assert meta["datetime"] == "2023-11-14T23:13:20.250+01:00"
+    assert meta["gps"]["latitude"] == -20.5 and meta["gps"]["longitude"] == 43.25
+    assert meta["gps"]["altitude_m"] == 812.5
+
+
+def test_seq_streams_records_in_order(tmp_path):
+    frames = _frames(5)
+    seq = b"".join(_fff(fr, epoch=1_700_000_000, ms=40 * k) for k, fr in enumerate(frames))
+    path = tmp_path / "flight.seq"
+    path.write_bytes(seq)
+    src = open_recording(path)
+    assert (src.format, src.n_frames, src.frame_shape) == ("seq", 5, (6, 8))
+    chunks = list(src.iter_frames(2))
+    assert [c.start for c in chunks] == [0, 2, 4]
+    np.testing.assert_array_equal(np.concatenate([c.frames for c in chunks]), frames)
+    np.testing.assert_allclose(np.concatenate([c.time_s for c in chunks]), 0.04 * np.arange(5))
+    # a SEQ whose records are separated by padding, with another name
+    padded = tmp_path / "padded.bin"
+    padded.write_bytes(_fff(frames[0]) + b"\x00" * 7 + _fff(frames[1]))
+    assert open_recording(padded).n_frames == 2
+
+
+def test_seq_truncated_names_the_frame(tmp_path):
+    seq = b"".join(_fff(fr) for fr in _frames(3))
+    path = tmp_path / "cut.seq"
+    path.write_bytes(seq[:-100])
+    with pytest.raises(FileFormatError, match=r"cut\.seq \(frame 2\): truncated"):
+        open_recording(path)
+
+
+def test_csq_corrupt_frame_is_found_while_streaming(tmp_path):
+    records = [_fff(fr, codec="jpegls") for fr in _frames(3)]
+    bad = bytearray(records[2])
+    end = bad.rfind(b"\xff\xd9")
+    bad[end - 40 : end] = b"\x00" * 40  # damage the compressed image, keep the record intact
+    path = tmp_path / "flight.csq"
+    path.write_bytes(records[0] + records[1] + bytes(bad))
+    src = open_recording(path)  # headers only: opens
+    assert (src.format, src.n_frames) == ("csq", 3)
+    chunks = src.iter_frames(2)
+    assert len(next(chunks)) == 2
+    with pytest.raises(FileFormatError, match=r"flight\.csq \(frame 2\)"):
+        next(chunks)
+
+
+def test_rjpeg_synthetic_and_folder_series(tmp_path):
+    frames = _frames(3)
+    folder = tmp_path / "flight"
+    folder.mkdir()
+    for k, fr in enumerate(frames):
+        record = _fff(fr, order="<", ms=100 * k)
+        (folder / f"DJI_{k:04d}.jpg").write_bytes(_rjpeg(record, parts=3, xmp=_dji_xmp(30 + k)))
+    (folder / "notes.txt").write_text("exiftool dumps and notes are skipped")
+    src = open_recording(folder)
+    assert (src.format, src.n_frames, src.frame_shape) == ("rjpeg-folder", 3, (6, 8))
+    assert src.header["files"] == ["DJI_0000.jpg", "DJI_0001.jpg", "DJI_0002.jpg"]
+    rec = src.read_all()
+    np.testing.assert_array_equal(rec.frames, frames)
+    assert rec.fpa_c.tolist() == [30.0, 31.0, 32.0]
+    np.testing.assert_allclose(rec.time_s, [0.0, 0.1, 0.2])
+    meta = rec.extra["frame_metadata"][1]
+    assert meta["relative_altitude_m"] == 50.25 and meta["attitude"]["gimbal_pitch_deg"] == -90.0
+    assert meta["source"].endswith("DJI_0001.jpg")
+
+
+def test_fff_folder_series(tmp_path):
+    frames = _frames(4)
+    for k, fr in enumerate(frames):
+        (tmp_path / f"frame_{k:06d}.fff").write_bytes(_fff(fr, order="<" if k % 2 else ">"))
+    src = open_recording(tmp_path)
+    assert (src.format, src.n_frames) == ("fff-folder", 4)
+    np.testing.assert_array_equal(src.read_all().frames, frames)
+
+
+# --------------------------------------------------------------------------------------------
+# TIFF + JSON, DualTauUAV, EnvChamberCtrl
+# --------------------------------------------------------------------------------------------
+def test_project_tiff_recording(tmp_path):
+    frames = _frames(7, seed=2)
+    rec = Recording(frames, fpa_c=np.linspace(25, 26, 7), time_s=np.arange(7) / 30,
+                    housing_c=np.full(7, 27.5), extra={"pivot": 3})
+    write_recording(tmp_path / "rec.tiff", rec)
+    src = open_recording(tmp_path / "rec.tiff")
+    assert (src.format, src.n_frames, src.frame_shape, src.bit_depth) == ("tiff", 7, (6, 8), 14)
+    assert src.header["extra"] == {"pivot": 3}
+    chunks = list(src.iter_frames(4))
+    assert [len(c) for c in chunks] == [4, 3]
+    np.testing.assert_array_equal(np.concatenate([c.frames for c in chunks]), frames)
+    np.testing.assert_allclose(np.concatenate([c.fpa_c for c in chunks]), rec.fpa_c)
+    assert chunks[1].metadata[0]["housing_c"] == 27.5
+    back = src.read_all()
+    np.testing.assert_array_equal(back.time_s, rec.time_s)
+
+
+def _dualtau_file(path: Path, frames: np.ndarray, fpa_centi: np.ndarray, t0_ns: int) -> None:
+    n = len(frames)
+    start = t0_ns + np.arange(n, dtype=np.int64) * 100_000_000  # 10 Hz
+    np.savez(path, frames=frames, fpa=fpa_centi.astype(np.uint16), time_ns_start=start,
+             time_ns_end=start + 50_000_000)
+
+
+def test_dualtau_folder_in_time_order_with_fpa_interpolated(tmp_path):
+    frames = _frames(12, seed=3)
+    # the rig repeats its last reading (0.1 °C steps) on every frame; readings at t = 0 and 0.6 s
+    held = np.array([3010] * 6 + [3020] * 6)
+    t0 = 1_700_000_000_000_000_000
+    # file names out of time order: the reader sorts by the first time stamp
+    _dualtau_file(tmp_path / "b.npz", frames[:4], held[:4], t0)
+    _dualtau_file(tmp_path / "a.npz", frames[4:8], held[4:8], t0 + 400_000_000)
+    _dualtau_file(tmp_path / "c.npz", frames[8:], held[8:], t0 + 800_000_000)
+    src = open_recording(tmp_path)
+    assert (src.format, src.n_frames, src.frame_shape, src.fpa_resolution_c) == (
+        "dualtau", 12, (6, 8), 0.1)
+    assert src.header["files"] == ["b.npz", "a.npz", "c.npz"]
+    rec = src.read_all()
+    np.testing.assert_array_equal(rec.frames, frames)
+    np.testing.assert_allclose(rec.time_s, np.arange(12) / 10)
+    expected = np.r_[30.1 + 0.1 * np.arange(7) / 6, np.full(5, 30.2)]
+    np.testing.assert_allclose(rec.fpa_c, expected, atol=1e-9)
+    assert rec.extra["fpa_measured"] == [True] + [False] * 5 + [True] + [False] * 5
+    # one file on its own is a (short) flight
+    one = open_recording(tmp_path / "a.npz")
+    assert (one.format, one.n_frames) == ("dualtau", 4)
+
+
+def test_interpolate_fpa_readings_holds_a_constant_series():
+    fpa, measured = interpolate_fpa_readings(np.arange(4.0), np.full(4, 31.0))
+    assert fpa.tolist() == [31.0] * 4 and measured.tolist() == [True, False, False, False]
+
+
+def test_envchamberctrl_npz(tmp_path):
+    frames = _frames(5, seed=4)
+    path = tmp_path / "session.npz"
+    np.savez(path, frames=frames, fpa=np.full(5, 2534, np.uint16),
+             housing=np.full(5, 2600, np.uint16), blackbody=np.arange(5, dtype=np.uint16) * 500,
+             time_ns=np.arange(5, dtype=np.int64) * 10**9)
+    src = open_recording(path)
+    assert (src.format, src.n_frames) == ("envchamberctrl", 5)
+    rec = src.read_all()
+    session = import_envchamberctrl_npz(path)
+    np.testing.assert_array_equal(rec.frames, session.frames)
+    np.testing.assert_allclose(rec.fpa_c, 25.34)
+    assert [m["blackbody_c"] for m in rec.extra["frame_metadata"]] == [0, 5, 10, 15, 20]
+
+
+# --------------------------------------------------------------------------------------------
+# bad input: one line naming the file
+# --------------------------------------------------------------------------------------------
+def _one_line(exc: pytest.ExceptionInfo) -> str:
+    msg = str(exc.value)
+    assert "\n" not in msg
+    return msg
+
+
+def test_jpeg_without_flir_records(tmp_path):
+    path = tmp_path / "photo.jpg"
+    Image.new("RGB", (8, 8)).save(path, "JPEG")
+    with pytest.raises(FileFormatError, match="no FLIR APP1") as exc:
+        open_recording(path)
+    assert "photo.jpg" in _one_line(exc)
+
+
+def test_rjpeg_missing_segment_and_corrupt_record(tmp_path):
+    record = _fff(_frames(1)[0])
+    data = _rjpeg(record, parts=3)
+    # drop the second FLIR segment
+    start = data.find(b"FLIR\x00\x01\x01") - 4
+    (length,) = struct.unpack(">H", data[start + 2 : start + 4])
+    path = tmp_path / "cut.jpg"
+    path.write_bytes(data[:start] + data[start + 2 + length :])
+    with pytest.raises(FileFormatError, match=r"cut\.jpg: truncated R-JPEG"):
+        open_recording(path)
+    bad = tmp_path / "bad.fff"
+    bad.write_bytes(b"FFF\x00" + b"\xff" * 60)
+    with pytest.raises(FileFormatError, match=r"bad\.fff: unsupported FFF version"):
+        open_recording(bad)
+    with pytest.raises(FileFormatError, match="no raw data record"):
+        parse_fff_record(record[:64] + b"\x00" * (len(record) - 64), "zeros.fff")
+
+
+def test_folders_mixed_empty_and_of_mixed_sizes(tmp_path):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(FileFormatError, match="no recording in the folder"):
+        open_recording(empty)
+    mixed = tmp_path / "mixed"
+    mixed.mkdir()
+    (mixed / "a.fff").write_bytes(_fff(_frames(1)[0]))
+    (mixed / "b.jpg").write_bytes(_rjpeg(_fff(_frames(1)[0])))
+    with pytest.raises(FileFormatError, match="mixed formats") as exc:
+        open_recording(mixed)
+    _one_line(exc)
+    sizes = tmp_path / "sizes"
+    sizes.mkdir()
+    (sizes / "a.fff").write_bytes(_fff(_frames(1)[0]))
+    (sizes / "b.fff").write_bytes(_fff(_frames(1, 4, 4)[0]))
+    with pytest.raises(FileFormatError, match=r"b\.fff: frames of 4x4 in a folder of 6x8"):
+        open_recording(sizes)
+    npz = tmp_path / "npz"
+    npz.mkdir()
+    _dualtau_file(npz / "a.npz", _frames(2), np.full(2, 3000), 0)
+    _dualtau_file(npz / "b.npz", _frames(2, 4, 4), np.full(2, 3000), 10**9)
+    with pytest.raises(FileFormatError, match=r"b\.npz: frames of 4x4 in a flight of 6x8"):
+        open_recording(npz)
+
+
+def test_unknown_missing_and_bad_chunk(tmp_path):
+    with pytest.raises(FileFormatError, match="no such file"):
+        open_recording(tmp_path / "absent.seq")
+    (tmp_path / "x.bin").write_bytes(b"hello world")
+    with pytest.raises(FileFormatError, match=r"x\.bin: unknown recording format"):
+        open_recording(tmp_path / "x.bin")
+    np.savez(tmp_path / "other.npz", values=np.arange(3))
+    with pytest.raises(FileFormatError, match="without 'frames'"):
+        open_recording(tmp_path / "other.npz")
+    np.savez(tmp_path / "nofpa.npz", frames=_frames(2))
+    with pytest.raises(FileFormatError, match=r"nofpa\.npz: missing array"):
+        open_recording(tmp_path / "nofpa.npz")
+    (tmp_path / "f.fff").write_bytes(_fff(_frames(1)[0]))
+    with pytest.raises(InvalidInputError, match="chunk"):
+        open_recording(tmp_path / "f.fff").iter_frames(0)
+
+
+def test_formats_listed():
+    assert set(FORMATS) == {"tiff", "fff", "seq", "csq", "rjpeg", "fff-folder", "rjpeg-folder",
+                            "dualtau", "envchamberctrl"}
+
+
+def test_the_package_gives_the_one_way_in():
+    import thermocal.io
+    from thermocal.io.open import open_recording
+
+    assert thermocal.io.open_recording is open_recording
+    with pytest.raises(AttributeError):
+        _ = thermocal.io.no_such_reader
