@@ -527,3 +527,31 @@ def test_the_package_gives_the_one_way_in():
     assert thermocal.io.open_recording is open_recording
     with pytest.raises(AttributeError):
         _ = thermocal.io.no_such_reader
+
+
+def test_info_says_what_a_recording_holds(shared_data, tmp_path, capsys):
+    """``thermocal info``: format, frames, size, FPA, GPS and the Planck constants, as the
+    file's exiftool dump has them; one line and exit 2 for what it cannot read."""
+    from cli_run import run
+
+    dji = _real(shared_data, "recordings", "dji_xtr_tau2.jpg")
+    code, out, err = run(["info", dji], capsys)
+    assert code == 0, err
+    dump = _dump(dji.with_suffix(".txt"))
+    assert "rjpeg, 1 frame(s) of 640x512" in out and "GPS in 1 of 1 frames" in out
+    assert f"R1 {_num(dump['Planck R1']):g}" in out and "FPA 26.00…26.00 °C" in out
+    code, out, err = run(["info", tmp_path / "nothing.seq"], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1 and "no such file" in err
+
+
+def test_read_recording_takes_any_format(shared_data):
+    """The commands' reader (``read_recording``) reads a FLIR file through the one way in; its
+    ``--fpa-c`` replaces the file's FPA series."""
+    from thermocal.io.recording import read_recording
+
+    fff = _real(shared_data, "recordings", "flirpy_frame_le.fff")
+    rec = read_recording(fff, fpa_c=31.0)
+    assert rec.frames.shape == (1, 240, 320) and rec.frames.dtype == np.uint16
+    assert rec.fpa_c.tolist() == [31.0]
+    with pytest.raises(InvalidInputError):
+        read_recording(fff, fpa_c=1e6)

@@ -242,6 +242,7 @@ COMMANDS: list[tuple[str, str]] = [
     ("thermocal.estimation.commands", "estimate"),
     ("thermocal.nn.commands", "train"),
     ("thermocal.pipeline.commands", "flight"),
+    ("thermocal.io.commands", "info"),
     ("thermocal.bench", "bench"),
 ]
 

@@ -1,0 +1,82 @@
+"""``thermocal info``: what a recording holds, in any format :func:`~thermocal.io.open_recording`
+reads (issue 19)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import click
+import numpy as np
+
+__all__ = ["info", "recording_summary"]
+
+
+def recording_summary(path: str | Path) -> dict[str, Any]:
+    """What a recording holds (one pass over its frames' series and metadata, frames streamed):
+    format, frame count and size, bit depth, FPA range and sampling, time span, GPS, the Planck
+    constants of its first frame. JSON values."""
+    from thermocal.io.open import open_recording
+
+    source = open_recording(path)
+    fpa, measured, times, first_meta, gps = [], [], [], None, 0
+    for chunk in source.iter_frames():
+        if chunk.fpa_c is not None:
+            fpa.append(np.asarray(chunk.fpa_c, dtype=np.float64))
+            if chunk.fpa_measured is not None:
+                measured.append(np.asarray(chunk.fpa_measured, dtype=bool))
+        if chunk.time_s is not None:
+            times.append(np.asarray(chunk.time_s, dtype=np.float64))
+        metas = chunk.metadata or []
+        if first_meta is None and metas:
+            first_meta = metas[0]
+        gps += sum(1 for m in metas if m.get("gps"))
+    out: dict[str, Any] = {
+        "path": str(path), "format": source.format, "frames": source.n_frames,
+        "size": f"{source.frame_shape[1]}x{source.frame_shape[0]}",
+        "bit_depth": source.bit_depth, "frames_with_gps": gps,
+    }
+    if fpa:
+        f = np.concatenate(fpa)
+        read = int(np.concatenate(measured).sum()) if measured else int(f.size)
+        out["fpa_c"] = {"min": float(np.nanmin(f)), "max": float(np.nanmax(f)),
+                        "frames_read": read, "resolution_c": source.fpa_resolution_c}
+    if times:
+        t = np.concatenate(times)
+        out["time_span_s"] = float(t.max() - t.min()) if t.size else 0.0
+    if first_meta:
+        for key in ("camera_model", "datetime"):
+            if first_meta.get(key):
+                out[key] = first_meta[key]
+        if first_meta.get("planck"):
+            out["planck"] = first_meta["planck"]
+    return out
+
+
+@click.command("info")
+@click.argument("path", type=click.Path(path_type=Path))
+def info(path: Path) -> None:
+    """What a recording holds: format, frames, size, bit depth, FPA range and sampling, time
+    span, GPS, Planck constants. PATH: a file or a folder in any format thermocal reads (the
+    project's TIFF + JSON, FLIR FFF/SEQ/CSQ, R-JPEG, DualTauUAV, EnvChamberCtrl)."""
+    s = recording_summary(path)
+    click.echo(f"{s['path']}: {s['format']}, {s['frames']} frame(s) of {s['size']}, "
+               f"{s['bit_depth']}-bit")
+    if "fpa_c" in s:
+        f = s["fpa_c"]
+        res = f" (resolution {f['resolution_c']:g} °C)" if f.get("resolution_c") else ""
+        click.echo(f"  FPA {f['min']:.2f}…{f['max']:.2f} °C, read at {f['frames_read']} of "
+                   f"{s['frames']} frames{res}")
+    else:
+        click.echo("  no FPA temperature (give --fpa-c to the commands that need it)")
+    if "time_span_s" in s:
+        click.echo(f"  time span {s['time_span_s']:.3f} s")
+    click.echo(f"  GPS in {s['frames_with_gps']} of {s['frames']} frames")
+    for key in ("camera_model", "datetime"):
+        if key in s:
+            click.echo(f"  {key.replace('_', ' ')}: {s[key]}")
+    if "planck" in s:
+        p = s["planck"]
+        names = ("r1", "r2", "b", "f", "o", "emissivity")
+        click.echo("  Planck " + ", ".join(f"{k.upper() if len(k) <= 2 else k} {p[k]:g}"
+                                            for k in names if isinstance(p.get(k), int | float)))
