@@ -544,10 +544,10 @@ def test_info_says_what_a_recording_holds(shared_data, tmp_path, capsys):
     assert code == 2 and len(err.strip().splitlines()) == 1 and "no such file" in err
 
 
-def test_read_recording_takes_any_format(shared_data):
-    """The commands' reader (``read_recording``) reads a FLIR file through the one way in; its
-    ``--fpa-c`` replaces the file's FPA series."""
-    from thermocal.io.recording import read_recording
+def test_the_commands_read_any_format(shared_data):
+    """The commands' reader (``read_any_recording``) reads a FLIR file through the one way in;
+    its ``--fpa-c`` replaces the file's FPA series."""
+    from thermocal.io.open import read_any_recording as read_recording
 
     fff = _real(shared_data, "recordings", "flirpy_frame_le.fff")
     rec = read_recording(fff, fpa_c=31.0)
@@ -555,3 +555,37 @@ def test_read_recording_takes_any_format(shared_data):
     assert rec.fpa_c.tolist() == [31.0]
     with pytest.raises(InvalidInputError):
         read_recording(fff, fpa_c=1e6)
+
+
+@pytest.mark.parametrize(("parts", "dump"), [
+    (("recordings", "dji_xtr_tau2.jpg"), ("recordings", "dji_xtr_tau2.txt")),
+    (("flirpy", "frame_000000.fff"), ("flirpy", "frame_000000.txt")),
+])
+def test_method_camera_is_the_flir_formula_by_hand(shared_data, tmp_path, capsys, parts, dump):
+    """``--method camera``: the temperatures of the FLIR formula with the constants of the
+    file's exiftool dump, applied by hand to the raw counts, to 0.01 °C; σ is the vendor's
+    stated accuracy as 2σ."""
+    import tifffile
+    from cli_run import run
+
+    path = _real(shared_data, *parts)
+    planck = FlirPlanck.from_exiftool_text(_real(shared_data, *dump))
+    raw = open_recording(path).read_all().frames[0].astype(np.float64)
+    by_hand = planck.raw_to_temperature_c(raw)
+    out, sig = tmp_path / "t.tiff", tmp_path / "s.tiff"
+    code, _, err = run(["estimate", path, "--method", "camera", "--out", out, "--sigma-out", sig],
+                       capsys)
+    assert code == 0, err
+    temps = tifffile.imread(out)
+    assert float(np.abs(temps - by_hand).max()) < 0.01
+    sigma = tifffile.imread(sig)
+    assert sigma.shape == temps.shape and float(sigma.min()) >= 1.0
+
+
+def test_method_camera_refuses_a_recording_without_constants(tmp_path, capsys):
+    from cli_run import run
+
+    path, _ = write_recording(tmp_path / "r.tiff", Recording(np.full((3, 8, 8), 5000, np.uint16)))
+    code, _, err = run(["estimate", path, "--method", "camera", "--out", tmp_path / "t.tiff"],
+                       capsys)
+    assert code == 2 and "Planck constants" in err and not (tmp_path / "t.tiff").exists()

@@ -177,7 +177,8 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
     from thermocal.calibration.registry import load_any_calibration
     from thermocal.calibration.uncertainty import REMEDY, CalibrationSigma
     from thermocal.errors import OutsideDomainError
-    from thermocal.io.recording import read_recording, write_sigma_tiff, write_temperature_tiff
+    from thermocal.io.open import read_any_recording
+    from thermocal.io.recording import write_sigma_tiff, write_temperature_tiff
 
     check_output_file(out, TIFF_SUFFIXES)
     check_not_input(out, frames, calibration_path)
@@ -193,7 +194,7 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
         raise InvalidInputError(f"{calibration_path} has no cross-validation report (made by an "
                                 "older thermocal, or none could be measured): calibrate again "
                                 "to get its uncertainty")
-    rec = read_recording(frames, fpa_c=fpa_c)
+    rec = read_any_recording(frames, fpa_c=fpa_c)
     if sigma_out is not None and rec.fpa_c is None:
         raise InvalidInputError(f"{frames}: no FPA temperature, which σ depends on: give --fpa-c "
                                 "or a sidecar with fpa_c")

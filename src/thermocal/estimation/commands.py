@@ -42,7 +42,8 @@ def estimate_file(
     warning that names why. ``sigma_out``: where to write its uncertainty (float32 °C, 1σ,
     ``(H, W)``), refused before any work when the estimator has none.
     """
-    from thermocal.io.recording import read_recording, write_sigma_tiff, write_temperature_tiff
+    from thermocal.io.open import read_any_recording
+    from thermocal.io.recording import write_sigma_tiff, write_temperature_tiff
 
     out = check_output_file(out, TIFF_SUFFIXES)
     check_not_input(out, frames_path, calibration, model_path)
@@ -50,11 +51,17 @@ def estimate_file(
         sigma_out = check_output_file(sigma_out, TIFF_SUFFIXES)
         check_not_input(sigma_out, frames_path, calibration, model_path, what="--sigma-out")
         check_outputs_differ(sigma_out, out, ("--sigma-out", "--out"))
-    estimator = make_estimator(method, model=model_path, calibration=calibration)
-    if sigma_out is not None and not has_uncertainty(estimator):
+    needs_recording = ESTIMATORS[method].needs == "recording" if method in ESTIMATORS else False
+    estimator = (None if needs_recording
+                 else make_estimator(method, model=model_path, calibration=calibration))
+    if sigma_out is not None and estimator is not None and not has_uncertainty(estimator):
         raise InvalidInputError(f"--method {method} has no uncertainty model here: "
                                 f"{NO_SIGMA_REMEDY.get(method, NO_SIGMA_REMEDY['calibration'])}")
-    rec = read_recording(frames_path, fpa_c=fpa_c)
+    rec = read_any_recording(frames_path, fpa_c=fpa_c)
+    if estimator is None:  # the camera's own constants, from the file
+        from thermocal.estimation.vendor import VendorCalibration
+
+        estimator = VendorCalibration.from_recording(rec, frames_path)
     try:
         result = run_pipeline(rec.frames, estimator, fpa_c=rec.fpa_c, pivot=pivot,
                               registered=registered, force=force)
@@ -80,16 +87,16 @@ def estimate_file(
 
 #: What to do when an estimator has no uncertainty model.
 NO_SIGMA_REMEDY = {
-    "calibration": "a calibration's σ comes from its cross-validation (not yet available for "
-                   "estimates); use a network method",
-    "mean": "a calibration's σ comes from its cross-validation (not yet available for "
-            "estimates); use a network method",
+    "calibration": "the calibration file has no cross-validation report (made by an older "
+                   "thermocal): calibrate again to get its uncertainty",
+    "mean": "the calibration file has no cross-validation report (made by an older thermocal): "
+            "calibrate again to get its uncertainty",
 }
 
 
 def has_uncertainty(estimator) -> bool:
-    """Whether ``estimator`` gives σ (a network with its ``.sigma.json``; see
-    :meth:`~thermocal.estimation.base.Estimator.uncertainty`)."""
+    """Whether ``estimator`` gives σ (a network with its ``.sigma.json``, a calibration with its
+    report; see :meth:`~thermocal.estimation.base.Estimator.uncertainty`)."""
     return getattr(estimator, "sigma_model", None) is not None
 
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from thermocal.calibration.base import Calibration
 from thermocal.errors import InvalidInputError
 from thermocal.estimation.base import Estimator
+from thermocal.io.recording import Recording
 from thermocal.nn.variants import VARIANTS
 
 __all__ = ["ESTIMATORS", "EstimatorInfo", "make_estimator", "method_help"]
@@ -25,8 +26,9 @@ class EstimatorInfo:
     ----------
     name : str
         Its ``--method`` name.
-    needs : {"model", "calibration"}
-        A network's weights file (the shipped one by default) or a calibration file.
+    needs : {"model", "calibration", "recording"}
+        A network's weights file (the shipped one by default), a calibration file, or the
+        recording's own constants (a FLIR file's Planck constants).
     source : str
         The published method it implements.
     summary : str
@@ -51,6 +53,9 @@ ESTIMATORS: dict[str, EstimatorInfo] = {
     "calibration": EstimatorInfo("calibration", "calibration", "the calibration's own method",
                                  "the pivot frame alone through a per-pixel calibration",
                                  per_frame=True),
+    "camera": EstimatorInfo("camera", "recording", "FLIR's radiometric formula",
+                            "the pivot frame through the camera's own calibration in the file "
+                            "(FLIR R-JPEG, FFF, SEQ, CSQ)", per_frame=True),
 }
 
 
@@ -64,12 +69,13 @@ def make_estimator(
     *,
     model: str | os.PathLike[str] | None = None,
     calibration: str | os.PathLike[str] | Calibration | None = None,
+    recording: Recording | None = None,
 ) -> Estimator:
     """Build the estimator ``name`` of :data:`ESTIMATORS`.
 
     ``model`` is a weights file for a network (default: the shipped one of that variant);
     ``calibration`` a calibration file (or a fitted calibration) for ``mean`` and
-    ``calibration``.
+    ``calibration``; ``recording`` the recording whose own constants ``camera`` uses.
 
     Raises
     ------
@@ -81,6 +87,15 @@ def make_estimator(
     info = ESTIMATORS.get(name)
     if info is None:
         raise InvalidInputError(f"unknown method {name!r}; choose from {', '.join(ESTIMATORS)}")
+    if info.needs == "recording":
+        if recording is None:
+            raise InvalidInputError(
+                f"--method {name} reads the camera's constants from each file: it runs on "
+                "single recordings (thermocal estimate), not on whole flights yet"
+            )
+        from thermocal.estimation.vendor import VendorCalibration
+
+        return VendorCalibration.from_recording(recording)
     if info.needs == "calibration":
         if calibration is None:
             raise InvalidInputError(

@@ -47,6 +47,7 @@ frames of one size, else :class:`~thermocal.errors.FileFormatError` names the fi
 
 from __future__ import annotations
 
+import dataclasses
 import mmap
 import os
 from collections.abc import Iterator
@@ -56,6 +57,7 @@ from typing import Any
 
 import numpy as np
 
+from thermocal._validate import check_fpa_c
 from thermocal.errors import FileFormatError, InvalidInputError, ThermocalError
 from thermocal.io.dualtau import index_dualtau_folder, npz_keys, read_dualtau_frames
 from thermocal.io.fff import (
@@ -66,7 +68,12 @@ from thermocal.io.fff import (
     parse_fff_record,
     read_fff_series_frame,
 )
-from thermocal.io.recording import Recording, iter_recording, read_recording_header
+from thermocal.io.recording import (
+    Recording,
+    iter_recording,
+    read_recording,
+    read_recording_header,
+)
 from thermocal.io.rjpeg import JPEG_MAGIC, read_rjpeg, rjpeg_frame_shape
 
 __all__ = ["FORMATS", "FrameChunk", "RecordingSource", "open_recording"]
@@ -521,3 +528,18 @@ def _camera_header(meta: dict[str, Any]) -> dict[str, Any]:
         out["planck"] = dict(meta["planck"])
     return out
 
+
+def read_any_recording(path: str | os.PathLike[str], *, fpa_c: float | None = None
+                       ) -> Recording:
+    """A whole recording of any format, as the commands read it: the project's
+    ``NAME.tiff`` + ``NAME.json`` through :func:`~thermocal.io.recording.read_recording`, any
+    other through :func:`open_recording` (its per-frame metadata in ``extra``). ``fpa_c`` (the
+    command line's ``--fpa-c``) replaces the FPA series."""
+    p = Path(path)
+    if p.suffix.lower() in (".tif", ".tiff") or not p.exists():
+        return read_recording(p, fpa_c=fpa_c)
+    rec = open_recording(p).read_all()
+    if fpa_c is None:
+        return rec
+    check_fpa_c(fpa_c, "--fpa-c")
+    return dataclasses.replace(rec, fpa_c=np.full(rec.frames.shape[0], float(fpa_c)))

@@ -23,7 +23,7 @@ import json
 import logging
 import os
 from collections.abc import Iterator
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -494,31 +494,9 @@ def _sidecar_series(values: Any, key: str, n: int, json_path: Path) -> np.ndarra
     return arr
 
 
-def _is_project_recording(path: str | os.PathLike[str]) -> bool:
-    """Whether ``path`` is (named as) the project's recording, ``NAME.tiff`` / ``NAME.tif``;
-    anything else (a folder, a FLIR or DualTauUAV file) goes to
-    :func:`thermocal.io.open.open_recording`."""
-    p = Path(path)
-    return p.suffix.lower() in (".tif", ".tiff") or not p.exists()
-
-
-def _read_other_format(path: str | os.PathLike[str], fpa_c: float | None) -> Recording:
-    """A recording of another format (:func:`thermocal.io.open.open_recording`), whole; its
-    per-frame metadata in ``extra``; ``fpa_c`` (the command line's ``--fpa-c``) replaces its
-    FPA series."""
-    from thermocal.io.open import open_recording
-
-    rec = open_recording(path).read_all()
-    if fpa_c is not None:
-        check_fpa_c(fpa_c, "--fpa-c")
-        rec = replace(rec, fpa_c=np.full(rec.frames.shape[0], float(fpa_c)))
-    return rec
-
-
 def read_recording(path: str | os.PathLike[str], *, fpa_c: float | None = None) -> Recording:
-    """Read a recording ``NAME.tiff`` and its optional sidecar ``NAME.json`` — or a recording
-    of any other format :func:`thermocal.io.open.open_recording` reads (a FLIR FFF/SEQ/CSQ or
-    R-JPEG file, a folder of them, a DualTauUAV flight), whole.
+    """Read a recording ``NAME.tiff`` and its optional sidecar ``NAME.json``
+    (:func:`thermocal.io.open.read_any_recording` reads every format).
 
     Parameters
     ----------
@@ -544,8 +522,6 @@ def read_recording(path: str | os.PathLike[str], *, fpa_c: float | None = None) 
         If ``fpa_c`` is not a plausible FPA temperature
         (:data:`thermocal._validate.FPA_RANGE_C`).
     """
-    if not _is_project_recording(path):  # another format: the one way in reads it
-        return _read_other_format(path, fpa_c)
     header = read_recording_header(path, fpa_c=fpa_c)
     data, info = _read_tiff_stack(header.path)
     frames = data.reshape(info.n, info.height, info.width)

@@ -25,13 +25,13 @@ from thermocal.nuc.registry import NUC_METHODS, method_help
 def nuc(frames: Path, method: str, out: Path) -> None:
     """Scene-based / single-frame nonuniformity correction of a recording."""
     from thermocal.burst import check_burst
-    from thermocal.io.recording import read_recording
+    from thermocal.io.open import read_any_recording
     from thermocal.nuc import correct_nonuniformity
     from thermocal.nuc._common import write_counts_tiff
 
     check_output_file(out, TIFF_SUFFIXES)
     check_not_input(out, frames)
-    rec = read_recording(frames)
+    rec = read_any_recording(frames)
     try:
         check_burst(rec.frames, bit_depth=rec.bit_depth)  # no saturated or dead (constant) frames
         corrected = correct_nonuniformity(rec.frames, method=method)

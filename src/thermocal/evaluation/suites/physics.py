@@ -512,6 +512,9 @@ def summary_rows(res: dict) -> list[dict]:
         for name, e in ESTIMATORS.items():
             if e.needs == "model" and name != "kpn":
                 out.append({"method": f"estimator `{name}`", "cells": ["no shipped weights"] * 4})
+            elif e.needs == "recording":  # a FLIR file's own constants: none in simulated frames
+                out.append({"method": f"estimator `{name}`",
+                            "cells": ["n/a (needs a FLIR file's constants)"] * 4})
     return out
 
 

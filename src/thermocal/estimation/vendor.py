@@ -1,0 +1,104 @@
+"""The camera's own calibration (``--method camera``): the temperatures the vendor's software
+gives, from the Planck constants a FLIR file carries (numpy only).
+
+Each frame's raw counts go through the FLIR formula
+(:meth:`thermocal.radiometry.FlirPlanck.raw_to_temperature_c`) with that frame's constants,
+emissivity, reflected temperature, atmosphere and window, as read by
+:func:`thermocal.io.open_recording` (R-JPEG, FFF, SEQ, CSQ). It is the baseline a
+thermographer compares with, and the check of the readers against the camera.
+
+Its uncertainty is the vendor's stated accuracy, taken as 2σ (a data sheet's "±2 °C or ±2 %"
+bounds most readings, not one in three): ±2 °C or 2 % of the reading, whichever is larger, for
+FLIR's own cameras (T, A, E series); ±5 °C or 5 % for radiometric Tau2 cores, as in the DJI
+Zenmuse XT, XT2 and XT-R (FLIR's Tau2 and XT data sheets, high-gain mode).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from thermocal.errors import InvalidInputError
+from thermocal.estimation.base import PreparedBurst
+from thermocal.io.recording import Recording
+from thermocal.radiometry import FlirPlanck
+
+__all__ = ["VendorCalibration", "vendor_accuracy"]
+
+
+def vendor_accuracy(metadata: dict[str, Any]) -> tuple[float, float]:
+    """The stated accuracy of the camera a frame's metadata names: ``(°C, fraction of the
+    reading)``, whichever is larger bounds the error (see the module docstring)."""
+    names = " ".join(str(metadata.get(k, "")) for k in ("make", "model", "camera_model"))
+    if any(tag in names.upper() for tag in ("DJI", "XT", "TAU")):
+        return 5.0, 0.05
+    return 2.0, 0.02
+
+
+class VendorCalibration:
+    """``--method camera``: each frame through its own FLIR Planck constants.
+
+    Parameters
+    ----------
+    plancks : list of FlirPlanck
+        One per frame of the recording.
+    accuracy : list of (float, float)
+        Each frame's stated accuracy (:func:`vendor_accuracy`).
+    """
+
+    name = "camera"
+    n_frames = None
+    needs_fpa = False
+    per_frame = True
+    accepts_registered = True
+    remedy = ("the file's own calibration does not cover these counts: calibrate the camera "
+              "(`thermocal calibrate`)")
+
+    def __init__(self, plancks: list[FlirPlanck], accuracy: list[tuple[float, float]]) -> None:
+        self.plancks = plancks
+        self.accuracy = accuracy
+        self._frames: list[int] | None = None
+
+    @classmethod
+    def from_recording(cls, recording: Recording, path: Any = "the recording"
+                       ) -> VendorCalibration:
+        """From the per-frame metadata :func:`thermocal.io.open_recording` reads
+        (``extra["frame_metadata"]``); refused for a recording without Planck constants."""
+        from thermocal.io.fff import planck_from_metadata
+
+        metas = (recording.extra or {}).get("frame_metadata") or []
+        if len(metas) != recording.frames.shape[0] or not all(m.get("planck") for m in metas):
+            raise InvalidInputError(
+                f"{path}: --method camera needs the camera's Planck constants in every frame, "
+                "which only FLIR files carry (R-JPEG, FFF, SEQ, CSQ); use a calibration "
+                "(--method calibration --calibration CAL.h5) or the network"
+            )
+        return cls([planck_from_metadata(m) for m in metas], [vendor_accuracy(m) for m in metas])
+
+    def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
+        if frames.shape[0] != len(self.plancks):
+            raise InvalidInputError(
+                f"--method camera: {frames.shape[0]} frames but the file's constants are for "
+                f"{len(self.plancks)}"
+            )
+
+    def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any) -> np.ndarray:
+        return np.stack([np.asarray(p.raw_to_temperature_c(f.astype(np.float64)), np.float32)
+                         for p, f in zip(self.plancks, frames, strict=True)])
+
+    def outside(self, calibrated: np.ndarray, fpa_c: float | None) -> tuple[str, ...]:
+        """``()``: counts the formula cannot convert are refused by it
+        (:meth:`~thermocal.radiometry.FlirPlanck.raw_to_temperature_c`)."""
+        return ()
+
+    def estimate(self, burst: PreparedBurst) -> np.ndarray:
+        return np.asarray(burst.warped[burst.pivot], dtype=np.float32)
+
+    def uncertainty(self, burst: PreparedBurst, temperature_c: np.ndarray, *, outside: bool
+                    ) -> np.ndarray:
+        """The vendor's stated accuracy as 2σ: ``max(a, r·|T|) / 2`` (°C, :func:`vendor_accuracy`
+        of the pivot frame's camera)."""
+        absolute, relative = self.accuracy[burst.pivot]
+        bound = np.maximum(absolute, relative * np.abs(temperature_c.astype(np.float64)))
+        return (0.5 * bound).astype(np.float32)
