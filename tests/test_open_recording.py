@@ -589,3 +589,38 @@ def test_method_camera_refuses_a_recording_without_constants(tmp_path, capsys):
     code, _, err = run(["estimate", path, "--method", "camera", "--out", tmp_path / "t.tiff"],
                        capsys)
     assert code == 2 and "Planck constants" in err and not (tmp_path / "t.tiff").exists()
+
+
+def test_flight_runs_on_a_seq(tmp_path):
+    """``thermocal flight`` streams a SEQ as it streams the project's TIFF: the same maps from
+    the same frames (FPA from ``--fpa-c``; a SEQ has none)."""
+    from thermocal.calibration.report import fit_with_report
+    from thermocal.camera.presets import make_camera
+    from thermocal.pipeline.flight import FlightOptions, process_flight
+    from thermocal.simulate.chamber import ChamberPlan, write_simulated_chamber
+    from thermocal.simulate.flight import simulate_flight
+
+    camera = make_camera("tau2", unit=2, size=(48, 32))
+    plan = ChamberPlan(setpoints_c=(10.0, 20.0, 30.0, 40.0), frames_per_point=2,
+                       profile="sawtooth", ambient_c=(20.0, 30.0), rate_c_per_min=0.25,
+                       interval_s=20.0)
+    write_simulated_chamber(tmp_path / "c.h5", camera, plan, seed=1)
+    cal, report = fit_with_report(tmp_path / "c.h5", "polynomial", frames="settled")
+    cal.save(tmp_path / "cal.h5")
+    fpa = round(0.5 * sum(report.fpa_range_c), 2)
+    scene = 22.0 + 6.0 * np.random.default_rng(4).random((64, 64))
+    fl = simulate_flight(scene, camera, n_frames=6, motion="walk", fpa_c=fpa, seed=4)
+    (tmp_path / "f.seq").write_bytes(b"".join(_fff(fr, ms=33 * k) for k, fr in
+                                              enumerate(fl.frames)))
+    write_recording(tmp_path / "f.tiff", Recording(fl.frames, fpa_c=np.full(6, fpa)))
+    options = FlightOptions(method="calibration", calibration=str(tmp_path / "cal.h5"),
+                            frames=3, stride=3, fpa_c=fpa, preview_every=0)
+    maps = {}
+    for name in ("f.seq", "f.tiff"):
+        out = tmp_path / f"out_{name}"
+        summary = process_flight(tmp_path / name, out, options)
+        assert summary["processed"] == 2, summary
+        maps[name] = sorted((out / "temps").glob("frame_*.tiff"))
+    assert [p.name for p in maps["f.seq"]] == [p.name for p in maps["f.tiff"]]
+    for a, b in zip(maps["f.seq"], maps["f.tiff"], strict=True):
+        assert a.read_bytes() == b.read_bytes()

@@ -543,3 +543,55 @@ def read_any_recording(path: str | os.PathLike[str], *, fpa_c: float | None = No
         return rec
     check_fpa_c(fpa_c, "--fpa-c")
     return dataclasses.replace(rec, fpa_c=np.full(rec.frames.shape[0], float(fpa_c)))
+
+
+@dataclass(frozen=True)
+class StreamHeader:
+    """What a streamed run over a recording of any format needs before its frames: its
+    ``path``, ``n_frames``, ``frame_shape`` and per-frame ``series`` (``fpa_c``, ``time_s``:
+    ``(N,)`` arrays or None), and :meth:`chunks`, its raw frames in order."""
+
+    path: Path
+    n_frames: int
+    frame_shape: tuple[int, int]
+    series: dict[str, np.ndarray | None]
+    source: RecordingSource | None = None
+
+    def chunks(self, chunk: int) -> Iterator[tuple[int, np.ndarray]]:
+        """``(first frame index, frames (k, H, W) uint16)`` in order."""
+        if self.source is None:
+            return iter_recording(self.path, chunk=chunk)
+        return ((c.start, c.frames) for c in self.source.iter_frames(chunk))
+
+
+def open_stream(path: str | os.PathLike[str], *, fpa_c: float | None = None) -> StreamHeader:
+    """A recording of any format opened for a streamed run (``thermocal flight``): the
+    project's TIFF + JSON from its header (:func:`~thermocal.io.recording.read_recording_header`),
+    any other through :func:`open_recording`, whose FPA and time series take one pass over the
+    frames. ``fpa_c`` (``--fpa-c``) replaces the FPA series."""
+    p = Path(path)
+    if p.suffix.lower() in (".tif", ".tiff") or not p.exists():
+        header = read_recording_header(p, fpa_c=fpa_c)
+        return StreamHeader(header.path, header.n_frames, header.frame_shape,
+                            dict(header.series))
+    source = open_recording(p)
+    fpa, times = [], []
+    for c in source.iter_frames():
+        fpa.append(c.fpa_c)
+        times.append(c.time_s)
+    series = {
+        "fpa_c": None if any(f is None for f in fpa) else np.concatenate(fpa).astype(np.float64),
+        "time_s": None if any(t is None for t in times) else np.concatenate(times).astype(
+            np.float64),
+    }
+    if fpa_c is not None:
+        series["fpa_c"] = np.full(source.n_frames, check_fpa_c(fpa_c, "--fpa-c"))
+    return StreamHeader(p, source.n_frames, source.frame_shape, series, source)
+
+
+def recording_length(path: str | os.PathLike[str]) -> int:
+    """How many frames a recording of any format holds (headers only)."""
+    p = Path(path)
+    if p.suffix.lower() in (".tif", ".tiff") or not p.exists():
+        return read_recording_header(p).n_frames
+    return open_recording(p).n_frames

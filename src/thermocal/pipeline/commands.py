@@ -11,7 +11,7 @@ from thermocal.progress import progress_bar
 
 
 @click.command("flight")
-@click.argument("recording", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("recording", type=click.Path(path_type=Path))
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), required=True,
               help="Output folder (created; a rerun resumes).")
 @click.option("--method", type=click.Choice(list(ESTIMATORS)), default="kpn", show_default=True,
@@ -32,17 +32,18 @@ from thermocal.progress import progress_bar
 def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
            model: str | None, n_frames: int, stride: int, fpa_c: float | None,
            preview_every: int, force: bool) -> None:
-    """Turn a whole RECORDING (frames.tiff + sidecar) into one temperature map per pivot."""
+    """Turn a whole RECORDING into one temperature map per pivot: frames.tiff + sidecar, or any
+    format thermocal reads (FLIR SEQ/CSQ/FFF, R-JPEGs, a folder of them, a DualTauUAV flight)."""
     from thermocal._validate import check_not_input
     from thermocal.errors import ThermocalError
-    from thermocal.io.recording import read_recording_header
+    from thermocal.io.open import recording_length
     from thermocal.pipeline.flight import FlightOptions, process_flight
 
     check_not_input(out_dir, recording, calibration, model)
     options = FlightOptions(method=method, calibration=calibration, model=model, frames=n_frames,
                             stride=stride, fpa_c=fpa_c, preview_every=preview_every,
                             force=force)
-    total = read_recording_header(recording).n_frames
+    total = recording_length(recording)
     with progress_bar() as bar:
         task = bar.add_task("flight", total=total - total % stride or total)
         summary = process_flight(recording, out_dir, options,

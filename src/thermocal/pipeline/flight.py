@@ -41,7 +41,7 @@ import os
 import re
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -61,9 +61,8 @@ from thermocal.io.atomic import (
     temp_name_pattern,
     write_json_atomic,
 )
+from thermocal.io.open import open_stream
 from thermocal.io.recording import (
-    iter_recording,
-    read_recording_header,
     read_temperature_tiff,
     write_sigma_tiff,
     write_temperature_tiff,
@@ -169,7 +168,7 @@ def process_flight(
 
     ``progress(k)`` is called with the number of frames each finished group advanced.
     """
-    header = read_recording_header(recording, fpa_c=options.fpa_c)
+    header = open_stream(recording, fpa_c=options.fpa_c)
     if header.series["fpa_c"] is None and not ESTIMATORS[options.method].per_frame:
         raise InvalidInputError(
             f"{header.path}: no FPA temperature (sidecar fpa_c); give --fpa-c"
@@ -183,7 +182,7 @@ def process_flight(
     _drop_cut_log_line(out / "log.jsonl")
     done = _finished_pivots(out, pivots, options, header.frame_shape)
     tally = _Tally()
-    reader = _FrameWindow(header.path, header.frame_shape, chunk=max(64, n))
+    reader = _FrameWindow(header.chunks(max(64, n)), header.frame_shape)
     per_batch = max(1, BATCH_FRAMES // stride)
     started = time.perf_counter()
     with open(out / "log.jsonl", "a", encoding="utf-8") as log:
@@ -401,8 +400,8 @@ def _sigma_summary(entries: list[dict[str, Any]]) -> dict[str, Any] | None:
 class _FrameWindow:
     """Frames ``[a, z)`` of a recording, read in order, keeping only what is still needed."""
 
-    def __init__(self, path: Path, shape: tuple[int, int], *, chunk: int) -> None:
-        self._chunks = iter_recording(path, chunk=chunk)
+    def __init__(self, chunks: Iterator[tuple[int, np.ndarray]], shape: tuple[int, int]) -> None:
+        self._chunks = chunks
         self._start = 0  # index of self._buffer[0]
         self._buffer = np.empty((0, *shape), np.uint16)
 
