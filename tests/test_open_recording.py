@@ -624,3 +624,31 @@ def test_flight_runs_on_a_seq(tmp_path):
     assert [p.name for p in maps["f.seq"]] == [p.name for p in maps["f.tiff"]]
     for a, b in zip(maps["f.seq"], maps["f.tiff"], strict=True):
         assert a.read_bytes() == b.read_bytes()
+
+
+def test_flight_method_camera_uses_each_frames_constants(tmp_path):
+    """``thermocal flight --method camera`` on a SEQ whose frames carry different constants:
+    each pivot's map is its own frame through its own constants (the FLIR formula by hand)."""
+    import tifffile
+
+    from thermocal.pipeline.flight import FlightOptions, process_flight
+
+    frames = _frames(6, h=40, w=48, seed=3) + 9000
+    r1s = [15000.0 + 500.0 * k for k in range(6)]
+    (tmp_path / "f.seq").write_bytes(b"".join(
+        _fff(fr, r1=r1, ms=33 * k) for k, (fr, r1) in enumerate(zip(frames, r1s, strict=True))))
+    options = FlightOptions(method="camera", frames=1, stride=2, preview_every=0)
+    summary = process_flight(tmp_path / "f.seq", tmp_path / "out", options)
+    assert summary["processed"] == 3, summary
+    for pivot in (0, 2, 4):
+        got = tifffile.imread(tmp_path / "out" / "temps" / f"frame_{pivot:06d}.tiff")
+        src = open_recording(tmp_path / "f.seq")
+        meta = next(m for c in src.iter_frames() for m in c.metadata if m["index"] == pivot)
+        planck = planck_from_metadata(meta)
+        assert planck.r1 == pytest.approx(r1s[pivot])  # each frame its own constants
+        by_hand = planck.raw_to_temperature_c(frames[pivot].astype(np.float64))
+        assert float(np.abs(got - by_hand).max()) < 0.01
+        assert (tmp_path / "out" / "temps" / f"frame_{pivot:06d}_sigma.tiff").exists()
+    with pytest.raises(InvalidInputError, match="Planck constants"):
+        write_recording(tmp_path / "r.tiff", Recording(frames.astype(np.uint16), bit_depth=16))
+        process_flight(tmp_path / "r.tiff", tmp_path / "out2", options)

@@ -64,7 +64,7 @@ def estimate_file(
         estimator = VendorCalibration.from_recording(rec, frames_path)
     try:
         result = run_pipeline(rec.frames, estimator, fpa_c=rec.fpa_c, pivot=pivot,
-                              registered=registered, force=force)
+                              registered=registered, force=force, bit_depth=rec.bit_depth)
     except InvalidInputError as exc:  # a burst's fault: name the file it came from
         text = str(exc)
         if text.startswith(str(frames_path)):

@@ -74,6 +74,7 @@ def estimate(
     force: bool = False,
     fpa_rate_c_per_min: float | None = None,
     time_since_start_s: float | None = None,
+    bit_depth: int = 14,
 ) -> Estimate:
     """The pivot frame's temperature of a raw burst through ``estimator``.
 
@@ -107,6 +108,9 @@ def estimate(
     time_since_start_s : float, optional
         How long after its recording began the burst was taken, s (for an online
         calibration's uncertainty).
+    bit_depth : int
+        The counts' bit depth (14 for a Tau2 core; 16 for FLIR files): saturation is at
+        ``2**bit_depth − 1``.
 
     Raises
     ------
@@ -119,7 +123,7 @@ def estimate(
         Registration failed or the frames do not overlap.
     """
     # 1. validate
-    arr = check_burst(frames, registered=registered)
+    arr = check_burst(frames, registered=registered, bit_depth=bit_depth)
     p = pivot_index(pivot, arr.shape[0])
     estimator.check(arr, registered=registered, homographies=homographies)
     # the burst's FPA temperature: required by some estimators, used by all that get one (their

@@ -58,23 +58,34 @@ class VendorCalibration:
     def __init__(self, plancks: list[FlirPlanck], accuracy: list[tuple[float, float]]) -> None:
         self.plancks = plancks
         self.accuracy = accuracy
-        self._frames: list[int] | None = None
 
     @classmethod
     def from_recording(cls, recording: Recording, path: Any = "the recording"
                        ) -> VendorCalibration:
         """From the per-frame metadata :func:`thermocal.io.open_recording` reads
         (``extra["frame_metadata"]``); refused for a recording without Planck constants."""
+        metas = (recording.extra or {}).get("frame_metadata") or []
+        if len(metas) != recording.frames.shape[0]:
+            metas = []
+        return cls.from_metadata(metas, path)
+
+    @classmethod
+    def from_metadata(cls, metas: list[dict[str, Any]], path: Any = "the recording"
+                      ) -> VendorCalibration:
+        """From one metadata dict per frame (each with its ``planck``); refused otherwise."""
         from thermocal.io.fff import planck_from_metadata
 
-        metas = (recording.extra or {}).get("frame_metadata") or []
-        if len(metas) != recording.frames.shape[0] or not all(m.get("planck") for m in metas):
+        if not metas or not all(m.get("planck") for m in metas):
             raise InvalidInputError(
                 f"{path}: --method camera needs the camera's Planck constants in every frame, "
                 "which only FLIR files carry (R-JPEG, FFF, SEQ, CSQ); use a calibration "
                 "(--method calibration --calibration CAL.h5) or the network"
             )
         return cls([planck_from_metadata(m) for m in metas], [vendor_accuracy(m) for m in metas])
+
+    def for_frames(self, start: int, n: int) -> VendorCalibration:
+        """The same for frames ``start … start + n − 1`` of the recording (a flight's group)."""
+        return VendorCalibration(self.plancks[start : start + n], self.accuracy[start : start + n])
 
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
         if frames.shape[0] != len(self.plancks):

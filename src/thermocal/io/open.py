@@ -549,13 +549,15 @@ def read_any_recording(path: str | os.PathLike[str], *, fpa_c: float | None = No
 class StreamHeader:
     """What a streamed run over a recording of any format needs before its frames: its
     ``path``, ``n_frames``, ``frame_shape`` and per-frame ``series`` (``fpa_c``, ``time_s``:
-    ``(N,)`` arrays or None), and :meth:`chunks`, its raw frames in order."""
+    ``(N,)`` arrays or None; ``frame_metadata``: one dict per frame where the file carries the
+    camera's Planck constants), and :meth:`chunks`, its raw frames in order."""
 
     path: Path
     n_frames: int
     frame_shape: tuple[int, int]
     series: dict[str, np.ndarray | None]
     source: RecordingSource | None = None
+    bit_depth: int = 14
 
     def chunks(self, chunk: int) -> Iterator[tuple[int, np.ndarray]]:
         """``(first frame index, frames (k, H, W) uint16)`` in order."""
@@ -573,20 +575,24 @@ def open_stream(path: str | os.PathLike[str], *, fpa_c: float | None = None) -> 
     if p.suffix.lower() in (".tif", ".tiff") or not p.exists():
         header = read_recording_header(p, fpa_c=fpa_c)
         return StreamHeader(header.path, header.n_frames, header.frame_shape,
-                            dict(header.series))
+                            dict(header.series), bit_depth=header.bit_depth)
     source = open_recording(p)
-    fpa, times = [], []
+    fpa, times, metas = [], [], []
     for c in source.iter_frames():
         fpa.append(c.fpa_c)
         times.append(c.time_s)
+        metas.extend(c.metadata or [])
     series = {
         "fpa_c": None if any(f is None for f in fpa) else np.concatenate(fpa).astype(np.float64),
         "time_s": None if any(t is None for t in times) else np.concatenate(times).astype(
             np.float64),
+        # the camera's own constants, frame by frame (``--method camera``), where it has them
+        "frame_metadata": metas if metas and any(m.get("planck") for m in metas) else None,
     }
     if fpa_c is not None:
         series["fpa_c"] = np.full(source.n_frames, check_fpa_c(fpa_c, "--fpa-c"))
-    return StreamHeader(p, source.n_frames, source.frame_shape, series, source)
+    return StreamHeader(p, source.n_frames, source.frame_shape, series, source,
+                        bit_depth=source.bit_depth)
 
 
 def recording_length(path: str | os.PathLike[str]) -> int:

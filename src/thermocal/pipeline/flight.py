@@ -175,8 +175,15 @@ def process_flight(
         )
     n, stride = options.frames, options.stride
     pivots = pivots_of(header.n_frames, n, stride)
-    estimator = _estimator(options, header.frame_shape)
-    series = header.series | {"fpa_rate_c_per_min": _fpa_rates(header.series)}
+    if ESTIMATORS[options.method].needs == "recording":  # the file's own constants
+        from thermocal.estimation.vendor import VendorCalibration
+
+        estimator = VendorCalibration.from_metadata(
+            header.series.get("frame_metadata") or [], header.path)
+    else:
+        estimator = _estimator(options, header.frame_shape)
+    series = header.series | {"fpa_rate_c_per_min": _fpa_rates(header.series),
+                              "bit_depth": header.bit_depth}
     out = _output_dirs(Path(out_dir))  # only now: every check has passed
     _remove_stale_temp_files(out)
     _drop_cut_log_line(out / "log.jsonl")
@@ -270,7 +277,7 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
     t = time.perf_counter()
     group = run.frames[first - run.start : first - run.start + n]
     try:
-        _check_group(group, first)
+        _check_group(group, first, series["bit_depth"])
         if estimator.needs_fpa:
             fpa_value(None if fpa is None else fpa[first : first + n], n)
         if run.error is not None:
@@ -281,16 +288,20 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
             homographies = run.sequence.to_pivot(range(local, local + n), pivot - run.start)
             entry["registration_correlation"] = float(
                 run.sequence.correlation[local + 1 : local + n].min())
+        # an estimator of the recording's own constants takes those of the group's frames
+        group_estimator = (estimator.for_frames(first, n) if hasattr(estimator, "for_frames")
+                           else estimator)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             result = estimate(
-                group, estimator,
+                group, group_estimator,
                 fpa_c=None if fpa is None else fpa[first : first + n],
                 time_s=None if time_s is None else time_s[first : first + n],
                 pivot=n // 2, homographies=homographies, force=options.force,
                 fpa_rate_c_per_min=None if series["fpa_rate_c_per_min"] is None
                 else float(series["fpa_rate_c_per_min"][pivot]),
-                time_since_start_s=None if time_s is None else float(time_s[pivot] - time_s[0]))
+                time_since_start_s=None if time_s is None else float(time_s[pivot] - time_s[0]),
+                bit_depth=series["bit_depth"])
             temp, sigma = result.temperature_c, result.sigma_c
         entry["warnings"] = sorted({str(w.message) for w in caught})
         if result.outside:  # estimated all the same (--force): why it is not validated
@@ -328,11 +339,11 @@ def _fpa_rates(series: dict[str, Any]) -> np.ndarray | None:
         return None
 
 
-def _check_group(group: np.ndarray, first: int) -> None:
+def _check_group(group: np.ndarray, first: int, bit_depth: int = 14) -> None:
     """The estimation pipeline's check of a group's frames (saturated, dead, constant), its
     message naming the frame by its place in the recording."""
     try:
-        check_burst(group)
+        check_burst(group, bit_depth=bit_depth)
     except InvalidInputError as exc:
         last = first + len(group) - 1
         message = re.sub(r"^frames: frame (\d+)\b",
