@@ -51,12 +51,15 @@ def estimate_file(
         sigma_out = check_output_file(sigma_out, TIFF_SUFFIXES)
         check_not_input(sigma_out, frames_path, calibration, model_path, what="--sigma-out")
         check_outputs_differ(sigma_out, out, ("--sigma-out", "--out"))
-    needs_recording = ESTIMATORS[method].needs == "recording" if method in ESTIMATORS else False
-    estimator = (None if needs_recording
+    info = ESTIMATORS.get(method)
+    own_constants = info is not None and info.needs == "recording"  # built from the file below
+    estimator = (None if own_constants
                  else make_estimator(method, model=model_path, calibration=calibration))
-    if sigma_out is not None and estimator is not None and not has_uncertainty(estimator):
+    # a network without its .sigma.json, a calibration without its report
+    if sigma_out is not None and estimator is not None and getattr(
+            estimator, "sigma_model", None) is None:
         raise InvalidInputError(f"--method {method} has no uncertainty model here: "
-                                f"{NO_SIGMA_REMEDY.get(method, NO_SIGMA_REMEDY['calibration'])}")
+                                f"{NO_SIGMA_REMEDY[info.needs]}")
     rec = read_any_recording(frames_path, fpa_c=fpa_c)
     if estimator is None:  # the camera's own constants, from the file
         from thermocal.estimation.vendor import VendorCalibration
@@ -85,19 +88,13 @@ def estimate_file(
     return out
 
 
-#: What to do when an estimator has no uncertainty model.
+#: What to do when an estimator has no uncertainty model, by what it is built from.
 NO_SIGMA_REMEDY = {
     "calibration": "the calibration file has no cross-validation report (made by an older "
                    "thermocal): calibrate again to get its uncertainty",
-    "mean": "the calibration file has no cross-validation report (made by an older thermocal): "
-            "calibrate again to get its uncertainty",
+    "model": "its weights have no σ model beside them (NAME.sigma.json): fit one with "
+             "`python -m thermocal.evaluation.sigma_fit WEIGHTS.pt`",
 }
-
-
-def has_uncertainty(estimator) -> bool:
-    """Whether ``estimator`` gives σ (a network with its ``.sigma.json``, a calibration with its
-    report; see :meth:`~thermocal.estimation.base.Estimator.uncertainty`)."""
-    return getattr(estimator, "sigma_model", None) is not None
 
 
 @click.command("estimate")

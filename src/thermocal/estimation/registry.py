@@ -12,7 +12,6 @@ from dataclasses import dataclass
 from thermocal.calibration.base import Calibration
 from thermocal.errors import InvalidInputError
 from thermocal.estimation.base import Estimator
-from thermocal.io.recording import Recording
 from thermocal.nn.variants import VARIANTS
 
 __all__ = ["ESTIMATORS", "EstimatorInfo", "make_estimator", "method_help"]
@@ -69,13 +68,13 @@ def make_estimator(
     *,
     model: str | os.PathLike[str] | None = None,
     calibration: str | os.PathLike[str] | Calibration | None = None,
-    recording: Recording | None = None,
 ) -> Estimator:
     """Build the estimator ``name`` of :data:`ESTIMATORS`.
 
     ``model`` is a weights file for a network (default: the shipped one of that variant);
     ``calibration`` a calibration file (or a fitted calibration) for ``mean`` and
-    ``calibration``; ``recording`` the recording whose own constants ``camera`` uses.
+    ``calibration``. ``camera`` is made from the recording it runs on, once read
+    (:class:`~thermocal.estimation.vendor.VendorCalibration`), not here.
 
     Raises
     ------
@@ -88,14 +87,10 @@ def make_estimator(
     if info is None:
         raise InvalidInputError(f"unknown method {name!r}; choose from {', '.join(ESTIMATORS)}")
     if info.needs == "recording":
-        if recording is None:
-            raise InvalidInputError(
-                f"--method {name} reads the camera's constants from each file: it runs on "
-                "single recordings (thermocal estimate), not on whole flights yet"
-            )
-        from thermocal.estimation.vendor import VendorCalibration
-
-        return VendorCalibration.from_recording(recording)
+        raise InvalidInputError(
+            f"--method {name} is made from the recording's own constants once it is read: "
+            "VendorCalibration.from_recording (thermocal estimate and flight do so)"
+        )
     if info.needs == "calibration":
         if calibration is None:
             raise InvalidInputError(
