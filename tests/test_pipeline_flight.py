@@ -166,7 +166,10 @@ def test_flight_end_to_end_through_the_cli(setup, tmp_path, method, capsys):
 def test_fpa_rates_come_from_the_whole_recording_when_it_is_long_enough():
     """A calibration's σ depends on the FPA rate: taken from the recording's series when they
     span the smoothing window, else unknown (None)."""
-    from thermocal.pipeline.flight import _fpa_rates
+    from thermocal.calibration.dataset import recording_fpa_rates
+
+    def _fpa_rates(series):
+        return recording_fpa_rates(series["fpa_c"], series["time_s"])
 
     t = np.arange(0.0, 300.0, 1.0)
     rates = _fpa_rates({"fpa_c": 20.0 + t / 60.0, "time_s": t})

@@ -174,6 +174,7 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
     method (the file records which). Frames outside the FPA and scene ranges of the
     calibration's chamber session are refused unless --force."""
     from thermocal.calibration.base import ThermocalWarning
+    from thermocal.calibration.dataset import recording_fpa_rates
     from thermocal.calibration.registry import load_any_calibration
     from thermocal.calibration.uncertainty import REMEDY, CalibrationSigma
     from thermocal.errors import OutsideDomainError
@@ -204,7 +205,7 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
             temps = cal.apply(rec.frames, fpa_c=rec.fpa_c, time_s=rec.time_s)
         except InvalidInputError as exc:
             raise _naming_the_input(exc, frames, calibration_path) from None
-    rates = _rates(rec)
+    rates = recording_fpa_rates(rec.fpa_c, rec.time_s)
     outside = () if model is None else model.outside(
         temps, () if rec.fpa_c is None else rec.fpa_c, rate_c_per_min=rates)
     if outside and not force:
@@ -226,20 +227,6 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
         raise
     click.echo(f"wrote {temps.shape[0]} temperature frame(s) to {out}"
                + (f" and their σ to {sigma_out}" if sigma_out is not None else ""))
-
-
-def _rates(rec) -> np.ndarray | None:
-    """The recording's FPA rate per frame, °C/min (smoothed as a chamber session's), or None
-    when its frame times or FPA series are not known, or it is shorter than the smoothing window
-    (a few seconds of a quantised sensor cannot show the rate)."""
-    from thermocal.calibration.dataset import RATE_SMOOTH_S, fpa_rate_c_per_min
-
-    if rec.time_s is None or rec.fpa_c is None or np.ptp(rec.time_s) < RATE_SMOOTH_S:
-        return None
-    try:
-        return fpa_rate_c_per_min(rec.fpa_c, rec.time_s, smooth_s=RATE_SMOOTH_S)
-    except InvalidInputError:  # times not increasing: the σ of all rates
-        return None
 
 
 def _naming_the_input(exc: InvalidInputError, frames: Path, calibration: Path

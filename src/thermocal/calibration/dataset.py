@@ -207,6 +207,20 @@ class ChamberData:
 RATE_SMOOTH_S = 60.0
 
 
+def recording_fpa_rates(fpa_c: Any, time_s: Any) -> np.ndarray | None:
+    """A recording's FPA rate at each frame, °C/min, smoothed as a chamber session's
+    (:data:`RATE_SMOOTH_S`; what a calibration's uncertainty depends on), ``(M,)``; None without
+    FPA temperatures and frame times, for a recording shorter than the smoothing window (a
+    quantised sensor over a few seconds cannot tell a steady FPA from one changing by a degree
+    a minute), or with times that do not increase (then σ is that of all rates)."""
+    if fpa_c is None or time_s is None or len(fpa_c) < 2 or np.ptp(time_s) < RATE_SMOOTH_S:
+        return None
+    try:
+        return fpa_rate_c_per_min(fpa_c, time_s, smooth_s=RATE_SMOOTH_S)
+    except InvalidInputError:
+        return None
+
+
 def prepare_chamber(
     session: Any,
     *,

@@ -50,7 +50,7 @@ import numpy as np
 
 from thermocal._validate import check_output_dir
 from thermocal.burst import check_burst, fpa_value
-from thermocal.calibration.dataset import RATE_SMOOTH_S, fpa_rate_c_per_min
+from thermocal.calibration.dataset import recording_fpa_rates
 from thermocal.errors import InvalidInputError, OutputError, RegistrationError
 from thermocal.estimation.base import Estimator
 from thermocal.estimation.pipeline import estimate
@@ -182,8 +182,8 @@ def process_flight(
             header.series.get("frame_metadata") or [], header.path)
     else:
         estimator = _estimator(options, header.frame_shape)
-    series = header.series | {"fpa_rate_c_per_min": _fpa_rates(header.series),
-                              "bit_depth": header.bit_depth}
+    series = header.series | {"fpa_rate_c_per_min": recording_fpa_rates(
+        header.series["fpa_c"], header.series["time_s"])}
     out = _output_dirs(Path(out_dir))  # only now: every check has passed
     _remove_stale_temp_files(out)
     _drop_cut_log_line(out / "log.jsonl")
@@ -205,7 +205,8 @@ def process_flight(
             run = _register_batch(reader, estimator, batch, n, tally.times)
             for index, pivot in todo:
                 entry = _process_pivot(run, pivot, series, estimator, options, out, tally,
-                                       preview=_preview_due(options, index))
+                                       preview=_preview_due(options, index),
+                                       bit_depth=header.bit_depth)
                 log.write(json.dumps(entry) + "\n")  # last: the pivot is finished
                 log.flush()
                 if progress:
@@ -262,7 +263,7 @@ def _register_batch(reader: _FrameWindow, estimator: Estimator, batch: list[int]
 
 def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: Estimator,
                    options: FlightOptions, out: Path, tally: _Tally, *,
-                   preview: bool) -> dict[str, Any]:
+                   preview: bool, bit_depth: int) -> dict[str, Any]:
     """Estimate one pivot's map from its group of ``run``, write it (and its preview) and
     return its log entry; a group that cannot be estimated is logged with its error.
 
@@ -277,7 +278,7 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
     t = time.perf_counter()
     group = run.frames[first - run.start : first - run.start + n]
     try:
-        _check_group(group, first, series["bit_depth"])
+        _check_group(group, first, bit_depth)
         if estimator.needs_fpa:
             fpa_value(None if fpa is None else fpa[first : first + n], n)
         if run.error is not None:
@@ -301,7 +302,7 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
                 fpa_rate_c_per_min=None if series["fpa_rate_c_per_min"] is None
                 else float(series["fpa_rate_c_per_min"][pivot]),
                 time_since_start_s=None if time_s is None else float(time_s[pivot] - time_s[0]),
-                bit_depth=series["bit_depth"])
+                bit_depth=bit_depth)
             temp, sigma = result.temperature_c, result.sigma_c
         entry["warnings"] = sorted({str(w.message) for w in caught})
         if result.outside:  # estimated all the same (--force): why it is not validated
@@ -323,20 +324,6 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
     tally.processed += 1
     tally.times.add("writing", t)
     return entry
-
-
-def _fpa_rates(series: dict[str, Any]) -> np.ndarray | None:
-    """The recording's FPA rate at each frame, °C/min, smoothed as a chamber session's (what a
-    calibration's uncertainty depends on); None without FPA temperatures and frame times, or for
-    a recording shorter than the smoothing window (a quantised sensor over a few seconds cannot
-    tell a steady FPA from one changing by a degree a minute)."""
-    fpa, time_s = series.get("fpa_c"), series.get("time_s")
-    if fpa is None or time_s is None or len(fpa) < 2 or np.ptp(time_s) < RATE_SMOOTH_S:
-        return None
-    try:
-        return fpa_rate_c_per_min(fpa, time_s, smooth_s=RATE_SMOOTH_S)
-    except InvalidInputError:  # times not increasing: no rate, the average σ
-        return None
 
 
 def _check_group(group: np.ndarray, first: int, bit_depth: int = 14) -> None:
