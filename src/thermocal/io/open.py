@@ -529,6 +529,13 @@ def _camera_header(meta: dict[str, Any]) -> dict[str, Any]:
     return out
 
 
+def _project_recording(p: Path) -> bool:
+    """Whether the commands read ``p`` with the project's own reader
+    (:mod:`thermocal.io.recording`): a ``.tif``/``.tiff`` recording, or a path that does not
+    exist (its message then names the missing file)."""
+    return p.suffix.lower() in (".tif", ".tiff") or not p.exists()
+
+
 def read_any_recording(path: str | os.PathLike[str], *, fpa_c: float | None = None
                        ) -> Recording:
     """A whole recording of any format, as the commands read it: the project's
@@ -536,7 +543,7 @@ def read_any_recording(path: str | os.PathLike[str], *, fpa_c: float | None = No
     other through :func:`open_recording` (its per-frame metadata in ``extra``). ``fpa_c`` (the
     command line's ``--fpa-c``) replaces the FPA series."""
     p = Path(path)
-    if p.suffix.lower() in (".tif", ".tiff") or not p.exists():
+    if _project_recording(p):
         return read_recording(p, fpa_c=fpa_c)
     rec = open_recording(p).read_all()
     if fpa_c is None:
@@ -572,7 +579,7 @@ def open_stream(path: str | os.PathLike[str], *, fpa_c: float | None = None) -> 
     any other through :func:`open_recording`, whose FPA and time series take one pass over the
     frames. ``fpa_c`` (``--fpa-c``) replaces the FPA series."""
     p = Path(path)
-    if p.suffix.lower() in (".tif", ".tiff") or not p.exists():
+    if _project_recording(p):
         header = read_recording_header(p, fpa_c=fpa_c)
         return StreamHeader(header.path, header.n_frames, header.frame_shape,
                             dict(header.series), bit_depth=header.bit_depth)
@@ -598,6 +605,6 @@ def open_stream(path: str | os.PathLike[str], *, fpa_c: float | None = None) -> 
 def recording_length(path: str | os.PathLike[str]) -> int:
     """How many frames a recording of any format holds (headers only)."""
     p = Path(path)
-    if p.suffix.lower() in (".tif", ".tiff") or not p.exists():
+    if _project_recording(p):
         return read_recording_header(p).n_frames
     return open_recording(p).n_frames
