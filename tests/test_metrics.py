@@ -273,3 +273,16 @@ def test_netd_rejects():
         netd(stack[:1], stack, 20.0, 30.0)
     with pytest.raises(InvalidInputError, match="no response"):
         netd(stack, stack, 20.0, 30.0)  # zero responsivity everywhere
+
+
+def test_sigma_coverage_of_gaussian_errors():
+    from thermocal.metrics import sigma_coverage
+
+    rng = np.random.default_rng(0)
+    sigma = rng.uniform(0.5, 2.0, 200_000)
+    cov = sigma_coverage(rng.normal(0.0, sigma), sigma)
+    assert cov["within_1sigma"] == pytest.approx(0.683, abs=0.005)
+    assert cov["within_2sigma"] == pytest.approx(0.954, abs=0.003)
+    assert cov["pixels"] == 200_000 and 1.0 < cov["median_sigma_c"] < 1.5
+    with pytest.raises(InvalidInputError):
+        sigma_coverage(np.zeros(3), np.ones(4))

@@ -76,10 +76,8 @@ def _coverage(estimate: np.ndarray, sigma: list[np.ndarray] | None, truth: np.nd
     """Median σ and the share of pixels within 1σ and 2σ (nothing without σ)."""
     if not sigma:
         return {}
-    s = np.stack(sigma)[valid]
-    z = np.abs(estimate - truth)[valid] / s
-    return {"median_sigma_c": float(np.median(s)), "within_1sigma": float(np.mean(z <= 1)),
-            "within_2sigma": float(np.mean(z <= 2))}
+    cov = metrics.sigma_coverage((estimate - truth)[valid], np.stack(sigma)[valid])
+    return {k: cov[k] for k in ("median_sigma_c", "within_1sigma", "within_2sigma")}
 
 
 def _scores(estimate: np.ndarray, truth: np.ndarray, valid: np.ndarray) -> dict[str, float]:

@@ -37,6 +37,7 @@ __all__ = [
     "psnr",
     "rmse",
     "roughness",
+    "sigma_coverage",
     "ssim",
 ]
 
@@ -475,3 +476,17 @@ def line_patterns(frames_c: np.ndarray) -> tuple[float, float]:
         rows.append(float(np.std(np.median(high, axis=1))))
         cols.append(float(np.std(np.median(high, axis=0))))
     return float(np.median(rows)), float(np.median(cols))
+
+
+def sigma_coverage(errors: Any, sigma: Any) -> dict[str, float]:
+    """How well a stated uncertainty holds: the share of ``|errors| <= σ`` and ``<= 2σ`` (a
+    Gaussian's: 68.3 % and 95.4 %), the median σ (sharpness) and the number of values; ``errors``
+    and ``sigma`` °C, of one shape."""
+    e = np.abs(np.asarray(errors, dtype=np.float64))
+    s = np.asarray(sigma, dtype=np.float64)
+    if e.shape != s.shape or e.size == 0:
+        raise InvalidInputError(f"sigma_coverage: errors {e.shape} and σ {s.shape} must match, "
+                                "non-empty")
+    z = e / s
+    return {"within_1sigma": float(np.mean(z <= 1)), "within_2sigma": float(np.mean(z <= 2)),
+            "median_sigma_c": float(np.median(s)), "pixels": int(e.size)}

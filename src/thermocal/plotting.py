@@ -113,16 +113,18 @@ def uncertainty_figure(temp_c: np.ndarray, sigma_c: np.ndarray, truth_c: np.ndar
                        valid: np.ndarray | None = None, title: str = ""):
     """An estimate's temperature, its 1σ map and its absolute error on the σ colour scale, °C
     (each ``(H, W)``), with the share of pixels within 1σ and 2σ. Returns the figure."""
+    from thermocal.metrics import sigma_coverage
+
     plt = _pyplot()
     error = np.abs(np.asarray(temp_c, np.float64) - truth_c)
     mask = np.ones(error.shape, bool) if valid is None else np.asarray(valid, bool)
-    z = error[mask] / np.asarray(sigma_c, np.float64)[mask]
+    cov = sigma_coverage(error[mask], np.asarray(sigma_c)[mask])
     top = float(np.percentile(np.concatenate([sigma_c[mask], error[mask]]), 99))
     fig, axes = plt.subplots(1, 3, figsize=(12.0, 3.6))
     panels = ((temp_c, "temperature (°C)", None, None),
               (sigma_c, "uncertainty 1σ (°C)", 0.0, top),
-              (np.where(mask, error, np.nan), f"|error| (°C): {100 * np.mean(z <= 1):.0f} % "
-               f"within 1σ, {100 * np.mean(z <= 2):.0f} % within 2σ", 0.0, top))
+              (np.where(mask, error, np.nan), f"|error| (°C): {100 * cov['within_1sigma']:.0f} % "
+               f"within 1σ, {100 * cov['within_2sigma']:.0f} % within 2σ", 0.0, top))
     for ax, (img, label, lo, hi) in zip(axes, panels, strict=True):
         shown = ax.imshow(img, cmap="inferno", vmin=lo, vmax=hi)
         ax.set_title(label, fontsize=9)

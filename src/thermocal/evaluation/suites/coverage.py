@@ -43,22 +43,16 @@ from thermocal.estimation.pipeline import estimate
 from thermocal.evaluation.heldout import eval_bursts
 from thermocal.evaluation.suites import physics
 from thermocal.evaluation.tables import markdown_table
+from thermocal.metrics import sigma_coverage
 from thermocal.nn.infer import NetworkEstimator
 
-__all__ = ["calibration_rows", "coverage_of", "main", "network_rows"]
+__all__ = ["calibration_rows", "main", "network_rows"]
 
 #: Pixels of each held-out frame scored (a fixed sample: the frames are uniform scenes).
 PIXELS_PER_FRAME = 400
 
 #: More held-out units of the preset than the five of the held-out set.
 MORE_UNITS = tuple(range(300, 320))
-
-
-def coverage_of(errors: np.ndarray, sigma: np.ndarray) -> dict[str, float]:
-    """Share of ``|errors| <= σ`` and ``<= 2σ``, and the median σ (flat arrays, °C)."""
-    z = np.abs(errors) / sigma
-    return {"within_1sigma": float(np.mean(z <= 1)), "within_2sigma": float(np.mean(z <= 2)),
-            "median_sigma_c": float(np.median(sigma)), "pixels": int(errors.size)}
 
 
 def _run(network: NetworkEstimator, bursts: list[dict]) -> dict:
@@ -82,7 +76,7 @@ def _run(network: NetworkEstimator, bursts: list[dict]) -> dict:
     out = {"bursts": len(bursts), "refused": len(kept["forced"]), "silent_over_1c": silent,
            "mae_c": float(np.mean(maes)), "burst_mae_range_c": [min(maes), max(maes)]}
     for name, pairs in kept.items():
-        out[name] = (coverage_of(np.concatenate([e for e, _ in pairs]),
+        out[name] = (sigma_coverage(np.concatenate([e for e, _ in pairs]),
                                  np.concatenate([s for _, s in pairs])) if pairs else None)
     return out
 
@@ -119,7 +113,7 @@ def _run_calibration(cal, model: CalibrationSigma, run: physics.Run, rng) -> dic
                                          - run.truth_c[:, None]))),
            "expected_mae_c": model.report.expected_mae_c}
     for name, pairs in kept.items():
-        out[name] = (coverage_of(np.concatenate([e for e, _ in pairs]),
+        out[name] = (sigma_coverage(np.concatenate([e for e, _ in pairs]),
                                  np.concatenate([s_ for _, s_ in pairs])) if pairs else None)
     return out
 
