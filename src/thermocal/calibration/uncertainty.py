@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -85,7 +86,10 @@ class CalibrationSigma:
             return None
         return cls(report)
 
+    @cached_property
     def _curves(self) -> tuple:
+        """The report's interior MAE curves by scene level and by FPA temperature, and the
+        growth rates outside them (derived from the report once: σ is asked per frame)."""
         r = self.report
         scene = _interior_curve(r.by_scene(), lambda f: float(f["held_out"]))
         fpa = _interior_curve(r.by_fpa(), lambda f: 0.5 * sum(f["held_out"]))
@@ -150,7 +154,7 @@ class CalibrationSigma:
         if time_since_start_s is not None:
             level = np.maximum(level, np.broadcast_to(self.start_sigma(time_since_start_s),
                                                       frames.shape[:1]))
-        (sx, sm), (fx, fm), k_scene, k_fpa = self._curves()
+        (sx, sm), (fx, fm), k_scene, k_fpa = self._curves
         mean = self.report.expected_mae_c
         m_scene = np.interp(frames, sx, sm) if sx.size else np.full(frames.shape, mean)
         m_fpa = np.interp(fpa, fx, fm) if fx.size else np.full(fpa.shape, mean)

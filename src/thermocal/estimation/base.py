@@ -8,7 +8,7 @@ from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["Estimate", "Estimator", "PreparedBurst"]
+__all__ = ["Estimate", "Estimator", "PreparedBurst", "view_spread"]
 
 
 @dataclass(frozen=True)
@@ -138,3 +138,16 @@ class Estimator(Protocol):
         ``temperature_c``, inflated when the burst lies ``outside`` the domain; None without an
         uncertainty model."""
         ...
+
+
+def view_spread(warped: np.ndarray, valid: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """How much the views of each pivot pixel disagree: the standard deviation over the frames
+    that see it of ``warped`` ``(N, H, W)`` (°C) where ``valid``, and how many frames see it (at
+    least 1); ``(H, W)`` float64 each. Misregistration and what a calibration leaves of the
+    fixed pattern show there (the uncertainties of :mod:`thermocal.nn.uncertainty` and of
+    eq. 9's mean)."""
+    w = np.asarray(warped, dtype=np.float64)
+    v = np.asarray(valid, dtype=bool)
+    n = np.maximum(v.sum(axis=0), 1)
+    mean = (w * v).sum(axis=0) / n
+    return np.sqrt(((w - mean) ** 2 * v).sum(axis=0) / n), n

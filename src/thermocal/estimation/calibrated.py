@@ -10,7 +10,7 @@ import numpy as np
 from thermocal.calibration.base import Calibration
 from thermocal.calibration.uncertainty import REMEDY, CalibrationSigma
 from thermocal.errors import ResolutionMismatchError
-from thermocal.estimation.base import Estimate, PreparedBurst
+from thermocal.estimation.base import Estimate, PreparedBurst, view_spread
 from thermocal.estimation.pipeline import estimate
 
 __all__ = ["OzMean", "PivotCalibration", "naive_mean"]
@@ -84,10 +84,8 @@ class OzMean(_ThroughCalibration):
         sigma = super().uncertainty(burst, temperature_c, outside=outside)
         if sigma is None:
             return None
-        n = np.maximum(burst.valid.sum(axis=0), 1)
-        w = burst.warped.astype(np.float64)
-        spread2 = ((w - temperature_c) ** 2 * burst.valid).sum(axis=0) / n
-        return np.sqrt(sigma.astype(np.float64) ** 2 + spread2 / n).astype(np.float32)
+        spread, n = view_spread(burst.warped, burst.valid)
+        return np.sqrt(sigma.astype(np.float64) ** 2 + spread**2 / n).astype(np.float32)
 
 
 class PivotCalibration(_ThroughCalibration):

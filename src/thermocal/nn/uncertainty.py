@@ -35,6 +35,7 @@ from scipy.ndimage import gaussian_gradient_magnitude
 from scipy.optimize import minimize
 
 from thermocal.errors import FileFormatError, InvalidInputError
+from thermocal.estimation.base import view_spread
 from thermocal.io.atomic import atomic_path
 
 __all__ = ["OUTSIDE_SIGMA_C", "UNIT_FLOOR_MIN_C", "SigmaModel", "features", "fit_sigma_model",
@@ -59,11 +60,7 @@ def features(warped: np.ndarray, valid: np.ndarray, temperature_c: np.ndarray
     """The three features of each pivot pixel, ``(3, H, W)`` float64: ``ln(s + 0.05)``,
     ``ln(g + 0.05)``, ``ln(1 / n)`` (see the module docstring); ``warped`` ``(N, H, W)`` °C and
     ``valid`` ``(N, H, W)`` as the pipeline gives them."""
-    w = np.asarray(warped, dtype=np.float64)
-    v = np.asarray(valid, dtype=bool)
-    n = np.maximum(v.sum(axis=0), 1)
-    mean = (w * v).sum(axis=0) / n
-    spread = np.sqrt(((w - mean) ** 2 * v).sum(axis=0) / n)
+    spread, n = view_spread(warped, valid)
     grad = gaussian_gradient_magnitude(np.asarray(temperature_c, np.float64), 1.0,
                                        mode="nearest")
     return np.stack([np.log(spread + _EPS), np.log(grad + _EPS), -np.log(n)])
