@@ -23,3 +23,23 @@ def flip_bytes(data: bytes, rng) -> bytes:
         src, dst = (int(v) for v in rng.integers(0, max(len(b) - n, 1), 2))
         b[dst:dst + n] = b[src:src + n]
     return bytes(b)
+
+
+def change_element(a, rng, replacements):
+    """A copy of array ``a`` with one element, drawn at random, changed: a bool flipped, else
+    replaced by one of ``replacements(v)`` (the element's value ``v`` as a float → candidate
+    values), cast to ``a``'s dtype."""
+    import numpy as np
+
+    a = np.array(a)
+    if a.size == 0:
+        return a
+    idx = tuple(int(rng.integers(n)) for n in a.shape)
+    if a.dtype == bool:
+        a[idx] = not a[idx]
+        return a
+    v = float(a[idx])
+    with np.errstate(all="ignore"):
+        new = replacements(v)
+        a[idx] = np.asarray(new[int(rng.integers(len(new)))]).astype(a.dtype)
+    return a

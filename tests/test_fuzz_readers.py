@@ -28,6 +28,7 @@ import h5py
 import numpy as np
 import pytest
 import tifffile
+from mutants import change_element
 from mutants import flip_bytes as _flip_bytes
 
 from thermocal.burst import check_burst
@@ -87,18 +88,8 @@ def _new_value(value, rng):
 
 
 def _change_element(a: np.ndarray, rng) -> np.ndarray:
-    a = np.array(a)
-    if a.size == 0:
-        return a
-    idx = tuple(int(rng.integers(n)) for n in a.shape)
-    if a.dtype == bool:
-        a[idx] = not a[idx]
-        return a
-    v = float(a[idx])
-    with np.errstate(all="ignore"):
-        new = [v + 1, 0.0, -v, np.nan, np.inf, -np.inf, 1e30, v * 1.5, 65535, -300.0]
-        a[idx] = np.asarray(new[int(rng.integers(len(new)))]).astype(a.dtype)
-    return a
+    return change_element(a, rng, lambda v: [v + 1, 0.0, -v, np.nan, np.inf, -np.inf, 1e30,
+                                             v * 1.5, 65535, -300.0])
 
 
 # ---------------------------------------------------------------------------- outcomes
