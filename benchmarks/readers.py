@@ -5,8 +5,10 @@ Files are built from the real samples: a SEQ of N copies of the 640×512 FFF fra
 package's data (a FLIR Duo Pro R, flirpy), a folder of N copies of the DJI XT-R R-JPEG
 (640×512) and of the FFF frame, the project's TIFF + JSON and a DualTauUAV folder of the same
 counts, and the FLIR CSQ sample (1024×768, JPEG-LS, 8 frames, repeated by reading it again),
-where ``../shared/data/recordings`` has it. Opening (headers only) and streaming are timed apart;
-the best of 3 runs. Prints a Markdown table::
+where ``../shared/data/recordings`` has it. Opening (headers only: every record's header checked),
+streaming, and what ``thermocal flight`` reads (:func:`~thermocal.io.open.open_stream`: the
+per-frame series from headers and metadata, then the frames streamed) are timed apart; the best
+of 3 runs. Prints a Markdown table::
 
     .venv/bin/python benchmarks/readers.py [--frames N]
 """
@@ -22,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 from thermocal.bench import machine
-from thermocal.io.open import open_recording
+from thermocal.io.open import open_recording, open_stream
 from thermocal.io.recording import Recording, write_recording
 from thermocal.scenes.real import find_shared_data
 
@@ -38,6 +40,10 @@ def _best(fn, repeats: int = 3) -> float:
 
 def _stream(path: Path) -> int:
     return sum(len(c.frames) for c in open_recording(path).iter_frames(64))
+
+
+def _flight_read(path: Path) -> int:
+    return sum(len(f) for _, f in open_stream(path).chunks(64))
 
 
 def build(folder: Path, n: int, data: Path) -> dict[str, Path]:
@@ -93,11 +99,14 @@ def main(argv: list[str] | None = None) -> None:
             src = open_recording(path)
             opened = _best(lambda p=path: open_recording(p))
             streamed = _best(lambda p=path: _stream(p))
+            flight = _best(lambda p=path: _flight_read(p))
             rows.append((name, src.n_frames, f"{src.frame_shape[1]}x{src.frame_shape[0]}",
-                         f"{1000 * opened:.1f}", f"{src.n_frames / streamed:,.0f}"))
+                         f"{1000 * opened:.1f}", f"{src.n_frames / streamed:,.0f}",
+                         f"{src.n_frames / flight:,.0f}"))
     print(f"machine: {machine()}\n")
-    print("| format | frames | size | open (headers) ms | frames/s streamed |")
-    print("|---|---|---|---|---|")
+    print("| format | frames | size | open (headers) ms | frames/s streamed | frames/s as "
+          "flight reads them |")
+    print("|---|---|---|---|---|---|")
     for row in rows:
         print("| " + " | ".join(str(c) for c in row) + " |")
 

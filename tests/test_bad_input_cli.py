@@ -104,8 +104,38 @@ def inputs(tmp_path_factory) -> dict[str, Path]:
     # a recording whose sidecar is not JSON
     shutil.copy(rec, root / "badjson.tiff")
     (root / "badjson.json").write_text('{"fpa_c": [30, 30,')
+    _bad_recordings(root)
     return {"root": root, "chamber": chamber, "flight": flight, "cal": root / "cal.h5",
             "cal2": root / "cal2.h5", "rec": rec}
+
+
+def _bad_recordings(root: Path) -> None:
+    """Recordings in the other formats that cannot be read as a whole (issue 19)."""
+    from PIL import Image
+    from test_open_recording import _dualtau_file, _fff, _frames, _rjpeg
+
+    (root / "cut.seq").write_bytes(_fff(_frames(1)[0])[:-50])
+    Image.new("RGB", (8, 8)).save(root / "photo.jpg", "JPEG")
+    (root / "mixed").mkdir()
+    (root / "mixed" / "a.fff").write_bytes(_fff(_frames(1)[0]))
+    (root / "mixed" / "b.jpg").write_bytes(_rjpeg(_fff(_frames(1)[0])))
+    (root / "sizes").mkdir()
+    (root / "sizes" / "a.fff").write_bytes(_fff(_frames(1)[0]))
+    (root / "sizes" / "b.fff").write_bytes(_fff(_frames(1, 4, 4)[0]))
+    (root / "emptydir").mkdir()
+    np.savez(root / "nokeys.npz", frames=_frames(3), time_ns_start=np.arange(3))
+    np.savez(root / "backwards.npz", frames=_frames(3), fpa=np.full(3, 3000, np.uint16),
+             time_ns_start=np.array([0, 200, 100]))
+    np.savez(root / "whole_c.npz", frames=_frames(3), fpa=np.full(3, 31),
+             time_ns_start=np.arange(3))
+    (root / "overlap").mkdir()
+    _dualtau_file(root / "overlap" / "a.npz", _frames(4), np.full(4, 3000), 0)
+    _dualtau_file(root / "overlap" / "b.npz", _frames(4), np.full(4, 3000), 150_000_000)
+    # a valid DualTauUAV flight of the recording's frames (FPA 30 °C), in two files
+    frames = tifffile.imread(root / "rec.tiff")
+    (root / "dual").mkdir()
+    _dualtau_file(root / "dual" / "a.npz", frames[:4], np.full(4, 3000), 0)
+    _dualtau_file(root / "dual" / "b.npz", frames[4:], np.full(3, 3000), 400_000_000)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -465,8 +495,41 @@ CASES = [
     ("simulate-flight-scene-a-text-file",
      ["simulate", "flight", "{tmp}/out", "--size", SIZE, "--scene", "{root}/notes.txt"],
      "notes.txt: unknown file format"),
-    ("estimate-recording-a-directory",
-     ["estimate", "{root}/flight", "--out", "{tmp}/t.tiff"], "flight' is a directory"),
+    # recordings of any format, files or folders (issue 19)
+    ("estimate-a-folder-without-a-recording",
+     ["estimate", "{root}/emptydir", "--out", "{tmp}/t.tiff"], "no recording in the folder"),
+    ("info-a-folder-without-a-recording",
+     ["info", "{root}/emptydir"], "emptydir: no recording in the folder"),
+    ("correct-seq-truncated",
+     ["correct", "{root}/cut.seq", "--calibration", "{root}/cal.h5", "--fpa-c", "30", "--out",
+      "{tmp}/t.tiff"], "cut.seq: truncated"),
+    ("nuc-jpeg-without-flir-records",
+     ["nuc", "{root}/photo.jpg", "--method", "admire", "--out", "{tmp}/t.tiff"],
+     "photo.jpg: JPEG without FLIR radiometric data"),
+    ("flight-folder-of-mixed-formats",
+     ["flight", "{root}/mixed", "--method", "camera", "--out", "{tmp}/out"],
+     "files of mixed formats"),
+    ("estimate-folder-of-mixed-sizes",
+     ["estimate", "{root}/sizes", "--method", "camera", "--out", "{tmp}/t.tiff"],
+     "b.fff: frames of 4x4 in a folder of 6x8"),
+    ("correct-npz-missing-keys",
+     ["correct", "{root}/nokeys.npz", "--calibration", "{root}/cal.h5", "--out",
+      "{tmp}/t.tiff"], "nokeys.npz: missing array(s) ['fpa']"),
+    ("flight-npz-times-backwards",
+     ["flight", "{root}/backwards.npz", "--method", "calibration", "--calibration",
+      "{root}/cal.h5", "--out", "{tmp}/out"], "frame times go backwards inside the file"),
+    ("nuc-npz-fpa-in-whole-degrees",
+     ["nuc", "{root}/whole_c.npz", "--method", "admire", "--out", "{tmp}/t.tiff"],
+     "more likely whole °C"),
+    ("nuc-out-inside-the-recording-folder",
+     ["nuc", "{root}/dual", "--method", "admire", "--out", "{root}/dual/t.tiff"],
+     "is inside the recording's folder"),
+    ("correct-sigma-out-inside-the-recording-folder",
+     ["correct", "{root}/dual", "--calibration", "{root}/cal.h5", "--out", "{tmp}/t.tiff",
+      "--sigma-out", "{root}/dual/s.tiff"], "--sigma-out"),
+    ("estimate-npz-files-overlapping-in-time",
+     ["estimate", "{root}/overlap", "--method", "calibration", "--calibration",
+      "{root}/cal.h5", "--out", "{tmp}/t.tiff"], "b.npz: its frames overlap in time those of"),
     ("estimate-model-a-directory",
      ["estimate", "{root}/rec.tiff", "--model", "{root}/flight", "--out", "{tmp}/t.tiff"],
      "flight' is a directory"),
@@ -740,3 +803,27 @@ def test_valid_runs_are_unchanged_by_the_checks(inputs, tmp_path, capsys):
         assert code == 0, err
         temps = tifffile.imread(out)
         assert temps.shape == (7, 32, 48) and np.all(np.isfinite(temps))
+
+
+def test_every_command_takes_a_folder(inputs, tmp_path, capsys):
+    """A DualTauUAV folder (and the folder `simulate flight` writes) through correct, nuc,
+    estimate and flight: the frames of the project's TIFF, the same temperatures."""
+    root = inputs["root"]
+    base = tmp_path / "base.tiff"
+    code, _, err = run(["correct", inputs["rec"], "--calibration", inputs["cal"], "--fpa-c", "30",
+                        "--out", base], capsys)
+    assert code == 0, err
+    for folder in (root / "dual", root / "flight"):
+        out = tmp_path / f"{folder.name}.tiff"
+        code, _, err = run(["correct", folder, "--calibration", inputs["cal"], "--fpa-c", "30",
+                            "--out", out], capsys)
+        assert code == 0, err
+        np.testing.assert_array_equal(tifffile.imread(out), tifffile.imread(base))
+    for args in (["nuc", root / "dual", "--method", "admire", "--out", tmp_path / "n.tiff"],
+                 ["estimate", root / "dual", "--method", "mean", "--calibration",
+                  inputs["cal"], "--out", tmp_path / "e.tiff"],
+                 ["flight", root / "dual", "--method", "calibration", "--calibration",
+                  inputs["cal"], "--frames", "1", "--stride", "1", "--out", tmp_path / "fl"]):
+        code, _, err = run(args, capsys)
+        assert code == 0, (args, err)
+    assert len(list((tmp_path / "fl" / "temps").glob("frame_??????.tiff"))) == 7

@@ -66,10 +66,11 @@ def _options(data: Path, method: str = "mean", **kw) -> FlightOptions:
 
 
 def _outputs(out: Path) -> dict[str, bytes]:
-    """Every output but the summary (its timings differ), by path, hidden files included."""
+    """Every output but the summary and the report (their timings differ), by path, hidden
+    files included."""
     found = {}
     for path in sorted(out.rglob("*")):
-        if path.is_file() and path.name != "summary.json":
+        if path.is_file() and path.name not in ("summary.json", "report.html"):
             found[str(path.relative_to(out))] = path.read_bytes()
     return found
 

@@ -596,3 +596,61 @@ def test_a_chamber_file_with_a_damaged_heap_reference_does_not_crash(chamber_fil
     path.write_bytes(bytes(raw))
     proc = _read_chamber_in_subprocess(path)
     assert proc.returncode == 3, (proc.returncode, proc.stderr[-300:])
+
+
+# ---------------------------------------------------------------------------- FLIR, DualTauUAV
+# (issue 19): the formats of open_recording, whose damaged frames are left out rather than the
+# whole recording refused: a mutant reads the same, reads fewer or other frames (finite, named
+# in ``damaged``), or is refused in one line; streamed (open_stream) it gives the frames it
+# counted or stops with one line.
+
+
+def read_any(path: Path) -> dict:
+    from thermocal.io.open import open_recording, open_stream
+
+    source = open_recording(path)
+    rec = source.read_all()
+    assert len(rec.frames) + len(source.damaged) >= 1
+    try:
+        header = open_stream(path)
+        streamed = sum(len(f) for _, f in header.chunks(3))
+        assert streamed == header.n_frames, "open_stream gave another count than it said"
+    except ThermocalError as exc:
+        assert "\n" not in str(exc), str(exc)
+    return {"frames": np.asarray(rec.frames),
+            "fpa_c": None if rec.fpa_c is None else np.asarray(rec.fpa_c),
+            "time_s": None if rec.time_s is None else np.asarray(rec.time_s),
+            "bit_depth": rec.bit_depth}
+
+
+@pytest.fixture(scope="module")
+def flir_files(tmp_path_factory) -> dict[str, Path]:
+    from test_open_recording import _dji_xmp, _dualtau_file, _fff, _frames, _rjpeg
+
+    folder = tmp_path_factory.mktemp("flir")
+    frames = _frames(4, h=H, w=W, seed=7)
+    (folder / "f.seq").write_bytes(b"".join(_fff(fr, ms=40 * k) for k, fr in enumerate(frames)))
+    (folder / "f.csq").write_bytes(b"".join(_fff(fr, codec="jpegls", ms=40 * k)
+                                            for k, fr in enumerate(frames)))
+    (folder / "f.jpg").write_bytes(_rjpeg(_fff(frames[0], codec="jpegls"), parts=2,
+                                          xmp=_dji_xmp(30)))
+    _dualtau_file(folder / "f.npz", frames, np.full(4, 3010), 1_700_000_000_000_000_000)
+    return {p.suffix[1:]: p for p in sorted(folder.iterdir())}
+
+
+@pytest.mark.parametrize("kind", ["seq", "csq", "jpg", "npz"])
+def test_fuzzed_flir_and_dualtau_files_are_read_unchanged_fewer_or_refused(flir_files, kind,
+                                                                          tmp_path):
+    source = flir_files[kind]
+    rng = np.random.default_rng(19)
+    want = read_any(source)
+    data = source.read_bytes()
+    outcomes = []
+    for i in range(150):
+        path = tmp_path / f"m{i}{source.suffix}"
+        path.write_bytes(_flip_bytes(data, rng) if i % 2 else _flip_header_bytes(data, rng))
+        outcomes.append((f"mutant {i}", _outcome(path, read_any, want)))
+        path.unlink()
+    counts = _tally(outcomes, 150)
+    print(f"{kind}: {counts}")
+    assert counts.get(REFUSED, 0) + counts.get(DIFFERENT, 0) > 15, counts

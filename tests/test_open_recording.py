@@ -23,6 +23,7 @@ from thermocal.io.fff import parse_fff_record, planck_from_metadata
 from thermocal.io.open import FORMATS, open_recording
 from thermocal.io.recording import Recording, write_recording
 from thermocal.radiometry import FlirPlanck
+from thermocal.simulate.formats import fff_record
 
 K0 = 273.15
 
@@ -102,58 +103,13 @@ def _fff(raw: np.ndarray, *, order: str = ">", codec: str = "plain", r1: float =
          r2: float = 0.02, b: float = 1430.0, f: float = 1.0, o: int = -300,
          emissivity: float = 0.9, model: str = "Synthetic Tau2", epoch: int = 1_700_000_000,
          ms: int = 0, gps: tuple[float, float, float] | None = None) -> bytes:
-    """One FFF record in byte order ``order`` (exiftool FLIR.pm layout)."""
-    h, w = raw.shape
-    if codec == "plain":
-        payload = raw.astype(order + "u2").tobytes()
-    elif codec == "jpegls":
-        import imagecodecs
-
-        payload = imagecodecs.jpegls_encode(raw.astype(np.uint16))
-    elif codec == "tiff":
-        import tifffile
-
-        buf = io.BytesIO()
-        tifffile.imwrite(buf, raw.astype(np.uint16))
-        payload = buf.getvalue()
-    else:
-        raise AssertionError(codec)
-    rec_raw = bytearray(32)
-    struct.pack_into(order + "HHH", rec_raw, 0, 2, w, h)
-    rec_raw += payload
-    cam = bytearray(0x480)
-    struct.pack_into(order + "H", cam, 0, 2)
-    for off, val in ((0x20, emissivity), (0x24, 10.0), (0x28, 20.0 + K0), (0x2C, 15.0 + K0),
-                     (0x30, 20.0 + K0), (0x34, 1.0), (0x3C, 0.4), (0x58, r1), (0x5C, b),
-                     (0x60, f), (0x70, 0.006569), (0x74, 0.01262), (0x78, -0.002276),
-                     (0x7C, -0.00667), (0x80, 1.9), (0x1B4, 24.0), (0x30C, r2)):
-        struct.pack_into(order + "f", cam, off, val)
-    cam[0xD4 : 0xD4 + len(model)] = model.encode()
-    struct.pack_into(order + "i", cam, 0x308, o)
-    struct.pack_into(order + "IIh", cam, 0x384, epoch, ms, -60)
-    struct.pack_into(order + "H", cam, 0x464, 30)
-    records = [(1, 2, bytes(rec_raw)), (32, 1, bytes(cam))]
-    if gps is not None:
-        g = bytearray(0x68)
-        struct.pack_into(order + "I", g, 0, 1)
-        g[8:10], g[10:12] = (b"N\x00" if gps[0] >= 0 else b"S\x00"), (
-            b"E\x00" if gps[1] >= 0 else b"W\x00")
-        struct.pack_into(order + "ddf", g, 0x10, abs(gps[0]), abs(gps[1]), gps[2])
-        g[0x58:0x5D] = b"WGS84"
-        records.append((43, 1, bytes(g)))
-    head = bytearray(64)
-    head[:4] = b"FFF\x00"
-    head[4:8] = b"SYNT"
-    struct.pack_into(order + "III", head, 0x14, 100, 64, len(records))
-    offset = 64 + 32 * len(records)
-    directory, body = bytearray(), bytearray()
-    for k, (rtype, sub, data) in enumerate(records):
-        entry = bytearray(32)
-        struct.pack_into(order + "HHIIII", entry, 0, rtype, sub, 100, k + 1,
-                         offset + len(body), len(data))
-        directory += entry
-        body += data
-    return bytes(head + directory + body)
+    """One FFF record in byte order ``order`` (:func:`thermocal.simulate.formats.fff_record`)
+    with these constants, a 24° lens, the camera's clock at UTC+01:00."""
+    planck = FlirPlanck(r1, r2, b, f, o, emissivity=emissivity, distance_m=10.0,
+                        reflected_c=20.0, atmosphere_c=15.0, ir_window_c=20.0, humidity=0.4)
+    return fff_record(raw, planck=planck, time_epoch_s=epoch + ms / 1000.0, gps=gps,
+                      order=order, codec=codec, creator="SYNT", model=model,
+                      field_of_view_deg=24.0, utc_offset_min=60)
 
 
 def _rjpeg(record: bytes, *, parts: int = 2, xmp: str | None = None) -> bytes:
@@ -314,12 +270,22 @@ def test_seq_streams_records_in_order(tmp_path):
     assert open_recording(padded).n_frames == 2
 
 
-def test_seq_truncated_names_the_frame(tmp_path):
-    seq = b"".join(_fff(fr) for fr in _frames(3))
+def test_seq_truncated_last_record_is_left_out_and_named(tmp_path):
+    frames = _frames(3)
+    seq = b"".join(_fff(fr) for fr in frames)
     path = tmp_path / "cut.seq"
     path.write_bytes(seq[:-100])
-    with pytest.raises(FileFormatError, match=r"cut\.seq \(frame 2\): truncated"):
-        open_recording(path)
+    src = open_recording(path)
+    assert src.n_frames == 2 and [w for w, _ in src.damaged] == ["2"]
+    assert src.damaged[0][1].startswith("truncated")
+    np.testing.assert_array_equal(src.read_all().frames, frames[:2])
+    assert src.damaged_summary() == f"skipped 1 damaged frame of {path}: 2 ({src.damaged[0][1]})"
+    # a single record cut short: nothing to read, one line naming the file
+    one = tmp_path / "one.fff"
+    one.write_bytes(_fff(frames[0])[:-100])
+    with pytest.raises(FileFormatError, match=r"one\.fff: truncated") as exc:
+        open_recording(one)
+    _one_line(exc)
 
 
 def test_csq_corrupt_frame_is_found_while_streaming(tmp_path):

@@ -152,6 +152,12 @@ def simulate_chamber_cmd(
     click.echo(f"wrote {n} frames of {camera.shape[1]}x{camera.shape[0]} to {out}")
 
 
+#: ``simulate flight --format`` choices (:data:`thermocal.simulate.formats.WRITE_FORMATS`) and
+#: the name of the frames in OUT_DIR where it is not ``frames`` (a folder) or frames.tiff.
+FLIGHT_FORMATS = ("tiff", "seq", "csq", "fff", "rjpeg", "dji-rjpeg", "dualtau")
+_FLIGHT_FRAMES = {"seq": "frames.seq", "csq": "frames.csq"}
+
+
 @simulate.command("flight")
 @click.argument("out_dir", type=click.Path(path_type=Path))
 @click.option(
@@ -168,9 +174,15 @@ def simulate_chamber_cmd(
     "--motion", type=click.Choice(["walk", "hover", "uav"]), default="walk", show_default=True
 )
 @click.option("--fps", type=float, default=30.0, show_default=True, help="Frame rate, Hz.")
+@click.option(
+    "--format", "fmt", type=click.Choice(FLIGHT_FORMATS), default="tiff", show_default=True,
+    help="File format of the frames: the project's frames.tiff + frames.json, a FLIR "
+    "frames.seq/frames.csq, or a folder frames/ of FFF files, FLIR or DJI XT-R R-JPEGs, or "
+    "DualTauUAV .npz files (then frames.json becomes flight.json).",
+)
 def simulate_flight_cmd(
     out_dir: Path, scene: str, n_frames: int, seed: int, unit: int, preset: str, size: str,
-    fpa_c: float, motion: str, fps: float,
+    fpa_c: float, motion: str, fps: float, fmt: str,
 ) -> None:
     """Simulate a flight over a scene into OUT_DIR (frames.tiff/json, truth.tiff, homographies)."""
     from thermocal._validate import parse_size
@@ -179,6 +191,7 @@ def simulate_flight_cmd(
 
     # every check before the folder is made (write_simulated_flight makes it)
     check_output_dir(out_dir)
+    frames_out = _check_flight_format(out_dir, fmt)
     check_fpa_c(fpa_c, "--fpa-c")
     width, height = parse_size(size)
     check_flight_run(n_frames, (height, width), motion=motion, fps=fps, folder=out_dir)
@@ -197,7 +210,29 @@ def simulate_flight_cmd(
         write_simulated_flight(
             out_dir, plan, camera, extra=extra, progress=lambda k: bar.advance(task, k)
         )
+    if frames_out is not None:  # the frames in a camera's format, converted in a stream
+        from thermocal.simulate.formats import convert_recording
+
+        convert_recording(out_dir / "frames.tiff", frames_out, format=fmt, fps=fps)
+        os.replace(out_dir / "frames.json", out_dir / "flight.json")
+        (out_dir / "frames.tiff").unlink()
     click.echo(f"wrote {n_frames} frames ({motion}, scene {scene_name}) to {out_dir}")
+
+
+def _check_flight_format(out_dir: Path, fmt: str) -> Path | None:
+    """Where ``simulate flight --format FMT`` puts the frames other than in frames.tiff
+    (OUT_DIR/frames.seq, frames.csq, or the folder OUT_DIR/frames), checked before any work;
+    None for tiff."""
+    if fmt == "tiff":
+        return None
+    from thermocal.simulate.formats import FILE_LIKE_SUFFIXES, check_output_path
+
+    if out_dir.suffix.lower() in FILE_LIKE_SUFFIXES:
+        raise InvalidInputError(
+            f"{out_dir}: OUT_DIR is a folder, not a {out_dir.suffix} file; simulate flight "
+            f"--format {fmt} writes its frames into OUT_DIR/{_FLIGHT_FRAMES.get(fmt, 'frames')}")
+    return check_output_path(out_dir / _FLIGHT_FRAMES.get(fmt, "frames"), format=fmt,
+                             parent_made_later=True)
 
 
 def load_scene_or_procedural(scene: str, *, seed: int):
@@ -242,6 +277,8 @@ COMMANDS: list[tuple[str, str]] = [
     ("thermocal.estimation.commands", "estimate"),
     ("thermocal.nn.commands", "train"),
     ("thermocal.pipeline.commands", "flight"),
+    ("thermocal.pipeline.commands", "mosaic"),
+    ("thermocal.pipeline.commands", "report"),
     ("thermocal.io.commands", "info"),
     ("thermocal.bench", "bench"),
 ]

@@ -178,3 +178,16 @@ def mae_vs_frames_figure(results: dict):
         ax.set_title(textwrap.fill(results["note"], 90), fontsize=7)
     fig.tight_layout()
     return fig
+
+
+def figure_png(fig, *, dpi: int = 110) -> bytes:
+    """``fig`` as PNG bytes (to embed in a page), and close it."""
+    import io
+
+    plt = _pyplot()
+    try:
+        buffer = io.BytesIO()
+        fig.savefig(buffer, dpi=dpi, bbox_inches="tight", format="png")
+    finally:
+        plt.close(fig)
+    return buffer.getvalue()

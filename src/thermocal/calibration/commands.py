@@ -155,7 +155,7 @@ def _frames_text(method: str, counts: dict) -> tuple[str, str]:
 
 
 @click.command(epilog=method_help())
-@click.argument("frames", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("frames", type=click.Path(path_type=Path))
 @click.option("--calibration", "calibration_path", type=click.Path(dir_okay=False, path_type=Path),
               required=True, help="Calibration file made by `thermocal calibrate`.")
 @click.option("--fpa-c", type=float, default=None,
@@ -172,17 +172,19 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
             sigma_out: Path | None, force: bool) -> None:
     """Turn a recording's raw frames into temperatures (°C) with a calibration file of any
     method (the file records which). Frames outside the FPA and scene ranges of the
-    calibration's chamber session are refused unless --force."""
+    calibration's chamber session are refused unless --force. FRAMES: a file or a folder in any
+    format `thermocal info` reads; damaged frames are left out with a warning naming them."""
     from thermocal.calibration.base import ThermocalWarning
     from thermocal.calibration.dataset import recording_fpa_rates
     from thermocal.calibration.registry import load_any_calibration
     from thermocal.calibration.uncertainty import REMEDY, CalibrationSigma
     from thermocal.errors import OutsideDomainError
-    from thermocal.io.open import read_any_recording
+    from thermocal.io.open import check_outside_recording, read_any_recording
     from thermocal.io.recording import write_sigma_tiff, write_temperature_tiff
 
     check_output_file(out, TIFF_SUFFIXES)
     check_not_input(out, frames, calibration_path)
+    check_outside_recording(frames, (out, "--out"), (sigma_out, "--sigma-out"))
     if sigma_out is not None:
         check_output_file(sigma_out, TIFF_SUFFIXES)
         check_not_input(sigma_out, frames, calibration_path, what="--sigma-out")

@@ -42,11 +42,12 @@ def estimate_file(
     warning that names why. ``sigma_out``: where to write its uncertainty (float32 °C, 1σ,
     ``(H, W)``), refused before any work when the estimator has none.
     """
-    from thermocal.io.open import read_any_recording
+    from thermocal.io.open import check_outside_recording, read_any_recording
     from thermocal.io.recording import write_sigma_tiff, write_temperature_tiff
 
     out = check_output_file(out, TIFF_SUFFIXES)
     check_not_input(out, frames_path, calibration, model_path)
+    check_outside_recording(frames_path, (out, "--out"), (sigma_out, "--sigma-out"))
     if sigma_out is not None:
         sigma_out = check_output_file(sigma_out, TIFF_SUFFIXES)
         check_not_input(sigma_out, frames_path, calibration, model_path, what="--sigma-out")
@@ -98,7 +99,7 @@ NO_SIGMA_REMEDY = {
 
 
 @click.command("estimate")
-@click.argument("frames", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("frames", type=click.Path(path_type=Path))
 @click.option(
     "--out",
     "out",
@@ -153,7 +154,9 @@ def estimate(
     Oz et al.'s KPN + offset; --method for the others).
 
     FRAMES are whole sensor frames as the camera gave them (not crops): a model trained with
-    --radial uses where on the sensor each pixel lies."""
+    --radial uses where on the sensor each pixel lies. FRAMES: a file or a folder in any format
+    `thermocal info` reads (the project's TIFF + JSON, FLIR FFF/SEQ/CSQ, R-JPEGs, DualTauUAV);
+    damaged frames are left out with a warning naming them."""
     estimate_file(
         frames,
         out,

@@ -15,12 +15,14 @@ __all__ = ["info", "recording_summary"]
 def recording_summary(path: str | Path) -> dict[str, Any]:
     """What a recording holds (one pass over its frames' series and metadata, frames streamed):
     format, frame count and size, bit depth, FPA range and sampling, time span, GPS, the Planck
-    constants of its first frame. JSON values."""
+    constants of its first frame, and the frames left out as damaged (those found at open and
+    those whose raw image does not decode). JSON values."""
     from thermocal.io.open import open_recording
 
     source = open_recording(path)
-    fpa, measured, times, first_meta, gps = [], [], [], None, 0
-    for chunk in source.iter_frames():
+    fpa, measured, times, first_meta, gps, n = [], [], [], None, 0, 0
+    for chunk in source.iter_frames(skip_undecodable=True):
+        n += len(chunk)
         if chunk.fpa_c is not None:
             fpa.append(np.asarray(chunk.fpa_c, dtype=np.float64))
             if chunk.fpa_measured is not None:
@@ -32,10 +34,16 @@ def recording_summary(path: str | Path) -> dict[str, Any]:
             first_meta = metas[0]
         gps += sum(1 for m in metas if m.get("gps"))
     out: dict[str, Any] = {
-        "path": str(path), "format": source.format, "frames": source.n_frames,
+        "path": str(path), "format": source.format, "frames": n,
         "size": f"{source.frame_shape[1]}x{source.frame_shape[0]}",
         "bit_depth": source.bit_depth, "frames_with_gps": gps,
+        "damaged_frames": [{"frame": w, "reason": r} for w, r in source.damaged],
+        "damaged_summary": source.damaged_summary(),
     }
+    if n == 0:
+        from thermocal.io.open import no_frames_error
+
+        raise no_frames_error(source.path, source.damaged)
     if fpa:
         f = np.concatenate(fpa)
         read = int(np.concatenate(measured).sum()) if measured else int(f.size)
@@ -60,6 +68,8 @@ def info(path: Path) -> None:
     span, GPS, Planck constants. PATH: a file or a folder in any format thermocal reads (the
     project's TIFF + JSON, FLIR FFF/SEQ/CSQ, R-JPEG, DualTauUAV, EnvChamberCtrl)."""
     s = recording_summary(path)
+    if s["damaged_summary"]:
+        click.echo(f"thermocal: warning: {s['damaged_summary']}", err=True)
     click.echo(f"{s['path']}: {s['format']}, {s['frames']} frame(s) of {s['size']}, "
                f"{s['bit_depth']}-bit")
     if "fpa_c" in s:
@@ -72,6 +82,9 @@ def info(path: Path) -> None:
     if "time_span_s" in s:
         click.echo(f"  time span {s['time_span_s']:.3f} s")
     click.echo(f"  GPS in {s['frames_with_gps']} of {s['frames']} frames")
+    if s["damaged_frames"]:
+        listed = ", ".join(f"{d['frame']} ({d['reason']})" for d in s["damaged_frames"])
+        click.echo(f"  damaged frames left out: {listed}")
     for key in ("camera_model", "datetime"):
         if key in s:
             click.echo(f"  {key.replace('_', ' ')}: {s[key]}")

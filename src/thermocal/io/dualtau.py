@@ -16,7 +16,17 @@ key                 type, shape                            meaning
 =================== ====================================== =====================================
 
 A flight is the folder's files ordered by their first ``time_ns_start`` (then by name);
-``time_s`` is ``time_ns_start`` minus the flight's first, in s.
+``time_s`` is ``time_ns_start`` minus the flight's first, in s. Frames whose times go backwards
+inside a file, or files whose times overlap, are refused (naming the file): the frames cannot
+be put in order without guessing. A file that cannot be read (a damaged zip, an array that does
+not load) is left out of the flight and listed in :attr:`DualTauIndex.damaged`; a file without
+the arrays above is refused.
+
+**FPA unit.** Values whose hundredths are a plausible FPA temperature (−60…120 °C) are read as
+hundredths of °C, the rig's unit. Values that are clearly in another unit are converted with a
+warning: integers whose thousandths less 273.15 are plausible (millikelvin), fractional values
+plausible as °C or as kelvin. Integers all within ±120 would be an FPA held within ±1.2 °C of
+freezing in hundredths and are as likely whole °C: refused, since either reading may be wrong.
 
 **FPA temperature.** The rig reads it from the camera only every 30 s, rounded to 0.1 °C, and
 repeats the last reading on every frame. A *reading* is taken to be the first frame and every
@@ -30,6 +40,7 @@ shape, so that the frames can be streamed file by file (:func:`read_dualtau_fram
 
 from __future__ import annotations
 
+import warnings
 import zipfile
 from dataclasses import dataclass
 from pathlib import Path
@@ -38,6 +49,7 @@ from typing import Any
 import numpy as np
 
 from thermocal._validate import FPA_RANGE_C
+from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import FileFormatError
 
 __all__ = [
@@ -55,7 +67,8 @@ DUALTAU_KEYS: tuple[str, ...] = ("frames", "fpa", "time_ns_start")
 
 @dataclass(frozen=True)
 class DualTauIndex:
-    """A flight's files in time order and its per-frame series (frames not loaded)."""
+    """A flight's files in time order and its per-frame series (frames not loaded);
+    ``damaged``: ``(file name, reason)`` of the files left out as unreadable."""
 
     files: tuple[Path, ...]
     counts: tuple[int, ...]
@@ -65,6 +78,11 @@ class DualTauIndex:
     fpa_c: np.ndarray
     fpa_measured: np.ndarray
     fpa_readings_c: np.ndarray
+    damaged: tuple[tuple[str, str], ...] = ()
+
+
+class UnreadableFileError(FileFormatError):
+    """A file that cannot be read (damaged), as opposed to one of another layout."""
 
 
 def npz_keys(path: Path) -> list[str]:
@@ -73,7 +91,7 @@ def npz_keys(path: Path) -> list[str]:
         with zipfile.ZipFile(path) as zf:
             return [n[:-4] if n.endswith(".npy") else n for n in zf.namelist()]
     except (OSError, zipfile.BadZipFile, ValueError) as exc:
-        raise FileFormatError(f"{path}: not a readable .npz file ({exc})") from None
+        raise UnreadableFileError(f"{path}: not a readable .npz file ({exc})") from None
 
 
 def _frames_shape(path: Path) -> tuple[int, ...]:
@@ -86,7 +104,7 @@ def _frames_shape(path: Path) -> tuple[int, ...]:
             else:
                 shape, _, dtype = np.lib.format.read_array_header_2_0(fh)
     except Exception as exc:  # zipfile and numpy raise many types on damaged files
-        raise FileFormatError(f"{path}: 'frames' cannot be read ({exc})") from None
+        raise UnreadableFileError(f"{path}: 'frames' cannot be read ({exc})") from None
     if dtype.kind not in "ui" or len(shape) not in (2, 3):
         raise FileFormatError(
             f"{path}: 'frames' must be integer counts (N, H, W), got {dtype} {shape}"
@@ -94,28 +112,45 @@ def _frames_shape(path: Path) -> tuple[int, ...]:
     return tuple(int(v) for v in shape)
 
 
-def _centi_c(values: np.ndarray, n: int, path: Path) -> np.ndarray:
+def _fpa_c(values: np.ndarray, n: int, path: Path) -> tuple[np.ndarray, str]:
+    """The ``fpa`` of one file in °C and the unit it was read in (``"1/100 °C"``, ``"°C"``,
+    ``"K"``, ``"mK"``); see the module's notes on the FPA unit."""
     arr = np.asarray(values)
     if arr.dtype.kind not in "iuf" or arr.ndim > 1:
         raise FileFormatError(f"{path}: 'fpa' must hold 1/100 °C numbers, got {arr.dtype} "
                               f"{arr.shape}")
     if arr.dtype == np.uint16 and arr.size and int(arr.max()) > 32767:
         arr = arr.view(np.int16)  # negative temperatures saved with astype('uint16')
-    arr = arr.astype(np.float64).reshape(-1) / 100.0
-    if arr.size == 1:
-        arr = np.full(n, arr[0])
-    if arr.size != n:
-        raise FileFormatError(f"{path}: 'fpa' has {arr.size} values for {n} frames")
+    v = arr.astype(np.float64).reshape(-1)
+    if v.size == 1:
+        v = np.full(n, v[0])
+    if v.size != n:
+        raise FileFormatError(f"{path}: 'fpa' has {v.size} values for {n} frames")
+    if not n:
+        return v, "1/100 °C"
+    if not np.all(np.isfinite(v)):
+        raise FileFormatError(f"{path}: 'fpa' holds NaN or infinite values")
     lo, hi = FPA_RANGE_C
-    if not np.all(np.isfinite(arr)) or (arr.size and (arr.min() < lo or arr.max() > hi)):
-        raise FileFormatError(
-            f"{path}: 'fpa' gives {arr.min():.2f}..{arr.max():.2f} °C after dividing by 100; "
-            f"expected hundredths of °C of a camera ({lo:g}..{hi:g} °C)"
-        )
-    return arr
+
+    def plausible(c: np.ndarray) -> bool:
+        return bool(c.min() >= lo and c.max() <= hi)
+
+    whole = bool(np.all(v == np.round(v)))
+    if whole and plausible(v / 100.0):
+        return v / 100.0, "1/100 °C"
+    if whole and plausible(v / 1000.0 - ZERO_CELSIUS_K):
+        return v / 1000.0 - ZERO_CELSIUS_K, "mK"
+    if not whole and plausible(v):
+        return v, "°C"
+    if not whole and plausible(v - ZERO_CELSIUS_K):
+        return v - ZERO_CELSIUS_K, "K"
+    raise FileFormatError(
+        f"{path}: 'fpa' holds {v.min():g}..{v.max():g}, no plausible FPA temperature "
+        f"({lo:g}..{hi:g} °C) in any unit thermocal knows (the rig's 1/100 °C; °C, K, mK)"
+    )
 
 
-def _small_arrays(path: Path) -> tuple[np.ndarray, np.ndarray, tuple[int, int], int]:
+def _small_arrays(path: Path) -> tuple[np.ndarray, str, np.ndarray, tuple[int, int], int]:
     keys = npz_keys(path)
     missing = [k for k in DUALTAU_KEYS if k not in keys]
     if missing:
@@ -129,14 +164,43 @@ def _small_arrays(path: Path) -> tuple[np.ndarray, np.ndarray, tuple[int, int], 
             fpa = npz["fpa"]
             t_ns = npz["time_ns_start"]
     except Exception as exc:  # numpy/zipfile raise many types on damaged files
-        raise FileFormatError(f"{path}: an array cannot be read ({exc})") from None
+        raise UnreadableFileError(f"{path}: an array cannot be read ({exc})") from None
     t_ns = np.asarray(t_ns).reshape(-1)
     if t_ns.dtype.kind not in "iu" or t_ns.size != n:
         raise FileFormatError(
             f"{path}: 'time_ns_start' must be {n} integers (one per frame), got {t_ns.dtype} "
             f"{t_ns.shape}"
         )
-    return _centi_c(fpa, n, path), t_ns.astype(np.int64), (shape[-2], shape[-1]), n
+    t_ns = t_ns.astype(np.int64)
+    if np.any(np.diff(t_ns) < 0):
+        k = int(np.flatnonzero(np.diff(t_ns) < 0)[0]) + 1
+        raise FileFormatError(
+            f"{path}: frame times go backwards inside the file (frame {k} is "
+            f"{(t_ns[k - 1] - t_ns[k]) / 1e9:.9g} s before frame {k - 1}); thermocal reads "
+            "frames in time order only"
+        )
+    return (*_fpa_c(fpa, n, path), t_ns, (shape[-2], shape[-1]), n)
+
+
+def _check_fpa_units(units: dict[str, str], entries: list, folder: Path) -> None:
+    """One FPA unit for the flight; a warning when it is not the rig's; refused when the
+    hundredths are as likely whole °C (every value within ±120)."""
+    if len(units) > 1:
+        found = ", ".join(f"{u} ({name})" for u, name in units.items())
+        raise FileFormatError(f"{folder}: files with 'fpa' in different units ({found})")
+    unit = next(iter(units))
+    where = entries[0][2] if len(entries) == 1 else folder
+    if unit != "1/100 °C":
+        warnings.warn(f"{where}: 'fpa' is in {unit}, not the rig's 1/100 °C; converted to °C",
+                      stacklevel=3)
+        return
+    held = np.concatenate([e[3] for e in entries])
+    if float(np.abs(held).max()) <= 1.2:
+        raise FileFormatError(
+            f"{where}: 'fpa' holds {held.min() * 100:g}..{held.max() * 100:g}: as the rig's "
+            f"1/100 °C an FPA within ±1.2 °C of freezing all flight, more likely whole °C; "
+            "save it in 1/100 °C (multiply by 100) to be read"
+        )
 
 
 def interpolate_fpa_readings(time_s: np.ndarray, held_c: np.ndarray) -> tuple[
@@ -164,17 +228,24 @@ def index_dualtau_folder(folder: Path, files: list[Path] | None = None) -> DualT
     Raises
     ------
     FileFormatError
-        No ``.npz`` file, a file without the DualTauUAV arrays, files of different frame sizes,
-        or times that go backwards within the flight.
+        No ``.npz`` file, a file without the DualTauUAV arrays or with its FPA in no known unit,
+        files of different frame sizes or FPA units, times that go backwards within a file or
+        files that overlap in time, or no file that can be read.
     """
     paths = sorted(files if files is not None else folder.glob("*.npz"))
     if not paths:
         raise FileFormatError(f"{folder}: no DualTauUAV .npz file in the folder")
     entries: list[tuple[int, str, Path, np.ndarray, np.ndarray, int]] = []
+    damaged: list[tuple[str, str]] = []
+    units: dict[str, str] = {}
     shape: tuple[int, int] | None = None
     first: Path | None = None
     for p in paths:
-        fpa_c, t_ns, shp, n = _small_arrays(p)
+        try:
+            fpa_c, unit, t_ns, shp, n = _small_arrays(p)
+        except UnreadableFileError as exc:
+            damaged.append((p.name, str(exc).removeprefix(f"{p}: ")))
+            continue
         if shape is None:
             shape, first = shp, p
         elif shp != shape:
@@ -184,17 +255,25 @@ def index_dualtau_folder(folder: Path, files: list[Path] | None = None) -> DualT
             )
         if n == 0:
             continue
+        units.setdefault(unit, p.name)
         entries.append((int(t_ns[0]), p.name, p, fpa_c, t_ns, n))
-    if not entries or shape is None:
+    if shape is None:
+        if len(damaged) == 1 and files is not None and len(paths) == 1:
+            raise FileFormatError(f"{paths[0]}: {damaged[0][1]}")
+        raise FileFormatError(f"{folder}: none of its {len(damaged)} DualTauUAV files can be "
+                              f"read (the first, {damaged[0][0]}: {damaged[0][1]})")
+    if not entries:
         raise FileFormatError(f"{folder}: the DualTauUAV files hold no frames")
+    _check_fpa_units(units, entries, folder)
     entries.sort(key=lambda e: (e[0], e[1]))
+    for before, after in zip(entries, entries[1:], strict=False):
+        if after[0] < before[4][-1]:
+            raise FileFormatError(
+                f"{after[2]}: its frames overlap in time those of {before[1]} (it starts "
+                f"{(before[4][-1] - after[0]) / 1e9:.3f} s before that file's last frame); "
+                "two recordings in one folder?"
+            )
     t_all = np.concatenate([e[4] for e in entries])
-    if np.any(np.diff(t_all) < 0):
-        k = int(np.flatnonzero(np.diff(t_all) < 0)[0]) + 1
-        owner = np.searchsorted(np.cumsum([e[5] for e in entries]), k, side="right")
-        raise FileFormatError(
-            f"{entries[owner][2]}: frame times go backwards (frame {k} of the flight)"
-        )
     origin = int(t_all[0])
     time_s = (t_all - origin).astype(np.float64) / 1e9
     held = np.concatenate([e[3] for e in entries])
@@ -208,6 +287,7 @@ def index_dualtau_folder(folder: Path, files: list[Path] | None = None) -> DualT
         fpa_c=fpa_c,
         fpa_measured=measured,
         fpa_readings_c=held,
+        damaged=tuple(damaged),
     )
 
 
@@ -218,7 +298,7 @@ def read_dualtau_frames(path: Path, expected: tuple[int, ...]) -> np.ndarray:
         with np.load(path, allow_pickle=False) as npz:
             frames: Any = npz["frames"]
     except Exception as exc:  # numpy/zipfile raise many types on damaged files
-        raise FileFormatError(f"{path}: 'frames' cannot be read ({exc})") from None
+        raise UnreadableFileError(f"{path}: 'frames' cannot be read ({exc})") from None
     frames = np.asarray(frames)
     if frames.ndim == 2:
         frames = frames[None]

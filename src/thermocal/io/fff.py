@@ -49,8 +49,11 @@ from thermocal.radiometry import FlirPlanck
 __all__ = [
     "FFF_MAGICS",
     "FffFrame",
+    "error_reason",
     "fff_frame_shape",
     "fff_raw_codec",
+    "fff_raw_image",
+    "fff_record_metadata",
     "index_fff_series",
     "parse_fff_record",
     "planck_from_metadata",
@@ -198,7 +201,32 @@ def parse_fff_record(data: bytes, name: str) -> FffFrame:
     ------
     FileFormatError
         A missing signature, an unknown version, a truncated record, no raw-data or camera-info
-        record, a raw image that does not match its declared size, or invalid Planck constants.
+        record, a raw image that does not match its declared size or does not decode, or
+        invalid Planck constants.
+    """
+    _, planck, meta = fff_record_metadata(data, name)
+    return FffFrame(fff_raw_image(data, name), planck, meta)
+
+
+def fff_raw_image(data: bytes, name: str) -> np.ndarray:
+    """The raw counts of a record that :func:`fff_record_metadata` passed, decoded."""
+    return _raw_image(data, _directory(data, 0, len(data), name)[2][_RAW_DATA], name)
+
+
+def fff_record_metadata(data: bytes, name: str) -> tuple[tuple[int, int], FlirPlanck,
+                                                         dict[str, Any]]:
+    """Check one FFF record without decoding its raw image: ``((H, W), planck, metadata)``.
+
+    Every check of :func:`parse_fff_record` but the decoding itself: the header, the
+    directory, the records' lengths, the Planck constants and, of the raw image, its declared
+    size against its bytes (plain counts), or the structure of its compressed stream (JPEG-LS
+    or PNG: signature, declared size, end marker). A record that passes may still fail to
+    decode when its compressed data are damaged inside.
+
+    Raises
+    ------
+    FileFormatError
+        As :func:`parse_fff_record`.
     """
     _, creator, records, _ = _directory(data, 0, len(data), name)
     for rtype, what in ((_RAW_DATA, "raw data"), (_CAMERA_INFO, "camera info")):
@@ -217,7 +245,7 @@ def parse_fff_record(data: bytes, name: str) -> FffFrame:
     cam_off, cam_len = records[_CAMERA_INFO][1], records[_CAMERA_INFO][2]
     if cam_len < 0x310:
         raise FileFormatError(f"{name}: FFF camera info record is too short for Planck constants")
-    raw = _raw_image(data, records[_RAW_DATA], name)
+    shape = _check_raw_payload(data, records[_RAW_DATA], name)
     planck = fff_camera_info(data, cam_off, Path(name))
     meta = _camera_metadata(data, cam_off, cam_len)
     meta["creator"] = creator
@@ -227,18 +255,59 @@ def parse_fff_record(data: bytes, name: str) -> FffFrame:
         _, g_off, g_len = records[_GPS_INFO]
         if g_len >= 0x68 and g_off + g_len <= len(data):
             meta["gps"] = _gps(data, g_off)
-    return FffFrame(raw, planck, meta)
+    return shape, planck, meta
 
 
-def _raw_image(data: bytes, record: tuple[int, int, int], name: str) -> np.ndarray:
+_PNG_END = b"IEND\xaeB`\x82"
+
+
+def _check_raw_payload(data: bytes, record: tuple[int, int, int], name: str) -> tuple[int, int]:
+    """``(H, W)`` of a raw-data record, after the checks that need no decoding."""
     subtype, offset, length = record
     if length < 32:
         raise FileFormatError(f"{name}: FFF raw data record is too short")
     order = fff_record_order(data, offset)
     width, height = struct.unpack_from(order + "HH", data, offset + 2)
+    if width == 0 or height == 0:
+        raise FileFormatError(f"{name}: FFF raw data record declares a {width}x{height} image")
+    payload = memoryview(data)[offset + 32 : offset + length]
+    magic = bytes(payload[:4])
+    tail = bytes(payload[-64:]).rstrip(b"\x00")
+    if magic[:3] == b"\xff\xd8\xff":  # JPEG-LS
+        if not tail.endswith(b"\xff\xd9"):
+            raise FileFormatError(f"{name}: truncated FFF record (compressed raw image cut short)")
+        head = bytes(payload[:512])
+        sof = head.find(b"\xff\xf7")
+        if sof != -1 and sof + 9 <= len(head):
+            rows, cols = struct.unpack_from(">HH", head, sof + 5)
+            if (rows, cols) != (height, width):
+                raise FileFormatError(
+                    f"{name}: compressed raw image is {cols}x{rows}, its record says "
+                    f"{width}x{height}"
+                )
+    elif magic == b"\x89PNG":
+        if not tail.endswith(_PNG_END):
+            raise FileFormatError(f"{name}: truncated FFF record (PNG raw image cut short)")
+        if len(payload) >= 24:
+            cols, rows = struct.unpack_from(">II", payload, 16)
+            if (rows, cols) != (height, width):
+                raise FileFormatError(
+                    f"{name}: PNG raw image is {cols}x{rows}, its record says {width}x{height}"
+                )
+    elif magic not in (b"II*\x00", b"MM\x00*") and len(payload) < 2 * width * height:
+        raise FileFormatError(
+            f"{name}: FFF raw data record holds {len(payload)} bytes, need "
+            f"{2 * width * height} for {width}x{height} (subtype {subtype}); truncated?"
+        )
+    return int(height), int(width)
+
+
+def _raw_image(data: bytes, record: tuple[int, int, int], name: str) -> np.ndarray:
+    """Decode a raw-data record that :func:`_check_raw_payload` passed."""
+    _, offset, length = record
+    order = fff_record_order(data, offset)
+    width, height = struct.unpack_from(order + "HH", data, offset + 2)
     payload = data[offset + 32 : offset + length]
-    if payload[:3] == b"\xff\xd8\xff" and not payload.rstrip(b"\x00").endswith(b"\xff\xd9"):
-        raise FileFormatError(f"{name}: truncated FFF record (compressed raw image cut short)")
     try:
         if payload[:4] == b"\x89PNG":  # PNG with byte-swapped 16-bit samples
             import cv2
@@ -257,17 +326,10 @@ def _raw_image(data: bytes, record: tuple[int, int, int], name: str) -> np.ndarr
             raw = imagecodecs.jpegls_decode(payload)
         else:
             n = width * height
-            if width == 0 or height == 0 or len(payload) < 2 * n:
-                raise FileFormatError(
-                    f"{name}: FFF raw data record holds {len(payload)} bytes, need {2 * n} for "
-                    f"{width}x{height} (subtype {subtype}); truncated?"
-                )
             raw = np.frombuffer(payload, np.dtype(order + "u2"), count=n).reshape(height, width)
-    except FileFormatError:
-        raise
     except Exception as exc:  # decoders raise many types on corrupt data
         raise FileFormatError(
-            f"{name}: corrupt compressed raw image ({type(exc).__name__}: {str(exc)[:80]})"
+            f"{name}: raw image does not decode ({type(exc).__name__}: {str(exc)[:80]})"
         ) from None
     raw = np.asarray(raw)
     if raw.shape != (height, width) or raw.dtype.kind not in "ui":
@@ -342,47 +404,79 @@ def _gps(data: bytes, off: int) -> dict[str, Any] | None:
 # --------------------------------------------------------------------------------------------
 # series (SEQ, CSQ)
 # --------------------------------------------------------------------------------------------
-def index_fff_series(buf: Any, size: int, name: str) -> list[tuple[int, int]]:
-    """``(offset, length)`` of every FFF record of a SEQ/CSQ file, reading only their headers.
+def index_fff_series(buf: Any, size: int, name: str) -> tuple[
+    list[tuple[int, int]], list[tuple[int, str]]
+]:
+    """Find the FFF records of a SEQ/CSQ file from their headers: ``(records, damaged)``.
 
-    ``buf`` is the file's bytes or a memory map of them (``size`` bytes). Records follow one
-    another; up to 64 KiB between them (padding) are skipped to the next ``"FFF\\0"``, and
-    bytes after the last record with no signature within 64 KiB are ignored.
-
-    Raises
-    ------
-    FileFormatError
-        No record at the start, or a record that runs past the end of the file (truncated).
+    ``records`` are the ``(offset, length)`` of the records whose header and directory parse;
+    ``damaged`` the ``(frame index in the file, reason)`` of those that do not: a header or
+    directory that does not parse, bytes where a record should start that are none (its
+    signature damaged), a last record cut short by the end of the file. ``buf`` is the file's
+    bytes or a memory map of them (``size`` bytes). Up to 64 KiB between records (padding) are
+    skipped to the next ``"FFF\\0"``; after a damaged record the next signature is looked for
+    one record length on, then anywhere further; bytes after the last record with no signature
+    after them are ignored.
     """
-    out: list[tuple[int, int]] = []
-    pos = 0
+    records_out: list[tuple[int, int]] = []
+    damaged: list[tuple[int, str]] = []
+    pos, stride = 0, 0
     while pos + 4 <= size:
-        where = f"{name} (frame {len(out)})" if out else name
-        _, _, records, dir_end = _directory(buf, pos, size - pos, where)
-        end = _record_end(records, dir_end)
-        if _RAW_DATA not in records:
-            raise FileFormatError(f"{where}: FFF record has no raw data record")
+        k = len(records_out) + len(damaged)
+        where = f"{name} (frame {k})" if k else name
+        try:
+            _, _, records, dir_end = _directory(buf, pos, size - pos, where)
+            if _RAW_DATA not in records:
+                raise FileFormatError(f"{where}: FFF record has no raw data record")
+            end = _record_end(records, dir_end)
+        except FileFormatError as exc:
+            damaged.append((k, error_reason(exc, where)))
+            nxt = _next_signature(buf, pos + 4, size, pos + stride if stride else None)
+            if nxt is None:
+                break
+            pos = nxt
+            continue
         if pos + end > size and not _only_padding_missing(buf, pos, records, size):
-            raise FileFormatError(
-                f"{where}: truncated (the record needs {end} bytes, the file has {size - pos} "
-                "left)"
-            )
+            nxt = _next_signature(buf, pos + 4, size, None)
+            if nxt is None:
+                damaged.append((k, f"truncated (the record needs {end} bytes, the file has "
+                                   f"{size - pos} left)"))
+                break
+            damaged.append((k, "record directory damaged (it runs past the end of the file)"))
+            pos = nxt
+            continue
         end = min(end, size - pos)
-        out.append((pos, end))
+        records_out.append((pos, end))
+        stride = end
         nxt = pos + end
         if bytes(buf[nxt : nxt + 4]) in FFF_MAGICS:
             pos = nxt
             continue
-        # padding between records: look for the next signature close by (bounded, so that
-        # indexing stays linear in the file size); bytes after the last record are ignored
-        window = bytes(buf[nxt : nxt + _MAX_GAP])
-        hits = [k for k in (window.find(m) for m in FFF_MAGICS) if k != -1]
-        if not hits:
+        # padding between records: a signature close by; further on, the record in between is
+        # damaged (its signature); none: bytes after the last record, ignored
+        found = _next_signature(buf, nxt, size, None)
+        if found is None:
             break
-        pos = nxt + min(hits)
-    if not out:
-        raise FileFormatError(f"{name}: no FFF record found")
-    return out
+        if found - nxt > _MAX_GAP:
+            damaged.append((k + 1, f"no FFF signature where the record starts ({found - nxt} "
+                                   "bytes skipped)"))
+        pos = found
+    return records_out, damaged
+
+
+def error_reason(exc: Exception, where: str) -> str:
+    """The message of ``exc`` without the ``where`` (and colon) it starts with."""
+    text = str(exc)
+    return text[len(where) + 2 :] if text.startswith(f"{where}: ") else text
+
+
+def _next_signature(buf: Any, start: int, size: int, guess: int | None) -> int | None:
+    """Offset of the next ``"FFF\\0"``/``"AFF\\0"`` at or after ``start`` (``guess`` first,
+    where the records are of one length); None when there is none."""
+    if guess is not None and start <= guess and bytes(buf[guess : guess + 4]) in FFF_MAGICS:
+        return guess
+    hits = [k for k in (buf.find(m, start, size) for m in FFF_MAGICS) if k != -1]
+    return min(hits) if hits else None
 
 
 def _only_padding_missing(
@@ -402,10 +496,17 @@ def _only_padding_missing(
     return tail.endswith(b"\xff\xd9")
 
 
-def read_fff_series_frame(buf: Any, entry: tuple[int, int], name: str) -> FffFrame:
-    """Decode the record ``entry = (offset, length)`` of :func:`index_fff_series`."""
+def read_fff_series_frame(buf: Any, entry: tuple[int, int], name: str, *,
+                          decode: bool = True) -> FffFrame:
+    """Decode the record ``entry = (offset, length)`` of :func:`index_fff_series`; with
+    ``decode=False`` its checks and metadata only (:func:`fff_record_metadata`), ``raw`` then
+    an empty ``(0, 0)`` array."""
     offset, length = entry
-    return parse_fff_record(bytes(buf[offset : offset + length]), name)
+    data = bytes(buf[offset : offset + length])
+    if decode:
+        return parse_fff_record(data, name)
+    _, planck, meta = fff_record_metadata(data, name)
+    return FffFrame(np.zeros((0, 0), np.uint16), planck, meta)
 
 
 def fff_record_order(data: bytes, offset: int) -> str:
@@ -443,5 +544,6 @@ def fff_camera_info(data: bytes, offset: int, p: Path) -> FlirPlanck:
             beta2=f32(0x7C),
             x=f32(0x80),
         )
-    except InvalidInputError as exc:
+    except (InvalidInputError, ArithmeticError, ValueError) as exc:  # a damaged record's
+        # numbers may overflow the atmosphere's formulas before they are found out of range
         raise FileFormatError(f"{p}: invalid camera-info record in FFF file ({exc})") from None

@@ -42,14 +42,40 @@ atmospheric and window parameters: :func:`thermocal.io.fff.planck_from_metadata`
 
 **Folders.** Hidden files and notes (``.txt``, ``.md``, ``.json``, ``.xml``, ``.log``) are
 skipped; every other file must be of one format (FFF, R-JPEG or DualTauUAV ``.npz``) and all
-frames of one size, else :class:`~thermocal.errors.FileFormatError` names the file.
+frames of one size, else :class:`~thermocal.errors.FileFormatError` names the file. A folder
+holding one project recording (``NAME.tiff`` + ``NAME.json``, as ``thermocal simulate flight``
+writes) opens as that recording.
+
+**Bad input** is refused with one line naming the file: an empty or unknown file, a JPEG
+without FLIR records, a folder with no recording, of mixed formats or of mixed frame sizes, an
+``.npz`` without the arrays of its layout or with its FPA in no plausible unit, frames whose
+time stamps go backwards (within a SEQ/CSQ, between the files of a folder in name order,
+within a DualTauUAV file; DualTauUAV files are put in time order, and refused when they
+overlap), and a recording none of whose frames can be read.
+
+**Damaged frames** are left out, not the recording: :func:`open_recording` indexes a file's FFF
+records and checks each one's header, directory, camera info and the structure of its raw
+image without decoding it (and each file of a folder likewise), leaving out a record or file
+that does not pass (a header that does not parse, a record cut short, an FFF signature
+destroyed, a frame of another size in a SEQ/CSQ, an R-JPEG that is not one, a DualTauUAV file
+that cannot be read). They are listed in :attr:`RecordingSource.damaged` (``(where,
+reason)``, ``where`` the frame's index in its file or the file's name) and not counted in
+``n_frames``. A raw image that passes those checks but does not decode is found only when it is
+decoded: :meth:`RecordingSource.read_all` (the commands that read a whole recording) and
+``iter_frames(skip_undecodable=True)`` (``thermocal info``) leave it out and add it to the
+list; a streamed run (:func:`open_stream`, whose count of frames is fixed beforehand) stops
+with one line naming it — among the first 16 frames, before anything is written. The commands
+warn in one line: ``thermocal: warning: skipped 2 damaged frames of X.seq: 17 (raw image does
+not decode (…)), 18 (truncated (…))``.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import mmap
 import os
+import warnings
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -59,11 +85,17 @@ import numpy as np
 
 from thermocal._validate import check_fpa_c
 from thermocal.errors import FileFormatError, InvalidInputError, ThermocalError
-from thermocal.io.dualtau import index_dualtau_folder, npz_keys, read_dualtau_frames
+from thermocal.io.dualtau import (
+    UnreadableFileError,
+    index_dualtau_folder,
+    npz_keys,
+    read_dualtau_frames,
+)
 from thermocal.io.fff import (
     FFF_MAGICS,
-    fff_frame_shape,
+    error_reason,
     fff_raw_codec,
+    fff_record_metadata,
     index_fff_series,
     parse_fff_record,
     read_fff_series_frame,
@@ -74,7 +106,7 @@ from thermocal.io.recording import (
     read_recording,
     read_recording_header,
 )
-from thermocal.io.rjpeg import JPEG_MAGIC, read_rjpeg, rjpeg_frame_shape
+from thermocal.io.rjpeg import JPEG_MAGIC, read_rjpeg, rjpeg_metadata
 
 __all__ = ["FORMATS", "FrameChunk", "RecordingSource", "open_recording"]
 
@@ -144,6 +176,13 @@ class RecordingSource:
     header : dict
         File-level information (JSON-serialisable), e.g. the sidecar's extra keys, the files
         of a folder, the camera of the first frame.
+    damaged : list of (str, str)
+        The frames left out, as ``(where, reason)``: ``where`` is the frame's index in its file
+        for a single file (``"17"``), the file's name in a folder. Found at open (a record or
+        file that does not parse, a truncated last record, a frame of another size), and by
+        :meth:`read_all` and ``iter_frames(skip_undecodable=True)`` (a raw image that does not
+        decode, added as it is met). They are not counted in :attr:`n_frames`; the frames that
+        remain are numbered on, ``metadata["index"]`` keeping each one's place in its file.
     """
 
     def __init__(self, path: Path, fmt: str, n_frames: int, frame_shape: tuple[int, int], *,
@@ -159,19 +198,29 @@ class RecordingSource:
         self.has_time = has_time
         self.fpa_resolution_c = fpa_resolution_c
         self.header = dict(header or {})
+        self.damaged: list[tuple[str, str]] = list(getattr(self, "damaged", []))
 
     def __repr__(self) -> str:
         h, w = self.frame_shape
         return f"<RecordingSource {self.format} {self.path} {self.n_frames} x {h}x{w}>"
 
     # -- subclasses yield one frame at a time ----------------------------------------------
-    def _frames(self) -> Iterator[tuple[np.ndarray, float | None, bool | None, float | None,
-                                        dict[str, Any]]]:
-        """Yield ``(raw (H, W), fpa_c, fpa_measured, time_s, metadata)`` per frame."""
+    def _frames(self, decode: bool = True, skip: bool = False) -> Iterator[
+            tuple[np.ndarray | None, float | None, bool | None, float | None, dict[str, Any]]]:
+        """Yield ``(raw (H, W), fpa_c, fpa_measured, time_s, metadata)`` per frame; ``raw`` is
+        None with ``decode=False`` (the sources that can then skip reading the pixels do);
+        ``skip``: a frame whose raw image does not decode goes to :attr:`damaged` rather than
+        raising."""
         raise NotImplementedError
 
-    def iter_frames(self, chunk: int = 64) -> Iterator[FrameChunk]:
+    def iter_frames(self, chunk: int = 64, *, skip_undecodable: bool = False
+                    ) -> Iterator[FrameChunk]:
         """Stream the recording in chunks of at most ``chunk`` frames.
+
+        Frames found damaged at open are not among them (:attr:`damaged`). A frame that passed
+        those checks but whose raw image does not decode raises (the count of frames is fixed
+        at open), or with ``skip_undecodable`` is left out and added to :attr:`damaged` (the
+        chunks' ``start`` then counts the frames given).
 
         Raises
         ------
@@ -182,12 +231,41 @@ class RecordingSource:
         """
         if isinstance(chunk, bool) or not isinstance(chunk, int | np.integer) or chunk < 1:
             raise InvalidInputError(f"chunk: expected a positive number of frames, got {chunk!r}")
-        return self._chunks(int(chunk))
+        return self._chunks(int(chunk), skip_undecodable)
 
-    def _chunks(self, chunk: int) -> Iterator[FrameChunk]:
+    def iter_series(self) -> Iterator[tuple[float | None, bool | None, float | None,
+                                            dict[str, Any]]]:
+        """``(fpa_c, fpa_measured, time_s, metadata)`` of every frame, in order, without
+        decoding raw images where the format allows (FLIR records' headers, R-JPEGs' metadata,
+        DualTauUAV's small arrays): what a streamed run needs before its frames."""
+        for _, *rest in self._frames(decode=False):
+            yield tuple(rest)  # type: ignore[misc]
+
+    def _undecodable(self, skip: bool, exc: FileFormatError, label: str, where: str,
+                     note: str = "") -> None:
+        """A frame met damaged while iterated: raise ``exc``, or with ``skip`` list it (once,
+        however often the recording is read)."""
+        if not skip:
+            raise exc
+        entry = (label, error_reason(exc, where) + note)
+        if entry not in self.damaged:
+            self.damaged.append(entry)
+
+    def damaged_summary(self) -> str | None:
+        """One line naming the frames left out (None when none was): ``skipped 2 damaged
+        frames of X.seq: 17 (raw image does not decode), 18 (truncated)``."""
+        if not self.damaged:
+            return None
+        n = len(self.damaged)
+        listed = ", ".join(f"{w} ({r})" for w, r in self.damaged[:10])
+        more = f", and {n - 10} more" if n > 10 else ""
+        return (f"skipped {n} damaged frame{'s' if n > 1 else ''} of {self.path}: "
+                f"{listed}{more}")
+
+    def _chunks(self, chunk: int, skip: bool = False) -> Iterator[FrameChunk]:
         buf: list[tuple[np.ndarray, Any, Any, Any, dict[str, Any]]] = []
         start = 0
-        for item in self._frames():
+        for item in self._frames(skip=skip):
             raw = item[0]
             if raw.shape != self.frame_shape:
                 where = item[4].get("source", self.path)
@@ -216,8 +294,10 @@ class RecordingSource:
         ``extra`` holds ``source_format``, ``frame_metadata`` (the list of per-frame dicts) and,
         with an FPA series, ``fpa_measured`` (list of bool).
         """
-        chunks = list(self.iter_frames(256))
+        chunks = list(self.iter_frames(256, skip_undecodable=True))
         if not chunks:
+            if self.damaged:
+                raise no_frames_error(self.path, self.damaged)
             raise FileFormatError(f"{self.path}: the recording holds no frames")
         extra: dict[str, Any] = {
             "source_format": self.format,
@@ -251,11 +331,13 @@ class _TiffSource(RecordingSource):
                          has_time=h.series["time_s"] is not None,
                          header={"extra": h.extra})
 
-    def _frames(self) -> Iterator[tuple]:
+    def _frames(self, decode: bool = True, skip: bool = False) -> Iterator[tuple]:
         fpa, t = self._series["fpa_c"], self._series["time_s"]
         others = {k: v for k, v in self._series.items()
                   if v is not None and k not in ("fpa_c", "time_s")}
-        for start, block in iter_recording(self.path, chunk=64):
+        blocks = (iter_recording(self.path, chunk=64) if decode
+                  else ((i, [None]) for i in range(self.n_frames)))
+        for start, block in blocks:
             for k, raw in enumerate(block):
                 i = start + k
                 meta: dict[str, Any] = {"source": str(self.path), "index": i}
@@ -265,85 +347,148 @@ class _TiffSource(RecordingSource):
 
 
 class _FlirFileSource(RecordingSource):
-    """FFF, SEQ and CSQ files: FFF records, indexed at open, decoded while iterated."""
+    """FFF, SEQ and CSQ files: FFF records, indexed and checked at open (headers, no pixels
+    decoded), decoded while iterated."""
 
     def __init__(self, path: Path, head: bytes) -> None:
         size = path.stat().st_size
+        name = str(path)
+        good: list[tuple[int, int]] = []
+        times: list[float | None] = []
+        self.damaged = []
+        first: Any = None
         with open(path, "rb") as fh, mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) as mm:
-            self._index = index_fff_series(mm, size, str(path))
-            first = read_fff_series_frame(mm, self._index[0], str(path))
+            index, bad = index_fff_series(mm, size, name)
+            damaged = dict(bad)
+            numbers: list[int] = []
+            for k, (off, length) in zip(self._positions(index, damaged), index, strict=True):
+                where = f"{name} (frame {k})"
+                try:
+                    shape, _, meta = fff_record_metadata(bytes(mm[off : off + length]), where)
+                except FileFormatError as exc:
+                    damaged[k] = error_reason(exc, where)
+                    continue
+                if first is not None and shape != first[0]:
+                    damaged[k] = (f"a frame of {shape[1]}x{shape[0]} in a recording of "
+                                  f"{first[0][1]}x{first[0][0]} frames")
+                    continue
+                if first is None:
+                    first = (shape, meta)
+                good.append((off, length))
+                numbers.append(k)
+                times.append(meta.get("time_epoch_s"))
+        self.damaged = [(str(k), damaged[k]) for k in sorted(damaged)]
+        if first is None:
+            raise no_frames_error(path, self.damaged)
+        self._index, self._numbers = good, numbers
+        _check_time_order(times, [f"frame {k}" for k in numbers], path)
         suffix = path.suffix.lower()
         compressed = fff_raw_codec(head) == "jpegls"
         if compressed or suffix == ".csq":
             fmt = "csq"
-        elif len(self._index) > 1 or suffix == ".seq":
+        elif len(index) + len(bad) > 1 or suffix == ".seq":
             fmt = "seq"
         else:
             fmt = "fff"
-        self._t0 = first.metadata.get("time_epoch_s")
-        super().__init__(path, fmt, len(self._index), first.raw.shape, bit_depth=16,
+        self._t0 = times[0]
+        super().__init__(path, fmt, len(good), first[0], bit_depth=16,
                          has_fpa=False, has_time=self._t0 is not None,
-                         header=_camera_header(first.metadata))
+                         header=_camera_header(first[1]))
 
-    def _frames(self) -> Iterator[tuple]:
+    @staticmethod
+    def _positions(index: list[tuple[int, int]], damaged: dict[int, str]) -> list[int]:
+        """The frame numbers (places in the file) of the records of ``index``, the damaged
+        ones that the index found between them left out."""
+        out, k = [], 0
+        for _ in index:
+            while k in damaged:
+                k += 1
+            out.append(k)
+            k += 1
+        return out
+
+    def _frames(self, decode: bool = True, skip: bool = False) -> Iterator[tuple]:
         name = str(self.path)
         with open(self.path, "rb") as fh, mmap.mmap(fh.fileno(), 0,
                                                      access=mmap.ACCESS_READ) as mm:
-            for i, entry in enumerate(self._index):
-                where = name if len(self._index) == 1 else f"{name} (frame {i})"
-                frame = read_fff_series_frame(mm, entry, where)
-                meta = {"source": name, "index": i, **frame.metadata}
-                yield frame.raw, None, None, _rel_time(meta, self._t0, where), meta
+            for k, entry in zip(self._numbers, self._index, strict=True):
+                where = name if self.format == "fff" else f"{name} (frame {k})"
+                try:
+                    frame = read_fff_series_frame(mm, entry, where, decode=decode)
+                except FileFormatError as exc:
+                    self._undecodable(skip, exc, str(k), where)
+                    continue
+                meta = {"source": name, "index": k, **frame.metadata}
+                yield (frame.raw if decode else None, None, None,
+                       _rel_time(meta, self._t0, where), meta)
 
 
 class _FolderSource(RecordingSource):
-    """A folder of single-frame FLIR files (FFF or R-JPEG), in name order."""
+    """A folder of single-frame FLIR files (FFF or R-JPEG), in name order; each file is read
+    and checked at open (no pixels decoded); a file that does not pass is left out."""
 
-    def __init__(self, path: Path, files: list[Path], kind: str) -> None:
-        self._files = files
+    def __init__(self, path: Path, files: list[Path], kind: str,
+                 damaged: list[tuple[str, str]] | None = None) -> None:
         self._kind = kind
-        shape: tuple[int, int] | None = None
+        self.damaged = list(damaged or [])
+        good: list[Path] = []
+        times: list[float | None] = []
+        first: tuple[Path, tuple[int, int], dict[str, Any]] | None = None
         for f in files:
-            head = _head(f)
             try:
-                shp = rjpeg_frame_shape(head, str(f)) if kind == "rjpeg" else (
-                    fff_frame_shape(head, str(f)))
-            except FileFormatError:
-                if len(head) < _PROBE_BYTES:
-                    raise
-                data = f.read_bytes()  # the record directory lies further in: read it all
-                shp = rjpeg_frame_shape(data, str(f)) if kind == "rjpeg" else (
-                    fff_frame_shape(data, str(f)))
-            if shape is None:
-                shape = shp
-            elif shp != shape:
+                shape, meta = self._check(f, exif=False)
+            except FileFormatError as exc:
+                self.damaged.append((f.name, error_reason(exc, str(f))))
+                continue
+            if first is None:
+                first = (f, shape, meta)
+            elif shape != first[1]:
                 raise FileFormatError(
-                    f"{f}: frames of {shp[0]}x{shp[1]} in a folder of {shape[0]}x{shape[1]} "
-                    f"frames (first file {files[0].name})"
+                    f"{f}: frames of {shape[0]}x{shape[1]} in a folder of {first[1][0]}x"
+                    f"{first[1][1]} frames (first file {first[0].name})"
                 )
-        first = self._read(files[0])
-        self._t0 = first.metadata.get("time_epoch_s")
-        core = first.metadata.get("core_c")
-        super().__init__(path, f"{kind}-folder", len(files), shape or first.raw.shape,
+            elif (first[2].get("core_c") is None) != (meta.get("core_c") is None):
+                raise FileFormatError(
+                    f"{f}: {'no' if meta.get('core_c') is None else 'a'} core temperature "
+                    f"(FLIR:CentralTemperature), unlike {first[0].name}: a folder of one camera")
+            good.append(f)
+            times.append(meta.get("time_epoch_s"))
+        self.damaged.sort()
+        if first is None:
+            raise no_frames_error(path, self.damaged)
+        _check_time_order(times, [f.name for f in good], path)
+        self._files = good
+        self._t0 = times[0]
+        core = first[2].get("core_c")
+        super().__init__(path, f"{kind}-folder", len(good), first[1],
                          bit_depth=16, has_fpa=core is not None, has_time=self._t0 is not None,
                          fpa_resolution_c=1.0 if core is not None else None,
-                         header={"files": [f.name for f in files],
-                                 **_camera_header(first.metadata)})
+                         header={"files": [f.name for f in good],
+                                 **_camera_header(self._check(good[0])[1])})
+
+    def _check(self, f: Path, exif: bool = True) -> tuple[tuple[int, int], dict[str, Any]]:
+        data = _read_file(f)
+        if self._kind == "rjpeg":
+            _, shape, _, meta = rjpeg_metadata(data, str(f), exif=exif)
+        else:
+            shape, _, meta = fff_record_metadata(data, str(f))
+        return shape, meta
 
     def _read(self, f: Path) -> Any:
         if self._kind == "rjpeg":
             return read_rjpeg(f)
         return parse_fff_record(_read_file(f), str(f))
 
-    def _frames(self) -> Iterator[tuple]:
+    def _frames(self, decode: bool = True, skip: bool = False) -> Iterator[tuple]:
         for f in self._files:
-            frame = self._read(f)
-            meta = {"source": str(f), "index": 0, **frame.metadata}
-            fpa = meta.get("core_c")
-            if self.has_fpa and fpa is None:
-                raise FileFormatError(f"{f}: no core temperature (FLIR:CentralTemperature), "
-                                      f"which {self._files[0].name} has")
-            yield frame.raw, fpa, True, _rel_time(meta, self._t0, str(f)), meta
+            try:
+                frame: Any = self._read(f) if decode else (None, self._check(f)[1])
+            except FileFormatError as exc:
+                self._undecodable(skip, exc, f.name, str(f))
+                continue
+            raw, metadata = (frame.raw, frame.metadata) if decode else frame
+            meta = {"source": str(f), "index": 0, **metadata}
+            yield raw, meta.get("core_c"), True, _rel_time(meta, self._t0, str(f)), meta
 
 
 class _RjpegSource(_FolderSource):
@@ -356,9 +501,11 @@ class _RjpegSource(_FolderSource):
 
 
 class _DualTauSource(RecordingSource):
-    def __init__(self, path: Path, files: list[Path] | None = None) -> None:
+    def __init__(self, path: Path, files: list[Path] | None = None,
+                 damaged: list[tuple[str, str]] | None = None) -> None:
         self._index = index_dualtau_folder(path if path.is_dir() else path.parent, files)
         ix = self._index
+        self.damaged = sorted([*(damaged or []), *ix.damaged])
         super().__init__(
             path, "dualtau", int(sum(ix.counts)), ix.frame_shape, bit_depth=14, has_fpa=True,
             has_time=True, fpa_resolution_c=0.1,
@@ -366,16 +513,21 @@ class _DualTauSource(RecordingSource):
                     "fpa_readings": int(np.count_nonzero(ix.fpa_measured))},
         )
 
-    def _frames(self) -> Iterator[tuple]:
+    def _frames(self, decode: bool = True, skip: bool = False) -> Iterator[tuple]:
         ix = self._index
         i = 0
         for f, n in zip(ix.files, ix.counts, strict=True):
-            frames = read_dualtau_frames(f, (n, *ix.frame_shape))
+            try:
+                frames = read_dualtau_frames(f, (n, *ix.frame_shape)) if decode else None
+            except UnreadableFileError as exc:
+                self._undecodable(skip, exc, f.name, str(f), f" ({n} frames)")
+                i += n
+                continue
             for k in range(n):
                 meta = {"source": str(f), "index": k,
                         "fpa_reading_c": float(ix.fpa_readings_c[i])}
-                yield (frames[k], float(ix.fpa_c[i]), bool(ix.fpa_measured[i]),
-                       float(ix.time_s[i]), meta)
+                yield (None if frames is None else frames[k], float(ix.fpa_c[i]),
+                       bool(ix.fpa_measured[i]), float(ix.time_s[i]), meta)
                 i += 1
 
 
@@ -390,7 +542,7 @@ class _ChamberNpzSource(RecordingSource):
                          header={k: v for k, v in s.attrs.items()})
         self._frames_arr = frames
 
-    def _frames(self) -> Iterator[tuple]:
+    def _frames(self, decode: bool = True, skip: bool = False) -> Iterator[tuple]:
         s = self._session
         for i in range(self.n_frames):
             meta: dict[str, Any] = {"source": str(self.path), "index": i,
@@ -477,20 +629,50 @@ def _open_folder(folder: Path) -> RecordingSource:
         raise FileFormatError(f"{folder}: no recording in the folder (no FFF, R-JPEG or .npz "
                               "file)")
     kinds: dict[str, Path] = {}
+    unreadable: dict[Path, FileFormatError] = {}
     for f in files:
-        kinds.setdefault(_kind(f, _head(f, 8)), f)
+        try:
+            kinds.setdefault(_kind(f, _head(f, 8)), f)
+        except FileFormatError as exc:  # an empty or damaged file: decided below
+            unreadable[f] = exc
     if len(kinds) > 1:
         found = ", ".join(f"{k} ({f.name})" for k, f in kinds.items())
         raise FileFormatError(f"{folder}: files of mixed formats ({found}); a folder must hold "
                               "one format")
+    if not kinds:
+        raise next(iter(unreadable.values())) if len(unreadable) == 1 else FileFormatError(
+            f"{folder}: no recording in the folder: none of its {len(unreadable)} files is an "
+            f"FFF, R-JPEG or .npz file that can be read (the first, "
+            f"{next(iter(unreadable.values()))})")
     kind = next(iter(kinds))
-    if kind == "fff":
-        return _FolderSource(folder, files, "fff")
-    if kind == "rjpeg":
-        return _FolderSource(folder, files, "rjpeg")
+    if kind == "tiff":  # the project's recording (NAME.tiff + NAME.json), e.g. simulate's
+        recordings = [f for f in files if _kind_or_none(f) == "tiff"
+                      and f.with_suffix(".json").is_file()]
+        if len(recordings) == 1:
+            return _TiffSource(recordings[0])
+    if kind not in _FOLDER_SUFFIXES:
+        raise FileFormatError(f"{folder}: a folder of {kind} files; open each file on its own")
+    # a file of the folder's kind by its name that is empty or damaged is a damaged frame;
+    # any other file is not part of the recording: refused, as a folder of mixed files
+    for f, exc in unreadable.items():
+        if f.suffix.lower() not in _FOLDER_SUFFIXES[kind]:
+            raise exc
+    damaged = [(f.name, error_reason(exc, str(f))) for f, exc in unreadable.items()]
+    good = [f for f in files if f not in unreadable]
     if kind == "dualtau":
-        return _DualTauSource(folder, files)
-    raise FileFormatError(f"{folder}: a folder of {kind} files; open each file on its own")
+        return _DualTauSource(folder, good, damaged)
+    return _FolderSource(folder, good, kind, damaged)
+
+
+def _kind_or_none(f: Path) -> str | None:
+    try:
+        return _kind(f, _head(f, 8))
+    except FileFormatError:
+        return None
+
+
+#: The names a folder's files of each kind have (a damaged one is told by its name).
+_FOLDER_SUFFIXES = {"fff": (".fff",), "rjpeg": (".jpg", ".jpeg"), "dualtau": (".npz",)}
 
 
 # --------------------------------------------------------------------------------------------
@@ -521,6 +703,27 @@ def _rel_time(meta: dict[str, Any], t0: float | None, where: str) -> float | Non
     return round((float(t) - float(t0)) * 1000.0) / 1000.0
 
 
+def no_frames_error(path: Path, damaged: list[tuple[str, str]]) -> FileFormatError:
+    """The error for a recording whose every frame is damaged: the one reason, or the first."""
+    if len(damaged) == 1:
+        where, reason = damaged[0]
+        return FileFormatError(f"{path / where if path.is_dir() else path}: {reason}")
+    listed = "; ".join(f"{w}: {r}" for w, r in damaged[:3])
+    return FileFormatError(f"{path}: none of its {len(damaged)} frames can be read ({listed}"
+                           f"{'; …' if len(damaged) > 3 else ''})")
+
+
+def _check_time_order(times: list[float | None], labels: list[str], path: Path) -> None:
+    """Refuse frames whose time stamps go backwards (naming the two frames)."""
+    for k in range(1, len(times)):
+        a, b = times[k - 1], times[k]
+        if a is not None and b is not None and b < a:
+            raise FileFormatError(
+                f"{path}: frame times go backwards ({labels[k]} is {a - b:.3f} s before "
+                f"{labels[k - 1]}); thermocal reads frames in time order only"
+            )
+
+
 def _camera_header(meta: dict[str, Any]) -> dict[str, Any]:
     keys = ("creator", "camera_model", "camera_serial_number", "make", "model", "datetime")
     out = {k: meta[k] for k in keys if k in meta}
@@ -545,19 +748,30 @@ def read_any_recording(path: str | os.PathLike[str], *, fpa_c: float | None = No
     p = Path(path)
     if _project_recording(p):
         return read_recording(p, fpa_c=fpa_c)
-    rec = open_recording(p).read_all()
+    source = open_recording(p)
+    rec = source.read_all()
+    warn_damaged(source)
     if fpa_c is None:
         return rec
     check_fpa_c(fpa_c, "--fpa-c")
     return dataclasses.replace(rec, fpa_c=np.full(rec.frames.shape[0], float(fpa_c)))
 
 
+def warn_damaged(source: RecordingSource) -> None:
+    """Warn, in one line, of the frames of ``source`` left out as damaged (if any)."""
+    text = source.damaged_summary()
+    if text:
+        warnings.warn(text, stacklevel=3)
+
+
 @dataclass(frozen=True)
 class StreamHeader:
     """What a streamed run over a recording of any format needs before its frames: its
     ``path``, ``n_frames``, ``frame_shape`` and per-frame ``series`` (``fpa_c``, ``time_s``:
-    ``(N,)`` arrays or None; ``frame_metadata``: one dict per frame where the file carries the
-    camera's Planck constants), and :meth:`chunks`, its raw frames in order."""
+    ``(N,)`` arrays or None; ``frame_metadata``: one dict per frame where any frame carries the
+    camera's Planck constants, GPS or attitude), ``damaged`` (the frames left out:
+    ``(where, reason)``, :attr:`RecordingSource.damaged`), and :meth:`chunks`, its raw frames
+    in order."""
 
     path: Path
     n_frames: int
@@ -565,41 +779,99 @@ class StreamHeader:
     series: dict[str, np.ndarray | None]
     source: RecordingSource | None = None
     bit_depth: int = 14
+    damaged: tuple[tuple[str, str], ...] = ()
+    prefetched: list[Iterator[FrameChunk]] = dataclasses.field(
+        default_factory=list, repr=False, compare=False)
 
     def chunks(self, chunk: int) -> Iterator[tuple[int, np.ndarray]]:
-        """``(first frame index, frames (k, H, W) uint16)`` in order."""
+        """``(first frame index, frames (k, H, W) uint16)`` in order (the first call goes on
+        from the frames :func:`open_stream` decoded already; the chunks' sizes may differ)."""
         if self.source is None:
             return iter_recording(self.path, chunk=chunk)
-        return ((c.start, c.frames) for c in self.source.iter_frames(chunk))
+        if not self.prefetched:
+            return ((c.start, c.frames) for c in self.source.iter_frames(chunk))
+        return _rechunk(self.prefetched.pop(), chunk)
+
+
+def _rechunk(stream: Iterator[FrameChunk], chunk: int) -> Iterator[tuple[int, np.ndarray]]:
+    """The frames of ``stream`` in chunks of ``chunk`` frames (the last may be shorter)."""
+    parts: list[np.ndarray] = []
+    start = have = 0
+    for c in stream:
+        if not parts:
+            start = c.start
+        parts.append(c.frames)
+        have += len(c)
+        if have >= chunk:
+            yield start, np.concatenate(parts)
+            parts, have = [], 0
+    if parts:
+        yield start, np.concatenate(parts)
 
 
 def open_stream(path: str | os.PathLike[str], *, fpa_c: float | None = None) -> StreamHeader:
     """A recording of any format opened for a streamed run (``thermocal flight``): the
     project's TIFF + JSON from its header (:func:`~thermocal.io.recording.read_recording_header`),
     any other through :func:`open_recording`, whose FPA and time series take one pass over the
-    frames. ``fpa_c`` (``--fpa-c``) replaces the FPA series."""
+    frames' headers and metadata (:meth:`RecordingSource.iter_series`: no raw image decoded).
+    ``fpa_c`` (``--fpa-c``) replaces the FPA series. Frames left out as damaged are warned of
+    in one line and listed in ``damaged``; a frame whose raw image passed the checks at open
+    but does not decode while streamed ends the run (the count of frames is fixed)."""
     p = Path(path)
     if _project_recording(p):
         header = read_recording_header(p, fpa_c=fpa_c)
         return StreamHeader(header.path, header.n_frames, header.frame_shape,
                             dict(header.series), bit_depth=header.bit_depth)
     source = open_recording(p)
-    fpa, times, metas = [], [], []
-    for c in source.iter_frames():
-        fpa.append(c.fpa_c)
-        times.append(c.time_s)
-        metas.extend(c.metadata or [])
+    warn_damaged(source)
+    rows = list(source.iter_series())
+    metas = [r[3] for r in rows]
     series = {
-        "fpa_c": None if any(f is None for f in fpa) else np.concatenate(fpa).astype(np.float64),
-        "time_s": None if any(t is None for t in times) else np.concatenate(times).astype(
-            np.float64),
-        # the camera's own constants, frame by frame (``--method camera``), where it has them
-        "frame_metadata": metas if metas and any(m.get("planck") for m in metas) else None,
+        "fpa_c": (np.array([r[0] for r in rows], np.float64) if source.has_fpa else None),
+        "time_s": (np.array([r[2] for r in rows], np.float64) if source.has_time else None),
+        # the camera's own constants (``--method camera``), GPS and attitude, frame by frame,
+        # where any frame has them
+        "frame_metadata": metas if any(m.get(k) for m in metas for k in _FRAME_KEYS) else None,
     }
     if fpa_c is not None:
         series["fpa_c"] = np.full(source.n_frames, check_fpa_c(fpa_c, "--fpa-c"))
+    # the first frames decoded now (and streamed from there): a short recording whose raw
+    # images do not decode is refused before anything is written
+    stream = source.iter_frames(_PREFETCH)
+    first = next(stream)
     return StreamHeader(p, source.n_frames, source.frame_shape, series, source,
-                        bit_depth=source.bit_depth)
+                        bit_depth=source.bit_depth, damaged=tuple(source.damaged),
+                        prefetched=[itertools.chain([first], stream)])
+
+
+#: Frames :func:`open_stream` decodes before it returns.
+_PREFETCH = 16
+
+
+#: Per-frame metadata that makes ``series["frame_metadata"]`` worth keeping.
+_FRAME_KEYS = ("planck", "gps", "attitude")
+
+
+def check_outside_recording(recording: str | os.PathLike[str],
+                            *outputs: tuple[str | os.PathLike[str] | None, str]) -> None:
+    """Refuse an output ``(path, option name)`` inside a recording that is a folder: written
+    there, it would make the folder no longer one recording.
+
+    Raises
+    ------
+    InvalidInputError
+        An output path within the folder ``recording``.
+    """
+    folder = Path(recording)
+    if not folder.is_dir():
+        return
+    inside = folder.resolve()
+    for out, what in outputs:
+        if out is not None and inside in Path(out).resolve().parents:
+            raise InvalidInputError(
+                f"{what} {out} is inside the recording's folder {recording}; write it elsewhere "
+                "(the folder would no longer hold one recording)"
+            )
 
 
 def recording_length(path: str | os.PathLike[str]) -> int:

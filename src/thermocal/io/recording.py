@@ -25,7 +25,7 @@ import os
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 import tifffile
@@ -42,6 +42,9 @@ from thermocal._validate import (
 )
 from thermocal.errors import FileFormatError, InvalidInputError, ThermocalError
 from thermocal.io.atomic import atomic_path
+
+if TYPE_CHECKING:
+    from thermocal.io.geotag import MapTags
 
 __all__ = [
     "SERIES_KEYS",
@@ -672,7 +675,8 @@ def _iter_stack(
 # --------------------------------------------------------------------------------------------
 
 
-def write_temperature_tiff(path: str | os.PathLike[str], temps_c: Any) -> Path:
+def write_temperature_tiff(path: str | os.PathLike[str], temps_c: Any, *,
+                           tags: MapTags | None = None) -> Path:
     """Write temperatures in °C as a float32 TIFF, atomically.
 
     Parameters
@@ -681,6 +685,8 @@ def write_temperature_tiff(path: str | os.PathLike[str], temps_c: Any) -> Path:
         Output ``.tiff``/``.tif``; its directory must exist.
     temps_c : array_like, shape (H, W) or (N, H, W)
         Temperatures, °C.
+    tags : thermocal.io.geotag.MapTags, optional
+        Georeferencing of an (H, W) map (:func:`thermocal.io.geotag.map_tags`).
 
     Returns
     -------
@@ -701,12 +707,21 @@ def write_temperature_tiff(path: str | os.PathLike[str], temps_c: Any) -> Path:
         f32 = arr.astype(np.float32)
     if not np.all(np.isfinite(f32)):
         raise InvalidInputError("temps_c: values too large for float32")
-    with atomic_path(out) as tmp:
-        tifffile.imwrite(tmp, f32, photometric="minisblack", bigtiff=f32.nbytes > 2**31)
+    _write_float_tiff(out, f32, tags)
     return out
 
 
-def write_sigma_tiff(path: str | os.PathLike[str], sigma_c: Any) -> Path:
+def _write_float_tiff(out: Path, arr: np.ndarray, tags: MapTags | None) -> None:
+    """``arr`` (float32) as a TIFF at ``out``, atomically, with ``tags`` when given."""
+    with atomic_path(out) as tmp:
+        if tags is None:
+            tifffile.imwrite(tmp, arr, photometric="minisblack", bigtiff=arr.nbytes > 2**31)
+        else:
+            tmp.write_bytes(tags.encode(arr))
+
+
+def write_sigma_tiff(path: str | os.PathLike[str], sigma_c: Any, *,
+                     tags: MapTags | None = None) -> Path:
     """Write standard uncertainties (1σ, °C, >= 0) as a float32 TIFF, atomically.
 
     Parameters
@@ -715,6 +730,8 @@ def write_sigma_tiff(path: str | os.PathLike[str], sigma_c: Any) -> Path:
         Output ``.tiff``/``.tif``; its directory must exist.
     sigma_c : array_like, shape (H, W) or (N, H, W)
         1σ of the temperatures beside it, °C.
+    tags : thermocal.io.geotag.MapTags, optional
+        Georeferencing of an (H, W) map (:func:`thermocal.io.geotag.map_tags`).
 
     Raises
     ------
@@ -725,8 +742,7 @@ def write_sigma_tiff(path: str | os.PathLike[str], sigma_c: Any) -> Path:
     arr = as_float_array(sigma_c, "sigma_c", ndim=(2, 3)).astype(np.float32)
     if 0 in arr.shape or not np.all(np.isfinite(arr)) or float(arr.min()) < 0:
         raise InvalidInputError("sigma_c: need a non-empty map of finite σ >= 0 °C")
-    with atomic_path(out) as tmp:
-        tifffile.imwrite(tmp, arr, photometric="minisblack", bigtiff=arr.nbytes > 2**31)
+    _write_float_tiff(out, arr, tags)
     return out
 
 

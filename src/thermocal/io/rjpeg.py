@@ -21,9 +21,10 @@ from pathlib import Path
 from typing import Any
 
 from thermocal.errors import FileFormatError
-from thermocal.io.fff import FffFrame, fff_frame_shape, parse_fff_record
+from thermocal.io.fff import FffFrame, fff_frame_shape, fff_raw_image, fff_record_metadata
+from thermocal.radiometry import FlirPlanck
 
-__all__ = ["JPEG_MAGIC", "flir_segments", "read_rjpeg", "rjpeg_frame_shape"]
+__all__ = ["JPEG_MAGIC", "flir_segments", "read_rjpeg", "rjpeg_frame_shape", "rjpeg_metadata"]
 
 #: First bytes of a JPEG.
 JPEG_MAGIC = b"\xff\xd8\xff"
@@ -114,22 +115,31 @@ def read_rjpeg(path: str | Path) -> FffFrame:
         data = p.read_bytes()
     except OSError as exc:
         raise FileFormatError(f"{p}: cannot read ({exc.strerror or exc})") from None
+    record, _, planck, meta = rjpeg_metadata(data, str(p))
+    return FffFrame(fff_raw_image(record, str(p)), planck, meta)
+
+
+def rjpeg_metadata(data: bytes, name: str, *, exif: bool = True) -> tuple[
+        bytes, tuple[int, int], FlirPlanck, dict[str, Any]]:
+    """Every check of :func:`read_rjpeg` on the bytes of an R-JPEG but decoding its raw image:
+    ``(FFF record, (H, W), planck, metadata)`` (:func:`~thermocal.io.fff.fff_record_metadata`);
+    ``exif=False`` leaves out what only EXIF holds (make, model, GPS), the slowest part."""
     if data[:3] != JPEG_MAGIC:
-        raise FileFormatError(f"{p}: not a JPEG")
+        raise FileFormatError(f"{name}: not a JPEG")
     _, state = scan_jpeg(data)
     if state == "corrupt":
-        raise FileFormatError(f"{p}: corrupt JPEG (bad marker segment structure)")
-    record = flir_segments(data, str(p))
+        raise FileFormatError(f"{name}: corrupt JPEG (bad marker segment structure)")
+    record = flir_segments(data, name)
     if state == "truncated":
-        raise FileFormatError(f"{p}: truncated JPEG (the file ends before its end-of-image marker)")
-    frame = parse_fff_record(record, str(p))
-    meta = dict(frame.metadata)
-    meta.update(_exif(data))
+        raise FileFormatError(
+            f"{name}: truncated JPEG (the file ends before its end-of-image marker)")
+    shape, planck, meta = fff_record_metadata(record, name)
+    meta.update(_exif(data) if exif else {})
     exif_gps = meta.pop("exif_gps", None)
     if meta.get("gps") is None and exif_gps is not None:
         meta["gps"] = exif_gps
     meta.update(_xmp(data))
-    return FffFrame(frame.raw, frame.planck, meta)
+    return record, shape, planck, meta
 
 
 def _rational(v: Any) -> float:

@@ -15,7 +15,7 @@ from thermocal.nuc.registry import NUC_METHODS, method_help
 
 
 @click.command("nuc", epilog=method_help())
-@click.argument("frames", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("frames", type=click.Path(path_type=Path))
 @click.option("--method", type=click.Choice(list(NUC_METHODS)), required=True,
               help="NUC method (listed below).")
 @click.option(
@@ -23,14 +23,16 @@ from thermocal.nuc.registry import NUC_METHODS, method_help
     help="Output float32 TIFF (N, H, W), counts-like units (not radiometric).",
 )
 def nuc(frames: Path, method: str, out: Path) -> None:
-    """Scene-based / single-frame nonuniformity correction of a recording."""
+    """Scene-based / single-frame nonuniformity correction of a recording. FRAMES: a file or a
+    folder in any format `thermocal info` reads; damaged frames are left out with a warning."""
     from thermocal.burst import check_burst
-    from thermocal.io.open import read_any_recording
+    from thermocal.io.open import check_outside_recording, read_any_recording
     from thermocal.nuc import correct_nonuniformity
     from thermocal.nuc._common import write_counts_tiff
 
     check_output_file(out, TIFF_SUFFIXES)
     check_not_input(out, frames)
+    check_outside_recording(frames, (out, "--out"))
     rec = read_any_recording(frames)
     try:
         check_burst(rec.frames, bit_depth=rec.bit_depth)  # no saturated or dead (constant) frames

@@ -1,4 +1,5 @@
-"""``thermocal flight``: a whole recording → temperature maps, previews and a log."""
+"""``thermocal flight``: a whole recording → temperature maps, previews, a log and a report;
+``thermocal mosaic`` and ``thermocal report``: a processed flight's mosaic and report."""
 
 from __future__ import annotations
 
@@ -29,33 +30,125 @@ from thermocal.progress import progress_bar
 @click.option("--force", is_flag=True,
               help="Estimate groups outside the method's domain (FPA or scene range, camera "
               "family) instead of failing them; the log says why each is not validated.")
+@click.option("--geotiff", is_flag=True,
+              help="Also GeoTIFF tags (EPSG:4326, rotated by the yaw) in the maps of nadir "
+              "frames with GPS and DJI relative altitude; the maps of frames with GPS always "
+              "carry it as EXIF/XMP.")
+@click.option("--mosaic", "with_mosaic", is_flag=True,
+              help="Also mosaic the maps into OUT/mosaic (thermocal mosaic OUT).")
+@click.option("--hfov-deg", type=float, default=None,
+              help="Horizontal field of view, degrees, for --geotiff (default: the file's, "
+              "else the camera's: DJI XT/XT-R/XT2 with the 13 mm lens, 45° at 640 px).")
 def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
            model: str | None, n_frames: int, stride: int, fpa_c: float | None,
-           preview_every: int, force: bool) -> None:
+           preview_every: int, force: bool, geotiff: bool, with_mosaic: bool,
+           hfov_deg: float | None) -> None:
     """Turn a whole RECORDING into one temperature map per pivot: frames.tiff + sidecar, or any
-    format thermocal reads (FLIR SEQ/CSQ/FFF, R-JPEGs, a folder of them, a DualTauUAV flight)."""
+    format thermocal reads (FLIR SEQ/CSQ/FFF, R-JPEGs, a folder of them, a DualTauUAV flight).
+    Ends with OUT/report.html (and OUT/mosaic with --mosaic)."""
     from thermocal._validate import check_not_input
     from thermocal.errors import ThermocalError
-    from thermocal.io.open import recording_length
+    from thermocal.io.open import check_outside_recording, recording_length
     from thermocal.pipeline.flight import FlightOptions, process_flight
+    from thermocal.pipeline.report import write_report
 
     check_not_input(out_dir, recording, calibration, model)
+    check_outside_recording(recording, (out_dir, "--out"))
     options = FlightOptions(method=method, calibration=calibration, model=model, frames=n_frames,
                             stride=stride, fpa_c=fpa_c, preview_every=preview_every,
-                            force=force)
+                            force=force, geotiff=geotiff, hfov_deg=hfov_deg)
     total = recording_length(recording)
     with progress_bar() as bar:
         task = bar.add_task("flight", total=total - total % stride or total)
         summary = process_flight(recording, out_dir, options,
-                                 progress=lambda k: bar.advance(task, k))
+                                 progress=lambda k: bar.advance(task, k),
+                                 command=_command_line())
+    mosaic_note = _mosaic_after_flight(out_dir) if with_mosaic and summary["processed"] + \
+        summary["skipped_already_done"] else ""
+    report = write_report(out_dir)
     if summary["processed"] == 0 and summary["skipped_already_done"] == 0:
         # the summary and the log are written; exit 2 rather than report success
         raise ThermocalError(
             f"no temperature map made: all {summary['groups']} groups failed; the first, "
-            f"{summary.get('first_error')}; every group's error is in {Path(out_dir) / 'log.csv'}"
+            f"{summary.get('first_error')}; every group's error is in {Path(out_dir) / 'log.csv'} "
+            f"and {report}"
         )
     click.echo(
         f"{summary['processed']} temperature maps written to {out_dir}/temps "
         f"({summary['skipped_already_done']} already done, {summary['failed']} failed) "
-        f"in {summary['wall_time_s']:.1f} s"
+        f"in {summary['wall_time_s']:.1f} s{mosaic_note}; report: {report}"
     )
+
+
+def _command_line() -> str:
+    """The running command with every option it took, defaults included, as a shell would
+    take it (for the report: it reruns the same way even after the defaults change)."""
+    import shlex
+
+    ctx = click.get_current_context()
+    words = ctx.command_path.split()
+    for param in ctx.command.params:
+        value = ctx.params.get(param.name)
+        if isinstance(param, click.Argument):
+            words.append(str(value))
+        elif value is True:
+            words.append(param.opts[0])
+        elif value is not None and value is not False:
+            words += [param.opts[0], str(value)]
+    return shlex.join(words)
+
+
+def _mosaic_after_flight(out_dir: Path) -> str:
+    """Mosaic a finished flight; a mosaic that cannot be made is a warning, not a failed
+    flight (its maps stand). Returns a note for the flight's last line."""
+    import warnings
+
+    from thermocal.errors import InvalidInputError
+    from thermocal.pipeline.mosaic import build_mosaic
+
+    try:
+        mosaic = build_mosaic(out_dir)
+    except InvalidInputError as exc:
+        warnings.warn(f"no mosaic: {exc}", stacklevel=2)
+        return ""
+    return f"; a mosaic of {len(mosaic['maps_used'])} maps in {Path(out_dir) / 'mosaic'}"
+
+
+@click.command("mosaic")
+@click.argument("out_dir", metavar="OUT", type=click.Path(path_type=Path))
+@click.option("--clip-sigma", type=float, default=3.0, show_default=True,
+              help="Leave out views further than this many robust SDs from the median.")
+@click.option("--clip-floor-c", type=float, default=0.1, show_default=True,
+              help="Smallest robust SD, °C (views this close to the median are kept).")
+@click.option("--memory-mb", type=float, default=512.0, show_default=True,
+              help="Memory for one tile's views, MiB (the canvas layers come on top).")
+@click.option("--motion", metavar="[rigid|affine]", default="rigid", show_default=True,
+              help="Consecutive maps differ by a rotation and translation, or an affine map.")
+def mosaic(out_dir: Path, clip_sigma: float, clip_floor_c: float, memory_mb: float,
+           motion: str) -> None:
+    """Mosaic the temperature maps of a processed flight OUT (thermocal flight --out OUT) into
+    OUT/mosaic: temperature, views, spread and σ TIFFs, a preview and mosaic.json; then
+    rewrite OUT/report.html with it."""
+    from thermocal.pipeline.mosaic import build_mosaic
+    from thermocal.pipeline.report import write_report
+
+    summary = build_mosaic(out_dir, clip_sigma=clip_sigma, clip_floor_c=clip_floor_c,
+                           memory_mb=memory_mb, motion=motion)
+    canvas = summary["canvas"]
+    report = write_report(out_dir) if (Path(out_dir) / "summary.json").is_file() else None
+    click.echo(
+        f"mosaic of {len(summary['maps_used'])} maps ({len(summary['maps_left_out'])} left out) "
+        f"{canvas['width']}x{canvas['height']} px, {100 * canvas['covered_fraction']:.0f} % "
+        f"covered, written to {Path(out_dir) / 'mosaic'} in {summary['seconds']['total']:.1f} s"
+        + (f"; report: {report}" if report else "")
+    )
+
+
+@click.command("report")
+@click.argument("out_dir", metavar="OUT", type=click.Path(path_type=Path))
+def report(out_dir: Path) -> None:
+    """Write OUT/report.html: the report of the flight output folder OUT (thermocal flight),
+    one self-contained page to read offline."""
+    from thermocal.pipeline.report import write_report
+
+    click.echo(f"report written to {write_report(out_dir)}")

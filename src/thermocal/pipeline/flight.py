@@ -15,6 +15,12 @@ calibration applied to the pivot ``calibration``) through the estimation pipelin
                                     (lowest ECC correlation in the group), warnings, errors
     OUT/log.csv, OUT/summary.json   written at the end (frames per second per stage)
 
+A pivot whose frame has a GPS position (a drone's R-JPEGs, FLIR files with GPS) gets it in its
+maps, with the frame's time, camera and attitude, as EXIF and XMP that OpenDroneMap, Metashape
+and Pix4D read; ``geotiff=True`` adds GeoTIFF tags to the same files where the frame's ground
+footprint can be computed (:mod:`thermocal.io.geotag`). A frame without GPS gives the same bytes
+as ever.
+
 A rerun with the same options resumes, and gives the same bytes as an uninterrupted run:
 
 * a pivot is finished once its preview, its σ map, its map and then its log line are written
@@ -55,6 +61,7 @@ from thermocal.errors import InvalidInputError, OutputError, RegistrationError
 from thermocal.estimation.base import Estimator
 from thermocal.estimation.pipeline import estimate
 from thermocal.estimation.registry import ESTIMATORS, make_estimator
+from thermocal.io import geotag
 from thermocal.io.atomic import (
     atomic_path,
     ensure_output_dir,
@@ -67,6 +74,7 @@ from thermocal.io.recording import (
     write_sigma_tiff,
     write_temperature_tiff,
 )
+from thermocal.pipeline.flight_log import read_log
 from thermocal.registration.sequence import SequenceRegistration, register_sequence
 
 #: Frames registered together as one sequence (a batch of groups). The batches are fixed by the
@@ -87,6 +95,8 @@ class FlightOptions:
     fpa_c: float | None = None
     preview_every: int = 1
     force: bool = False
+    geotiff: bool = False
+    hfov_deg: float | None = None
 
     def __post_init__(self) -> None:
         info = ESTIMATORS.get(self.method)
@@ -99,6 +109,9 @@ class FlightOptions:
             raise InvalidInputError(f"--method {self.method} needs --calibration CAL.h5")
         if self.preview_every < 0:
             raise InvalidInputError("--preview-every must be >= 0 (0: no previews)")
+        if self.hfov_deg is not None and not (
+                self.geotiff and math.isfinite(self.hfov_deg) and 0 < self.hfov_deg < 180):
+            raise InvalidInputError("--hfov-deg must be between 0 and 180 degrees, with --geotiff")
 
 
 @dataclass
@@ -163,10 +176,12 @@ def process_flight(
     options: FlightOptions = FlightOptions(),
     *,
     progress: Callable[[int], None] | None = None,
+    command: str | None = None,
 ) -> dict[str, Any]:
     """Process a recording into per-pivot temperature maps in ``out_dir``; returns the summary.
 
-    ``progress(k)`` is called with the number of frames each finished group advanced.
+    ``progress(k)`` is called with the number of frames each finished group advanced;
+    ``command`` (the command line that runs it) is kept in the summary, for the report.
     """
     header = open_stream(recording, fpa_c=options.fpa_c)
     if header.series["fpa_c"] is None and not ESTIMATORS[options.method].per_frame:
@@ -184,6 +199,7 @@ def process_flight(
         estimator = _estimator(options, header.frame_shape)
     series = header.series | {"fpa_rate_c_per_min": recording_fpa_rates(
         header.series["fpa_c"], header.series["time_s"])}
+    geo = _pivot_tags(header.series.get("frame_metadata"), pivots, options, header.frame_shape)
     out = _output_dirs(Path(out_dir))  # only now: every check has passed
     _remove_stale_temp_files(out)
     _drop_cut_log_line(out / "log.jsonl")
@@ -206,12 +222,37 @@ def process_flight(
             for index, pivot in todo:
                 entry = _process_pivot(run, pivot, series, estimator, options, out, tally,
                                        preview=_preview_due(options, index),
-                                       bit_depth=header.bit_depth)
+                                       bit_depth=header.bit_depth, geo=geo[pivot])
                 log.write(json.dumps(entry) + "\n")  # last: the pivot is finished
                 log.flush()
                 if progress:
                     progress(stride)
-    return _finish(out, header.path, options, len(pivots), tally, time.perf_counter() - started)
+    about = {"format": header.source.format if header.source is not None else "tiff",
+             "damaged_frames": [{"frame": where, "reason": why} for where, why in header.damaged],
+             **({"command": command} if command is not None else {})}
+    return _finish(out, header.path, options, len(pivots), tally, time.perf_counter() - started,
+                   about=about)
+
+
+def _pivot_tags(metadata: list[Any] | None, pivots: list[int], options: FlightOptions,
+                shape: tuple[int, int]) -> dict[int, tuple[geotag.MapTags | None, str | None]]:
+    """Each pivot's map tags (None: its frame has no GPS) and, with ``--geotiff``, why its maps
+    have no GeoTIFF tags (None when they have); refused when no pivot can have them."""
+    geo: dict[int, tuple[geotag.MapTags | None, str | None]] = {}
+    for pivot in pivots:
+        meta = metadata[pivot] if metadata is not None and pivot < len(metadata) else None
+        where, why = None, None
+        if options.geotiff:
+            try:
+                where = geotag.footprint(meta, shape=shape, hfov_deg=options.hfov_deg)
+            except InvalidInputError as exc:
+                why = f"frame {pivot}: {exc}"
+        geo[pivot] = (geotag.map_tags(meta, footprint=where), why)
+    reasons = [why for _, why in geo.values()]
+    if options.geotiff and reasons and all(reasons):
+        raise InvalidInputError(f"--geotiff: no pivot can be georeferenced (the first, "
+                                f"{reasons[0]}); leave out --geotiff")
+    return geo
 
 
 def _preview_due(options: FlightOptions, index: int) -> bool:
@@ -263,9 +304,12 @@ def _register_batch(reader: _FrameWindow, estimator: Estimator, batch: list[int]
 
 def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: Estimator,
                    options: FlightOptions, out: Path, tally: _Tally, *,
-                   preview: bool, bit_depth: int) -> dict[str, Any]:
-    """Estimate one pivot's map from its group of ``run``, write it (and its preview) and
-    return its log entry; a group that cannot be estimated is logged with its error.
+                   preview: bool, bit_depth: int,
+                   geo: tuple[geotag.MapTags | None, str | None] = (None, None)
+                   ) -> dict[str, Any]:
+    """Estimate one pivot's map from its group of ``run``, write it (and its preview) with its
+    tags and reason for no GeoTIFF ``geo`` (:func:`_pivot_tags`) and return its log entry; a
+    group that cannot be estimated is logged with its error.
 
     The group's frames are validated first (saturated or dead frames, the FPA temperature), so
     that a bad group says what is wrong with it rather than that its registration failed.
@@ -315,7 +359,10 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
         tally.times.add("estimate", t)
         return entry
     t = tally.times.add("estimate", t)
-    _write_pivot(out, pivot, temp, sigma, _preview_title(options, pivot) if preview else None)
+    _write_pivot(out, pivot, temp, sigma, _preview_title(options, pivot) if preview else None,
+                 tags=geo[0])
+    if geo[1] is not None:
+        entry["warnings"].append(f"no GeoTIFF tags: {geo[1]}")
     entry["mean_c"] = float(temp.mean())
     if sigma is not None:
         entry["sigma_mean_c"] = float(sigma.mean())
@@ -342,18 +389,18 @@ def _check_group(group: np.ndarray, first: int, bit_depth: int = 14) -> None:
 
 
 def _write_pivot(out: Path, pivot: int, temp: np.ndarray, sigma: np.ndarray | None,
-                 preview_title: str | None) -> None:
-    """A pivot's preview when titled, its σ map when it has one, then its temperature TIFF;
-    each written atomically, so that the finished ones stand when the disk fills. The map comes
-    last (before the log line that its caller writes): a pivot interrupted before its log line
-    is redone whole."""
+                 preview_title: str | None, *, tags: geotag.MapTags | None = None) -> None:
+    """A pivot's preview when titled, its σ map when it has one, then its temperature TIFF
+    (both maps with the georeferencing ``tags`` when given); each written atomically, so that
+    the finished ones stand when the disk fills. The map comes last (before the log line that
+    its caller writes): a pivot interrupted before its log line is redone whole."""
     name = f"frame_{pivot:06d}"
     try:
         if preview_title is not None:
             _preview(out / "previews" / f"{name}.png", temp, preview_title)
         if sigma is not None:
-            write_sigma_tiff(out / "temps" / f"{name}_sigma.tiff", sigma)
-        write_temperature_tiff(out / "temps" / f"{name}.tiff", temp)
+            write_sigma_tiff(out / "temps" / f"{name}_sigma.tiff", sigma, tags=tags)
+        write_temperature_tiff(out / "temps" / f"{name}.tiff", temp, tags=tags)
     except OSError as exc:
         where = f"{exc.filename}: " if exc.filename else ""
         raise OutputError(
@@ -362,19 +409,21 @@ def _write_pivot(out: Path, pivot: int, temp: np.ndarray, sigma: np.ndarray | No
 
 
 def _finish(out: Path, recording: Path, options: FlightOptions, groups: int, tally: _Tally,
-            elapsed: float) -> dict[str, Any]:
-    """Write ``log.csv`` (the latest try of each pivot) and ``summary.json``; the summary."""
-    _write_csv(out / "log.csv", _read_log(out / "log.jsonl"))
+            elapsed: float, *, about: dict[str, Any]) -> dict[str, Any]:
+    """Write ``log.csv`` (the latest try of each pivot) and ``summary.json`` (with ``about``
+    the recording: its format, damaged frames left out, the command); the summary."""
+    _write_csv(out / "log.csv", read_log(out / "log.jsonl"))
     frames_done = tally.processed * options.frames
     summary = {
         "recording": str(recording),
+        **about,
         "options": asdict(options),
         "groups": groups,
         "processed": tally.processed,
         "skipped_already_done": tally.skipped,
         "failed": tally.failed,
         **({"first_error": tally.first_error} if tally.first_error is not None else {}),
-        "sigma_c": _sigma_summary(_read_log(out / "log.jsonl")),
+        "sigma_c": _sigma_summary(read_log(out / "log.jsonl")),
         "wall_time_s": elapsed,
         "frames_per_second": {
             stage: (frames_done / s if s > 0 else None) for stage, s in tally.times.seconds.items()
@@ -468,7 +517,7 @@ def _finished_pivots(out: Path, pivots: list[int], options: FlightOptions,
                      shape: tuple[int, int]) -> set[int]:
     """Pivots an earlier run finished: the latest log line of the pivot says it succeeded and its
     map checks out (:func:`_map_ok`). A missing preview of such a pivot is made from its map."""
-    logged = {e["frame"]: e for e in _read_log(out / "log.jsonl")}
+    logged = {e["frame"]: e for e in read_log(out / "log.jsonl")}
     done = set()
     for index, pivot in enumerate(pivots):
         entry = logged.get(pivot)
@@ -516,28 +565,6 @@ def _map_ok(path: Path, shape: tuple[int, int], mean_c: Any) -> np.ndarray | Non
     if not math.isfinite(mean_c) or abs(mean - mean_c) > 1e-4 * max(1.0, abs(mean_c)):
         return None
     return temp
-
-
-def _read_log(log_path: Path) -> list[dict[str, Any]]:
-    """The latest entry of each pivot in the log, by pivot; lines that are not a JSON object
-    with an integer ``frame`` (cut by an interruption, edited) are ignored."""
-    entries: dict[int, dict[str, Any]] = {}
-    try:
-        data = log_path.read_bytes()
-    except FileNotFoundError:
-        return []
-    for line in data.splitlines():
-        try:
-            entry = json.loads(line)
-        except (ValueError, RecursionError):  # a line cut short, not UTF-8, not JSON
-            continue
-        if not isinstance(entry, dict):
-            continue
-        frame = entry.get("frame")
-        if isinstance(frame, bool) or not isinstance(frame, int):
-            continue
-        entries[frame] = entry  # the latest try of each pivot
-    return [entries[k] for k in sorted(entries)]
 
 
 def _write_csv(path: Path, entries: list[dict[str, Any]]) -> None:
