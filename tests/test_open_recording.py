@@ -505,6 +505,7 @@ def test_info_says_what_a_recording_holds(shared_data, tmp_path, capsys):
     assert code == 0, err
     dump = _dump(dji.with_suffix(".txt"))
     assert "rjpeg, 1 frame(s) of 640x512" in out and "GPS in 1 of 1 frames" in out
+    assert "attitude in 1" in out and "camera model: DJI FLIR" in out
     assert f"R1 {_num(dump['Planck R1']):g}" in out and "FPA 26.00…26.00 °C" in out
     code, out, err = run(["info", tmp_path / "nothing.seq"], capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1 and "no such file" in err

@@ -20,7 +20,7 @@ def recording_summary(path: str | Path) -> dict[str, Any]:
     from thermocal.io.open import open_recording
 
     source = open_recording(path)
-    fpa, measured, times, first_meta, gps, n = [], [], [], None, 0, 0
+    fpa, measured, times, first_meta, gps, attitude, n = [], [], [], None, 0, 0, 0
     for chunk in source.iter_frames(skip_undecodable=True):
         n += len(chunk)
         if chunk.fpa_c is not None:
@@ -33,10 +33,11 @@ def recording_summary(path: str | Path) -> dict[str, Any]:
         if first_meta is None and metas:
             first_meta = metas[0]
         gps += sum(1 for m in metas if m.get("gps"))
+        attitude += sum(1 for m in metas if m.get("attitude"))
     out: dict[str, Any] = {
         "path": str(path), "format": source.format, "frames": n,
         "size": f"{source.frame_shape[1]}x{source.frame_shape[0]}",
-        "bit_depth": source.bit_depth, "frames_with_gps": gps,
+        "bit_depth": source.bit_depth, "frames_with_gps": gps, "frames_with_attitude": attitude,
         "damaged_frames": [{"frame": w, "reason": r} for w, r in source.damaged],
         "damaged_summary": source.damaged_summary(),
     }
@@ -56,6 +57,9 @@ def recording_summary(path: str | Path) -> dict[str, Any]:
         for key in ("camera_model", "datetime"):
             if first_meta.get(key):
                 out[key] = first_meta[key]
+        if not first_meta.get("camera_model") and first_meta.get("make"):  # EXIF's (DJI)
+            out["camera_model"] = " ".join(
+                str(first_meta[k]) for k in ("make", "model") if first_meta.get(k))
         if first_meta.get("planck"):
             out["planck"] = first_meta["planck"]
     return out
@@ -81,7 +85,8 @@ def info(path: Path) -> None:
         click.echo("  no FPA temperature (give --fpa-c to the commands that need it)")
     if "time_span_s" in s:
         click.echo(f"  time span {s['time_span_s']:.3f} s")
-    click.echo(f"  GPS in {s['frames_with_gps']} of {s['frames']} frames")
+    click.echo(f"  GPS in {s['frames_with_gps']} of {s['frames']} frames, attitude in "
+               f"{s['frames_with_attitude']}")
     if s["damaged_frames"]:
         listed = ", ".join(f"{d['frame']} ({d['reason']})" for d in s["damaged_frames"])
         click.echo(f"  damaged frames left out: {listed}")
