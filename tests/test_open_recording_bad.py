@@ -19,7 +19,7 @@ from PIL import Image
 from test_bad_input_cli import assert_refused
 from test_open_recording import _dji_xmp, _dualtau_file, _fff, _frames, _rjpeg
 
-from thermocal.errors import FileFormatError
+from thermocal.errors import FileFormatError, InvalidInputError
 from thermocal.io.open import open_recording, open_stream, read_any_recording
 
 T0 = 1_700_000_000_000_000_000
@@ -237,16 +237,124 @@ def test_csq_frame_that_does_not_decode(tmp_path, capsys):
     assert len(src.read_all().frames) == 3 and len(src.damaged) == 1  # listed once
     code, out, err = run(["info", path], capsys)
     assert code == 0 and "3 frame(s)" in out and "2 (raw image does not decode" in out, err
-    # streamed (a fixed count of frames): the frame ends the stream, named; among the first
-    # frames, which open_stream decodes, before anything is written
-    with pytest.raises(FileFormatError, match=r"x\.csq \(frame 2\): raw image does not decode"):
-        open_stream(path)
+    # streamed (a fixed count of frames): zeros in its place, named by its index in the
+    # recording in its chunk; the source's list is left as it is
+    chunks = list(open_stream(path).stream(8))
+    assert [(a, len(f)) for a, f, _ in chunks] == [(0, 4)]
+    (index, where, reason), = chunks[0][2]
+    assert (index, where) == (2, "2") and reason == src.damaged[0][1]
+    assert not chunks[0][1][2].any() and chunks[0][1][[0, 1, 3]].all()
+    np.testing.assert_array_equal(chunks[0][1][[0, 1, 3]], rec.frames)
+    placeholders = list(src.iter_frames(3, placeholders=True))
+    assert [c.undecodable for c in placeholders] == [((2, "2", reason),), ()]
+    assert placeholders[0].metadata[2]["undecodable"] == ["2", reason]
+    assert len(src.damaged) == 1
+    with pytest.raises(InvalidInputError, match="not both"):
+        src.iter_frames(3, skip_undecodable=True, placeholders=True)
+    # chunks(): the frame ends the stream, named
     long = tmp_path / "long.csq"
     more = [_fff(fr, codec="jpegls", ms=40 * k) for k, fr in enumerate(_frames(23))]
     long.write_bytes(b"".join(more[:22]) + _undecodable(more[22]))
     stream = open_stream(long)
-    with pytest.raises(FileFormatError, match=r"long\.csq \(frame 22\): raw image does not"):
+    with pytest.raises(FileFormatError,
+                       match=r"long\.csq: frame 22 does not decode \(raw image does not"):
         list(stream.chunks(8))
+    # a recording none of whose first frames decodes: refused before anything is written
+    (tmp_path / "none.csq").write_bytes(b"".join(_undecodable(r) for r in records))
+    with pytest.raises(FileFormatError, match=r"none\.csq: none of its 4 frames can be read"):
+        open_stream(tmp_path / "none.csq")
+    (tmp_path / "first.csq").write_bytes(b"".join(map(_undecodable, more[:16])) + more[16])
+    with pytest.raises(FileFormatError, match=r"first\.csq: none of its first 16 frames decodes "
+                                              r"\(the first, frame 0 does not decode \(raw"):
+        open_stream(tmp_path / "first.csq")
+
+
+def _flight_outputs(out: Path) -> dict[str, bytes]:
+    """Every output of a flight but the summary and the report (their timings differ)."""
+    return {str(p.relative_to(out)): p.read_bytes() for p in sorted(out.rglob("*"))
+            if p.is_file() and p.name not in ("summary.json", "report.html")}
+
+
+def test_flight_goes_on_past_a_frame_that_does_not_decode(tmp_path, capsys, monkeypatch):
+    """A CSQ frame beyond the first 16 whose JPEG-LS data is damaged (its header whole, after a
+    frame left out at open): the groups that hold it fail, naming it by its index in the
+    recording; the others have maps; summary.json lists it; a rerun, from scratch or resumed,
+    gives the same bytes."""
+    import json
+
+    import thermocal.pipeline.flight as flight
+
+    path = tmp_path / "x.csq"
+    records = [_fff(fr, codec="jpegls", ms=40 * k)
+               for k, fr in enumerate(_frames(41, h=40, w=48) + 9000)]
+    broken = bytearray(records[5])
+    broken[0x14:0x20] = b"\xff" * 12  # a record header that does not parse: left out at open
+    records[5] = bytes(broken)
+    records[23] = _undecodable(records[23])  # frame 22 of the recording
+    path.write_bytes(b"".join(records))
+    src = open_recording(path)
+    assert src.n_frames == 40 and [w for w, _ in src.damaged] == ["5"]  # it passes at open
+    with pytest.raises(FileFormatError, match=r"\(frame 23\): raw image does not decode"):
+        list(src.iter_frames(64))  # and fails only when decoded
+    args = ["flight", path, "--method", "camera", "--frames", "3", "--stride", "3",
+            "--preview-every", "5"]
+    code, stdout, err = run([*args, "--out", tmp_path / "a"], capsys)
+    assert code == 0, err
+    assert "12 temperature maps written" in stdout and "1 failed" in stdout
+    warned = [line for line in err.splitlines() if "warning" in line]
+    assert len(warned) == 2 and "skipped 1 damaged frame of" in warned[0]
+    assert warned[1].startswith(f"thermocal: warning: {path}: 1 frame did not decode while "
+                                "streamed, 1 group skipped: frame 22 (frame 23 of its file) "
+                                "does not decode (raw image does not decode (")
+    log = [json.loads(line) for line in (tmp_path / "a" / "log.jsonl").read_text().splitlines()]
+    failed = {e["frame"]: e["error"] for e in log if "error" in e}
+    assert list(failed) == [22]
+    assert failed[22].startswith("frame 22 (frame 23 of its file) does not decode (raw image "
+                                 "does not decode (JpeglsError")
+    assert failed[22].endswith("; group of frames 21-23 skipped")
+    maps = sorted(p.name for p in (tmp_path / "a" / "temps").glob("frame_??????.tiff"))
+    assert maps == [f"frame_{p:06d}.tiff" for p in range(1, 38, 3) if p != 22]
+    summary = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert summary["damaged_frames"][0]["frame"] == "5"
+    assert {k: v for k, v in summary["damaged_frames"][1].items() if k != "reason"} == {
+        "frame": "23", "recording_index": 22}
+    assert summary["damaged_frames"][1]["reason"].startswith("raw image does not decode")
+    reference = _flight_outputs(tmp_path / "a")
+    # from scratch: the same bytes; rerun: the failed group redone, failing the same way
+    assert run([*args, "--out", tmp_path / "b"], capsys)[0] == 0
+    assert _flight_outputs(tmp_path / "b") == reference
+    code, stdout, _ = run([*args, "--out", tmp_path / "a"], capsys)
+    assert code == 0 and "0 temperature maps written" in stdout and "1 failed" in stdout
+    again = _flight_outputs(tmp_path / "a")
+    failed_line = [line for line in reference["log.jsonl"].splitlines(keepends=True)
+                   if b'"error"' in line]
+    assert again == {**reference, "log.jsonl": reference["log.jsonl"] + failed_line[0]}
+    reference_log = reference["log.jsonl"].splitlines(keepends=True)
+    assert json.loads((tmp_path / "a" / "summary.json").read_text())["damaged_frames"] == \
+        summary["damaged_frames"]
+    # interrupted before the group (and after it), then resumed: the same bytes
+    real = flight._process_pivot
+    for k in (3, 9):
+        calls = {"n": 0}
+
+        def stop(*a, _k=k, _calls=calls, **kw):
+            if _calls["n"] == _k:
+                raise KeyboardInterrupt
+            _calls["n"] += 1
+            return real(*a, **kw)
+
+        out = tmp_path / f"r{k}"
+        options = flight.FlightOptions(method="camera", frames=3, stride=3, preview_every=5)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # the warnings are those of the command above
+            with monkeypatch.context() as m:
+                m.setattr(flight, "_process_pivot", stop)
+                with pytest.raises(KeyboardInterrupt):
+                    flight.process_flight(path, out, options)
+            resumed = flight.process_flight(path, out, options)
+        assert resumed["skipped_already_done"] == k - (k > 7) and resumed["failed"] == 1
+        lines = reference_log[:k] + (failed_line if k > 7 else []) + reference_log[k:]
+        assert _flight_outputs(out) == {**reference, "log.jsonl": b"".join(lines)}
 
 
 def test_rjpeg_folder_with_damaged_files(tmp_path, capsys):

@@ -177,3 +177,42 @@ def test_fpa_rates_come_from_the_whole_recording_when_it_is_long_enough():
     assert _fpa_rates({"fpa_c": 20.0 + t[:30] / 60.0, "time_s": t[:30]}) is None
     assert _fpa_rates({"fpa_c": None, "time_s": t}) is None
     assert _fpa_rates({"fpa_c": np.ones(300), "time_s": t[::-1].copy()}) is None
+
+
+def test_every_group_holding_a_frame_that_does_not_decode_fails(tmp_path):
+    """Overlapping groups (5 frames, stride 2): the three groups that hold the undecodable frame
+    20 fail naming it, the others are processed; the summary lists it by its recording index."""
+    from test_open_recording import _fff, _frames
+    from test_open_recording_bad import _undecodable
+
+    records = [_fff(fr, codec="jpegls", ms=40 * k)
+               for k, fr in enumerate(_frames(30, h=40, w=48) + 9000)]
+    records[20] = _undecodable(records[20])
+    (tmp_path / "x.csq").write_bytes(b"".join(records))
+    options = FlightOptions(method="camera", frames=5, stride=2, preview_every=0)
+    with pytest.warns(UserWarning, match=r"x\.csq: 1 frame did not decode while streamed, 3 "
+                                         r"groups skipped: frame 20 does not decode \(raw"):
+        summary = process_flight(tmp_path / "x.csq", tmp_path / "out", options)
+    log = [json.loads(line) for line in (tmp_path / "out" / "log.jsonl").read_text().splitlines()]
+    failed = {e["frame"]: e["error"] for e in log if "error" in e}
+    assert sorted(failed) == [18, 20, 22] and summary["failed"] == 3
+    assert failed[18].endswith("; group of frames 16-20 skipped")
+    assert failed[20].startswith("frame 20 does not decode (raw image does not decode (")
+    assert failed[20].endswith("; group of frames 18-22 skipped")
+    assert failed[22].endswith("; group of frames 20-24 skipped")
+    assert summary["processed"] == summary["groups"] - 3 == 10
+    (entry,) = summary["damaged_frames"]
+    assert (entry["frame"], entry["recording_index"]) == ("20", 20)
+
+
+def test_registration_sees_the_frame_before_an_undecodable_one():
+    """What registration sees of frames that do not decode (zeros): the nearest frame before
+    them, after them at the start; a new array, the frames left as they are."""
+    from thermocal.pipeline.flight import _stand_ins
+
+    frames = np.arange(1, 6, dtype=np.uint16)[:, None, None] * np.ones((1, 2, 2), np.uint16)
+    frames[[0, 2, 3]] = 0
+    seen = _stand_ins(frames, [0, 2, 3])
+    assert seen[:, 0, 0].tolist() == [2, 2, 2, 2, 5]
+    assert frames[:, 0, 0].tolist() == [0, 2, 0, 0, 5]
+    assert _stand_ins(frames, []) is frames

@@ -63,10 +63,15 @@ reason)``, ``where`` the frame's index in its file or the file's name) and not c
 ``n_frames``. A raw image that passes those checks but does not decode is found only when it is
 decoded: :meth:`RecordingSource.read_all` (the commands that read a whole recording) and
 ``iter_frames(skip_undecodable=True)`` (``thermocal info``) leave it out and add it to the
-list; a streamed run (:func:`open_stream`, whose count of frames is fixed beforehand) stops
-with one line naming it — among the first 16 frames, before anything is written. The commands
-warn in one line: ``thermocal: warning: skipped 2 damaged frames of X.seq: 17 (raw image does
-not decode (…)), 18 (truncated (…))``.
+list. A streamed run (:func:`open_stream`, whose count of frames is fixed beforehand, for
+``thermocal flight``) cannot leave it out: :meth:`StreamHeader.stream` gives zeros of the frame
+size in its place (``iter_frames(placeholders=True)``) and names it, by its index in the
+recording, in the chunk it comes in (:attr:`FrameChunk.undecodable`: no list is shared or
+updated); ``thermocal flight`` skips every group that holds it, with its own log error, lists it
+in ``summary.json`` and warns of it at the end. A recording none of whose first 16 frames
+decodes is refused in one line before anything is written. The commands warn in one line of
+the frames left out at open: ``thermocal: warning: skipped 2 damaged frames of X.seq: 17 (raw
+image does not decode (…)), 18 (truncated (…))``.
 """
 
 from __future__ import annotations
@@ -120,6 +125,8 @@ _TIFF_MAGICS = (b"II*\x00", b"MM\x00*", b"II+\x00", b"MM\x00+")
 _ZIP_MAGIC = b"PK\x03\x04"
 _NOTES = frozenset((".txt", ".md", ".json", ".xml", ".log"))
 _PROBE_BYTES = 1 << 18
+#: ``skip`` of :meth:`RecordingSource._frames` that gives a frame that does not decode as zeros.
+_PLACEHOLDER = "placeholder"
 
 
 @dataclass(frozen=True)
@@ -140,6 +147,12 @@ class FrameChunk:
         Time since the recording's first frame, s.
     metadata : list of dict
         One JSON-serialisable dict per frame.
+    undecodable : tuple of (int, str, str)
+        The frames whose raw image does not decode, given as zeros (only with
+        ``iter_frames(placeholders=True)``): ``(index in the recording, where, reason)``,
+        ``where`` naming it as :attr:`RecordingSource.damaged` does (its place in its file, or
+        its file). Their ``fpa_c`` and ``time_s`` are NaN, their metadata ``source`` and
+        ``undecodable`` (``[where, reason]``).
     """
 
     start: int
@@ -148,6 +161,7 @@ class FrameChunk:
     fpa_measured: np.ndarray | None
     time_s: np.ndarray | None
     metadata: list[dict[str, Any]]
+    undecodable: tuple[tuple[int, str, str], ...] = ()
 
     def __len__(self) -> int:
         return int(self.frames.shape[0])
@@ -205,33 +219,39 @@ class RecordingSource:
         return f"<RecordingSource {self.format} {self.path} {self.n_frames} x {h}x{w}>"
 
     # -- subclasses yield one frame at a time ----------------------------------------------
-    def _frames(self, decode: bool = True, skip: bool = False) -> Iterator[
+    def _frames(self, decode: bool = True, skip: bool | str = False) -> Iterator[
             tuple[np.ndarray | None, float | None, bool | None, float | None, dict[str, Any]]]:
         """Yield ``(raw (H, W), fpa_c, fpa_measured, time_s, metadata)`` per frame; ``raw`` is
         None with ``decode=False`` (the sources that can then skip reading the pixels do);
-        ``skip``: a frame whose raw image does not decode goes to :attr:`damaged` rather than
-        raising."""
+        ``skip``, for a frame whose raw image does not decode (:meth:`_undecodable`): False
+        raises, True adds it to :attr:`damaged`, :data:`_PLACEHOLDER` yields zeros instead."""
         raise NotImplementedError
 
-    def iter_frames(self, chunk: int = 64, *, skip_undecodable: bool = False
-                    ) -> Iterator[FrameChunk]:
+    def iter_frames(self, chunk: int = 64, *, skip_undecodable: bool = False,
+                    placeholders: bool = False) -> Iterator[FrameChunk]:
         """Stream the recording in chunks of at most ``chunk`` frames.
 
         Frames found damaged at open are not among them (:attr:`damaged`). A frame that passed
         those checks but whose raw image does not decode raises (the count of frames is fixed
         at open), or with ``skip_undecodable`` is left out and added to :attr:`damaged` (the
-        chunks' ``start`` then counts the frames given).
+        chunks' ``start`` then counts the frames given), or with ``placeholders`` is given as
+        zeros and named in its chunk's :attr:`~FrameChunk.undecodable` (:attr:`damaged` is left
+        as it is; the count of frames stays :attr:`n_frames`).
 
         Raises
         ------
         InvalidInputError
-            If ``chunk`` is not a positive integer.
+            If ``chunk`` is not a positive integer, or both ``skip_undecodable`` and
+            ``placeholders`` are given.
         FileFormatError
             A frame that cannot be read, or is not of :attr:`frame_shape` (naming its file).
         """
         if isinstance(chunk, bool) or not isinstance(chunk, int | np.integer) or chunk < 1:
             raise InvalidInputError(f"chunk: expected a positive number of frames, got {chunk!r}")
-        return self._chunks(int(chunk), skip_undecodable)
+        if skip_undecodable and placeholders:
+            raise InvalidInputError("skip_undecodable or placeholders: a frame that does not "
+                                    "decode is either left out or given as zeros, not both")
+        return self._chunks(int(chunk), _PLACEHOLDER if placeholders else skip_undecodable)
 
     def iter_series(self) -> Iterator[tuple[float | None, bool | None, float | None,
                                             dict[str, Any]]]:
@@ -241,15 +261,22 @@ class RecordingSource:
         for _, *rest in self._frames(decode=False):
             yield tuple(rest)  # type: ignore[misc]
 
-    def _undecodable(self, skip: bool, exc: FileFormatError, label: str, where: str,
-                     note: str = "") -> None:
-        """A frame met damaged while iterated: raise ``exc``, or with ``skip`` list it (once,
-        however often the recording is read)."""
+    def _undecodable(self, skip: bool | str, exc: FileFormatError, label: str, where: str,
+                     note: str = "", count: int = 1) -> list[tuple]:
+        """A frame (``count`` frames: a file of them) met damaged while iterated: raise
+        ``exc``; with ``skip`` list it (once, however often the recording is read) and return
+        no item; with ``skip=_PLACEHOLDER`` return an item of zeros for each frame, its
+        metadata naming it (``undecodable``: ``[label, reason]``), and list nothing."""
         if not skip:
             raise exc
         entry = (label, error_reason(exc, where) + note)
+        if skip == _PLACEHOLDER:
+            return [(np.zeros(self.frame_shape, np.uint16), None, None, None,
+                     {"source": str(self.path), "undecodable": list(entry)})
+                    for _ in range(count)]
         if entry not in self.damaged:
             self.damaged.append(entry)
+        return []
 
     def damaged_summary(self) -> str | None:
         """One line naming the frames left out (None when none was): ``skipped 2 damaged
@@ -262,7 +289,7 @@ class RecordingSource:
         return (f"skipped {n} damaged frame{'s' if n > 1 else ''} of {self.path}: "
                 f"{listed}{more}")
 
-    def _chunks(self, chunk: int, skip: bool = False) -> Iterator[FrameChunk]:
+    def _chunks(self, chunk: int, skip: bool | str = False) -> Iterator[FrameChunk]:
         buf: list[tuple[np.ndarray, Any, Any, Any, dict[str, Any]]] = []
         start = 0
         for item in self._frames(skip=skip):
@@ -286,7 +313,10 @@ class RecordingSource:
         fpa = np.array([it[1] for it in items], np.float64) if self.has_fpa else None
         measured = np.array([bool(it[2]) for it in items]) if self.has_fpa else None
         time_s = np.array([it[3] for it in items], np.float64) if self.has_time else None
-        return FrameChunk(start, frames, fpa, measured, time_s, [it[4] for it in items])
+        metas = [it[4] for it in items]
+        undecodable = tuple((start + k, *m["undecodable"]) for k, m in enumerate(metas)
+                            if "undecodable" in m)
+        return FrameChunk(start, frames, fpa, measured, time_s, metas, undecodable)
 
     def read_all(self) -> Recording:
         """The whole recording in memory, as a :class:`~thermocal.io.recording.Recording`.
@@ -331,7 +361,7 @@ class _TiffSource(RecordingSource):
                          has_time=h.series["time_s"] is not None,
                          header={"extra": h.extra})
 
-    def _frames(self, decode: bool = True, skip: bool = False) -> Iterator[tuple]:
+    def _frames(self, decode: bool = True, skip: bool | str = False) -> Iterator[tuple]:
         fpa, t = self._series["fpa_c"], self._series["time_s"]
         others = {k: v for k, v in self._series.items()
                   if v is not None and k not in ("fpa_c", "time_s")}
@@ -407,7 +437,7 @@ class _FlirFileSource(RecordingSource):
             k += 1
         return out
 
-    def _frames(self, decode: bool = True, skip: bool = False) -> Iterator[tuple]:
+    def _frames(self, decode: bool = True, skip: bool | str = False) -> Iterator[tuple]:
         name = str(self.path)
         with open(self.path, "rb") as fh, mmap.mmap(fh.fileno(), 0,
                                                      access=mmap.ACCESS_READ) as mm:
@@ -416,7 +446,7 @@ class _FlirFileSource(RecordingSource):
                 try:
                     frame = read_fff_series_frame(mm, entry, where, decode=decode)
                 except FileFormatError as exc:
-                    self._undecodable(skip, exc, str(k), where)
+                    yield from self._undecodable(skip, exc, str(k), where)
                     continue
                 meta = {"source": name, "index": k, **frame.metadata}
                 yield (frame.raw if decode else None, None, None,
@@ -479,12 +509,12 @@ class _FolderSource(RecordingSource):
             return read_rjpeg(f)
         return parse_fff_record(_read_file(f), str(f))
 
-    def _frames(self, decode: bool = True, skip: bool = False) -> Iterator[tuple]:
+    def _frames(self, decode: bool = True, skip: bool | str = False) -> Iterator[tuple]:
         for f in self._files:
             try:
                 frame: Any = self._read(f) if decode else (None, self._check(f)[1])
             except FileFormatError as exc:
-                self._undecodable(skip, exc, f.name, str(f))
+                yield from self._undecodable(skip, exc, f.name, str(f))
                 continue
             raw, metadata = (frame.raw, frame.metadata) if decode else frame
             meta = {"source": str(f), "index": 0, **metadata}
@@ -513,14 +543,14 @@ class _DualTauSource(RecordingSource):
                     "fpa_readings": int(np.count_nonzero(ix.fpa_measured))},
         )
 
-    def _frames(self, decode: bool = True, skip: bool = False) -> Iterator[tuple]:
+    def _frames(self, decode: bool = True, skip: bool | str = False) -> Iterator[tuple]:
         ix = self._index
         i = 0
         for f, n in zip(ix.files, ix.counts, strict=True):
             try:
                 frames = read_dualtau_frames(f, (n, *ix.frame_shape)) if decode else None
             except UnreadableFileError as exc:
-                self._undecodable(skip, exc, f.name, str(f), f" ({n} frames)")
+                yield from self._undecodable(skip, exc, f.name, str(f), f" ({n} frames)", n)
                 i += n
                 continue
             for k in range(n):
@@ -542,7 +572,7 @@ class _ChamberNpzSource(RecordingSource):
                          header={k: v for k, v in s.attrs.items()})
         self._frames_arr = frames
 
-    def _frames(self, decode: bool = True, skip: bool = False) -> Iterator[tuple]:
+    def _frames(self, decode: bool = True, skip: bool | str = False) -> Iterator[tuple]:
         s = self._session
         for i in range(self.n_frames):
             meta: dict[str, Any] = {"source": str(self.path), "index": i,
@@ -769,9 +799,10 @@ class StreamHeader:
     """What a streamed run over a recording of any format needs before its frames: its
     ``path``, ``n_frames``, ``frame_shape`` and per-frame ``series`` (``fpa_c``, ``time_s``:
     ``(N,)`` arrays or None; ``frame_metadata``: one dict per frame where any frame carries the
-    camera's Planck constants, GPS or attitude), ``damaged`` (the frames left out:
-    ``(where, reason)``, :attr:`RecordingSource.damaged`), and :meth:`chunks`, its raw frames
-    in order."""
+    camera's Planck constants, GPS or attitude), ``damaged`` (the frames left out at open:
+    ``(where, reason)``, :attr:`RecordingSource.damaged`), and its raw frames in order:
+    :meth:`stream` (a frame that does not decode given as zeros, and named) or :meth:`chunks`
+    (such a frame ends the stream)."""
 
     path: Path
     n_frames: int
@@ -783,30 +814,57 @@ class StreamHeader:
     prefetched: list[Iterator[FrameChunk]] = dataclasses.field(
         default_factory=list, repr=False, compare=False)
 
-    def chunks(self, chunk: int) -> Iterator[tuple[int, np.ndarray]]:
-        """``(first frame index, frames (k, H, W) uint16)`` in order (the first call goes on
-        from the frames :func:`open_stream` decoded already; the chunks' sizes may differ)."""
+    def stream(self, chunk: int) -> Iterator[
+            tuple[int, np.ndarray, tuple[tuple[int, str, str], ...]]]:
+        """``(first frame index, frames (k, H, W) uint16, undecodable)`` in order (the first
+        call of this or :meth:`chunks` goes on from the frames :func:`open_stream` decoded
+        already; the chunks' sizes may differ). A frame whose raw image does not decode is
+        zeros, named in its chunk's ``undecodable``: ``(index in the recording, where,
+        reason)`` (:attr:`FrameChunk.undecodable`)."""
         if self.source is None:
-            return iter_recording(self.path, chunk=chunk)
+            return ((start, frames, ()) for start, frames in iter_recording(self.path,
+                                                                            chunk=chunk))
         if not self.prefetched:
-            return ((c.start, c.frames) for c in self.source.iter_frames(chunk))
+            return ((c.start, c.frames, c.undecodable)
+                    for c in self.source.iter_frames(chunk, placeholders=True))
         return _rechunk(self.prefetched.pop(), chunk)
 
+    def chunks(self, chunk: int) -> Iterator[tuple[int, np.ndarray]]:
+        """``(first frame index, frames (k, H, W) uint16)`` in order, as :meth:`stream`; a
+        frame that does not decode ends it with one line naming it."""
+        for start, frames, undecodable in self.stream(chunk):
+            if undecodable:
+                raise FileFormatError(f"{self.path}: {undecodable_text(*undecodable[0])}")
+            yield start, frames
 
-def _rechunk(stream: Iterator[FrameChunk], chunk: int) -> Iterator[tuple[int, np.ndarray]]:
-    """The frames of ``stream`` in chunks of ``chunk`` frames (the last may be shorter)."""
+
+def undecodable_text(index: int, where: str, reason: str) -> str:
+    """``frame 20 does not decode (REASON)``: a frame of :attr:`FrameChunk.undecodable`, named
+    by its index in the recording and, where it differs, by ``where`` (its place in its file,
+    or its file)."""
+    named = ("" if where == str(index)
+             else f" (frame {where} of its file)" if where.isdigit() else f" ({where})")
+    return f"frame {index}{named} does not decode ({reason})"
+
+
+def _rechunk(stream: Iterator[FrameChunk], chunk: int) -> Iterator[
+        tuple[int, np.ndarray, tuple[tuple[int, str, str], ...]]]:
+    """The frames of ``stream`` in chunks of ``chunk`` frames (the last may be shorter), with
+    their undecodable frames (:attr:`FrameChunk.undecodable`)."""
     parts: list[np.ndarray] = []
+    undecodable: list[tuple[int, str, str]] = []
     start = have = 0
     for c in stream:
         if not parts:
             start = c.start
         parts.append(c.frames)
+        undecodable += c.undecodable
         have += len(c)
         if have >= chunk:
-            yield start, np.concatenate(parts)
-            parts, have = [], 0
+            yield start, np.concatenate(parts), tuple(undecodable)
+            parts, undecodable, have = [], [], 0
     if parts:
-        yield start, np.concatenate(parts)
+        yield start, np.concatenate(parts), tuple(undecodable)
 
 
 def open_stream(path: str | os.PathLike[str], *, fpa_c: float | None = None) -> StreamHeader:
@@ -816,7 +874,9 @@ def open_stream(path: str | os.PathLike[str], *, fpa_c: float | None = None) -> 
     frames' headers and metadata (:meth:`RecordingSource.iter_series`: no raw image decoded).
     ``fpa_c`` (``--fpa-c``) replaces the FPA series. Frames left out as damaged are warned of
     in one line and listed in ``damaged``; a frame whose raw image passed the checks at open
-    but does not decode while streamed ends the run (the count of frames is fixed)."""
+    but does not decode while streamed is kept in its place as zeros, and named
+    (:meth:`StreamHeader.stream`: the count of frames is fixed). A recording none of whose
+    first :data:`_PREFETCH` frames decodes is refused here, before anything is written."""
     p = Path(path)
     if _project_recording(p):
         header = read_recording_header(p, fpa_c=fpa_c)
@@ -835,10 +895,16 @@ def open_stream(path: str | os.PathLike[str], *, fpa_c: float | None = None) -> 
     }
     if fpa_c is not None:
         series["fpa_c"] = np.full(source.n_frames, check_fpa_c(fpa_c, "--fpa-c"))
-    # the first frames decoded now (and streamed from there): a short recording whose raw
-    # images do not decode is refused before anything is written
-    stream = source.iter_frames(_PREFETCH)
+    # the first frames decoded now (and streamed from there): a recording whose raw images do
+    # not decode is refused before anything is written
+    stream = source.iter_frames(_PREFETCH, placeholders=True)
     first = next(stream)
+    if len(first.undecodable) == len(first):
+        damaged = list(dict.fromkeys((where, reason) for _, where, reason in first.undecodable))
+        if len(first) == source.n_frames:
+            raise no_frames_error(p, damaged)
+        raise FileFormatError(f"{p}: none of its first {len(first)} frames decodes (the first, "
+                              f"{undecodable_text(*first.undecodable[0])})")
     return StreamHeader(p, source.n_frames, source.frame_shape, series, source,
                         bit_depth=source.bit_depth, damaged=tuple(source.damaged),
                         prefetched=[itertools.chain([first], stream)])

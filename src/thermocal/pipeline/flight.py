@@ -15,6 +15,18 @@ calibration applied to the pivot ``calibration``) through the estimation pipelin
                                     (lowest ECC correlation in the group), warnings, errors
     OUT/log.csv, OUT/summary.json   written at the end (frames per second per stage)
 
+A frame whose raw image does not decode while streamed (it passed the checks at open, e.g. a
+CSQ frame whose JPEG-LS data is damaged) cannot be left out, the pivots being planned from the
+count of frames: the stream gives zeros in its place and names it, by its index in the
+recording, in the chunk it comes in (:meth:`thermocal.io.open.StreamHeader.stream`), which the
+frame window keeps beside its frames. Every group that holds it fails with its own log error,
+``frame 123 does not decode (raw image does not decode (…)); group of frames 119-125 skipped``
+(registration sees the nearest frame before it in its place, so that the other groups of its
+batch are registered as ever); ``summary.json``'s ``damaged_frames`` lists it (``frame``: its
+place in its file or its file, ``recording_index``, ``reason``) after the frames left out at
+open, and one warning at the end names them. A rerun redoes those groups, which fail the same
+way.
+
 A pivot whose frame has a GPS position (a drone's R-JPEGs, FLIR files with GPS) gets it in its
 maps, with the frame's time, camera and attitude, as EXIF and XMP that OpenDroneMap, Metashape
 and Pix4D read; ``geotiff=True`` adds GeoTIFF tags to the same files where the frame's ground
@@ -68,7 +80,7 @@ from thermocal.io.atomic import (
     temp_name_pattern,
     write_json_atomic,
 )
-from thermocal.io.open import open_stream
+from thermocal.io.open import open_stream, undecodable_text
 from thermocal.io.recording import (
     read_temperature_tiff,
     write_sigma_tiff,
@@ -205,7 +217,9 @@ def process_flight(
     _drop_cut_log_line(out / "log.jsonl")
     done = _finished_pivots(out, pivots, options, header.frame_shape)
     tally = _Tally()
-    reader = _FrameWindow(header.chunks(max(64, n)), header.frame_shape)
+    reader = _FrameWindow(header.stream(max(64, n)), header.frame_shape)
+    undecodable: dict[int, tuple[str, str]] = {}  # met in the groups of this run
+    skipped_groups = 0
     per_batch = max(1, BATCH_FRAMES // stride)
     started = time.perf_counter()
     with open(out / "log.jsonl", "a", encoding="utf-8") as log:
@@ -220,6 +234,9 @@ def process_flight(
             # the whole batch, done pivots included: the same frames as an uninterrupted run
             run = _register_batch(reader, estimator, batch, n, tally.times)
             for index, pivot in todo:
+                bad = _undecodable_in(run, pivot - n // 2, n)
+                undecodable.update((i, (where, why)) for i, where, why in bad)
+                skipped_groups += bool(bad)
                 entry = _process_pivot(run, pivot, series, estimator, options, out, tally,
                                        preview=_preview_due(options, index),
                                        bit_depth=header.bit_depth, geo=geo[pivot])
@@ -228,10 +245,27 @@ def process_flight(
                 if progress:
                     progress(stride)
     about = {"format": header.source.format if header.source is not None else "tiff",
-             "damaged_frames": [{"frame": where, "reason": why} for where, why in header.damaged],
+             "damaged_frames": [{"frame": where, "reason": why} for where, why in header.damaged]
+             + [{"frame": where, "recording_index": i, "reason": why}
+                for i, (where, why) in sorted(undecodable.items())],
              **({"command": command} if command is not None else {})}
-    return _finish(out, header.path, options, len(pivots), tally, time.perf_counter() - started,
-                   about=about)
+    summary = _finish(out, header.path, options, len(pivots), tally,
+                      time.perf_counter() - started, about=about)
+    if undecodable:
+        warnings.warn(_undecodable_warning(header.path, undecodable, skipped_groups),
+                      stacklevel=2)
+    return summary
+
+
+def _undecodable_warning(path: Path, undecodable: dict[int, tuple[str, str]],
+                         groups: int) -> str:
+    """One line naming the frames that did not decode (by index in the recording) and how
+    many groups were skipped for them."""
+    k = len(undecodable)
+    listed = "; ".join(undecodable_text(i, *undecodable[i]) for i in sorted(undecodable)[:10])
+    more = f"; and {k - 10} more" if k > 10 else ""
+    return (f"{path}: {k} frame{'s' if k > 1 else ''} did not decode while streamed, "
+            f"{groups} group{'s' if groups > 1 else ''} skipped: {listed}{more}")
 
 
 def _pivot_tags(metadata: list[Any] | None, pivots: list[int], options: FlightOptions,
@@ -279,12 +313,33 @@ class _Tally:
 @dataclass(frozen=True)
 class _Batch:
     """A run of frames ``[start, start + len(frames))`` read and registered together (or the
-    registration's error, which every group of it then reports)."""
+    registration's error, which every group of it then reports), with its frames that do not
+    decode (zeros in ``frames``): ``(index in the recording, where, reason)``."""
 
     start: int
     frames: np.ndarray
     sequence: SequenceRegistration | None
     error: str | None
+    undecodable: tuple[tuple[int, str, str], ...] = ()
+
+
+def _undecodable_in(run: _Batch, first: int, n: int) -> tuple[tuple[int, str, str], ...]:
+    """The frames of the group ``[first, first + n)`` of ``run`` that do not decode."""
+    return tuple(e for e in run.undecodable if first <= e[0] < first + n)
+
+
+def _stand_ins(frames: np.ndarray, bad: list[int]) -> np.ndarray:
+    """``frames`` where each frame at ``bad`` (indices into it) is the nearest other frame
+    before it (after it, at the start), as a new array: what registration sees of a frame that
+    does not decode (its groups fail; the others keep their chain and fixed pattern)."""
+    good = sorted(set(range(len(frames))) - set(bad))
+    if not bad or not good:
+        return frames
+    out = frames.copy()
+    for k in bad:
+        before = [g for g in good if g < k]
+        out[k] = frames[before[-1] if before else good[0]]
+    return out
 
 
 def _register_batch(reader: _FrameWindow, estimator: Estimator, batch: list[int], n: int,
@@ -292,14 +347,15 @@ def _register_batch(reader: _FrameWindow, estimator: Estimator, batch: list[int]
     """Read the frames of the groups of ``batch`` (pivots) and register them as one sequence."""
     t = time.perf_counter()
     a, z = batch[0] - n // 2, batch[-1] - n // 2 + n
-    frames = reader.frames(a, z)
+    frames, undecodable = reader.frames(a, z)
     t = times.add("reading", t)
     try:
-        sequence, error = _register(estimator, frames), None
+        sequence = _register(estimator, _stand_ins(frames, [i - a for i, _, _ in undecodable]))
+        error = None
     except (RegistrationError, InvalidInputError) as exc:
         sequence, error = None, str(exc)
     times.add("registration", t)
-    return _Batch(a, frames, sequence, error)
+    return _Batch(a, frames, sequence, error, undecodable)
 
 
 def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: Estimator,
@@ -311,8 +367,9 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
     tags and reason for no GeoTIFF ``geo`` (:func:`_pivot_tags`) and return its log entry; a
     group that cannot be estimated is logged with its error.
 
-    The group's frames are validated first (saturated or dead frames, the FPA temperature), so
-    that a bad group says what is wrong with it rather than that its registration failed.
+    The group's frames are validated first (frames that do not decode, saturated or dead
+    frames, the FPA temperature), so that a bad group says what is wrong with it rather than
+    that its registration failed.
     """
     n = options.frames
     first = pivot - n // 2
@@ -322,6 +379,7 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
     t = time.perf_counter()
     group = run.frames[first - run.start : first - run.start + n]
     try:
+        _check_decoded(_undecodable_in(run, first, n), first, n)
         _check_group(group, first, bit_depth)
         if estimator.needs_fpa:
             fpa_value(None if fpa is None else fpa[first : first + n], n)
@@ -373,6 +431,14 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
     return entry
 
 
+def _check_decoded(undecodable: tuple[tuple[int, str, str], ...], first: int, n: int) -> None:
+    """Refuse a group holding frames that do not decode (zeros in their place), naming them:
+    ``frame 123 does not decode (…); group of frames 119-125 skipped``."""
+    if undecodable:
+        named = "; ".join(undecodable_text(*e) for e in undecodable)
+        raise InvalidInputError(f"{named}; group of frames {first}-{first + n - 1} skipped")
+
+
 def _check_group(group: np.ndarray, first: int, bit_depth: int = 14) -> None:
     """The estimation pipeline's check of a group's frames (saturated, dead, constant), its
     message naming the frame by its place in the recording."""
@@ -411,7 +477,8 @@ def _write_pivot(out: Path, pivot: int, temp: np.ndarray, sigma: np.ndarray | No
 def _finish(out: Path, recording: Path, options: FlightOptions, groups: int, tally: _Tally,
             elapsed: float, *, about: dict[str, Any]) -> dict[str, Any]:
     """Write ``log.csv`` (the latest try of each pivot) and ``summary.json`` (with ``about``
-    the recording: its format, damaged frames left out, the command); the summary."""
+    the recording: its format, damaged frames left out or not decoded, the command); the
+    summary."""
     _write_csv(out / "log.csv", read_log(out / "log.jsonl"))
     frames_done = tally.processed * options.frames
     summary = {
@@ -445,28 +512,36 @@ def _sigma_summary(entries: list[dict[str, Any]]) -> dict[str, Any] | None:
 
 
 class _FrameWindow:
-    """Frames ``[a, z)`` of a recording, read in order, keeping only what is still needed."""
+    """Frames ``[a, z)`` of a recording, read in order, keeping only what is still needed, and
+    beside them those of its frames that do not decode
+    (:meth:`~thermocal.io.open.StreamHeader.stream`)."""
 
-    def __init__(self, chunks: Iterator[tuple[int, np.ndarray]], shape: tuple[int, int]) -> None:
+    def __init__(self, chunks: Iterator[tuple[int, np.ndarray, tuple[tuple[int, str, str], ...]]],
+                 shape: tuple[int, int]) -> None:
         self._chunks = chunks
         self._start = 0  # index of self._buffer[0]
         self._buffer = np.empty((0, *shape), np.uint16)
+        self._undecodable: tuple[tuple[int, str, str], ...] = ()  # those in the buffer
 
     def _drop_before(self, a: int) -> None:
         drop = min(max(0, a - self._start), len(self._buffer))
         self._buffer = self._buffer[drop:]
         self._start += drop
+        self._undecodable = tuple(e for e in self._undecodable if e[0] >= self._start)
 
-    def frames(self, a: int, z: int) -> np.ndarray:
-        """Frames ``a … z − 1`` (``a`` never decreases between calls)."""
+    def frames(self, a: int, z: int) -> tuple[np.ndarray, tuple[tuple[int, str, str], ...]]:
+        """Frames ``a … z − 1`` (``a`` never decreases between calls), and those of them that
+        do not decode (zeros): ``(index in the recording, where, reason)``."""
         self._drop_before(a)
         while self._start + len(self._buffer) < z:
-            start, chunk = next(self._chunks)
+            start, chunk, undecodable = next(self._chunks)
             if not len(self._buffer):
                 self._start = start
             self._buffer = np.concatenate([self._buffer, chunk]) if len(self._buffer) else chunk
+            self._undecodable += undecodable
             self._drop_before(a)
-        return self._buffer[a - self._start : z - self._start]
+        return (self._buffer[a - self._start : z - self._start],
+                tuple(e for e in self._undecodable if a <= e[0] < z))
 
 
 def _output_dirs(out: Path) -> Path:
