@@ -598,6 +598,17 @@ def _global_heap_damaged(path: Path, head: int = 1 << 20) -> bool:
     return False
 
 
+def _damaged_attribute_type(f: h5py.File) -> str | None:
+    """The name of the first attribute of the file's root whose datatype is a variable-length
+    sequence (a damaged variable-length string's type bits: libhdf5 crashes, SIGSEGV, when it
+    reads one, which nothing can catch); None when there is none. Only types are looked at."""
+    for index in range(h5py.h5a.get_num_attrs(f.id)):
+        attr = h5py.h5a.open(f.id, index=index)
+        if isinstance(attr.get_type(), h5py.h5t.TypeVlenID):
+            return attr.get_name().decode("utf-8", "replace")
+    return None
+
+
 @contextlib.contextmanager
 def _open_chamber(path: Path) -> Iterator[h5py.File]:
     """Open an HDF5 file for reading, turning failures into FileFormatError."""
@@ -649,6 +660,10 @@ def chamber_problems(path: str | os.PathLike[str]) -> list[str]:
     problems: list[str] = []
     with f:
         try:
+            damaged = _damaged_attribute_type(f)
+            if damaged is not None:
+                return [f"the chamber file is damaged and cannot be read (attribute {damaged!r} "
+                        "has a damaged type); copy or record it again"]
             _file_problems(f, problems)
         except _H5_ERRORS as exc:  # a damaged header, heap or B-tree
             text = " ".join(str(exc).split())[:120]
