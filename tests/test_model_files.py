@@ -852,3 +852,26 @@ def test_fuzzed_model_files_at_length(reader, reseal, cal_files, apply_args, wei
                                       tmp_path, one_thread):
     _fuzz_one(reader, 1000, cal_files, apply_args, weights_file, tmp_path, seed=1805,
               reseal=reseal)
+
+
+def test_a_calibration_attribute_with_a_damaged_string_type_is_refused(cal_files, tmp_path):
+    """A string attribute whose type is damaged into a variable-length type of neither kind
+    (a chamber file's such attribute killed the interpreter in libhdf5): refused in one line
+    (read in a fresh interpreter, so that a crash fails the test instead of the run)."""
+    import sys
+
+    raw = bytearray(cal_files["two-point"].read_bytes())
+    at = raw.find(b"format\x00\x00")
+    if at < 0 or raw[at + 8] not in (0x13, 0x19):  # a string: fixed or variable length
+        pytest.skip("another HDF5 layout: the 'format' attribute's type is elsewhere")
+    raw[at + 8 : at + 10] = b"\x19\xfa"  # class 9 (variable length), type bits of neither kind
+    path = tmp_path / "cal.h5"
+    path.write_bytes(bytes(raw))
+    code = ("import sys; from thermocal.calibration import load_any_calibration\n"
+            "from thermocal.errors import ThermocalError\n"
+            "try:\n    load_any_calibration(sys.argv[1])\n"
+            "except ThermocalError as exc:\n    print(exc); sys.exit(3)\n")
+    proc = subprocess.run([sys.executable, "-c", code, str(path)], timeout=30,
+                          capture_output=True, text=True)
+    assert proc.returncode == 3, (proc.returncode, proc.stderr[-300:])
+    assert str(path) in proc.stdout and len(proc.stdout.strip().splitlines()) == 1

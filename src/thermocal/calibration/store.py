@@ -52,6 +52,7 @@ import numpy as np
 from thermocal.calibration.base import UnverifiedFileWarning
 from thermocal.errors import FileFormatError, InvalidInputError
 from thermocal.io.atomic import atomic_path
+from thermocal.io.chamber import damaged_attribute_type
 
 FORMAT = "thermocal-calibration"
 #: 2: the file holds its SHA-256 (``sha256``), checked at load. 1: no checksum (still read).
@@ -227,6 +228,10 @@ def load_calibration(path: str | Path, *, method: str | None = None) -> StoredCa
         raise FileFormatError(f"{p}: calibration file not found")
     try:
         with h5py.File(p, "r") as f:
+            damaged = damaged_attribute_type(f)
+            if damaged is not None:
+                raise FileFormatError(f"{p}: the calibration file is damaged (attribute "
+                                      f"{damaged!r} has a damaged type); calibrate again")
             fmt = _attr(f, "format", p)
             if isinstance(fmt, bytes):
                 fmt = fmt.decode()

@@ -53,6 +53,7 @@ __all__ = [
     "ChamberWriter",
     "LazyFrames",
     "chamber_problems",
+    "damaged_attribute_type",
     "import_envchamberctrl_npz",
     "iter_chamber_frames",
     "read_chamber",
@@ -598,8 +599,8 @@ def _global_heap_damaged(path: Path, head: int = 1 << 20) -> bool:
     return False
 
 
-def _damaged_attribute_type(f: h5py.File) -> str | None:
-    """The name of the first attribute of the file's root whose datatype is a variable-length
+def damaged_attribute_type(f: h5py.File) -> str | None:
+    """The name of the first attribute of an HDF5 file's root whose datatype is a variable-length
     sequence (a damaged variable-length string's type bits: libhdf5 crashes, SIGSEGV, when it
     reads one, which nothing can catch); None when there is none. Only types are looked at."""
     for index in range(h5py.h5a.get_num_attrs(f.id)):
@@ -660,7 +661,7 @@ def chamber_problems(path: str | os.PathLike[str]) -> list[str]:
     problems: list[str] = []
     with f:
         try:
-            damaged = _damaged_attribute_type(f)
+            damaged = damaged_attribute_type(f)
             if damaged is not None:
                 return [f"the chamber file is damaged and cannot be read (attribute {damaged!r} "
                         "has a damaged type); copy or record it again"]
