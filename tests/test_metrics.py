@@ -286,3 +286,110 @@ def test_sigma_coverage_of_gaussian_errors():
     assert cov["pixels"] == 200_000 and 1.0 < cov["median_sigma_c"] < 1.5
     with pytest.raises(InvalidInputError):
         sigma_coverage(np.zeros(3), np.ones(4))
+
+
+# ------------------------------------------------------------------ the parts of the error
+
+
+def test_bias_free_mae_removes_each_maps_own_mean():
+    from thermocal.metrics import bias_free_mae
+
+    truth = np.zeros((2, 2, 2))
+    est = np.stack([np.array([[1.0, 3.0], [1.0, 3.0]]),  # mean 2, deviations ±1
+                    np.array([[-5.0, -5.0], [-5.0, -9.0]])])  # mean -6, deviations 1, 1, 1, 3
+    assert bias_free_mae(est[0], truth[0]) == pytest.approx(1.0)
+    assert bias_free_mae(est[1], truth[1]) == pytest.approx(1.5)
+    assert bias_free_mae(est, truth) == pytest.approx(1.25)  # not one mean over both maps
+    assert bias_free_mae(est[0] + 7.0, truth[0]) == pytest.approx(1.0)  # a level is free
+    # the mask selects the pixels of the mean and of the MAE: errors 1, 3, 1 → mean 5/3
+    valid = np.array([[True, True], [True, False]])
+    assert bias_free_mae(est[0], truth[0], valid=valid) == pytest.approx(
+        (2 / 3 + 4 / 3 + 2 / 3) / 3)
+
+
+def test_affine_free_mae_is_zero_for_any_gain_and_offset_per_map():
+    from thermocal.metrics import affine_free_mae
+
+    rng = np.random.default_rng(1)
+    truth = rng.normal(20.0, 3.0, (3, 8, 9))
+    est = np.stack([2.0 * truth[0] + 1.0, 0.5 * truth[1] - 4.0, truth[2] + 3.0])
+    assert affine_free_mae(est, truth) == pytest.approx(0.0, abs=1e-9)
+    # one affine map for the whole stack would not do: the maps have different gains
+    assert mae(best_affine_fit(est, truth), truth) > 0.5
+    # noise stays: the best affine map of truth + noise is close to the noise's MAE
+    noise = rng.choice([-0.2, 0.2], size=truth.shape)
+    assert affine_free_mae(truth + noise, truth) == pytest.approx(0.2, abs=0.02)
+
+
+def test_column_bands_of_known_stripes():
+    from thermocal.metrics import column_bands, row_bands
+
+    stripes = np.array([0.3, -0.1, 0.2, -0.4, 0.0, 0.0])  # SD of these column offsets
+    truth = np.random.default_rng(2).normal(25.0, 2.0, (10, 6))
+    est = truth + stripes[None, :] + 1.5  # a level offset does not count
+    assert column_bands(est, truth) == pytest.approx(float(np.std(stripes)))
+    assert row_bands(est, truth) == pytest.approx(0.0, abs=1e-12)  # every row mean is the same
+    # transposed: the same stripes are row bands
+    assert row_bands(est.T, truth.T) == pytest.approx(float(np.std(stripes)))
+    # a pattern along the columns (zero mean down each column) is not a column band
+    along = np.tile(np.array([[0.5], [-0.5]]), (5, 6))
+    assert column_bands(truth + along, truth) == pytest.approx(0.0, abs=1e-12)
+    assert row_bands(truth + along, truth) == pytest.approx(0.5)
+
+
+def test_column_bands_per_map_mean_and_mask():
+    from thermocal.metrics import column_bands
+
+    truth = np.zeros((2, 4, 4))
+    est = np.zeros((2, 4, 4))
+    est[0] += np.array([1.0, -1.0, 1.0, -1.0])  # SD 1
+    est[1] += np.array([0.5, -0.5, 0.5, -0.5])  # SD 0.5
+    assert column_bands(est, truth) == pytest.approx(0.75)  # the mean of the maps' values
+    # a masked pixel leaves its column's mean to the rest; a column with none is left out
+    est2 = est[0].copy()
+    est2[0, 0] = 99.0
+    valid = np.ones((4, 4), bool)
+    valid[0, 0] = False
+    assert column_bands(est2, truth[0], valid=valid) == pytest.approx(1.0)
+    valid[:, 3] = False  # columns 1, -1, 1 left: SD sqrt(8/9)
+    assert column_bands(est2, truth[0], valid=valid) == pytest.approx(math.sqrt(8 / 9))
+
+
+def test_column_bands_detrended_keeps_stripes_drops_ramps():
+    from thermocal.metrics import column_bands
+
+    w = 200
+    ramp = np.linspace(-1.0, 1.0, w)  # a smooth trend across the frame
+    stripes = np.where(np.arange(w) % 2 == 0, 0.1, -0.1)  # alternate columns
+    truth = np.zeros((5, w))
+    assert column_bands(truth + ramp, truth) == pytest.approx(float(np.std(ramp)))
+    assert column_bands(truth + ramp, truth, detrend_px=6.0) < 0.01
+    both = column_bands(truth + ramp + stripes, truth, detrend_px=6.0)
+    assert both == pytest.approx(0.1, abs=0.01)
+    with pytest.raises(InvalidInputError, match="detrend_px"):
+        column_bands(truth, truth, detrend_px=0.0)
+
+
+@pytest.mark.parametrize("name", ["bias_free_mae", "affine_free_mae", "column_bands",
+                                  "row_bands"])
+def test_error_parts_bad_input(name):
+    import thermocal.metrics as m
+
+    metric = getattr(m, name)
+    with pytest.raises(ResolutionMismatchError, match="shape"):
+        metric(np.zeros((3, 4)), np.zeros((4, 3)))
+    bad = ESTIMATE.copy()
+    bad[0, 0] = np.nan
+    with pytest.raises(InvalidInputError, match="NaN"):
+        metric(bad, TRUTH)
+    with pytest.raises(InvalidInputError, match="no pixel"):
+        metric(ESTIMATE, TRUTH, valid=np.zeros((2, 2), bool))
+    # a stack whose second map has no valid pixel
+    valid = np.ones((2, 2, 2), bool)
+    valid[1] = False
+    with pytest.raises(InvalidInputError, match="map 1"):
+        metric(np.stack([ESTIMATE, ESTIMATE]), np.stack([TRUTH, TRUTH]), valid=valid)
+    est = ESTIMATE.copy()
+    est.flags.writeable = False
+    metric(est, TRUTH)
+    assert np.array_equal(est, ESTIMATE)

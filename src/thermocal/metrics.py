@@ -1,7 +1,10 @@
 """Image-quality and radiometric-accuracy metrics.
 
 Accuracy against ground truth: :func:`mae`, :func:`rmse`, :func:`error_cdf` (Oz et al., Fig. 12),
-:func:`fraction_within`; similarity for non-radiometric corrections: :func:`cosine_similarity`
+:func:`fraction_within`; the parts of a map's error: :func:`bias_free_mae` (each map's mean
+error removed), :func:`affine_free_mae` (after each map's best affine map, Oz et al. Fig. 9),
+:func:`column_bands` and :func:`row_bands` (the spread of the error's column and row means);
+similarity for non-radiometric corrections: :func:`cosine_similarity`
 (Wolf et al. 2016, eq. 14), :func:`ssim`, :func:`psnr`, :func:`best_affine_fit`; no-reference
 nonuniformity: :func:`roughness` (Wolf et al. 2016, eq. 13); sensor noise: :func:`netd`,
 :func:`netd_map`.
@@ -19,14 +22,17 @@ import math
 from typing import Any
 
 import numpy as np
-from scipy.ndimage import gaussian_filter
+from scipy.ndimage import gaussian_filter, gaussian_filter1d
 from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
 from thermocal._validate import as_float_array
 from thermocal.errors import InvalidInputError, ResolutionMismatchError
 
 __all__ = [
+    "affine_free_mae",
     "best_affine_fit",
+    "bias_free_mae",
+    "column_bands",
     "cosine_similarity",
     "error_cdf",
     "fraction_within",
@@ -37,6 +43,7 @@ __all__ = [
     "psnr",
     "rmse",
     "roughness",
+    "row_bands",
     "sigma_coverage",
     "ssim",
 ]
@@ -192,6 +199,159 @@ def fraction_within(estimate: Any, truth: Any, tol: float = 0.5, *, valid: Any =
         raise InvalidInputError(f"tol: must be a finite value ≥ 0, got {tol!r}")
     err = _abs_errors(estimate, truth, valid)
     return float(np.count_nonzero(err <= tol_f) / err.size)
+
+
+# --------------------------------------------------------------------------------------------
+# the parts of a map's error
+# --------------------------------------------------------------------------------------------
+
+
+def _per_map(estimate: Any, truth: Any, valid: Any
+             ) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    """``(estimate, truth, mask)`` of each map, ``(H, W)`` each (the mask all True when none is
+    given); a map with no valid pixel is an error."""
+    est, tru = _pair(estimate, truth)
+    mask = _mask(valid, est.shape)
+    if mask is None:
+        mask = np.ones(est.shape, dtype=bool)
+    if est.ndim == 2:
+        return [(est, tru, mask)]
+    maps = list(zip(est, tru, mask, strict=True))
+    for k, (_, _, m) in enumerate(maps):
+        if not m.any():
+            raise InvalidInputError(f"valid: no pixel of map {k} is valid; nothing to compare")
+    return maps
+
+
+def bias_free_mae(estimate: Any, truth: Any, *, valid: Any = None) -> float:
+    """Mean absolute error once each map's mean error is removed, in the unit of the inputs
+    (K or °C).
+
+    What is left of the error when the map's level (a constant offset, e.g. a camera unit's
+    level that no view of an unknown scene reveals) is given for free.
+
+    Parameters
+    ----------
+    estimate, truth : array_like, shape (H, W) or (N, H, W)
+        Estimated and true values, same shape; with N maps, each map's own mean error is removed.
+    valid : array_like of bool, optional
+        Pixels to include (True = valid), shape of the inputs or ``(H, W)``; the mean error of a
+        map is taken over its valid pixels. Every map needs one.
+
+    Returns
+    -------
+    float
+        ``mean(abs(e - mean(e)))`` with ``e = estimate - truth``, each map's mean over its valid
+        pixels, the outer mean over all valid pixels of all maps.
+
+    Examples
+    --------
+    >>> float(bias_free_mae(np.array([[1.0, 3.0]]), np.zeros((1, 2))))
+    1.0
+    """
+    parts = []
+    for est, tru, m in _per_map(estimate, truth, valid):
+        err = (est - tru)[m]
+        parts.append(np.abs(err - err.mean()))
+    return float(np.mean(np.concatenate(parts)))
+
+
+def affine_free_mae(estimate: Any, truth: Any, *, valid: Any = None) -> float:
+    """Mean absolute error after each map's best affine map (Oz et al., Fig. 9's measure), in the
+    unit of the inputs.
+
+    Each map is mapped by its own least-squares ``a·x + b`` onto the truth
+    (:func:`best_affine_fit`), so that outputs that are not radiometric (scene-based NUC) are
+    compared by their spatial structure only.
+
+    Parameters
+    ----------
+    estimate, truth : array_like, shape (H, W) or (N, H, W)
+        Same shape; with N maps, each gets its own gain and offset.
+    valid : array_like of bool, optional
+        Pixels used for the fits and the mean (True = valid), shape of the inputs or ``(H, W)``.
+
+    Returns
+    -------
+    float
+        The MAE of the mapped estimate over all valid pixels of all maps.
+    """
+    parts = []
+    for est, tru, m in _per_map(estimate, truth, valid):
+        fit = best_affine_fit(est, tru, m)
+        parts.append(np.abs(fit - tru)[m])
+    return float(np.mean(np.concatenate(parts)))
+
+
+def _line_bands(estimate: Any, truth: Any, valid: Any, axis: int,
+                detrend_px: float | None) -> float:
+    """The SD of the error's line means along ``axis`` of each map (0: column means, 1: row
+    means), detrended by a Gaussian of ``detrend_px`` lines when given; the mean over maps."""
+    if detrend_px is not None:
+        sigma = float(detrend_px)
+        if not math.isfinite(sigma) or sigma <= 0:
+            raise InvalidInputError(f"detrend_px: must be positive and finite, got {detrend_px!r}")
+    values = []
+    for est, tru, m in _per_map(estimate, truth, valid):
+        err = np.where(m, est - tru, 0.0)
+        count = m.sum(axis=axis)
+        seen = count > 0
+        profile = err.sum(axis=axis)[seen] / count[seen]
+        if detrend_px is not None:
+            profile = profile - gaussian_filter1d(profile, float(detrend_px), mode="nearest")
+        values.append(float(np.std(profile)))
+    return float(np.mean(values))
+
+
+def column_bands(estimate: Any, truth: Any, *, valid: Any = None,
+                 detrend_px: float | None = None) -> float:
+    """Column-band residual: the standard deviation of the error's column means, in the unit of
+    the inputs (K or °C).
+
+    For each map, the error ``estimate - truth`` is averaged down each column (over its valid
+    pixels; a column with none is left out), and the spread (population SD, ``ddof=0``) of those
+    W column means is taken: 0 when every column has the same mean error (a level offset and
+    any pattern along the columns cancel), the stripes' own SD when the error is a pure column
+    pattern. Smooth horizontal ramps (a radial residual, a vignetting error) count too, unless
+    ``detrend_px`` removes them.
+
+    Parameters
+    ----------
+    estimate, truth : array_like, shape (H, W) or (N, H, W)
+        Same shape; with N maps, each map gets its own value.
+    valid : array_like of bool, optional
+        Pixels to include (True = valid), shape of the inputs or ``(H, W)``.
+    detrend_px : float, optional
+        If given, the column-mean profile less its Gaussian blur of this σ (columns, edges
+        ``nearest``) is used: the fine stripes only, without smooth trends across the frame.
+
+    Returns
+    -------
+    float
+        The SD of the column means; with N maps, the mean of the N values.
+
+    Examples
+    --------
+    Columns off by +0.1 and -0.1 alternately: SD 0.1.
+
+    >>> err = np.tile([0.1, -0.1], (4, 3))
+    >>> round(column_bands(err, np.zeros((4, 6))), 12)
+    0.1
+    """
+    return _line_bands(estimate, truth, valid, 0, detrend_px)
+
+
+def row_bands(estimate: Any, truth: Any, *, valid: Any = None,
+              detrend_px: float | None = None) -> float:
+    """Row-band residual: the standard deviation of the error's row means, in the unit of the
+    inputs; :func:`column_bands` with rows for columns (same parameters).
+
+    Returns
+    -------
+    float
+        The SD (``ddof=0``) of the H row means of each map's error; with N maps, their mean.
+    """
+    return _line_bands(estimate, truth, valid, 1, detrend_px)
 
 
 # --------------------------------------------------------------------------------------------
