@@ -8,7 +8,9 @@ from pathlib import Path
 import numpy as np
 
 
-def _pyplot():
+def pyplot():
+    """matplotlib's ``pyplot`` on the Agg backend (files only, no display), imported when
+    first needed."""
     import matplotlib
 
     matplotlib.use("Agg")
@@ -21,7 +23,7 @@ def save_figure(fig, path: str | Path, *, dpi: int = 110) -> None:
     """Save ``fig`` to ``path`` atomically and close it."""
     from thermocal.io.atomic import atomic_path
 
-    plt = _pyplot()
+    plt = pyplot()
     try:
         with atomic_path(path) as tmp:
             fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format=Path(path).suffix.lstrip("."))
@@ -43,7 +45,7 @@ def burst_report_figure(
     All images ``(H, W)``; estimates share the truth's colour scale; errors use a diverging map
     clipped at ``±error_range_c``; the MAE in each title is over ``valid`` pixels (all if None).
     """
-    plt = _pyplot()
+    plt = pyplot()
     n = len(estimates_c)
     fig, axes = plt.subplots(2, n + 1, figsize=(3.6 * (n + 1), 5.8), squeeze=False)
     lo, hi = np.percentile(truth_c, [1, 99])
@@ -74,7 +76,7 @@ def burst_report_figure(
 
 def temperature_figure(temp_c: np.ndarray, *, title: str = ""):
     """One temperature map ``(H, W)`` in °C with a colour bar (1–99 % range). Returns the figure."""
-    plt = _pyplot()
+    plt = pyplot()
     h, w = temp_c.shape
     fig, ax = plt.subplots(figsize=(4.5 * w / max(h, w) + 1.2, 4.5 * h / max(h, w)))
     lo, hi = np.percentile(temp_c, [1, 99])
@@ -93,7 +95,7 @@ def error_cdf_figure(estimates_c: dict[str, np.ndarray], truth_c: np.ndarray, *,
     (Oz et al. Fig. 12). Returns the figure."""
     from thermocal.metrics import error_cdf
 
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.0, 4.0))
     for name, est in estimates_c.items():
         thresholds, fraction = error_cdf(est, truth_c, valid=valid, max_error=max_error_c)
@@ -115,7 +117,7 @@ def uncertainty_figure(temp_c: np.ndarray, sigma_c: np.ndarray, truth_c: np.ndar
     (each ``(H, W)``), with the share of pixels within 1σ and 2σ. Returns the figure."""
     from thermocal.metrics import sigma_coverage
 
-    plt = _pyplot()
+    plt = pyplot()
     error = np.abs(np.asarray(temp_c, np.float64) - truth_c)
     mask = np.ones(error.shape, bool) if valid is None else np.asarray(valid, bool)
     cov = sigma_coverage(error[mask], np.asarray(sigma_c)[mask])
@@ -144,7 +146,7 @@ def mae_vs_frames_figure(results: dict):
     drawn dashed, and ``"mae_sd_c": {variant: [...]}`` (the SD over training seeds of mean
     values), drawn as error bars.
     """
-    plt = _pyplot()
+    plt = pyplot()
     fig, ax = plt.subplots(figsize=(6.0, 4.0))
     values_all = []
     sds = results.get("mae_sd_c") or {}
@@ -184,7 +186,7 @@ def figure_png(fig, *, dpi: int = 110) -> bytes:
     """``fig`` as PNG bytes (to embed in a page), and close it."""
     import io
 
-    plt = _pyplot()
+    plt = pyplot()
     try:
         buffer = io.BytesIO()
         fig.savefig(buffer, dpi=dpi, bbox_inches="tight", format="png")

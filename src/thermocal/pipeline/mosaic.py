@@ -76,7 +76,7 @@ import numpy as np
 from thermocal._validate import check_number
 from thermocal.errors import FileFormatError, InvalidInputError, RegistrationError
 from thermocal.pipeline.flight_log import read_log
-from thermocal.registration._dense import translation
+from thermocal.registration.warp import translation
 
 __all__ = ["MAX_CANVAS_PIXELS", "MOTIONS", "build_mosaic"]
 

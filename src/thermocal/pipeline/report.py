@@ -273,7 +273,7 @@ def _image_uri(path: Path) -> str | None:
 
 def _map_figure(values: np.ndarray, *, label: str, cmap: str):
     """A map with NaN holes (a mosaic) and its colour bar, scaled to 1–99 %; None if empty."""
-    from thermocal.plotting import _pyplot
+    from thermocal.plotting import pyplot
 
     step = max(1, math.ceil(max(values.shape) / _MAX_IMAGE_PX))
     shown = np.asarray(values[::step, ::step], np.float64)
@@ -284,7 +284,7 @@ def _map_figure(values: np.ndarray, *, label: str, cmap: str):
     from mpl_toolkits.axes_grid1 import make_axes_locatable
 
     h, w = shown.shape
-    fig, ax = _pyplot().subplots(figsize=(10.0 * w / max(h, w), 10.0 * h / max(h, w)))
+    fig, ax = pyplot().subplots(figsize=(10.0 * w / max(h, w), 10.0 * h / max(h, w)))
     im = ax.imshow(shown, cmap=cmap, vmin=lo, vmax=max(hi, lo + 0.1))
     bar = make_axes_locatable(ax).append_axes("right", size=0.15, pad=0.1)  # inches
     fig.colorbar(im, cax=bar, label=label)
@@ -296,7 +296,7 @@ def _map_figure(values: np.ndarray, *, label: str, cmap: str):
 def _flight_figure(rows: list[dict[str, Any]], entries: list[dict[str, Any]]):
     """FPA temperature, each map's temperature range and its σ median over the flight, the
     failed groups marked (by time when every group has one, else by frame)."""
-    from thermocal.plotting import _pyplot
+    from thermocal.plotting import pyplot
 
     by_time = all(_number(e.get("time_s")) is not None for e in entries)
     where = (lambda e: float(e["time_s"])) if by_time else (lambda e: float(e["frame"]))
@@ -304,7 +304,7 @@ def _flight_figure(rows: list[dict[str, Any]], entries: list[dict[str, Any]]):
     mapped = [r for r in rows if "range" in r]
     has_sigma = any(r["sigma_c"] is not None for r in mapped)
     panels = 2 + has_sigma
-    fig, axes = _pyplot().subplots(panels, 1, figsize=(11.0, 2.0 * panels + 0.6), sharex=True,
+    fig, axes = pyplot().subplots(panels, 1, figsize=(11.0, 2.0 * panels + 0.6), sharex=True,
                                    squeeze=False)
     axes = axes[:, 0]
     fpa = [(where(e), _number(e.get("fpa_c"))) for e in entries]

@@ -126,11 +126,6 @@ def shift_correlation(moving: np.ndarray, fixed: np.ndarray, dx: float, dy: floa
     return float(np.dot(a, b)) / den if den > 0 else -1.0
 
 
-def translation(dx: float, dy: float) -> np.ndarray:
-    """The homography of a translation by ``(dx, dy)``."""
-    return np.array([[1.0, 0.0, dx], [0.0, 1.0, dy], [0.0, 0.0, 1.0]])
-
-
 def ecc(
     moving: np.ndarray,
     fixed: np.ndarray,

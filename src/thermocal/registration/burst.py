@@ -64,7 +64,7 @@ from thermocal.registration.fixed_pattern import (
     initial_patterns,
     joint_residual,
 )
-from thermocal.registration.warp import warp_to_pivot
+from thermocal.registration.warp import translation, warp_to_pivot
 
 __all__ = ["BURST_METHODS", "BurstRegistration", "register_burst", "register_pair"]
 
@@ -188,7 +188,7 @@ def _align(
             if _KEEP < len(shifts):
                 score = [dense.shift_correlation(y[i], y[target], dx, dy) for dx, dy in shifts]
                 shifts = [shifts[k] for k in np.argsort(score)[::-1][:_KEEP]]
-            cands += [dense.translation(dx, dy) for dx, dy in shifts]
+            cands += [translation(dx, dy) for dx, dy in shifts]
         h, cc = dense.best_of(y[i], y[target], cands, iterations=iterations, race=race)
         if h is None or cc <= -1.0:
             return hs[i], -1.0

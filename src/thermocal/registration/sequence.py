@@ -37,6 +37,7 @@ from thermocal.registration.fixed_pattern import (
     as_fixed_pattern,
     estimate_fixed_pattern,
 )
+from thermocal.registration.warp import translation
 
 __all__ = ["MIN_CORRELATION", "SequenceRegistration", "register_sequence"]
 
@@ -168,7 +169,7 @@ def _pair(
 ) -> tuple[np.ndarray, float]:
     """Frame → previous frame: ``(h, correlation)``."""
     cands = [] if prediction is None else [dense.to_level(prediction, _LEVEL)]
-    cands += [dense.translation(dx, dy) for dx, dy in
+    cands += [translation(dx, dy) for dx, dy in
               dense.phase_peaks(moving.coarse, fixed.coarse, window, count=_PEAKS)]
     h, cc = dense.best_of(moving.coarse, fixed.coarse, cands, iterations=_COARSE_ITERATIONS,
                           race=_RACE)

@@ -29,6 +29,7 @@ from thermocal._validate import as_frames, as_temperature_c
 from thermocal.errors import InvalidInputError
 
 __all__ = [
+    "translation",
     "INTERPOLATIONS",
     "as_homographies",
     "frame_corners",
@@ -111,6 +112,11 @@ def _check_frame_size(frame_size: Any, name: str = "frame_size") -> tuple[int, i
             raise InvalidInputError(f"{name}: width and height must be positive integers, got "
                                     f"{frame_size!r}")
     return int(w), int(h)
+
+
+def translation(dx: float, dy: float) -> np.ndarray:
+    """The homography (3, 3) of a translation by ``(dx, dy)`` pixels."""
+    return np.array([[1.0, 0.0, dx], [0.0, 1.0, dy], [0.0, 0.0, 1.0]])
 
 
 def frame_corners(frame_size: tuple[int, int]) -> np.ndarray:
