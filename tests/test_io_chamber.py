@@ -149,6 +149,11 @@ def test_read_lazy_frames(tmp_path, session):
     assert np.array_equal(lazy.frames[2], session.frames[2])
     assert np.array_equal(lazy.frames[3:6], session.frames[3:6])
     assert np.array_equal(lazy.frames[[5, 1, 5]], session.frames[[5, 1, 5]])
+    # index arrays are read as runs of consecutive frames: runs, gaps, repeats, negative, empty
+    for idx in ([0, 1, 2, 5, 6, M - 1], [3], [M - 1, 0, 1, 2], [-1, -2, 4, 4], []):
+        got = lazy.frames[np.array(idx, dtype=np.int64)]
+        assert got.shape == (len(idx), H, W) and got.dtype == np.uint16
+        assert np.array_equal(got, session.frames[np.array(idx, dtype=np.int64)])
     mask = session.blackbody_c == 40.0
     assert np.array_equal(lazy.frames[mask], session.frames[mask])
     assert np.array_equal(np.asarray(lazy.frames), session.frames)

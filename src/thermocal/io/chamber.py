@@ -216,8 +216,10 @@ class LazyFrames:
             idx = np.where(idx < 0, idx + self.shape[0], idx).astype(np.intp)
             if idx.size and (idx.min() < 0 or idx.max() >= self.shape[0]):
                 raise IndexError(f"frame index out of range 0..{self.shape[0] - 1}")
+            if idx.size < 2 or bool(np.all(np.diff(idx) > 0)):  # increasing: as it is
+                return _read_runs(dset, idx)
             uniq, inverse = np.unique(idx, return_inverse=True)
-            return dset[uniq][inverse]  # h5py needs increasing indices
+            return _read_runs(dset, uniq)[inverse]
         return np.asarray(dset[key])
 
     def __array__(self, dtype: Any = None, copy: Any = None) -> np.ndarray:
@@ -238,6 +240,19 @@ class LazyFrames:
                 except (OSError, RuntimeError) as exc:  # a damaged chunk
                     raise _damaged(self.path, exc) from None
                 yield sl, block
+
+
+def _read_runs(dset: h5py.Dataset, frames: np.ndarray) -> np.ndarray:
+    """The frames at the increasing indices ``frames`` of ``dset``, each run of consecutive
+    indices read as one slice: h5py reads a list of indices a frame at a time (a selection per
+    element), over ten times slower than the same frames as slices."""
+    out = np.empty((frames.size, *dset.shape[1:]), dtype=dset.dtype)
+    if not frames.size:
+        return out
+    starts = np.flatnonzero(np.diff(frames) != 1) + 1
+    for a, z in zip(np.r_[0, starts], np.r_[starts, frames.size], strict=True):
+        dset.read_direct(out, np.s_[frames[a] : frames[z - 1] + 1], np.s_[a:z])
+    return out
 
 
 # --------------------------------------------------------------------------------------------
