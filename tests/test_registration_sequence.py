@@ -89,6 +89,18 @@ def test_blocks_in_parallel_agree(uav, reg):
     assert np.median(diff) < 0.3, np.median(diff)
 
 
+def test_segments_in_parallel_give_the_same_homographies(uav, monkeypatch):
+    """Segments of SEGMENT_FRAMES pairs are registered in parallel: one worker or two, the
+    same bytes (the result never depends on the machine's cores)."""
+    import thermocal.registration.sequence as sequence
+
+    monkeypatch.setattr(sequence, "SEGMENT_FRAMES", 16)  # several segments in one block
+    one = register_sequence(uav[0], workers=1)
+    two = register_sequence(uav[0], workers=2)
+    assert np.array_equal(one.to_previous, two.to_previous)
+    assert np.array_equal(one.correlation, two.correlation) and one.ok.all()
+
+
 def test_failed_link_is_refused_by_to_pivot(reg):
     ok = reg.ok.copy()
     ok[33] = False

@@ -39,12 +39,16 @@ from thermocal.registration.fixed_pattern import (
 )
 from thermocal.registration.warp import translation
 
-__all__ = ["MIN_CORRELATION", "SequenceRegistration", "register_sequence"]
+__all__ = ["MIN_CORRELATION", "SEGMENT_FRAMES", "SequenceRegistration", "register_sequence"]
 
 #: Lowest ECC correlation accepted between consecutive FPN-corrected frames.
 MIN_CORRELATION = 0.5
 #: Frames per block that share one fixed-pattern estimate (when it is estimated here).
 BLOCK_FRAMES = 512
+#: Consecutive pairs registered in order, each pair's motion predicting the next; the segments
+#: are the unit of parallel work. Fixed (not the number of workers), so that the homographies do
+#: not depend on the machine.
+SEGMENT_FRAMES = 128
 
 _LEVEL = 1  # pyramid level of the coarse alignment
 _HIGHPASS = 12.0  # px at that level
@@ -203,9 +207,10 @@ def register_sequence(
         window of ``block`` frames around each block); that needs the scene to move far within a
         block, as it does on a UAV pass.
     block : int
-        Frames per block (one pattern estimate each, and the unit of parallel work).
+        Frames per block (one pattern estimate each).
     workers : int, optional
-        Threads that register blocks in parallel (default: up to 2, the CPU count).
+        Threads that register the segments of :data:`SEGMENT_FRAMES` frames in parallel
+        (default: up to 2, the CPU count); the homographies do not depend on it.
     progress : callable, optional
         Called with the number of frames done after each block.
 
@@ -245,9 +250,12 @@ def register_sequence(
     ok = np.ones(m, dtype=bool)
     window = dense.hanning(((hh + 1) // 2, (w + 1) // 2))
 
-    def run_block(b: int) -> int:
-        s = starts[b]
-        e = min(m, s + block)
+    # segments of at most SEGMENT_FRAMES frames within the blocks: (start, end, block)
+    segments = [(a, min(a + SEGMENT_FRAMES, s + block, m), b) for b, s in enumerate(starts)
+                for a in range(s, min(s + block, m), SEGMENT_FRAMES)]
+
+    def run_segment(seg: tuple[int, int, int]) -> int:
+        s, e, b = seg
         pat = patterns[b].pattern
         first = max(0, s - 1)
         prev = _Prepared(frames[first], pat)
@@ -266,14 +274,14 @@ def register_sequence(
             prev = cur
         return e - s
 
-    if n_workers <= 1 or len(starts) == 1:
-        for b in range(len(starts)):
-            done = run_block(b)
+    if n_workers <= 1 or len(segments) == 1:
+        for seg in segments:
+            done = run_segment(seg)
             if progress is not None:
                 progress(done)
     else:
-        with ThreadPoolExecutor(max_workers=min(n_workers, len(starts))) as pool:
-            for fut in as_completed([pool.submit(run_block, b) for b in range(len(starts))]):
+        with ThreadPoolExecutor(max_workers=min(n_workers, len(segments))) as pool:
+            for fut in as_completed([pool.submit(run_segment, seg) for seg in segments]):
                 done = fut.result()
                 if progress is not None:
                     progress(done)
