@@ -48,6 +48,7 @@ __all__ = [
     "MapTags",
     "NADIR_TOLERANCE_DEG",
     "default_hfov_deg",
+    "dms",
     "footprint",
     "has_gps",
     "map_tags",
@@ -327,12 +328,19 @@ def _ascii(text: str) -> bytes:
     return text.encode("ascii", "replace") + b"\x00"
 
 
-def _dms(degrees: float) -> tuple[tuple[int, int], ...]:
-    """|degrees| as EXIF degrees, minutes, seconds: rationals d/1, m/1, s·10⁶/10⁶, rounded to
-    the nearest 1e-6″ (within 1.4e-10°, 0.02 mm on the ground)."""
+def dms(degrees: float) -> tuple[int, int, int]:
+    """|degrees| as whole degrees, whole minutes and millionths of an arc-second, rounded to
+    the nearest 1e-6″ (within 1.4e-10°, 0.02 mm on the ground): EXIF's GPS latitude and
+    longitude."""
     micro = round(abs(degrees) * 3600e6)
     d, rest = divmod(micro, 3_600_000_000)
     m, s = divmod(rest, 60_000_000)
+    return d, m, s
+
+
+def _dms(degrees: float) -> tuple[tuple[int, int], ...]:
+    """:func:`dms` as EXIF rationals d/1, m/1, s·10⁶/10⁶."""
+    d, m, s = dms(degrees)
     return (d, 1), (m, 1), (s, 1_000_000)
 
 

@@ -59,6 +59,7 @@ import numpy as np
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import InvalidInputError
 from thermocal.io.atomic import _umask, atomic_path
+from thermocal.io.geotag import dms
 from thermocal.io.recording import Recording, RecordingWriter
 from thermocal.radiometry import FlirPlanck
 
@@ -344,11 +345,10 @@ def rjpeg_bytes(record: bytes, preview: np.ndarray, *, make: str = "FLIR Systems
 
 
 def _dms(value: float) -> tuple[float, float, float]:
-    deg = abs(value)
-    d = math.floor(deg)
-    m = math.floor((deg - d) * 60.0)
-    s = round((deg - d - m / 60.0) * 3600.0, 4)  # 1e-4 arc-second, 3 mm on the ground
-    return float(d), float(m), s
+    """|value| degrees as EXIF degrees, minutes, seconds (:func:`thermocal.io.geotag.dms`), as
+    the numbers Pillow writes as rationals."""
+    d, m, micro = dms(value)
+    return float(d), float(m), micro / 1e6
 
 
 def _after_app_segments(jpeg: bytes) -> int:
