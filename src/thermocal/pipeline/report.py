@@ -202,19 +202,10 @@ def _warnings(entries: list[dict[str, Any]]) -> list[tuple[str, list[int]]]:
 
 
 def _recording_format(summary: dict[str, Any]) -> str | None:
-    """The recording's format: the summary's, else read from the recording's header when it
-    is still where the flight read it; None when unknown."""
-    if isinstance(summary.get("format"), str):
-        return summary["format"]
-    recording = summary.get("recording")
-    if not isinstance(recording, str) or not Path(recording).exists():
-        return None
-    from thermocal.io.open import open_recording
-
-    try:
-        return open_recording(recording).format
-    except Exception:  # moved, damaged: the report is still worth writing
-        return None
+    """The recording's format as the flight recorded it in its summary; None when it did not
+    (a flight of an older thermocal): the report does not open the recording again."""
+    fmt = summary.get("format")
+    return fmt if isinstance(fmt, str) else None
 
 
 def _sigma_model(options: dict[str, Any]) -> str | None:
