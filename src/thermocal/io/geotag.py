@@ -329,9 +329,9 @@ def _ascii(text: str) -> bytes:
 
 
 def dms(degrees: float) -> tuple[int, int, int]:
-    """|degrees| as whole degrees, whole minutes and millionths of an arc-second, rounded to
-    the nearest 1e-6″ (within 1.4e-10°, 0.02 mm on the ground): EXIF's GPS latitude and
-    longitude."""
+    """The absolute value of ``degrees`` as whole degrees, whole minutes and millionths of an
+    arc-second, rounded to the nearest 1e-6″ (within 1.4e-10°, 0.02 mm on the ground): EXIF's
+    GPS latitude and longitude."""
     micro = round(abs(degrees) * 3600e6)
     d, rest = divmod(micro, 3_600_000_000)
     m, s = divmod(rest, 60_000_000)

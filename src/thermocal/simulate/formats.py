@@ -345,8 +345,8 @@ def rjpeg_bytes(record: bytes, preview: np.ndarray, *, make: str = "FLIR Systems
 
 
 def _dms(value: float) -> tuple[float, float, float]:
-    """|value| degrees as EXIF degrees, minutes, seconds (:func:`thermocal.io.geotag.dms`), as
-    the numbers Pillow writes as rationals."""
+    """The absolute value of ``value`` degrees as EXIF degrees, minutes, seconds
+    (:func:`thermocal.io.geotag.dms`), as the numbers Pillow writes as rationals."""
     d, m, micro = dms(value)
     return float(d), float(m), micro / 1e6
 
