@@ -184,4 +184,4 @@ def test_benchmark_main_writes_its_report(tmp_path, capsys):
     assert res["pass"]["seed"] == 100 and res["pass"]["size"] == [64, 48]
     assert all(r["summary"]["maps"] == 2 for r in res["methods"].values())
     with pytest.raises(InvalidInputError, match="unknown method"):
-        main(["--methods", "selfcal"])
+        main(["--methods", "no-such-method"])

@@ -25,9 +25,11 @@ class EstimatorInfo:
     ----------
     name : str
         Its ``--method`` name.
-    needs : {"model", "calibration", "recording"}
-        A network's weights file (the shipped one by default), a calibration file, or the
-        recording's own constants (a FLIR file's Planck constants).
+    needs : {"model", "calibration", "recording", "pass"}
+        A network's weights file (the shipped one by default), a calibration file, the
+        recording's own constants (a FLIR file's Planck constants), or a whole pass to fit on
+        (a flight-level estimator: the camera family's average unit or a calibration to start
+        from).
     source : str
         The published method it implements.
     summary : str
@@ -55,6 +57,10 @@ ESTIMATORS: dict[str, EstimatorInfo] = {
     "camera": EstimatorInfo("camera", "recording", "FLIR's radiometric formula",
                             "the pivot frame through the camera's own calibration in the file "
                             "(FLIR R-JPEG, FFF, SEQ, CSQ)", per_frame=True),
+    "selfcal": EstimatorInfo("selfcal", "pass", "Hardie et al. 2000, over a whole pass",
+                             "flight-level self-calibration: the unit's fixed pattern fitted over "
+                             "the whole pass from the family's average unit (or --calibration), "
+                             "then eq. 9's mean of the corrected frames (thermocal flight only)"),
 }
 
 
@@ -68,13 +74,16 @@ def make_estimator(
     *,
     model: str | os.PathLike[str] | None = None,
     calibration: str | os.PathLike[str] | Calibration | None = None,
+    family: str = "tau2",
 ) -> Estimator:
     """Build the estimator ``name`` of :data:`ESTIMATORS`.
 
     ``model`` is a weights file for a network (default: the shipped one of that variant);
     ``calibration`` a calibration file (or a fitted calibration) for ``mean`` and
-    ``calibration``. ``camera`` is made from the recording it runs on, once read
-    (:class:`~thermocal.estimation.vendor.VendorCalibration`), not here.
+    ``calibration``; ``selfcal`` starts from that calibration when given, else from the camera
+    ``family``'s average unit, and is fitted on a pass by the flight. ``camera`` is made from
+    the recording it runs on, once read (:class:`~thermocal.estimation.vendor.VendorCalibration`),
+    not here.
 
     Raises
     ------
@@ -91,17 +100,28 @@ def make_estimator(
             f"--method {name} is made from the recording's own constants once it is read: "
             "VendorCalibration.from_recording (thermocal estimate and flight do so)"
         )
+    if info.needs == "pass":
+        from thermocal.estimation.selfcal import SelfCalibration
+
+        return SelfCalibration(_calibration(calibration), family=family)
     if info.needs == "calibration":
         if calibration is None:
             raise InvalidInputError(
                 f"--method {name} needs a per-pixel calibration: give --calibration CAL.h5"
             )
-        from thermocal.calibration import load_any_calibration
         from thermocal.estimation.calibrated import OzMean, PivotCalibration
 
-        cal = (load_any_calibration(calibration) if isinstance(calibration, (str, os.PathLike))
-               else calibration)
+        cal = _calibration(calibration)
         return OzMean(cal) if name == "mean" else PivotCalibration(cal)
     from thermocal.nn.infer import NetworkEstimator  # torch: only for a network
 
     return NetworkEstimator.from_file(name, model)
+
+
+def _calibration(calibration: str | os.PathLike[str] | Calibration | None) -> Calibration | None:
+    """A calibration file loaded (a fitted calibration as it is)."""
+    if isinstance(calibration, (str, os.PathLike)):
+        from thermocal.calibration import load_any_calibration
+
+        return load_any_calibration(calibration)
+    return calibration

@@ -55,15 +55,18 @@ __all__ = [
     "PassMethod",
     "PassSpec",
     "SCORES",
+    "SIGMA_SCORES",
     "default_methods",
     "evaluate_pass",
     "load_pass_scene",
     "main",
     "map_scores",
     "other_unit_two_point",
+    "one_reference_disc",
     "own_polynomial",
     "report",
     "score_flight",
+    "sigma_scores",
     "simulate_pass",
     "summarise_maps",
     "summarise_passes",
@@ -135,6 +138,9 @@ class PassMethod:
         A network weights file (default: the shipped one).
     force : bool
         ``--force``: estimate groups outside the estimator's domain rather than fail them.
+    references : callable, optional
+        A recipe ``(spec, pass folder) → REF.csv`` of ground references (``--reference``), e.g.
+        :func:`one_reference_disc`.
     """
 
     label: str
@@ -142,6 +148,7 @@ class PassMethod:
     calibration: CalibrationSource = None
     model: str | None = None
     force: bool = False
+    references: Callable[[PassSpec, Path], Path] | None = None
 
 
 # ------------------------------------------------------------------------------------------------
@@ -230,6 +237,37 @@ def other_unit_two_point(spec: PassSpec, workdir: Path) -> Path:
     return path
 
 
+#: The simulated ground reference: its disc's radius (px) and the σ of its thermometer (°C).
+REFERENCE_RADIUS_PX = 6.0
+REFERENCE_SIGMA_C = 0.1
+
+
+def one_reference_disc(spec: PassSpec, folder: Path) -> Path:
+    """One ground reference in one frame (``REF.csv`` in ``folder``): a disc of
+    :data:`REFERENCE_RADIUS_PX` px in the pass's middle frame where the true scene is most
+    uniform (a water body, a panel), its temperature the truth's mean over the disc plus a
+    thermometer's error drawn with σ :data:`REFERENCE_SIGMA_C` (seeded by the pass)."""
+    import tifffile
+    from scipy.ndimage import uniform_filter
+
+    with tifffile.TiffFile(folder / "truth.tiff") as tif:
+        k = len(tif.pages) // 2
+        truth = tif.pages[k].asarray().astype(np.float64)
+    size = int(2 * REFERENCE_RADIUS_PX + 1)
+    var = uniform_filter(truth**2, size) - uniform_filter(truth, size) ** 2
+    r = int(np.ceil(REFERENCE_RADIUS_PX)) + 1
+    var[:r], var[-r:], var[:, :r], var[:, -r:] = np.inf, np.inf, np.inf, np.inf
+    y, x = np.unravel_index(int(np.argmin(var)), var.shape)
+    yy, xx = np.mgrid[: truth.shape[0], : truth.shape[1]]
+    disc = (xx - x) ** 2 + (yy - y) ** 2 <= REFERENCE_RADIUS_PX**2
+    error = np.random.default_rng(spec.seed).normal(0.0, REFERENCE_SIGMA_C)
+    path = folder / "REF.csv"
+    path.write_text("frame,x,y,radius_px,temperature_c,sigma_c\n"
+                    f"{k},{x},{y},{REFERENCE_RADIUS_PX:g},{truth[disc].mean() + error:.3f},"
+                    f"{REFERENCE_SIGMA_C:g}\n", encoding="utf-8")
+    return path
+
+
 def default_methods() -> list[PassMethod]:
     """The shipped network, and the classical ``mean`` with another unit's two-point
     (calibration-free, as the network) and with the unit's own polynomial (a reference, run with
@@ -281,6 +319,23 @@ def _pairs(out: Path, truth_path: Path, frames: Sequence[int]):
             yield k, est, tif.pages[k].asarray()
 
 
+#: The stated σ's scores of a map (where the flight wrote its σ map): the fractions of its
+#: pixels' errors within 1σ and 2σ, and its median σ (°C).
+SIGMA_SCORES = ("within_1sigma", "within_2sigma", "median_sigma_c")
+
+
+def sigma_scores(estimate: np.ndarray, truth: np.ndarray, sigma: np.ndarray, *,
+                 valid: np.ndarray | None = None) -> dict[str, float]:
+    """:data:`SIGMA_SCORES` of a map, its truth and its σ map (°C, ``(H, W)``) over ``valid``."""
+    err = np.abs(np.asarray(estimate, np.float64) - truth)
+    sig = np.asarray(sigma, np.float64)
+    if valid is not None:
+        err, sig = err[valid], sig[valid]
+    return {"within_1sigma": float(np.mean(err <= sig)),
+            "within_2sigma": float(np.mean(err <= 2 * sig)),
+            "median_sigma_c": float(np.median(sig))}
+
+
 #: The scores of the part of a pass's error that is fixed in the sensor (:func:`score_flight`).
 FIXED_SCORES = ("fixed_sd_c", "fixed_column_bands_c", "fixed_row_bands_c",
                 "moving_bias_free_mae_c", "moving_column_bands_c", "moving_row_bands_c")
@@ -317,6 +372,11 @@ def score_flight(out_dir: str | os.PathLike[str], truth_path: str | os.PathLike[
     total = None
     for pivot, est, tru in _pairs(out, truth_file, done):
         scores = map_scores(est, tru, valid=valid)
+        sigma_path = out / "temps" / f"frame_{pivot:06d}_sigma.tiff"
+        if sigma_path.is_file():
+            from thermocal.io.recording import read_temperature_tiff
+
+            scores |= sigma_scores(est, tru, read_temperature_tiff(sigma_path), valid=valid)
         maps.append({"frame": pivot, **scores})
         part = np.asarray(est, np.float64) - tru - scores["bias_c"]
         total = part if total is None else total + part
@@ -344,8 +404,9 @@ def summarise_maps(maps: Sequence[dict[str, Any]]) -> dict[str, float]:
     """A pass's figures: the mean over its maps of each score (:data:`SCORES`), the mean
     absolute bias ``mean_abs_bias_c`` and the number of maps; NaN scores when there is none."""
     out: dict[str, float] = {"maps": len(maps)}
-    for key in SCORES:
-        out[key] = float(np.mean([m[key] for m in maps])) if maps else float("nan")
+    for key in (*SCORES, *SIGMA_SCORES):
+        values = [m[key] for m in maps if key in m]
+        out[key] = float(np.mean(values)) if values else float("nan")
     out["mean_abs_bias_c"] = (float(np.mean([abs(m["bias_c"]) for m in maps])) if maps
                               else float("nan"))
     return out
@@ -369,7 +430,7 @@ def summarise_passes(results: Sequence[dict[str, Any]]) -> list[dict[str, Any]]:
         entry: dict[str, Any] = {"method": label, "passes": len(passes),
                                  "passes_without_maps": row["empty"],
                                  "maps": int(sum(p["maps"] for p in passes))}
-        for key in (*SCORES, "mean_abs_bias_c", *FIXED_SCORES):
+        for key in (*SCORES, "mean_abs_bias_c", *FIXED_SCORES, *SIGMA_SCORES):
             values = [p.get(key, float("nan")) for p in passes]
             entry[key] = float(np.mean(values)) if values else float("nan")
         maes = [p["mae_c"] for p in passes]
@@ -420,9 +481,10 @@ def evaluate_pass(spec: PassSpec, methods: Sequence[PassMethod], workdir: str | 
     try:
         for m in methods:
             cal = m.calibration(spec, work) if callable(m.calibration) else m.calibration
+            refs = None if m.references is None else str(m.references(spec, folder))
             options = FlightOptions(method=m.method, calibration=None if cal is None else str(cal),
                                     model=m.model, frames=frames, stride=stride, preview_every=0,
-                                    force=m.force)
+                                    force=m.force, family=spec.preset, references=refs)
             out = folder / f"out_{_slug(m.label)}"
             t = time.perf_counter()
             process_flight(recording, out, options)
@@ -448,6 +510,10 @@ def evaluate_pass(spec: PassSpec, methods: Sequence[PassMethod], workdir: str | 
 
 def _f(x: float) -> str:
     return "–" if x != x else f"{x:.2f}"  # NaN: no map
+
+
+def _pct(x: float) -> str:
+    return "–" if x != x else f"{100 * x:.1f} %"  # NaN: no σ
 
 
 def report(results: Sequence[dict[str, Any]], *, info: dict[str, Any]) -> str:
@@ -481,6 +547,11 @@ def report(results: Sequence[dict[str, Any]], *, info: dict[str, Any]) -> str:
                            _f(row["row_bands_c"]), _f(row["column_fine_c"]),
                            _f(row["row_fine_c"])))
     means = markdown_table(mean_header, mean_cells)
+    sigma_cells = [(row["method"], row["maps"], _pct(row["within_1sigma"]),
+                    _pct(row["within_2sigma"]), _f(row["median_sigma_c"]))
+                   for row in summarise_passes(results)]
+    sigma_table = markdown_table(("method", "maps", "within 1σ", "within 2σ", "median σ °C"),
+                                 sigma_cells)
     fixed_header = ("pass", "method", "fixed part SD °C", "its column bands °C",
                     "its row bands °C", "without it: bias-free MAE °C", "column bands °C",
                     "row bands °C")
@@ -499,6 +570,8 @@ def report(results: Sequence[dict[str, Any]], *, info: dict[str, Any]) -> str:
             f"command: `{info['command']}`\n\n"
             f"data: {info['data']}\n\n### Per pass\n\n{per_pass}\n\n"
             f"### Means over the passes\n\n{means}{failed}\n\n"
+            "### The stated σ\n\nPixels whose error lies within the map's σ and 2σ "
+            f"(targets 68 ± 5 % and 95 ± 3 %), mean over the maps:\n\n{sigma_table}\n\n"
             "### The part of the error fixed in the sensor\n\nEach map's error less its mean, "
             "averaged over the pass's maps (measured with the truth, in-sample: the most a "
             "flight-level pattern estimate could remove), and what is left of the maps' error "
@@ -512,7 +585,12 @@ def _methods_by_name(names: Sequence[str], *, force: bool) -> list[PassMethod]:
              "mean-own": PassMethod("mean + own polynomial (reference)", "mean", own_polynomial,
                                     force=True),
              "calibration-own": PassMethod("calibration (pivot alone) + own polynomial",
-                                           "calibration", own_polynomial, force=True)}
+                                           "calibration", own_polynomial, force=True),
+             "selfcal": PassMethod("selfcal (calibration-free)", "selfcal", force=force),
+             "selfcal-ref": PassMethod("selfcal + one reference disc", "selfcal", force=force,
+                                       references=one_reference_disc),
+             "selfcal-own": PassMethod("selfcal from own polynomial", "selfcal", own_polynomial,
+                                       force=True)}
     unknown = [n for n in names if n not in table]
     if unknown:
         raise InvalidInputError(f"unknown method {unknown[0]!r}; choose from {', '.join(table)}")
@@ -534,7 +612,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--size", default="336x256", help="Frame size WxH.")
     parser.add_argument("--fpa-c", type=float, default=30.0, help="FPA temperature, °C.")
     parser.add_argument("--methods", default="kpn,mean-other,mean-own",
-                        help="kpn, mean-other, mean-own, calibration-own (comma separated).")
+                        help="kpn, mean-other, mean-own, calibration-own, selfcal, selfcal-ref, "
+                        "selfcal-own (comma separated).")
+    parser.add_argument("--preset", default="tau2", help="Camera family of the units.")
     parser.add_argument("--group", type=int, default=7, help="Frames per group (N).")
     parser.add_argument("--stride", type=int, default=7)
     parser.add_argument("--force", action="store_true", help="--force for every method.")
@@ -558,7 +638,7 @@ def main(argv: list[str] | None = None) -> None:
                 # whatever else the command runs
                 seed = 1000 * (EVAL_SCENES.index(scene) if scene in EVAL_SCENES else 0) + unit
                 spec = PassSpec(scene=scene, unit=unit, n_frames=args.frames, size=size,
-                                fpa_c=args.fpa_c, seed=seed)
+                                fpa_c=args.fpa_c, seed=seed, preset=args.preset)
                 res = evaluate_pass(spec, methods, tmp, frames=args.group, stride=args.stride)
                 results.append(res)
                 for label, r in res["methods"].items():
@@ -574,7 +654,8 @@ def main(argv: list[str] | None = None) -> None:
             "command": "python benchmarks/passes.py " + " ".join(sys.argv[1:] if argv is None
                                                                  else argv),
             "data": (f"UAV passes (motion `uav`, 3.8 px per frame) of {args.frames} frames of "
-                     f"{w}×{h}, FPA {args.fpa_c:g} °C, tau2 units {', '.join(map(str, units))} "
+                     f"{w}×{h}, FPA {args.fpa_c:g} °C, {args.preset} units "
+                     f"{', '.join(map(str, units))} "
                      f"over {', '.join(scenes)} (seed 1000 × the scene's index in "
                      f"EVAL_SCENES + the unit); groups of N = {args.group} every {args.stride} "
                      "frames through `thermocal flight` (process_flight); each pivot map scored "

@@ -18,7 +18,8 @@ from thermocal.progress import progress_bar
 @click.option("--method", type=click.Choice(list(ESTIMATORS)), default="kpn", show_default=True,
               help=method_help())
 @click.option("--calibration", type=click.Path(dir_okay=False), default=None,
-              help="Calibration file (thermocal calibrate) for --method mean|calibration.")
+              help="Calibration file (thermocal calibrate) for --method mean|calibration; for "
+              "--method selfcal, the model to start from (default: the family's average unit).")
 @click.option("--model", type=click.Path(dir_okay=False), default=None,
               help="Network weights (default: the shipped model of --method).")
 @click.option("--frames", "n_frames", type=int, default=7, show_default=True,
@@ -39,10 +40,18 @@ from thermocal.progress import progress_bar
 @click.option("--hfov-deg", type=float, default=None,
               help="Horizontal field of view, degrees, for --geotiff (default: the file's, "
               "else the camera's: DJI XT/XT-R/XT2 with the 13 mm lens, 45° at 640 px).")
+@click.option("--family", type=click.Choice(["tau2", "boson"]), default="tau2",
+              show_default=True,
+              help="Camera family whose average unit --method selfcal starts from (without "
+              "--calibration).")
+@click.option("--reference", "reference", type=click.Path(dir_okay=False), default=None,
+              help="Ground references for --method selfcal: a CSV with columns frame,x,y,"
+              "radius_px,temperature_c (optional emissivity, reflected_c, sigma_c); they fix "
+              "the unit's level.")
 def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
            model: str | None, n_frames: int, stride: int, fpa_c: float | None,
            preview_every: int, force: bool, geotiff: bool, with_mosaic: bool,
-           hfov_deg: float | None) -> None:
+           hfov_deg: float | None, family: str, reference: str | None) -> None:
     """Turn a whole RECORDING into one temperature map per pivot: frames.tiff + sidecar, or any
     format thermocal reads (FLIR SEQ/CSQ/FFF, R-JPEGs, a folder of them, a DualTauUAV flight).
     Ends with OUT/report.html (and OUT/mosaic with --mosaic)."""
@@ -52,11 +61,12 @@ def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
     from thermocal.pipeline.flight import FlightOptions, process_flight
     from thermocal.pipeline.report import write_report
 
-    check_not_input(out_dir, recording, calibration, model)
+    check_not_input(out_dir, recording, calibration, model, reference)
     check_outside_recording(recording, (out_dir, "--out"))
     options = FlightOptions(method=method, calibration=calibration, model=model, frames=n_frames,
                             stride=stride, fpa_c=fpa_c, preview_every=preview_every,
-                            force=force, geotiff=geotiff, hfov_deg=hfov_deg)
+                            force=force, geotiff=geotiff, hfov_deg=hfov_deg, family=family,
+                            references=reference)
     total = recording_length(recording)
     with progress_bar() as bar:
         task = bar.add_task("flight", total=total - total % stride or total)

@@ -60,7 +60,7 @@ import re
 import time
 import warnings
 from collections.abc import Callable, Iterator
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -94,6 +94,10 @@ from thermocal.registration.sequence import SequenceRegistration, register_seque
 #: what is left to do, so that a resumed run registers the same frames as an uninterrupted one.
 BATCH_FRAMES = 512
 
+#: Most frames a flight-level estimator (``selfcal``) is fitted on per batch; a longer batch is
+#: fitted on every k-th frame.
+MAX_FIT_FRAMES = 320
+
 
 @dataclass(frozen=True)
 class FlightOptions:
@@ -109,6 +113,8 @@ class FlightOptions:
     force: bool = False
     geotiff: bool = False
     hfov_deg: float | None = None
+    family: str = "tau2"
+    references: str | None = None
 
     def __post_init__(self) -> None:
         info = ESTIMATORS.get(self.method)
@@ -121,6 +127,9 @@ class FlightOptions:
             raise InvalidInputError(f"--method {self.method} needs --calibration CAL.h5")
         if self.preview_every < 0:
             raise InvalidInputError("--preview-every must be >= 0 (0: no previews)")
+        if self.references is not None and info.needs != "pass":
+            raise InvalidInputError(
+                "--reference fixes the level of a flight-level method: use --method selfcal")
         if self.hfov_deg is not None and not (
                 self.geotiff and math.isfinite(self.hfov_deg) and 0 < self.hfov_deg < 180):
             raise InvalidInputError("--hfov-deg must be between 0 and 180 degrees, with --geotiff")
@@ -137,7 +146,7 @@ class StageTimes:
 
     def add(self, stage: str, started: float) -> float:
         now = time.perf_counter()
-        self.seconds[stage] += now - started
+        self.seconds[stage] = self.seconds.get(stage, 0.0) + now - started
         return now
 
 
@@ -152,7 +161,7 @@ def _estimator(options: FlightOptions, frame_shape: tuple[int, int]) -> Estimato
     """The estimator of ``options``, checked against the recording before any work: the
     calibration's frame size, the network's burst length."""
     estimator = make_estimator(options.method, model=options.model,
-                               calibration=options.calibration)
+                               calibration=options.calibration, family=options.family)
     calibration = getattr(estimator, "calibration", None)
     if calibration is not None and tuple(calibration.shape) != tuple(frame_shape):
         raise InvalidInputError(
@@ -212,6 +221,16 @@ def process_flight(
     series = header.series | {"fpa_rate_c_per_min": recording_fpa_rates(
         header.series["fpa_c"], header.series["time_s"])}
     geo = _pivot_tags(header.series.get("frame_metadata"), pivots, options, header.frame_shape)
+    per_batch = max(1, BATCH_FRAMES // stride)
+    batches = [pivots[b : b + per_batch] for b in range(0, len(pivots), per_batch)]
+    flight_level = ESTIMATORS[options.method].needs == "pass"
+    if flight_level and len(batches) > 1 and len(batches[-1]) < per_batch // 2:
+        # a short last batch would be too short to fit on: it joins the one before
+        batches[-2:] = [batches[-2] + batches[-1]]
+    prefit_started = time.perf_counter()
+    pass_fit = (_PassFit.before(header, batches, estimator, options, series)
+                if flight_level else None)
+    prefit_s = time.perf_counter() - prefit_started
     out = _output_dirs(Path(out_dir))  # only now: every check has passed
     _remove_stale_temp_files(out)
     _drop_cut_log_line(out / "log.jsonl")
@@ -220,11 +239,12 @@ def process_flight(
     reader = _FrameWindow(header.stream(max(64, n)), header.frame_shape)
     undecodable: dict[int, tuple[str, str]] = {}  # met in the groups of this run
     skipped_groups = 0
-    per_batch = max(1, BATCH_FRAMES // stride)
-    started = time.perf_counter()
+    if pass_fit is not None:
+        tally.times.seconds["self-calibration"] = prefit_s
+    started = time.perf_counter() - prefit_s
     with open(out / "log.jsonl", "a", encoding="utf-8") as log:
-        for b in range(0, len(pivots), per_batch):
-            batch = pivots[b : b + per_batch]
+        for bi, batch in enumerate(batches):
+            b = sum(map(len, batches[:bi]))
             todo = [(b + i, p) for i, p in enumerate(batch) if p not in done]
             tally.skipped += len(batch) - len(todo)
             if progress and len(todo) < len(batch):
@@ -233,11 +253,16 @@ def process_flight(
                 continue
             # the whole batch, done pivots included: the same frames as an uninterrupted run
             run = _register_batch(reader, estimator, batch, n, tally.times)
+            batch_estimator = estimator
+            if pass_fit is not None:
+                t = time.perf_counter()
+                run, batch_estimator = pass_fit.for_batch(bi, run, series["fpa_c"])
+                tally.times.add("self-calibration", t)
             for index, pivot in todo:
                 bad = _undecodable_in(run, pivot - n // 2, n)
                 undecodable.update((i, (where, why)) for i, where, why in bad)
                 skipped_groups += bool(bad)
-                entry = _process_pivot(run, pivot, series, estimator, options, out, tally,
+                entry = _process_pivot(run, pivot, series, batch_estimator, options, out, tally,
                                        preview=_preview_due(options, index),
                                        bit_depth=header.bit_depth, geo=geo[pivot])
                 log.write(json.dumps(entry) + "\n")  # last: the pivot is finished
@@ -248,7 +273,8 @@ def process_flight(
              "damaged_frames": [{"frame": where, "reason": why} for where, why in header.damaged]
              + [{"frame": where, "recording_index": i, "reason": why}
                 for i, (where, why) in sorted(undecodable.items())],
-             **({"command": command} if command is not None else {})}
+             **({"command": command} if command is not None else {}),
+             **({"selfcal": pass_fit.summary()} if pass_fit is not None else {})}
     summary = _finish(out, header.path, options, len(pivots), tally,
                       time.perf_counter() - started, about=about)
     if undecodable:
@@ -321,6 +347,139 @@ class _Batch:
     sequence: SequenceRegistration | None
     error: str | None
     undecodable: tuple[tuple[int, str, str], ...] = ()
+
+
+class _PassFit:
+    """A flight-level estimator (``selfcal``) fitted batch by batch: one residual pattern per
+    batch of frames (long flights in segments), the level fixed by ground references.
+
+    :meth:`before` runs before anything is written: it fits the first batch (a pass of one
+    batch too short or too still is refused there, exit 2) and the batches that hold a reference
+    frame, and fixes the level from the references; :meth:`for_batch` gives each batch its fitted
+    estimator (a batch whose fit fails fails its groups with the reason). A batch's fit
+    depends only on its frames, so a resumed run fits it the same way.
+    """
+
+    def __init__(self, estimator: Any, fits: dict[int, Any], level: Any) -> None:
+        self.estimator = estimator  # with the references' level
+        self.fits = fits  # batch index → fitted estimator (made before the loop)
+        self.level = level
+        self.segments: list[dict[str, Any]] = []
+
+    @classmethod
+    def before(cls, header: Any, batches: list[list[int]], estimator: Any,
+               options: FlightOptions, series: dict[str, Any]) -> _PassFit:
+        from thermocal.pipeline.references import level_from_references, read_references
+
+        n = options.frames
+        refs = (read_references(options.references, n_frames=header.n_frames,
+                                frame_shape=header.frame_shape) if options.references else ())
+        spans = [(batch[0] - n // 2, batch[-1] - n // 2 + n) for batch in batches]
+        where = {}
+        for ref in refs:
+            inside = [i for i, (a, z) in enumerate(spans) if a <= ref.frame < z]
+            if not inside:
+                raise InvalidInputError(
+                    f"{options.references} line {ref.row}: frame {ref.frame} is in no group of "
+                    f"--frames {n} --stride {options.stride}; pick a frame between {spans[0][0]} "
+                    f"and {spans[-1][1] - 1}")
+            where[ref.frame] = inside[0]
+        reader = _FrameWindow(header.stream(max(64, n)), header.frame_shape)
+        fits, maps = {}, {}
+        for bi in sorted({0, *where.values()}):
+            run = _register_batch(reader, estimator, batches[bi], n, StageTimes())
+            try:
+                fitted = _fit_batch(estimator, run, series["fpa_c"])
+            except (InvalidInputError, RegistrationError) as exc:
+                if bi in where.values():
+                    raise InvalidInputError(
+                        f"{options.references}: the references' frames {run.start}-"
+                        f"{run.start + len(run.frames) - 1} cannot be self-calibrated: {exc}"
+                    ) from None
+                if len(batches) == 1 and isinstance(exc, InvalidInputError):
+                    raise  # the whole pass is too short or too still: nothing to write
+                continue  # a later batch may move: this one's groups fail with the reason
+            for ref in refs:
+                if where[ref.frame] == bi:
+                    k = ref.frame - run.start
+                    if any(i == ref.frame for i, _, _ in run.undecodable):
+                        raise InvalidInputError(
+                            f"{options.references} line {ref.row}: frame {ref.frame} does not "
+                            "decode")
+                    maps[ref.frame] = fitted.calibrate(run.frames[k : k + 1],
+                                                       series["fpa_c"][ref.frame : ref.frame + 1],
+                                                       None)[0]
+            fits[bi] = fitted
+        level = None
+        if refs:
+            level = level_from_references(refs, maps, estimator.band)
+            estimator = estimator.with_level(level.offset, level.sigma_c)
+            fits = {bi: f.with_level(level.offset, level.sigma_c) for bi, f in fits.items()}
+            if level.disagreeing:
+                warnings.warn(
+                    f"{options.references}: the references of line(s) "
+                    f"{', '.join(map(str, level.disagreeing))} disagree with the others beyond "
+                    f"their σ: {'left out' if len(level.disagreeing) < len(refs) else 'all used'}"
+                    f" (the level's σ {level.sigma_c:.2f} °C)",
+                    stacklevel=3)
+        return cls(estimator, fits, level)
+
+    def for_batch(self, bi: int, run: _Batch, fpa_c: np.ndarray) -> tuple[_Batch, Any]:
+        """The batch's run (with its fit's error, when it fails) and its fitted estimator."""
+        fitted = self.fits.get(bi)
+        if fitted is None and run.error is None:
+            try:
+                fitted = _fit_batch(self.estimator, run, fpa_c)
+            except (InvalidInputError, RegistrationError) as exc:
+                return replace(run, error=f"selfcal: {exc}"), self.estimator
+        if fitted is None:
+            return run, self.estimator
+        p = fitted.pattern
+        self.segments.append({
+            "frames": [run.start, run.start + len(run.frames) - 1], "rounds": p.rounds,
+            "residual_sd_radiance": p.residual_sd, "motion_px": list(p.motion_px),
+            "pattern_fpa_dependent": p.fitted_fpa, "bad_pixels": int(p.bad.sum()),
+            "not_identified": p.unidentified()})
+        return run, fitted
+
+    def summary(self) -> dict[str, Any]:
+        """What ``summary.json`` says of the fit: the start model, each batch fitted in this
+        run, the references' level."""
+        e = self.estimator
+        start = (f"the {e.family} family's average unit (training units of the network)"
+                 if e.calibration is None else "the calibration given (--calibration)")
+        return {"start": start, "segments": self.segments,
+                "references": None if self.level is None else self.level.as_dict()}
+
+
+def _fit_batch(estimator: Any, run: _Batch, fpa_c: np.ndarray) -> Any:
+    """``estimator`` fitted on a batch's frames: each registered onto the batch's middle frame
+    (frames whose chain there failed, or that do not decode, left out), stuck pixels left
+    out."""
+    from thermocal.burst import stuck_pixels
+
+    if run.sequence is None:
+        raise RegistrationError(run.error or "the batch was not registered")
+    m = len(run.frames)
+    mid = m // 2
+    chain = np.repeat(np.eye(3)[None], m, axis=0)  # frame k → frame 0
+    for k in range(1, m):
+        chain[k] = chain[k - 1] @ run.sequence.to_previous[k]
+    homographies = np.linalg.inv(chain[mid]) @ chain
+    homographies /= homographies[:, 2:, 2:]
+    broken = ~np.asarray(run.sequence.ok, bool)
+    after = np.cumsum(broken)  # failed pairs up to each frame
+    use = after == after[mid]  # no failed pair between the frame and the middle one
+    for i, _, _ in run.undecodable:
+        use[i - run.start] = False
+    # long batches are fitted on every k-th frame: ample views of each ground point, and
+    # bounded memory and time
+    use &= np.arange(m) % max(1, -(-int(use.sum()) // MAX_FIT_FRAMES)) == 0
+    # a stuck pixel is stuck in every frame: every 8th frame shows it
+    sample = np.flatnonzero(use)[::8]
+    good = ~stuck_pixels(run.frames[sample], homographies[sample])
+    fpa = np.asarray(fpa_c[run.start : run.start + m], np.float64)
+    return estimator.fitted(run.frames, homographies, fpa, use=use, good=good)
 
 
 def _undecodable_in(run: _Batch, first: int, n: int) -> tuple[tuple[int, str, str], ...]:

@@ -1,0 +1,206 @@
+"""``selfcal``: flight-level self-calibration, an estimator fitted on a whole pass.
+
+A 7-frame burst of a drone pass moves the scene some 25 px across the sensor, too little to
+tell a column's offset from its neighbours' far away; the whole pass moves it across every
+column. :class:`SelfCalibration` starts from a start model — the camera family's average unit
+(calibration-free, :func:`thermocal.nn.inputs.preset_nominal` of the family's training units)
+or the unit's own chamber calibration — fits what that model gets wrong for this unit over the
+pass (:func:`~thermocal.estimation.pass_pattern.fit_residual_pattern`: per-pixel gain and
+offset, the column, row and radial pattern, their FPA dependence), corrects every raw frame
+with it, and then estimates each pivot as Oz et al.'s eq. 9 does: the registered mean of the
+group's corrected frames.
+
+The flight (:func:`thermocal.pipeline.flight.process_flight`) fits one pattern per batch of
+frames (:data:`~thermocal.pipeline.flight.BATCH_FRAMES`: long flights in segments) with
+:meth:`SelfCalibration.fitted`; ground references (:mod:`thermocal.pipeline.references`) fix the
+level that no motion reveals (:meth:`SelfCalibration.with_level`).
+
+Uncertainty (1σ, °C): ``√(level² + pattern² + spread²/n)`` — the level the start model leaves
+(calibration-free: the family's unit-to-unit spread,
+:data:`~thermocal.nn.uncertainty.UNIT_FLOOR_MIN_C`; from a chamber calibration, its own
+cross-validated σ; from references, theirs), the offset's standard error over the views that
+fitted it, and the spread of the group's views over √n.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+
+from thermocal.calibration.base import Calibration, fill_bad_pixels
+from thermocal.constants import ZERO_CELSIUS_K
+from thermocal.errors import InvalidInputError, ResolutionMismatchError
+from thermocal.estimation.base import PreparedBurst, view_spread
+from thermocal.estimation.pass_pattern import ResidualPattern, fit_residual_pattern
+from thermocal.radiometry import TAU2, BandRadiance
+
+__all__ = ["FAMILY_LEVEL_SIGMA_C", "SelfCalibration", "start_band"]
+
+#: The level no motion reveals when starting from the family's average unit: its unit-to-unit
+#: spread (:data:`thermocal.nn.uncertainty.UNIT_FLOOR_MIN_C`, the same floor as the network's).
+FAMILY_LEVEL_SIGMA_C = 0.34 * float(np.sqrt(np.pi / 2))
+
+REMEDY = ("selfcal fits a whole pass: run `thermocal flight --method selfcal` on a recording of "
+          "at least 30 frames that moves across the scene")
+
+
+def start_band(calibration: Calibration | None, family: str) -> BandRadiance:
+    """The spectral band the pattern is fitted in: the calibration's, else the family's."""
+    if calibration is not None:
+        band = getattr(calibration, "band", None)
+        return band if isinstance(band, BandRadiance) else TAU2
+    from thermocal.calibration.base import band_for
+    from thermocal.camera.presets import PRESETS
+
+    return band_for(tuple(PRESETS[family].band_m))
+
+
+@functools.lru_cache(maxsize=2)
+def _nominal(family: str, shape: tuple[int, int]) -> Any:
+    from thermocal.nn.data import TRAIN_UNITS
+    from thermocal.nn.inputs import preset_nominal
+
+    return preset_nominal(family, (shape[1], shape[0]), TRAIN_UNITS)
+
+
+@dataclass(frozen=True, eq=False)
+class SelfCalibration:
+    """The ``selfcal`` estimator (see the module).
+
+    Parameters
+    ----------
+    calibration : Calibration, optional
+        The unit's own calibration to start from; None: the family's average unit.
+    family : str
+        The camera family (a preset of :data:`thermocal.camera.presets.PRESETS`) when starting
+        from its average unit.
+    pattern : ResidualPattern, optional
+        The pass's fitted pattern (:meth:`fitted`); an unfitted estimator refuses bursts.
+    level_offset : float
+        Radiance (W·m⁻²·sr⁻¹) subtracted from every corrected frame: the level fixed by ground
+        references (:meth:`with_level`).
+    level_sigma_c : float, optional
+        σ of the level, °C: the references' when given, else the start model's.
+    """
+
+    calibration: Calibration | None = None
+    family: str = "tau2"
+    pattern: ResidualPattern | None = None
+    level_offset: float = 0.0
+    level_sigma_c: float | None = None
+
+    name = "selfcal"
+    n_frames = None
+    needs_fpa = True
+    per_frame = False
+    accepts_registered = False
+    remedy = REMEDY
+
+    def __post_init__(self) -> None:
+        from thermocal.camera.presets import PRESETS
+
+        if self.calibration is None and self.family not in PRESETS:
+            raise InvalidInputError(
+                f"unknown camera family {self.family!r}; choose from {', '.join(PRESETS)}")
+
+    @property
+    def band(self) -> BandRadiance:
+        return start_band(self.calibration, self.family)
+
+    @property
+    def sigma_model(self) -> Any:
+        from thermocal.calibration.uncertainty import CalibrationSigma
+
+        return None if self.calibration is None else CalibrationSigma.of(self.calibration)
+
+    # -- the start model -------------------------------------------------------------------
+
+    def start_temperature(self, frames: np.ndarray, fpa_c: Any) -> np.ndarray:
+        """Raw frames ``(N, H, W)`` → °C through the start model, float32."""
+        if self.calibration is not None:
+            return np.asarray(self.calibration.apply(frames, fpa_c=fpa_c), np.float32)
+        from thermocal.nn.inputs import calibrate_frames
+
+        return calibrate_frames(_nominal(self.family, frames.shape[1:]), frames,
+                                np.asarray(fpa_c, np.float64))
+
+    def start_radiance(self, frames: np.ndarray, fpa_c: Any) -> np.ndarray:
+        """Raw frames → band radiance through the start model, ``(N, H, W)`` float32."""
+        t = self.start_temperature(frames, fpa_c)
+        return np.asarray(self.band.radiance(t + np.float32(ZERO_CELSIUS_K)), np.float32)
+
+    # -- fitting -----------------------------------------------------------------------------
+
+    def fitted(self, frames: np.ndarray, homographies: np.ndarray, fpa_c: Any, *,
+               use: np.ndarray | None = None, good: np.ndarray | None = None
+               ) -> SelfCalibration:
+        """A copy with the residual pattern of a pass fitted: raw ``frames`` ``(N, H, W)``,
+        ``homographies`` ``(N, 3, 3)`` frame → a common reference, FPA ``fpa_c`` ``(N,)``
+        °C, frames to ``use`` and ``good`` pixels (stuck pixels left out). Raises
+        :class:`~thermocal.errors.InvalidInputError` for a pass too short or too still."""
+        fpa = np.broadcast_to(np.asarray(fpa_c, np.float64), (len(frames),))
+        radiance = self.start_radiance(np.asarray(frames), fpa)
+        pattern = fit_residual_pattern(radiance, homographies, fpa_c=fpa, use=use, good=good)
+        return replace(self, pattern=pattern)
+
+    def with_level(self, offset: float, sigma_c: float) -> SelfCalibration:
+        """A copy whose level is fixed by references: ``offset`` radiance removed, σ ``sigma_c``."""
+        return replace(self, level_offset=float(offset), level_sigma_c=float(sigma_c))
+
+    # -- the Estimator protocol ------------------------------------------------------------------
+
+    def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
+        if self.pattern is None:
+            raise InvalidInputError(f"selfcal has no pattern fitted: {REMEDY}")
+        if tuple(self.pattern.shape) != frames.shape[1:]:
+            raise ResolutionMismatchError(
+                f"frames are {frames.shape[2]}x{frames.shape[1]} but the pattern was fitted on "
+                f"{self.pattern.shape[1]}x{self.pattern.shape[0]}")
+
+    def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any) -> np.ndarray:
+        """Raw frames → °C: the start model, the pattern removed, the references' level."""
+        assert self.pattern is not None  # check() refused otherwise
+        fpa = np.broadcast_to(np.asarray(fpa_c, np.float64), (len(frames),))
+        radiance = self.pattern.correct(self.start_radiance(frames, fpa), fpa)
+        radiance -= np.float32(self.level_offset)
+        lo, hi = self.band.radiance_range
+        temps = self.band.temperature(np.clip(radiance, lo, hi)) - np.float32(ZERO_CELSIUS_K)
+        temps = np.asarray(temps, np.float32)
+        return fill_bad_pixels(temps, self.pattern.bad)  # a new array, filled in place
+
+    def outside(self, calibrated: np.ndarray, fpa_c: float | None) -> tuple[str, ...]:
+        """The start calibration's ranges (FPA, scene); the family's average unit has none."""
+        model = self.sigma_model
+        if model is None:
+            return ()
+        return model.outside(calibrated, () if fpa_c is None else fpa_c)
+
+    def estimate(self, burst: PreparedBurst) -> np.ndarray:
+        """Oz et al. eq. 9 on the corrected frames: the registered mean."""
+        count = burst.valid.sum(axis=0)
+        return ((burst.warped * burst.valid).sum(axis=0) / np.maximum(count, 1)).astype(
+            np.float32)
+
+    def level_sigma(self, temperature_c: np.ndarray, fpa_c: float | None) -> np.ndarray:
+        """σ of the level no motion reveals, °C ``(H, W)``."""
+        if self.level_sigma_c is not None:
+            return np.full(temperature_c.shape, self.level_sigma_c, np.float32)
+        model = self.sigma_model
+        if model is not None and fpa_c is not None:
+            return np.asarray(model.sigma(temperature_c, fpa_c), np.float32)
+        return np.full(temperature_c.shape, FAMILY_LEVEL_SIGMA_C, np.float32)
+
+    def uncertainty(self, burst: PreparedBurst, temperature_c: np.ndarray, *, outside: bool
+                    ) -> np.ndarray | None:
+        """``√(level² + pattern² + spread²/n)`` (see the module), °C ``(H, W)`` float32; the
+        pattern's standard error converted from radiance at each pixel's temperature."""
+        assert self.pattern is not None
+        level = self.level_sigma(temperature_c, burst.fpa_c).astype(np.float64)
+        t_k = temperature_c.astype(np.float64) + ZERO_CELSIUS_K
+        dl_dt = (self.band.radiance(t_k + 0.5) - self.band.radiance(t_k - 0.5))
+        pattern = self.pattern.offset_se / np.maximum(dl_dt, 1e-9)
+        spread, n = view_spread(burst.warped, burst.valid)
+        return np.sqrt(level**2 + pattern**2 + spread**2 / n).astype(np.float32)

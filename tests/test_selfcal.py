@@ -1,0 +1,257 @@
+"""``selfcal``: the residual fixed pattern of a whole pass (thermocal.estimation.pass_pattern), the
+estimator (thermocal.estimation.selfcal), ground references (thermocal.pipeline.references) and
+``thermocal flight --method selfcal``."""
+
+from __future__ import annotations
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+from cli_run import run
+
+from thermocal import metrics
+from thermocal.errors import InvalidInputError
+from thermocal.estimation.pass_pattern import (
+    MIN_FRAMES,
+    check_motion,
+    fit_residual_pattern,
+)
+from thermocal.estimation.registry import make_estimator
+from thermocal.evaluation.passes import PassSpec, simulate_pass
+from thermocal.pipeline.references import Reference, level_from_references, read_references
+from thermocal.radiometry import TAU2
+
+H, W = 40, 64
+
+
+def _pass(n=60, step=(1.5, 0.0), seed=0):
+    """A synthetic pass in radiance: a smooth random scene moving ``step`` px per frame under a
+    sensor with a known gain, column offsets, a ramp and a radial offset; the true pattern."""
+    rng = np.random.default_rng(seed)
+    big = cv2.GaussianBlur(rng.normal(9.0, 1.0, (H + 40, W + 140)).astype(np.float32),
+                           (0, 0), 2.0) * 3 - 18
+    big = big + 9.0
+    yy, xx = np.mgrid[:H, :W]
+    offset = (0.05 * rng.normal(size=W)[None, :] + 0.002 * (xx - W / 2)
+              + 0.04 * ((xx - W / 2) ** 2 + (yy - H / 2) ** 2) / (W * W / 4)).astype(np.float32)
+    gain = (1 + 0.02 * rng.normal(size=(H, W))).astype(np.float32)
+    hs, frames, truth = [], [], []
+    for k in range(n):
+        dx, dy = step[0] * k, step[1] * k
+        m = np.array([[1, 0, dx + 5], [0, 1, dy + 5], [0, 0, 1]], np.float64)  # frame → big
+        scene = cv2.warpPerspective(big, m, (W, H), flags=cv2.INTER_LINEAR | cv2.WARP_INVERSE_MAP)
+        truth.append(scene)
+        frames.append(gain * scene + offset + rng.normal(0, 0.003, (H, W)).astype(np.float32))
+        hs.append(np.array([[1, 0, dx], [0, 1, dy], [0, 0, 1]], np.float64))  # frame → frame 0
+    return np.stack(frames), np.stack(hs), np.stack(truth), gain, offset
+
+
+def test_the_pattern_of_a_known_pass_is_recovered():
+    frames, hs, truth, gain, offset = _pass()
+    before = frames.copy()
+    p = fit_residual_pattern(frames, hs, fpa_c=np.full(len(frames), 30.0))
+    np.testing.assert_array_equal(frames, before)  # never modified
+    corrected = p.correct(frames, np.full(len(frames), 30.0))
+
+    def pattern_left(x):  # the error fixed in the sensor, less what motion along rows cannot show
+        fixed = (x - truth)[:, 3:-3, 3:-3].mean(axis=0)
+        return float(np.std(fixed - fixed.mean(axis=1, keepdims=True)))
+
+    assert pattern_left(frames) > 0.1
+    assert pattern_left(corrected) < pattern_left(frames) / 10
+    columns = (corrected - truth)[:, 3:-3, 3:-3].mean(axis=(0, 1))
+    assert np.std(columns) < 0.01  # the column pattern and the ramp are gone
+    assert np.corrcoef(p.gain.ravel(), gain.ravel())[0, 1] > 0.8
+    assert p.fitted_fpa is False and p.rounds >= 2
+
+
+def test_a_row_pattern_under_motion_along_rows_is_left_to_the_start_model():
+    frames, hs, _, _, _ = _pass()
+    rows = (0.1 * np.sin(np.arange(H) / 3.0)).astype(np.float32)[:, None]
+    p = fit_residual_pattern(frames + rows, hs, fpa_c=np.full(len(frames), 30.0))
+    # each ground line stays on its row: the row pattern is not seen, and not invented
+    assert np.abs(p.offset.mean(axis=1) - (rows[:, 0] - rows.mean())).max() > 0.05
+    assert any("row pattern" in s for s in p.unidentified())
+
+
+def test_a_short_or_still_pass_is_refused_with_what_it_needs():
+    frames, hs, _, _, _ = _pass(n=MIN_FRAMES - 1)
+    with pytest.raises(InvalidInputError, match=f"at least {MIN_FRAMES} frames"):
+        fit_residual_pattern(frames, hs, fpa_c=np.full(len(frames), 30.0))
+    frames, hs, _, _, _ = _pass(n=40, step=(0.2, 0.0))
+    with pytest.raises(InvalidInputError, match=r"moved 8 px .* at least 32 px"):
+        check_motion(hs, (H, W))
+
+
+def test_references_fix_a_known_level():
+    yy, xx = np.mgrid[:H, :W]
+    truth = 20.0 + 0.1 * xx
+    slope = float(TAU2.radiance(294.15 + 0.5) - TAU2.radiance(294.15 - 0.5))
+    # the map is 0.6 °C warm at 21 °C: an offset in counts is one in radiance
+    shown = TAU2.temperature(TAU2.radiance(truth + 273.15) + 0.6 * slope) - 273.15
+    refs = (Reference(2, 0, 30.0, 20.0, 4.0, float(truth[20, 30])),
+            Reference(3, 1, 10.0, 10.0, 3.0, float(truth[10, 10])))
+    fix = level_from_references(refs, {0: shown, 1: shown}, TAU2)
+    assert fix.offset == pytest.approx(0.6 * slope, rel=1e-3)
+    fixed = TAU2.temperature(TAU2.radiance(shown + 273.15) - fix.offset) - 273.15
+    assert np.abs(fixed - truth).max() < 1e-3
+    assert fix.disagreeing == [] and fix.sigma_c < 0.1
+    bad = refs + (Reference(4, 1, 40.0, 20.0, 3.0, float(truth[20, 40]) + 3.0),)
+    fix = level_from_references(bad, {0: shown, 1: shown}, TAU2)
+    assert fix.disagreeing == [4] and fix.offset == pytest.approx(0.6 * slope, rel=1e-3)
+    assert [r["used"] for r in fix.residuals] == [True, True, False]  # reported, left out
+    two = level_from_references(bad[1:], {0: shown, 1: shown}, TAU2)  # which one is right?
+    assert two.disagreeing and two.sigma_c > 1.0  # both used, σ widened by their scatter
+
+
+@pytest.mark.parametrize("text, message", [
+    ("frame,x,y,temperature_c\n1,5,5,20\n", "missing column(s) radius_px"),
+    ("frame,x,y,radius_px,temperature_c\n", "no references"),
+    ("frame,x,y,radius_px,temperature_c\n999,5,5,2,20\n", "frame 999 does not exist"),
+    ("frame,x,y,radius_px,temperature_c\n1,2,5,4,20\n", "not wholly inside the 64x40 frame"),
+    ("frame,x,y,radius_px,temperature_c\n1,20,20,4,nan\n", "temperature_c is nan"),
+    ("frame,x,y,radius_px,temperature_c,emissivity\n1,20,20,4,20,1.5\n", "emissivity must be"),
+    ("frame,x,y,radius_px,temperature_c\n1.5,20,20,4,20\n", "frame 1.5 does not exist"),
+])
+def test_bad_reference_files_get_one_line(tmp_path, text, message):
+    path = tmp_path / "REF.csv"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(InvalidInputError, match="line|column|references") as exc:
+        read_references(path, n_frames=50, frame_shape=(H, W))
+    assert message in str(exc.value) and "\n" not in str(exc.value)
+
+
+def test_selfcal_outside_a_flight_is_refused_with_the_remedy():
+    est = make_estimator("selfcal")
+    with pytest.raises(InvalidInputError, match="thermocal flight --method selfcal"):
+        est.check(np.zeros((7, H, W), np.uint16), registered=False, homographies=None)
+
+
+# ------------------------------------------------------------------------------ the flight
+
+FLIGHT = PassSpec(scene="builtin:aerial", unit=100, n_frames=70, size=(96, 72), fpa_c=30.0,
+                  seed=5)
+
+
+@pytest.fixture(scope="module")
+def flown(tmp_path_factory):
+    """A 70-frame 96×72 pass of a held-out unit through ``flight --method selfcal``."""
+    work = tmp_path_factory.mktemp("selfcal")
+    rec = simulate_pass(FLIGHT, work / "pass")
+    return work, rec
+
+
+def _scores(out, truth_path):
+    import tifffile
+
+    from thermocal.camera.presets import make_camera
+
+    truth = tifffile.imread(truth_path)
+    good = ~make_camera("tau2", unit=FLIGHT.unit, size=FLIGHT.size).defects
+    maps, sig, idx = [], [], []
+    for f in sorted((out / "temps").glob("frame_??????.tiff")):
+        k = int(f.stem.split("_")[1])
+        maps.append(tifffile.imread(f))
+        sig.append(tifffile.imread(f.with_name(f.stem + "_sigma.tiff")))
+        idx.append(k)
+    maps, sig = np.stack(maps), np.stack(sig)
+    return maps, sig, truth[idx], good
+
+
+def test_flight_selfcal_removes_the_units_pattern(flown, capsys, tmp_path):
+    work, rec = flown
+    out = tmp_path / "out"
+    code, text, err = run(["flight", rec, "--out", out, "--method", "selfcal",
+                           "--preview-every", "0"], capsys)
+    assert code == 0, err
+    maps, sigma, truth, good = _scores(out, rec.parent / "truth.tiff")
+    # the same pass through the family's average unit alone (the start model), pivot by pivot
+    import tifffile
+
+    from thermocal.estimation.selfcal import _nominal
+    from thermocal.nn.inputs import calibrate_frames
+
+    raw = tifffile.imread(rec)
+    pivots = [int(f.stem.split("_")[1]) for f in sorted((out / "temps").glob("frame_??????.tiff"))]
+    start = calibrate_frames(_nominal("tau2", raw.shape[1:]), raw[pivots], 30.0)
+    inner = np.zeros_like(good)
+    inner[4:-4, 4:-4] = True
+    v = good & inner
+    assert metrics.bias_free_mae(maps, truth, valid=v) < 0.5 * metrics.bias_free_mae(
+        start, truth, valid=v)
+    assert metrics.column_bands(maps, truth, valid=v) < 0.3 * metrics.column_bands(
+        start, truth, valid=v)
+    # every map has its σ, never below the level no motion reveals
+    assert sigma.shape == maps.shape and float(sigma.min()) >= 0.42
+    summary = json.loads((out / "summary.json").read_text())
+    seg = summary["selfcal"]["segments"]
+    assert len(seg) == 1 and seg[0]["frames"] == [0, 69] and seg[0]["motion_px"][0] > 48
+    assert "the global level" in seg[0]["not_identified"][0]
+
+
+def test_flight_selfcal_with_a_reference_fixes_the_level(flown, capsys, tmp_path):
+    import tifffile
+
+    work, rec = flown
+    truth = tifffile.imread(rec.parent / "truth.tiff")
+    k, x, y, r = 35, 48, 36, 5
+    yy, xx = np.mgrid[:72, :96]
+    disc = (xx - x) ** 2 + (yy - y) ** 2 <= r * r
+    ref = tmp_path / "REF.csv"
+    ref.write_text(f"frame,x,y,radius_px,temperature_c\n{k},{x},{y},{r},"
+                   f"{truth[k][disc].mean():.3f}\n", encoding="utf-8")
+    outs = {}
+    for name, extra in (("free", []), ("ref", ["--reference", ref])):
+        outs[name] = tmp_path / name
+        code, _, err = run(["flight", rec, "--out", outs[name], "--method", "selfcal",
+                            "--preview-every", "0", *extra], capsys)
+        assert code == 0, err
+    free = _scores(outs["free"], rec.parent / "truth.tiff")
+    fixed = _scores(outs["ref"], rec.parent / "truth.tiff")
+    bias = [abs(float(np.mean((m - t)[:, g]))) for m, _, t, g in (free, fixed)]
+    assert bias[1] < 0.1 and bias[1] < bias[0] / 2
+    assert float(np.median(fixed[1])) < float(np.median(free[1]))  # σ shrinks
+    summary = json.loads((outs["ref"] / "summary.json").read_text())
+    assert summary["selfcal"]["references"]["residuals"][0]["frame"] == k
+
+
+@pytest.mark.parametrize("ref_text, message", [
+    ("frame,x,y,radius_px\n3,10,10,2\n", "missing column(s) temperature_c"),
+    ("frame,x,y,radius_px,temperature_c\n500,10,10,2,20\n", "frame 500 does not exist"),
+    ("frame,x,y,radius_px,temperature_c\n3,94,10,5,20\n", "not wholly inside"),
+    ("frame,x,y,radius_px,temperature_c\n3,10,10,2,nan\n", "not a finite number"),
+])
+def test_flight_refuses_bad_references_and_writes_nothing(flown, capsys, tmp_path, ref_text,
+                                                          message):
+    _, rec = flown
+    ref = tmp_path / "REF.csv"
+    ref.write_text(ref_text, encoding="utf-8")
+    out = tmp_path / "out"
+    code, _, err = run(["flight", rec, "--out", out, "--method", "selfcal", "--reference", ref],
+                       capsys)
+    assert code == 2 and message in err and "Traceback" not in err
+    assert len(err.strip().splitlines()) == 1 and not out.exists()
+
+
+def test_flight_refuses_a_pass_too_short_or_a_reference_without_selfcal(flown, capsys,
+                                                                         tmp_path):
+    import tifffile
+
+    _, rec = flown
+    short = tmp_path / "short"
+    short.mkdir()
+    tifffile.imwrite(short / "frames.tiff", tifffile.imread(rec)[:20])
+    meta = json.loads(rec.with_suffix(".json").read_text())
+    meta = {k: (v[:20] if isinstance(v, list) and len(v) == 70 else v) for k, v in meta.items()}
+    (short / "frames.json").write_text(json.dumps(meta))
+    out = tmp_path / "out"
+    code, _, err = run(["flight", short / "frames.tiff", "--out", out, "--method", "selfcal"],
+                       capsys)
+    assert code == 2 and f"at least {MIN_FRAMES} frames" in err and not out.exists()
+    ref = tmp_path / "REF.csv"
+    ref.write_text("frame,x,y,radius_px,temperature_c\n3,10,10,2,20\n")
+    code, _, err = run(["flight", rec, "--out", out, "--method", "kpn", "--reference", ref],
+                       capsys)
+    assert code == 2 and "--method selfcal" in err and not out.exists()
