@@ -36,6 +36,10 @@ def flights():
     return out
 
 
+#: Methods that run a network per frame or burst (no state to diverge, seconds per frame).
+PER_BURST_NETWORKS = ("he2018", "deepir")
+
+
 def _correct(method, fl):
     opts = {"homographies": fl.homographies} if method in ("hardie2000", "zuo2011") else {}
     return correct_nonuniformity(fl.frames, method=method, **opts)
@@ -52,6 +56,8 @@ def _rough(frames, defects):
 @pytest.mark.parametrize("method", sorted(NUC_METHODS))
 def test_no_method_diverges_on_walks_and_uav_passes(flights, method):
     for name, fl, defects in flights:
+        if method in PER_BURST_NETWORKS and "uav" in name:
+            continue  # a network per frame or burst, 100× slower: the walks show it
         raw = fl.frames.astype(np.float32)
         out = _correct(method, fl)
         assert out.shape == raw.shape and np.all(np.isfinite(out)), name

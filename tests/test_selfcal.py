@@ -255,3 +255,16 @@ def test_flight_refuses_a_pass_too_short_or_a_reference_without_selfcal(flown, c
     code, _, err = run(["flight", rec, "--out", out, "--method", "kpn", "--reference", ref],
                        capsys)
     assert code == 2 and "--method selfcal" in err and not out.exists()
+
+
+def test_flight_refuses_a_hover_and_says_what_it_needs(capsys, tmp_path):
+    rec = tmp_path / "hover"
+    code, _, err = run(["simulate", "flight", rec, "--motion", "hover", "--frames", 40,
+                        "--size", "80x64", "--unit", 100, "--seed", 3], capsys)
+    assert code == 0, err
+    out = tmp_path / "out"
+    code, _, err = run(["flight", rec / "frames.tiff", "--out", out, "--method", "selfcal"],
+                       capsys)
+    assert code == 2 and "Traceback" not in err and len(err.strip().splitlines()) == 1
+    assert "selfcal needs at least" in err or "it needs at least" in err
+    assert not out.exists()

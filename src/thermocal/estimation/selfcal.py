@@ -15,11 +15,13 @@ frames (:data:`~thermocal.pipeline.flight.BATCH_FRAMES`: long flights in segment
 :meth:`SelfCalibration.fitted`; ground references (:mod:`thermocal.pipeline.references`) fix the
 level that no motion reveals (:meth:`SelfCalibration.with_level`).
 
-Uncertainty (1σ, °C): ``√(level² + pattern² + spread²/n)`` — the level the start model leaves
-(calibration-free: the family's unit-to-unit spread,
+Uncertainty (1σ, °C): ``√(level² + unseen² + pattern² + spread²/n)`` — the level the start
+model leaves (calibration-free: the family's unit-to-unit spread,
 :data:`~thermocal.nn.uncertainty.UNIT_FLOOR_MIN_C`; from a chamber calibration, its own
-cross-validated σ; from references, theirs), the offset's standard error over the views that
-fitted it, and the spread of the group's views over √n.
+cross-validated σ; from references, theirs), the line pattern the pass's motion could not show
+(calibration-free: how much the family's units differ from their average along those lines,
+:func:`unseen_line_sigma`; from a calibration, inside its σ), the offset's standard error over
+the views that fitted it, and the spread of the group's views over √n.
 """
 
 from __future__ import annotations
@@ -34,10 +36,14 @@ from thermocal.calibration.base import Calibration, fill_bad_pixels
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import InvalidInputError, ResolutionMismatchError
 from thermocal.estimation.base import PreparedBurst, view_spread
-from thermocal.estimation.pass_pattern import ResidualPattern, fit_residual_pattern
+from thermocal.estimation.pass_pattern import (
+    LINE_MOTION_PX,
+    ResidualPattern,
+    fit_residual_pattern,
+)
 from thermocal.radiometry import TAU2, BandRadiance
 
-__all__ = ["FAMILY_LEVEL_SIGMA_C", "SelfCalibration", "start_band"]
+__all__ = ["FAMILY_LEVEL_SIGMA_C", "SelfCalibration", "start_band", "unseen_line_sigma"]
 
 #: The level no motion reveals when starting from the family's average unit: its unit-to-unit
 #: spread (:data:`thermocal.nn.uncertainty.UNIT_FLOOR_MIN_C`, the same floor as the network's).
@@ -56,6 +62,34 @@ def start_band(calibration: Calibration | None, family: str) -> BandRadiance:
     from thermocal.camera.presets import PRESETS
 
     return band_for(tuple(PRESETS[family].band_m))
+
+
+@functools.lru_cache(maxsize=16)
+def unseen_line_sigma(family: str, shape: tuple[int, int], fpa_c: float, scene_c: float,
+                      lines: str) -> float:
+    """How much a unit of ``family`` differs from the family's average unit along ``lines``
+    (``"rows"`` or ``"columns"``): the RMS over the family's training units of the line means
+    (less their mean) of the average unit's error on a uniform scene at ``scene_c`` (°C), FPA
+    ``fpa_c`` (°C), frames of ``shape`` ``(H, W)``. The σ of the line pattern a pass that never
+    moves across those lines leaves (°C); FPA and scene rounded to 5 °C (cached)."""
+    from thermocal.camera.model import expected_counts
+    from thermocal.camera.presets import make_camera
+    from thermocal.nn.data import TRAIN_UNITS
+    from thermocal.nn.inputs import calibrate_frames
+
+    nominal = _nominal(family, shape)
+    housing = fpa_c - nominal.thermal.fpa_self_heating_c
+    scene = np.full(shape, scene_c, np.float32)
+    axis = 1 if lines == "rows" else 0
+    profiles = []
+    for u in TRAIN_UNITS:
+        unit = make_camera(family, unit=u, size=(shape[1], shape[0]))
+        counts = expected_counts(unit, scene[None], [fpa_c], housing_c=[housing])
+        err = calibrate_frames(nominal, counts, np.array([fpa_c]))[0] - scene_c
+        ok = ~unit.defects
+        line = np.nansum(np.where(ok, err, 0), axis=axis) / np.maximum(ok.sum(axis=axis), 1)
+        profiles.append(line - line.mean())
+    return float(np.sqrt(np.mean(np.square(profiles))))
 
 
 @functools.lru_cache(maxsize=2)
@@ -193,14 +227,29 @@ class SelfCalibration:
             return np.asarray(model.sigma(temperature_c, fpa_c), np.float32)
         return np.full(temperature_c.shape, FAMILY_LEVEL_SIGMA_C, np.float32)
 
+    def unseen_sigma(self, temperature_c: np.ndarray, fpa_c: float | None) -> float:
+        """σ of the line pattern the pass did not show (°C; 0 from a calibration, whose σ holds
+        it, or when the pass moved across both lines)."""
+        assert self.pattern is not None
+        missing = [lines for lines, moved in zip(("rows", "columns"),
+                                                  self.pattern.motion_px[::-1], strict=True)
+                   if moved < LINE_MOTION_PX]
+        if self.calibration is not None or not missing or fpa_c is None:
+            return 0.0
+        fpa, scene = (5.0 * round(v / 5.0) for v in (fpa_c, float(np.median(temperature_c))))
+        return float(np.hypot.reduce([unseen_line_sigma(self.family, temperature_c.shape, fpa,
+                                                        scene, lines) for lines in missing]))
+
     def uncertainty(self, burst: PreparedBurst, temperature_c: np.ndarray, *, outside: bool
                     ) -> np.ndarray | None:
-        """``√(level² + pattern² + spread²/n)`` (see the module), °C ``(H, W)`` float32; the
-        pattern's standard error converted from radiance at each pixel's temperature."""
+        """``√(level² + unseen² + pattern² + spread²/n)`` (see the module), °C ``(H, W)``
+        float32; the pattern's standard error converted from radiance at each pixel's
+        temperature."""
         assert self.pattern is not None
         level = self.level_sigma(temperature_c, burst.fpa_c).astype(np.float64)
+        unseen = self.unseen_sigma(temperature_c, burst.fpa_c)
         t_k = temperature_c.astype(np.float64) + ZERO_CELSIUS_K
         dl_dt = (self.band.radiance(t_k + 0.5) - self.band.radiance(t_k - 0.5))
         pattern = self.pattern.offset_se / np.maximum(dl_dt, 1e-9)
         spread, n = view_spread(burst.warped, burst.valid)
-        return np.sqrt(level**2 + pattern**2 + spread**2 / n).astype(np.float32)
+        return np.sqrt(level**2 + unseen**2 + pattern**2 + spread**2 / n).astype(np.float32)

@@ -101,6 +101,9 @@ class PassSpec:
         The flight's seed (path, noise).
     preset : str
         The camera family.
+    ambient_rate_c_per_min : float
+        How fast the ambient changes from the first frame on, °C/min (0: the FPA stays at
+        ``fpa_c``; else it drifts through the camera's lags).
     """
 
     scene: str
@@ -110,6 +113,7 @@ class PassSpec:
     fpa_c: float = 30.0
     seed: int = 0
     preset: str = "tau2"
+    ambient_rate_c_per_min: float = 0.0
 
     def label(self) -> str:
         """``tau2 unit 9 over builtin:aerial`` (the size and frames are the table's)."""
@@ -191,7 +195,7 @@ def simulate_pass(spec: PassSpec, folder: str | os.PathLike[str], *,
     scene = load_pass_scene(spec.scene) if scene_c is None else scene_c
     camera = make_camera(spec.preset, unit=spec.unit, size=spec.size)
     plan = plan_flight(scene, camera, n_frames=spec.n_frames, motion="uav", fpa_c=spec.fpa_c,
-                       seed=spec.seed)
+                       seed=spec.seed, ambient_rate_c_per_min=spec.ambient_rate_c_per_min)
     extra = {"scene": spec.scene, "unit": spec.unit, "preset": spec.preset, "seed": spec.seed,
              "motion": "uav"}
     write_simulated_flight(folder, plan, camera, extra=extra)
@@ -245,8 +249,9 @@ REFERENCE_SIGMA_C = 0.1
 def one_reference_disc(spec: PassSpec, folder: Path) -> Path:
     """One ground reference in one frame (``REF.csv`` in ``folder``): a disc of
     :data:`REFERENCE_RADIUS_PX` px in the pass's middle frame where the true scene is most
-    uniform (a water body, a panel), its temperature the truth's mean over the disc plus a
-    thermometer's error drawn with σ :data:`REFERENCE_SIGMA_C` (seeded by the pass)."""
+    uniform (a water body, a panel) within the frame's middle half (where one aims at it), its
+    temperature the truth's mean over the disc plus a thermometer's error drawn with σ
+    :data:`REFERENCE_SIGMA_C` (seeded by the pass)."""
     import tifffile
     from scipy.ndimage import uniform_filter
 
@@ -255,8 +260,8 @@ def one_reference_disc(spec: PassSpec, folder: Path) -> Path:
         truth = tif.pages[k].asarray().astype(np.float64)
     size = int(2 * REFERENCE_RADIUS_PX + 1)
     var = uniform_filter(truth**2, size) - uniform_filter(truth, size) ** 2
-    r = int(np.ceil(REFERENCE_RADIUS_PX)) + 1
-    var[:r], var[-r:], var[:, :r], var[:, -r:] = np.inf, np.inf, np.inf, np.inf
+    h, w = truth.shape  # the target in the frame's middle half, as one aims at it
+    var[: h // 4], var[-h // 4 :], var[:, : w // 4], var[:, -w // 4 :] = (np.inf,) * 4
     y, x = np.unravel_index(int(np.argmin(var)), var.shape)
     yy, xx = np.mgrid[: truth.shape[0], : truth.shape[1]]
     disc = (xx - x) ** 2 + (yy - y) ** 2 <= REFERENCE_RADIUS_PX**2
@@ -615,6 +620,8 @@ def main(argv: list[str] | None = None) -> None:
                         help="kpn, mean-other, mean-own, calibration-own, selfcal, selfcal-ref, "
                         "selfcal-own (comma separated).")
     parser.add_argument("--preset", default="tau2", help="Camera family of the units.")
+    parser.add_argument("--ambient-rate", type=float, default=0.0,
+                        help="Ambient change from the first frame on, °C/min (FPA drift).")
     parser.add_argument("--group", type=int, default=7, help="Frames per group (N).")
     parser.add_argument("--stride", type=int, default=7)
     parser.add_argument("--force", action="store_true", help="--force for every method.")
@@ -638,7 +645,8 @@ def main(argv: list[str] | None = None) -> None:
                 # whatever else the command runs
                 seed = 1000 * (EVAL_SCENES.index(scene) if scene in EVAL_SCENES else 0) + unit
                 spec = PassSpec(scene=scene, unit=unit, n_frames=args.frames, size=size,
-                                fpa_c=args.fpa_c, seed=seed, preset=args.preset)
+                                fpa_c=args.fpa_c, seed=seed, preset=args.preset,
+                                ambient_rate_c_per_min=args.ambient_rate)
                 res = evaluate_pass(spec, methods, tmp, frames=args.group, stride=args.stride)
                 results.append(res)
                 for label, r in res["methods"].items():
@@ -654,7 +662,9 @@ def main(argv: list[str] | None = None) -> None:
             "command": "python benchmarks/passes.py " + " ".join(sys.argv[1:] if argv is None
                                                                  else argv),
             "data": (f"UAV passes (motion `uav`, 3.8 px per frame) of {args.frames} frames of "
-                     f"{w}×{h}, FPA {args.fpa_c:g} °C, {args.preset} units "
+                     f"{w}×{h}, FPA {args.fpa_c:g} °C"
+                     + (f" then the ambient changing {args.ambient_rate:+g} °C/min"
+                        if args.ambient_rate else "") + f", {args.preset} units "
                      f"{', '.join(map(str, units))} "
                      f"over {', '.join(scenes)} (seed 1000 × the scene's index in "
                      f"EVAL_SCENES + the unit); groups of N = {args.group} every {args.stride} "

@@ -412,7 +412,11 @@ class _PassFit:
             fits[bi] = fitted
         level = None
         if refs:
-            level = level_from_references(refs, maps, estimator.band)
+            # the line pattern the pass could not show lies under the discs too
+            unseen = max(fits[where[r.frame]].unseen_sigma(maps[r.frame],
+                                                            float(series["fpa_c"][r.frame]))
+                         for r in refs)
+            level = level_from_references(refs, maps, estimator.band, pattern_sigma_c=unseen)
             estimator = estimator.with_level(level.offset, level.sigma_c)
             fits = {bi: f.with_level(level.offset, level.sigma_c) for bi, f in fits.items()}
             if level.disagreeing:
@@ -457,6 +461,7 @@ def _fit_batch(estimator: Any, run: _Batch, fpa_c: np.ndarray) -> Any:
     (frames whose chain there failed, or that do not decode, left out), stuck pixels left
     out."""
     from thermocal.burst import stuck_pixels
+    from thermocal.estimation.pass_pattern import MIN_FRAMES
 
     if run.sequence is None:
         raise RegistrationError(run.error or "the batch was not registered")
@@ -472,6 +477,11 @@ def _fit_batch(estimator: Any, run: _Batch, fpa_c: np.ndarray) -> Any:
     use = after == after[mid]  # no failed pair between the frame and the middle one
     for i, _, _ in run.undecodable:
         use[i - run.start] = False
+    if MIN_FRAMES <= m and use.sum() < MIN_FRAMES:
+        raise InvalidInputError(
+            f"only {int(use.sum())} of frames {run.start}-{run.start + m - 1} register onto frame "
+            f"{run.start + mid} (a hover, or frames that do not overlap); selfcal needs at least "
+            f"{MIN_FRAMES} of a pass that moves steadily across the scene")
     # long batches are fitted on every k-th frame: ample views of each ground point, and
     # bounded memory and time
     use &= np.arange(m) % max(1, -(-int(use.sum()) // MAX_FIT_FRAMES)) == 0

@@ -130,12 +130,15 @@ def plan_flight(
     fps: float = 30.0,
     seed: int = 0,
     thermal: ThermalParams | None = None,
+    ambient_rate_c_per_min: float = 0.0,
 ) -> FlightPlan:
     """Lay out a flight of ``camera`` over ``scene_c`` (°C map, any size: resized into a map).
 
-    The camera has settled at a constant ambient that puts its FPA at ``fpa_c`` (°C); the FPA
-    sensor reading is quantised and noisy (:func:`thermocal.camera.thermal.fpa_sensor`).
-    ``thermal``: default the camera family's (``camera.thermal``).
+    The camera has settled at an ambient that puts its FPA at ``fpa_c`` (°C); from the first
+    frame on the ambient changes at ``ambient_rate_c_per_min`` (°C/min; 0: constant), and the
+    FPA follows through the camera's thermal lags. The FPA sensor reading is quantised and noisy
+    (:func:`thermocal.camera.thermal.fpa_sensor`). ``thermal``: default the camera family's
+    (``camera.thermal``).
     """
     thermal = thermal or camera.thermal
     _check_flight_numbers(n_frames, fps)
@@ -147,9 +150,16 @@ def plan_flight(
     big_map = make_long_map(scene, shape) if motion == "uav" else make_map(scene, shape)
     to_map = flight_homographies(motion, n_frames, (w, h), shape, rng=rng)
     time_s = np.arange(n_frames) / fps
-    ambient = ambient_profile(
-        "constant", time_s, low_c=thermal.ambient_for_fpa_c(fpa_c), high_c=fpa_c
-    )
+    if not np.isfinite(ambient_rate_c_per_min):
+        raise InvalidInputError("the ambient rate must be a finite number of °C/min")
+    settled = thermal.ambient_for_fpa_c(fpa_c)
+    if ambient_rate_c_per_min == 0:
+        ambient = ambient_profile("constant", time_s, low_c=settled, high_c=fpa_c)
+    else:
+        ambient = ambient_profile(
+            "ramp", time_s, low_c=settled,
+            high_c=settled + ambient_rate_c_per_min * float(time_s[-1]) / 60.0,
+            rate_c_per_min=abs(ambient_rate_c_per_min))
     state = thermal_response(time_s, ambient, thermal)
     return FlightPlan(
         big_map=big_map,
