@@ -40,15 +40,17 @@ def _affine_rmse(frames, truth):
 @pytest.mark.parametrize("method", sorted(NUC_METHODS))
 def test_every_method_reduces_roughness_and_error(flight, method):
     opts = {"homographies": flight.homographies} if method in ("hardie2000", "zuo2011") else {}
-    raw = flight.frames
+    if method == "deepir":  # a per-burst optimisation: a short one on the first 11 frames
+        opts = {"iterations": 150}  # registered by itself
+    raw = flight.frames[:11] if method == "deepir" else flight.frames
     before = raw.copy()
     out = correct_nonuniformity(raw, method=method, **opts)
     np.testing.assert_array_equal(raw, before)
     assert out.shape == raw.shape and out.dtype == np.float32
     assert np.all(np.isfinite(out))
-    last = slice(N - 10, N)
+    last = slice(len(raw) - 10, len(raw))
     assert np.mean(roughness(out[last])) < np.mean(roughness(raw[last].astype(np.float32)))
-    if method not in ("scribner", "hardie2000", "zuo2011"):
+    if method not in ("scribner", "hardie2000", "zuo2011", "deepir"):
         return  # constant-statistics methods need more varied motion (next test)
     # structure against the true scene (after the best affine map: not radiometric)
     assert _affine_rmse(out[last], flight.truth_c[last]) < _affine_rmse(

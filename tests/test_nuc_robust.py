@@ -42,6 +42,8 @@ PER_BURST_NETWORKS = ("he2018", "deepir")
 
 def _correct(method, fl):
     opts = {"homographies": fl.homographies} if method in ("hardie2000", "zuo2011") else {}
+    if method == "deepir":  # a per-burst optimisation: a short one
+        opts = {"iterations": 60}
     return correct_nonuniformity(fl.frames, method=method, **opts)
 
 

@@ -12,6 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from thermocal.nuc.batch import hardie2000, tendero2012
+from thermocal.nuc.deepir import deepir
 from thermocal.nuc.he2018 import he2018
 from thermocal.nuc.streaming import (
     Harris1999,
@@ -73,6 +74,8 @@ NUC_METHODS: dict[str, NucInfo] = {
         NucInfo("zuo2011", zuo2011, Zuo2011, "Zuo et al. 2011", "interframe-registration LMS"),
         NucInfo("admire", tendero2012, None, "after ADMIRE, Tendero & Gilles 2012",
                 "one frame at a time: column equalisation, DCT denoising"),
+        NucInfo("deepir", deepir, None, "Saragadam et al. 2021 (DeepIR)",
+                "burst: untrained-network scene prior, joint gain/offset/motion fit"),
         NucInfo("he2018", he2018, None, "He et al. 2018 (single-image CNN)",
                 "one frame at a time: a residual CNN estimates and subtracts the FPN"),
     )
