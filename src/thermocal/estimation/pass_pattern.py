@@ -24,8 +24,10 @@ What motion identifies, and what the start model keeps:
   against its family's cannot be told from an unknown scene. ``mean(b) = 0`` and
   ``mean(a) = 1``: the start model's level stays (a ground reference fixes it);
 * a pattern along the lines the scene does not cross: a pass moving along the rows keeps each
-  ground line on one sensor row, so the row pattern is not seen; the rounds start from zero
-  and leave it at zero there (the start model's);
+  ground line on one sensor row, so the row pattern is not seen; each row's median gain and
+  offset are held at the start model's (1 and 0), so that nothing is invented there — a scene
+  whose temperature changes mostly across the rows (a sky gradient) would otherwise trade a
+  row's gain against its offset;
 * a linear ramp of ``b`` along the motion trades, under pure translation, with a level that
   drifts frame by frame; the model has no free per-frame level (the level is the start model's
   at each frame's FPA temperature), so the ramp is seen.
@@ -64,6 +66,9 @@ LINE_MOTION_PX = 8.0
 HUBER_K = 3.0
 #: Views of a canvas point below which it does not enter the regression.
 MIN_CANVAS_WEIGHT = 3.0
+#: The prior SD of a pixel's gain against the start model's (the ``tau2`` family's column gains
+#: spread ±5 % around their average).
+GAIN_PRIOR_SD = 0.05
 #: Plausible per-pixel gains; a pixel fitted outside (a stuck or dead pixel) is flagged bad.
 GAIN_BOUNDS = (0.5, 1.5)
 
@@ -259,6 +264,10 @@ def fit_residual_pattern(
     L, hs, fpa = L[use], hs[use], fpa[use]
     n = len(L)
     motion = check_motion(hs, (h, w))
+    # the lines the scene never crossed: their pattern stays the start model's (axis of the
+    # line means: rows → 1, columns → 0)
+    unseen = tuple(axis for axis, moved in ((1, motion[1]), (0, motion[0]))
+                   if moved < LINE_MOTION_PX)
     good = np.ones((h, w), bool) if good is None else np.asarray(good, bool)
     fpa_ref = float(fpa.mean())
     fitted_fpa = bool(np.ptp(fpa) >= MIN_FPA_SPAN_C)
@@ -277,8 +286,10 @@ def fit_residual_pattern(
         seen = _sample(scene, to_canvas, (h, w))
         inside = _sample(den, to_canvas, (h, w)) >= MIN_CANVAS_WEIGHT
         wk = weights * inside
-        a_new, b_new, c_new = _regress(L, seen, dt if fitted_fpa else None, wk, fit_gain)
-        a_new, b_new, c_new = _normalise(a_new, b_new, c_new, good)
+        a_new, b_new, c_new = _regress(L, seen, dt if fitted_fpa else None, wk, fit_gain,
+                                       gain_weight=(sd / GAIN_PRIOR_SD) ** 2
+                                       if np.isfinite(sd) else 0.0)
+        a_new, b_new, c_new = _normalise(a_new, b_new, c_new, good, unseen)
         resid = L - (a_new * seen + b_new + c_new * dt)
         sd = _robust_sd(resid[inside & good[None]])
         change = float(np.abs(b_new - b)[good].max()) if done > 1 else np.inf
@@ -296,8 +307,13 @@ def fit_residual_pattern(
 
 
 def _regress(L: np.ndarray, s: np.ndarray, dt: np.ndarray | None, w: np.ndarray,
-             fit_gain: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per-pixel weighted least squares of ``L`` on ``[s, 1, dt]`` (``a``, ``b``, ``c``)."""
+             fit_gain: bool, *, gain_weight: float = 0.0
+             ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per-pixel weighted least squares of ``L`` on ``[s, 1, dt]`` (``a``, ``b``, ``c``), the
+    gain held to 1 by a Gaussian prior of weight ``gain_weight`` (the residual variance over
+    the prior's, :data:`GAIN_PRIOR_SD`): a pixel whose scene barely changed over the pass (a
+    row along a sky gradient) cannot tell its gain from its offset, and keeps the start
+    model's gain."""
     cols = [s] if fit_gain else []
     cols.append(np.ones_like(s))
     if dt is not None:
@@ -312,12 +328,15 @@ def _regress(L: np.ndarray, s: np.ndarray, dt: np.ndarray | None, w: np.ndarray,
         y[..., i] = (wi * target).sum(axis=0)
         for j in range(i, k):
             A[..., i, j] = A[..., j, i] = (wi * cols[j]).sum(axis=0)
-    # a pixel that saw too little keeps the start model: a small ridge towards (1, 0, 0)
+    # a pixel that saw too little keeps the start model: a small ridge towards (1, 0, 0), and
+    # the gain's prior
     ridge = 1e-6 * np.maximum(A[..., 0, 0], 1e-12)[..., None]
     prior = np.zeros(k)
+    A = A + np.eye(k) * ridge[..., None]
     if fit_gain:
         prior[0] = 1.0
-    A = A + np.eye(k) * ridge[..., None]
+        A[..., 0, 0] += gain_weight
+        y[..., 0] += gain_weight
     y = y + ridge * prior
     x = np.linalg.solve(A, y[..., None])[..., 0]
     a = x[..., 0] if fit_gain else np.ones((h, wd))
@@ -326,15 +345,22 @@ def _regress(L: np.ndarray, s: np.ndarray, dt: np.ndarray | None, w: np.ndarray,
     return a.astype(np.float32), b.astype(np.float32), c.astype(np.float32)
 
 
-def _normalise(a: np.ndarray, b: np.ndarray, c: np.ndarray, good: np.ndarray
-               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The start model's global level, gain and FPA dependence: ``mean(a) = 1``,
-    ``mean(b) = mean(c) = 0`` over the good pixels with a plausible gain."""
+def _normalise(a: np.ndarray, b: np.ndarray, c: np.ndarray, good: np.ndarray,
+               unseen: tuple[int, ...] = ()) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The start model's global level, gain and FPA dependence: ``median(a) = 1``,
+    ``median(b) = median(c) = 0`` over the good pixels with a plausible gain; and along the
+    ``unseen`` lines (axes of their means: 1 rows, 0 columns) the start model's line pattern:
+    each line's median gain 1, median offset 0 (what motion cannot show is not invented)."""
     ok = good & (a > GAIN_BOUNDS[0]) & (a < GAIN_BOUNDS[1])
     a = np.where(ok, a, 1.0).astype(np.float32)
-    mean_a = float(a[ok].mean())
-    return (a / mean_a).astype(np.float32), (b - b[ok].mean()).astype(np.float32), \
-        (c - c[ok].mean()).astype(np.float32)
+    for axis in unseen:
+        masked = np.ma.masked_array
+        a = a / np.ma.median(masked(a, ~ok), axis=axis, keepdims=True).filled(1.0)
+        b = b - np.ma.median(masked(b, ~ok), axis=axis, keepdims=True).filled(0.0)
+        c = c - np.ma.median(masked(c, ~ok), axis=axis, keepdims=True).filled(0.0)
+    mean_a = float(np.median(a[ok]))  # robust: a few ill-conditioned lines cannot scale all
+    return (a / mean_a).astype(np.float32), (b - np.median(b[ok])).astype(np.float32), \
+        (c - np.median(c[ok])).astype(np.float32)
 
 
 def _robust_sd(values: np.ndarray) -> float:

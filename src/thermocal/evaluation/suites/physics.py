@@ -515,6 +515,9 @@ def summary_rows(res: dict) -> list[dict]:
             elif e.needs == "recording":  # a FLIR file's own constants: none in simulated frames
                 out.append({"method": f"estimator `{name}`",
                             "cells": ["n/a (needs a FLIR file's constants)"] * 4})
+            elif e.needs == "pass":  # fitted on a whole pass, not on bursts
+                out.append({"method": f"estimator `{name}`",
+                            "cells": ["n/a (whole passes: benchmarks/passes.py)"] * 4})
     return out
 
 
