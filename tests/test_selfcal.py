@@ -189,6 +189,8 @@ def test_flight_selfcal_removes_the_units_pattern(flown, capsys, tmp_path):
     seg = summary["selfcal"]["segments"]
     assert len(seg) == 1 and seg[0]["frames"] == [0, 69] and seg[0]["motion_px"][0] > 48
     assert "the global level" in seg[0]["not_identified"][0]
+    report = (out / "report.html").read_text(encoding="utf-8")
+    assert "<h2>Self-calibration</h2>" in report and "0–69" in report
 
 
 def test_flight_selfcal_with_a_reference_fixes_the_level(flown, capsys, tmp_path):
@@ -215,6 +217,8 @@ def test_flight_selfcal_with_a_reference_fixes_the_level(flown, capsys, tmp_path
     assert float(np.median(fixed[1])) < float(np.median(free[1]))  # σ shrinks
     summary = json.loads((outs["ref"] / "summary.json").read_text())
     assert summary["selfcal"]["references"]["residuals"][0]["frame"] == k
+    assert "Level fixed by 1 ground reference" in (outs["ref"] / "report.html").read_text(
+        encoding="utf-8")
 
 
 @pytest.mark.parametrize("ref_text, message", [

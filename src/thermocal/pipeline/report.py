@@ -576,6 +576,40 @@ def _problems_section(summary: dict[str, Any], entries: list[dict[str, Any]]) ->
     return "".join(parts)
 
 
+def _selfcal_section(summary: dict[str, Any]) -> str:
+    """What ``--method selfcal`` fitted: the start model, each batch (motion, what it could not
+    show), the references' level; empty for other methods."""
+    fit = summary.get("selfcal")
+    if not isinstance(fit, dict):
+        return ""
+    parts = [f"<h2>Self-calibration</h2>\n<p>Started from {_e(fit.get('start', '?'))}; the "
+             "unit's residual pattern fitted over each batch of frames:</p>\n"]
+    rows = []
+    for seg in fit.get("segments") or []:
+        if not isinstance(seg, dict):
+            continue
+        frames, motion = seg.get("frames") or ["?", "?"], seg.get("motion_px") or ["?", "?"]
+        rows.append([_e(f"{frames[0]}–{frames[-1]}"), _fmt(motion[0], ".0f", " px"),
+                     _fmt(motion[1], ".0f", " px"), _e(seg.get("bad_pixels", "?")),
+                     _e("; ".join(map(str, seg.get("not_identified") or [])))])
+    parts.append(_table(["frames", "motion along x", "along y", "bad pixels",
+                         "not identified (kept from the start model)"], rows, numeric=[1, 2, 3])
+                 if rows else "<p>No batch was fitted in the last run (all were done).</p>\n")
+    refs = fit.get("references")
+    if isinstance(refs, dict):
+        used = [r for r in refs.get("residuals") or [] if isinstance(r, dict)]
+        parts.append(f"<p>Level fixed by {len(used)} ground reference(s): σ "
+                     f"{_fmt(refs.get('sigma_c'), '.2f', ' °C')}.</p>\n")
+        parts.append(_table(
+            ["line", "frame", "map °C", "reference (apparent) °C", "level error °C", "σ °C",
+             "used"],
+            [[_e(r.get("row")), _e(r.get("frame")), _fmt(r.get("map_c")),
+              _fmt(r.get("apparent_c")), _fmt(r.get("level_error_c")), _fmt(r.get("sigma_c")),
+              _e("yes" if r.get("used") else "no: disagrees")] for r in used],
+            numeric=[1, 2, 3, 4, 5]))
+    return "".join(parts)
+
+
 def _files_section(out: Path) -> str:
     def count(sub: str, pattern: str) -> int:
         return sum(1 for _ in (out / sub).glob(pattern)) if (out / sub).is_dir() else 0
@@ -609,7 +643,8 @@ def _page(out: Path, summary: dict[str, Any], entries: list[dict[str, Any]], *,
           max_rows: int, previews: int) -> str:
     rows = _map_stats(out, entries)
     body = (_header(out, summary, entries) + _problems_section(summary, entries)
-            + _maps_section(out, previews) + _ranges_section(rows, entries, max_rows)
+            + _selfcal_section(summary) + _maps_section(out, previews)
+            + _ranges_section(rows, entries, max_rows)
             + _files_section(out))
     title = f"Flight report: {Path(str(summary.get('recording', '?'))).name}"
     return (f'<!DOCTYPE html>\n<html lang="en">\n<head>\n<meta charset="utf-8">\n'
