@@ -595,7 +595,10 @@ def _methods_by_name(names: Sequence[str], *, force: bool) -> list[PassMethod]:
              "selfcal-ref": PassMethod("selfcal + one reference disc", "selfcal", force=force,
                                        references=one_reference_disc),
              "selfcal-own": PassMethod("selfcal from own polynomial", "selfcal", own_polynomial,
-                                       force=True)}
+                                       force=True),
+             "selfcal-own-ref": PassMethod("selfcal from own polynomial + one reference disc",
+                                           "selfcal", own_polynomial, force=True,
+                                           references=one_reference_disc)}
     unknown = [n for n in names if n not in table]
     if unknown:
         raise InvalidInputError(f"unknown method {unknown[0]!r}; choose from {', '.join(table)}")
@@ -618,7 +621,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--fpa-c", type=float, default=30.0, help="FPA temperature, °C.")
     parser.add_argument("--methods", default="kpn,mean-other,mean-own",
                         help="kpn, mean-other, mean-own, calibration-own, selfcal, selfcal-ref, "
-                        "selfcal-own (comma separated).")
+                        "selfcal-own, selfcal-own-ref (comma separated).")
     parser.add_argument("--preset", default="tau2", help="Camera family of the units.")
     parser.add_argument("--ambient-rate", type=float, default=0.0,
                         help="Ambient change from the first frame on, °C/min (FPA drift).")
