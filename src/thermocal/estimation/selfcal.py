@@ -118,6 +118,10 @@ class SelfCalibration:
         references (:meth:`with_level`).
     level_sigma_c : float, optional
         σ of the level, °C: the references' when given, else the start model's.
+    fpa_rates : (times s, rates °C/min), optional
+        The FPA temperature's rate of change over the pass (from the whole recording), for
+        the family start model's transient term (1.7 °C per °C/min on ``tau2``): looked up
+        by each frame's time.
     """
 
     calibration: Calibration | None = None
@@ -125,6 +129,7 @@ class SelfCalibration:
     pattern: ResidualPattern | None = None
     level_offset: float = 0.0
     level_sigma_c: float | None = None
+    fpa_rates: tuple[np.ndarray, np.ndarray] | None = None
 
     name = "selfcal"
     n_frames = None
@@ -152,33 +157,48 @@ class SelfCalibration:
 
     # -- the start model -------------------------------------------------------------------
 
-    def start_temperature(self, frames: np.ndarray, fpa_c: Any) -> np.ndarray:
-        """Raw frames ``(N, H, W)`` → °C through the start model, float32."""
+    def start_temperature(self, frames: np.ndarray, fpa_c: Any, time_s: Any = None
+                          ) -> np.ndarray:
+        """Raw frames ``(N, H, W)`` taken at ``time_s`` (s, or None) → °C through the start
+        model, float32: the calibration, or the family's average unit inverted exactly at the
+        reported FPA temperature and (where the frames' times are known) its rate."""
         if self.calibration is not None:
             return np.asarray(self.calibration.apply(frames, fpa_c=fpa_c), np.float32)
-        from thermocal.nn.inputs import calibrate_frames
+        from thermocal.camera.model import invert
 
-        return calibrate_frames(_nominal(self.family, frames.shape[1:]), frames,
-                                np.asarray(fpa_c, np.float64))
+        nominal = _nominal(self.family, frames.shape[1:])
+        fpa = np.broadcast_to(np.asarray(fpa_c, np.float64), (len(frames),))
+        rate = 0.0
+        if self.fpa_rates is not None and time_s is not None:
+            rate = np.interp(np.asarray(time_s, np.float64), *self.fpa_rates)
+        return invert(nominal, frames, fpa, housing_c=fpa - nominal.thermal.fpa_self_heating_c,
+                      fpa_rate_c_per_min=rate)
 
-    def start_radiance(self, frames: np.ndarray, fpa_c: Any) -> np.ndarray:
+    def start_radiance(self, frames: np.ndarray, fpa_c: Any, time_s: Any = None
+                       ) -> np.ndarray:
         """Raw frames → band radiance through the start model, ``(N, H, W)`` float32."""
-        t = self.start_temperature(frames, fpa_c)
+        t = self.start_temperature(frames, fpa_c, time_s)
         return np.asarray(self.band.radiance(t + np.float32(ZERO_CELSIUS_K)), np.float32)
 
     # -- fitting -----------------------------------------------------------------------------
 
     def fitted(self, frames: np.ndarray, homographies: np.ndarray, fpa_c: Any, *,
-               use: np.ndarray | None = None, good: np.ndarray | None = None
-               ) -> SelfCalibration:
+               use: np.ndarray | None = None, good: np.ndarray | None = None,
+               time_s: Any = None, fpa_rate_c_per_min: Any = None) -> SelfCalibration:
         """A copy with the residual pattern of a pass fitted: raw ``frames`` ``(N, H, W)``,
         ``homographies`` ``(N, 3, 3)`` frame → a common reference, FPA ``fpa_c`` ``(N,)``
-        °C, frames to ``use`` and ``good`` pixels (stuck pixels left out). Raises
-        :class:`~thermocal.errors.InvalidInputError` for a pass too short or too still."""
+        °C, frames to ``use`` and ``good`` pixels (stuck pixels left out); the frames' times
+        ``time_s`` (s) and the FPA's rate ``fpa_rate_c_per_min`` (°C/min, from the whole
+        recording), each ``(N,)`` or None. Raises :class:`~thermocal.errors.InvalidInputError`
+        for a pass too short or too still."""
         fpa = np.broadcast_to(np.asarray(fpa_c, np.float64), (len(frames),))
-        radiance = self.start_radiance(np.asarray(frames), fpa)
+        est = self
+        if time_s is not None and fpa_rate_c_per_min is not None:
+            t = np.asarray(time_s, np.float64)
+            est = replace(self, fpa_rates=(t, np.asarray(fpa_rate_c_per_min, np.float64)))
+        radiance = est.start_radiance(np.asarray(frames), fpa, time_s)
         pattern = fit_residual_pattern(radiance, homographies, fpa_c=fpa, use=use, good=good)
-        return replace(self, pattern=pattern)
+        return replace(est, pattern=pattern)
 
     def with_level(self, offset: float, sigma_c: float) -> SelfCalibration:
         """A copy whose level is fixed by references: ``offset`` radiance removed, σ ``sigma_c``."""
@@ -198,7 +218,7 @@ class SelfCalibration:
         """Raw frames → °C: the start model, the pattern removed, the references' level."""
         assert self.pattern is not None  # check() refused otherwise
         fpa = np.broadcast_to(np.asarray(fpa_c, np.float64), (len(frames),))
-        radiance = self.pattern.correct(self.start_radiance(frames, fpa), fpa)
+        radiance = self.pattern.correct(self.start_radiance(frames, fpa, time_s), fpa)
         radiance -= np.float32(self.level_offset)
         lo, hi = self.band.radiance_range
         temps = self.band.temperature(np.clip(radiance, lo, hi)) - np.float32(ZERO_CELSIUS_K)

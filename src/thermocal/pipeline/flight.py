@@ -256,7 +256,7 @@ def process_flight(
             batch_estimator = estimator
             if pass_fit is not None:
                 t = time.perf_counter()
-                run, batch_estimator = pass_fit.for_batch(bi, run, series["fpa_c"])
+                run, batch_estimator = pass_fit.for_batch(bi, run, series)
                 tally.times.add("self-calibration", t)
             for index, pivot in todo:
                 bad = _undecodable_in(run, pivot - n // 2, n)
@@ -389,7 +389,7 @@ class _PassFit:
         for bi in sorted({0, *where.values()}):
             run = _register_batch(reader, estimator, batches[bi], n, StageTimes())
             try:
-                fitted = _fit_batch(estimator, run, series["fpa_c"])
+                fitted = _fit_batch(estimator, run, series)
             except (InvalidInputError, RegistrationError) as exc:
                 if bi in where.values():
                     raise InvalidInputError(
@@ -406,9 +406,10 @@ class _PassFit:
                         raise InvalidInputError(
                             f"{options.references} line {ref.row}: frame {ref.frame} does not "
                             "decode")
-                    maps[ref.frame] = fitted.calibrate(run.frames[k : k + 1],
-                                                       series["fpa_c"][ref.frame : ref.frame + 1],
-                                                       None)[0]
+                    times = series["time_s"]
+                    maps[ref.frame] = fitted.calibrate(
+                        run.frames[k : k + 1], series["fpa_c"][ref.frame : ref.frame + 1],
+                        None if times is None else times[ref.frame : ref.frame + 1])[0]
             fits[bi] = fitted
         level = None
         if refs:
@@ -428,12 +429,12 @@ class _PassFit:
                     stacklevel=3)
         return cls(estimator, fits, level)
 
-    def for_batch(self, bi: int, run: _Batch, fpa_c: np.ndarray) -> tuple[_Batch, Any]:
+    def for_batch(self, bi: int, run: _Batch, series: dict[str, Any]) -> tuple[_Batch, Any]:
         """The batch's run (with its fit's error, when it fails) and its fitted estimator."""
         fitted = self.fits.get(bi)
         if fitted is None and run.error is None:
             try:
-                fitted = _fit_batch(self.estimator, run, fpa_c)
+                fitted = _fit_batch(self.estimator, run, series)
             except (InvalidInputError, RegistrationError) as exc:
                 return replace(run, error=f"selfcal: {exc}"), self.estimator
         if fitted is None:
@@ -456,7 +457,7 @@ class _PassFit:
                 "references": None if self.level is None else self.level.as_dict()}
 
 
-def _fit_batch(estimator: Any, run: _Batch, fpa_c: np.ndarray) -> Any:
+def _fit_batch(estimator: Any, run: _Batch, series: dict[str, Any]) -> Any:
     """``estimator`` fitted on a batch's frames: each registered onto the batch's middle frame
     (frames whose chain there failed, or that do not decode, left out), stuck pixels left
     out."""
@@ -488,8 +489,13 @@ def _fit_batch(estimator: Any, run: _Batch, fpa_c: np.ndarray) -> Any:
     # a stuck pixel is stuck in every frame: every 8th frame shows it
     sample = np.flatnonzero(use)[::8]
     good = ~stuck_pixels(run.frames[sample], homographies[sample])
-    fpa = np.asarray(fpa_c[run.start : run.start + m], np.float64)
-    return estimator.fitted(run.frames, homographies, fpa, use=use, good=good)
+    part = slice(run.start, run.start + m)
+    times, rates = series["time_s"], series.get("fpa_rate_c_per_min")
+    return estimator.fitted(run.frames, homographies, np.asarray(series["fpa_c"][part]),
+                            use=use, good=good,
+                            time_s=None if times is None else np.asarray(times[part]),
+                            fpa_rate_c_per_min=None if rates is None or times is None
+                            else np.asarray(rates[part]))
 
 
 def _undecodable_in(run: _Batch, first: int, n: int) -> tuple[tuple[int, str, str], ...]:
