@@ -127,6 +127,14 @@ def weights_digest(payload: dict[str, Any]) -> str:
     state = payload.get("state_dict")
     if not isinstance(state, dict):
         raise TypeError("the state dict is not a dict")
+    digest_tensors(digest, state)
+    return digest.hexdigest()
+
+
+def digest_tensors(digest: Any, state: dict[str, Any]) -> None:
+    """Feed every tensor of ``state`` to the ``hashlib`` object ``digest``, in sorted name order:
+    name, shape, dtype, byte count and bytes (the weights files of :mod:`thermocal.nn` and of
+    :mod:`thermocal.nuc.he2018`). Raises ``TypeError`` for an entry that is not a named tensor."""
     for name in sorted(state, key=str):
         t = state[name]
         if not isinstance(name, str) or not isinstance(t, torch.Tensor):
@@ -135,7 +143,6 @@ def weights_digest(payload: dict[str, Any]) -> str:
         data = t.reshape(-1).view(torch.uint8).numpy().tobytes() if t.numel() else b""
         digest.update(f"{name}|{tuple(t.shape)}|{t.dtype}|{len(data)}|".encode())
         digest.update(data)
-    return digest.hexdigest()
 
 
 def _not_json(obj: Any) -> Any:

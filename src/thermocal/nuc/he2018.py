@@ -140,17 +140,10 @@ def _build(config: dict[str, int]) -> Any:
 
 def tensor_sha256(state: dict[str, Any]) -> str:
     """SHA-256 of a state dict: every tensor by name, shape, dtype and bytes, names sorted."""
-    import torch
+    from thermocal.nn.store import digest_tensors  # torch: only here
 
     digest = hashlib.sha256(b"thermocal-he2018-sha256\n")
-    for name in sorted(state):
-        t = state[name]
-        if not isinstance(t, torch.Tensor):
-            raise TypeError(f"state entry {name!r:.40} is not a tensor")
-        t = t.detach().cpu().contiguous()
-        data = t.reshape(-1).view(torch.uint8).numpy().tobytes() if t.numel() else b""
-        digest.update(f"{name}|{tuple(t.shape)}|{t.dtype}|{len(data)}|".encode())
-        digest.update(data)
+    digest_tensors(digest, state)
     return digest.hexdigest()
 
 
