@@ -110,6 +110,15 @@ def test_failed_link_is_refused_by_to_pivot(reg):
         broken.to_pivot([35], 30)
 
 
+def test_chained_to_is_to_pivot_of_every_frame_and_says_which_reach_it(reg):
+    ok = reg.ok.copy()
+    ok[33] = False
+    broken = SequenceRegistration(reg.to_previous, reg.correlation, ok, reg.fixed_pattern)
+    hs, reachable = broken.chained_to(30)
+    assert reachable[:33].all() and not reachable[33:].any()
+    np.testing.assert_allclose(hs[:33], broken.to_pivot(np.arange(33), 30), atol=1e-9)
+
+
 def test_uniform_recording_is_flagged_not_returned_as_motion():
     cam = make_camera("tau2", unit=0, size=(64, 48))
     from thermocal.camera.model import render

@@ -252,7 +252,8 @@ def process_flight(
             if not todo:
                 continue
             # the whole batch, done pivots included: the same frames as an uninterrupted run
-            run = _register_batch(reader, estimator, batch, n, tally.times)
+            run = _register_batch(reader, estimator, batch, n, tally.times,
+                                  known=pass_fit.registered.get(bi) if pass_fit else None)
             batch_estimator = estimator
             if pass_fit is not None:
                 t = time.perf_counter()
@@ -360,10 +361,14 @@ class _PassFit:
     depends only on its frames, so a resumed run fits it the same way.
     """
 
-    def __init__(self, estimator: Any, fits: dict[int, Any], level: Any) -> None:
+    def __init__(self, estimator: Any, fits: dict[int, Any], level: Any,
+                 registered: dict[int, _Batch]) -> None:
         self.estimator = estimator  # with the references' level
         self.fits = fits  # batch index → fitted estimator (made before the loop)
         self.level = level
+        # batch index → its registration made before the loop (frames dropped: the loop
+        # reads them again, registering them once)
+        self.registered = registered
         self.segments: list[dict[str, Any]] = []
 
     @classmethod
@@ -385,9 +390,10 @@ class _PassFit:
                     f"and {spans[-1][1] - 1}")
             where[ref.frame] = inside[0]
         reader = _FrameWindow(header.stream(max(64, n)), header.frame_shape)
-        fits, maps = {}, {}
+        fits, maps, registered = {}, {}, {}
         for bi in sorted({0, *where.values()}):
             run = _register_batch(reader, estimator, batches[bi], n, StageTimes())
+            registered[bi] = replace(run, frames=run.frames[:0])
             try:
                 fitted = _fit_batch(estimator, run, series)
             except (InvalidInputError, RegistrationError) as exc:
@@ -427,7 +433,7 @@ class _PassFit:
                     f"their σ: {'left out' if len(level.disagreeing) < len(refs) else 'all used'}"
                     f" (the level's σ {level.sigma_c:.2f} °C)",
                     stacklevel=3)
-        return cls(estimator, fits, level)
+        return cls(estimator, fits, level, registered)
 
     def for_batch(self, bi: int, run: _Batch, series: dict[str, Any]) -> tuple[_Batch, Any]:
         """The batch's run (with its fit's error, when it fails) and its fitted estimator."""
@@ -468,14 +474,7 @@ def _fit_batch(estimator: Any, run: _Batch, series: dict[str, Any]) -> Any:
         raise RegistrationError(run.error or "the batch was not registered")
     m = len(run.frames)
     mid = m // 2
-    chain = np.repeat(np.eye(3)[None], m, axis=0)  # frame k → frame 0
-    for k in range(1, m):
-        chain[k] = chain[k - 1] @ run.sequence.to_previous[k]
-    homographies = np.linalg.inv(chain[mid]) @ chain
-    homographies /= homographies[:, 2:, 2:]
-    broken = ~np.asarray(run.sequence.ok, bool)
-    after = np.cumsum(broken)  # failed pairs up to each frame
-    use = after == after[mid]  # no failed pair between the frame and the middle one
+    homographies, use = run.sequence.chained_to(mid)
     for i, _, _ in run.undecodable:
         use[i - run.start] = False
     if MIN_FRAMES <= m and use.sum() < MIN_FRAMES:
@@ -518,12 +517,15 @@ def _stand_ins(frames: np.ndarray, bad: list[int]) -> np.ndarray:
 
 
 def _register_batch(reader: _FrameWindow, estimator: Estimator, batch: list[int], n: int,
-                    times: StageTimes) -> _Batch:
-    """Read the frames of the groups of ``batch`` (pivots) and register them as one sequence."""
+                    times: StageTimes, *, known: _Batch | None = None) -> _Batch:
+    """Read the frames of the groups of ``batch`` (pivots) and register them as one sequence
+    (the registration of ``known``, the same batch read before, when given)."""
     t = time.perf_counter()
     a, z = batch[0] - n // 2, batch[-1] - n // 2 + n
     frames, undecodable = reader.frames(a, z)
     t = times.add("reading", t)
+    if known is not None:
+        return _Batch(a, frames, known.sequence, known.error, undecodable)
     try:
         sequence = _register(estimator, _stand_ins(frames, [i - a for i, _, _ in undecodable]))
         error = None

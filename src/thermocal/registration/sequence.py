@@ -92,6 +92,28 @@ class SequenceRegistration:
     def __len__(self) -> int:
         return len(self.to_previous)
 
+    def chained_to(self, pivot: int) -> tuple[np.ndarray, np.ndarray]:
+        """Every frame's homography to frame ``pivot`` at once, and which frames reach it.
+
+        Returns
+        -------
+        homographies : numpy.ndarray, shape (M, 3, 3), float64
+            Frame → pivot, composed along the chain (``h33 = 1``; meaningless where not
+            ``reachable``). One pass over the chain, where :meth:`to_pivot` composes each
+            frame's own.
+        reachable : numpy.ndarray, shape (M,), bool
+            No failed pair (``ok`` False) lies between the frame and the pivot.
+        """
+        m = len(self.to_previous)
+        p = check_frame_index(pivot, m, within="the recording")
+        chain = np.repeat(np.eye(3)[None], m, axis=0)  # frame k → frame 0
+        for k in range(1, m):
+            chain[k] = chain[k - 1] @ self.to_previous[k]
+        homographies = np.linalg.inv(chain[p]) @ chain
+        homographies /= homographies[:, 2:, 2:]
+        failed = np.cumsum(~np.asarray(self.ok, bool))  # failed pairs up to each frame
+        return homographies, failed == failed[p]
+
     def to_pivot(self, indices: Any, pivot: int) -> np.ndarray:
         """Homographies of frames ``indices`` to frame ``pivot``, composed along the chain.
 
