@@ -255,6 +255,8 @@ def one_reference_disc(spec: PassSpec, folder: Path) -> Path:
     import tifffile
     from scipy.ndimage import uniform_filter
 
+    from thermocal.pipeline.references import Reference
+
     with tifffile.TiffFile(folder / "truth.tiff") as tif:
         k = len(tif.pages) // 2
         truth = tif.pages[k].asarray().astype(np.float64)
@@ -263,8 +265,7 @@ def one_reference_disc(spec: PassSpec, folder: Path) -> Path:
     h, w = truth.shape  # the target in the frame's middle half, as one aims at it
     var[: h // 4], var[-h // 4 :], var[:, : w // 4], var[:, -w // 4 :] = (np.inf,) * 4
     y, x = np.unravel_index(int(np.argmin(var)), var.shape)
-    yy, xx = np.mgrid[: truth.shape[0], : truth.shape[1]]
-    disc = (xx - x) ** 2 + (yy - y) ** 2 <= REFERENCE_RADIUS_PX**2
+    disc = Reference(0, k, float(x), float(y), REFERENCE_RADIUS_PX, 0.0).disc(truth.shape)
     error = np.random.default_rng(spec.seed).normal(0.0, REFERENCE_SIGMA_C)
     path = folder / "REF.csv"
     path.write_text("frame,x,y,radius_px,temperature_c,sigma_c\n"
