@@ -122,6 +122,7 @@ def test_more_iterations_fit_better(burst, corrected):
         (np.ones((3, 16, 16)), {"scene_tv": float("nan")}, "scene_tv"),
         (np.ones((3, 16, 16)), {"homographies": np.stack([np.eye(3)] * 2)}, "homographies"),
         (np.ones((3, 16, 16)), {"homographies": np.full((3, 3, 3), np.nan)}, "homographies"),
+        (np.ones((3, 16, 16)), {"device": "tpu"}, "device must be auto, cpu or cuda"),
     ],
 )
 def test_bad_input_raises_one_line_errors(frames, options, match):
@@ -130,6 +131,12 @@ def test_bad_input_raises_one_line_errors(frames, options, match):
     with pytest.raises(InvalidInputError, match=match) as info:
         deepir(frames, **options)
     assert "\n" not in str(info.value)
+
+
+@pytest.mark.skipif(torch.cuda.is_available(), reason="a CUDA GPU is here")
+def test_asking_for_a_gpu_that_is_not_there_is_refused():
+    with pytest.raises(InvalidInputError, match="sees no CUDA GPU"):
+        deepir(np.ones((3, 16, 16)), homographies=np.stack([np.eye(3)] * 3), device="cuda")
 
 
 def test_constant_frames_stay_finite():

@@ -281,6 +281,24 @@ def test_uav_with_jitter_average_motion():
     assert np.abs(hp[:, 2, :2]).max() > 0
 
 
+@pytest.mark.parametrize("crab", [-4.0, 3.0])
+def test_uav_crab_angle_moves_the_ground_across_the_rows(crab):
+    step = tr.pixel_motion_per_frame()
+    hs = tr.uav_homographies(10, FRAME, (900, 900), heading_deg=0.0, attitude_jitter_deg=0.0,
+                             crab_deg=crab, rng=np.random.default_rng(0))
+    for i in range(9):  # the frame yawed against the track: the ground drifts across the rows
+        h = np.linalg.inv(hs[i + 1]) @ hs[i]
+        h /= h[2, 2]
+        a = math.radians(crab)
+        np.testing.assert_allclose(h[:2, 2], (-step * math.cos(a), step * math.sin(a)),
+                                   atol=1e-9)
+    with pytest.raises(InvalidInputError, match="crab_deg"):
+        tr.uav_homographies(3, FRAME, (900, 900), crab_deg=60.0, rng=np.random.default_rng(0))
+    with pytest.raises(InvalidInputError, match="crab_deg"):
+        tr.uav_homographies(3, FRAME, (900, 900), crab_deg=float("nan"),
+                            rng=np.random.default_rng(0))
+
+
 def test_uav_map_gsd_scales_the_views():
     gsd = tr.ground_sampling_distance_m()
     hs = tr.uav_homographies(5, FRAME, (800, 800), map_gsd_m=2 * gsd, heading_deg=0.0,

@@ -114,6 +114,12 @@ class CameraPreset:
                 f"one of {HOUSING_FORMS}"
             )
 
+    @property
+    def radial_offset(self) -> bool:
+        """Whether the smooth part of the offset pattern is radially symmetric (Oz et al. eq.
+        16–17: ``offset_radial·R²`` and a radial housing, no random field)."""
+        return self.housing_form == "radial" and self.offset_field_sigma == 0.0
+
     def as_dict(self) -> dict:
         """The parameters as plain values (:func:`dataclasses.asdict`), leaving out the fields of
         the second family's forms where they keep ``tau2``'s default: files that store a

@@ -24,10 +24,25 @@ What motion identifies, and what the start model keeps:
   against its family's cannot be told from an unknown scene. ``mean(b) = 0`` and
   ``mean(a) = 1``: the start model's level stays (a ground reference fixes it);
 * a pattern along the lines the scene does not cross: a pass moving along the rows keeps each
-  ground line on one sensor row, so the row pattern is not seen; each row's median gain and
-  offset are held at the start model's (1 and 0), so that nothing is invented there — a scene
-  whose temperature changes mostly across the rows (a sky gradient) would otherwise trade a
-  row's gain against its offset;
+  ground line on one sensor row, so a row's offset cannot be told from what that row's strip of
+  ground radiates. Each row's median gain and offset are held at the start model's (1 and 0) in
+  the fit — a scene whose temperature changes mostly across the rows (a sky gradient) would
+  otherwise trade a row's gain against its offset — and then two priors give back what they can
+  (:func:`unseen_line_profile`):
+
+  - *fine stripes* (a row's own offset, the mean of its pixels' offsets, a row FPN): the
+    constant-statistics assumption (Harris & Chiang 1999; Tendero et al. 2012's midway
+    equalisation works on the same one) over the whole pass: the strips of ground seen by two
+    neighbouring rows, each hundreds of pixels long, differ little, so the median of the
+    corrected frames' differences between neighbouring rows is the rows' offset difference.
+    Kept only for stripes narrower than about :data:`FINE_LINES` lines (a Gaussian high-pass):
+    slower changes across the rows are the ground's (a field beside a wood) as much as the
+    sensor's. A ground line that runs along the whole pass (a long road) looks like a stripe;
+  - *a radially symmetric offset* (``radial=True``: families whose smooth offset pattern is
+    radial, Oz et al. eq. 16–17): its quadratic along the seen lines is the same along the
+    unseen ones, about the start model's centre. What stays unseen is the part of the unit's
+    radial pattern that is odd about that centre (an optical centre a little off: a ramp across
+    the rows), and slow non-radial patterns;
 * a linear ramp of ``b`` along the motion trades, under pure translation, with a level that
   drifts frame by frame; the model has no free per-frame level (the level is the start model's
   at each frame's FPA temperature), so the ramp is seen.
@@ -42,16 +57,21 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
+from scipy.ndimage import gaussian_filter1d
 
 from thermocal.errors import InvalidInputError
 
 __all__ = [
+    "FINE_LINES",
     "MIN_FPA_SPAN_C",
     "MIN_FRAMES",
     "MIN_MOTION_FRACTION",
     "ResidualPattern",
+    "fine_part",
     "fit_residual_pattern",
     "motion_span",
+    "radial_line_profile",
+    "unseen_line_profile",
 ]
 
 #: Fewest frames a pass needs.
@@ -71,6 +91,11 @@ MIN_CANVAS_WEIGHT = 3.0
 GAIN_PRIOR_SD = 0.05
 #: Plausible per-pixel gains; a pixel fitted outside (a stuck or dead pixel) is flagged bad.
 GAIN_BOUNDS = (0.5, 1.5)
+#: σ, lines, of the Gaussian trend left out of the constant-statistics line profile: stripes
+#: narrower than this along the unseen lines are estimated, slower changes are the ground's.
+FINE_LINES = 6.0
+#: Most frames (evenly spaced over the pass) whose line statistics estimate the fine stripes.
+STAT_FRAMES = 64
 
 
 @dataclass(frozen=True, eq=False)
@@ -122,14 +147,38 @@ class ResidualPattern:
         dt = (np.asarray(fpa_c, np.float64).reshape(-1, 1, 1) - self.fpa_ref_c).astype(np.float32)
         return ((radiance - self.offset - self.offset_per_c * dt) / self.gain).astype(np.float32)
 
+    def lines_not_identified(self) -> dict[str, str]:
+        """The line directions (``"rows"``, ``"columns"``) whose pattern the pass's motion did
+        not wholly show: ``"all"`` where the scene moved less than :data:`LINE_MOTION_PX`
+        across them (the module's priors give back fine stripes and a radial quadratic),
+        ``"slow"`` where it moved less than :data:`MIN_MOTION_FRACTION` of the frame across
+        them (stripes are seen; a pattern as wide as the frame, a ramp across it, is not: the
+        fit's rounds carry it no further than the motion)."""
+        mx, my = self.motion_px
+        h, w = self.shape
+        out = {}
+        for lines, moved, extent in (("rows", my, h), ("columns", mx, w)):
+            if moved < LINE_MOTION_PX:
+                out[lines] = "all"
+            elif moved < MIN_MOTION_FRACTION * extent:
+                out[lines] = "slow"
+        return out
+
     def unidentified(self) -> list[str]:
         """What this pass could not show, in words (kept from the start model)."""
         out = ["the global level and gain (the start model's; a ground reference fixes them)"]
-        mx, my = self.motion_px
-        if my < LINE_MOTION_PX:
-            out.append(f"the row pattern (the scene moved {my:.0f} px across the rows)")
-        if mx < LINE_MOTION_PX:
-            out.append(f"the column pattern (the scene moved {mx:.0f} px across the columns)")
+        moved = dict(zip(("rows", "columns"), self.motion_px[::-1], strict=True))
+        for lines, kind in self.lines_not_identified().items():
+            line = lines[:-1]
+            if kind == "all":
+                out.append(f"the {line} pattern's slow part (the scene moved {moved[lines]:.0f} "
+                           f"px across the {lines}; only stripes narrower than {FINE_LINES:g} "
+                           f"{lines}, and a radial quadratic where the family has one, were "
+                           "estimated)")
+            else:
+                out.append(f"the {line} pattern's slow part (the scene moved {moved[lines]:.0f} "
+                           f"px across the {lines}, under {MIN_MOTION_FRACTION:g} of the frame: "
+                           "stripes are seen, a ramp across the frame is not)")
         if not self.fitted_fpa:
             out.append("the pattern's change with the FPA temperature (FPA span below "
                        f"{MIN_FPA_SPAN_C:g} °C)")
@@ -223,6 +272,7 @@ def fit_residual_pattern(
     rounds: int = 8,
     tol: float = 2e-3,
     fit_gain: bool = True,
+    radial: bool = False,
 ) -> ResidualPattern:
     """Fit the residual pattern of a pass (see the module).
 
@@ -244,6 +294,9 @@ def fit_residual_pattern(
         Stop once the offset changes by less than ``tol`` of the residual SD between rounds.
     fit_gain : bool
         Fit the per-pixel gain (else 1).
+    radial : bool
+        The start model's family has a radially symmetric smooth offset (Oz et al. eq. 16–17):
+        along lines the pass did not cross, take its quadratic from the lines it did.
 
     Returns
     -------
@@ -299,11 +352,70 @@ def fit_residual_pattern(
         weights = weights.astype(np.float32)
         if change < tol * sd:
             break
+    for axis in unseen:  # what the priors give back along the unseen lines (see the module)
+        sub = slice(None, None, max(1, n // STAT_FRAMES))
+        corrected = (L[sub] - b - c * dt[sub]) / a
+        line = np.expand_dims(unseen_line_profile(corrected, b, good, axis, radial=radial), axis)
+        b = b + a * line
+        if radial and fitted_fpa:
+            c = c + np.expand_dims(radial_line_profile(c, good, axis), axis)
+    if unseen:
+        b = (b - np.median(b[good])).astype(np.float32)
+        c = (c - np.median(c[good])).astype(np.float32)
     views = inside.sum(axis=0).astype(np.int32)
     wsum = np.maximum((wk > 0.5).sum(axis=0), 1)
     bad = ~good | (a < GAIN_BOUNDS[0]) | (a > GAIN_BOUNDS[1]) | (views < MIN_FRAMES // 2)
     se = (sd / np.sqrt(wsum)).astype(np.float32)
     return ResidualPattern(a, b, c, se, bad, fpa_ref, float(sd), views, motion, done, fitted_fpa)
+
+
+def unseen_line_profile(corrected: np.ndarray, offset: np.ndarray, good: np.ndarray, axis: int,
+                        *, radial: bool = False) -> np.ndarray:
+    """The offset profile across lines the pass did not cross (radiance; one value per such
+    line, median 0), from the module's two priors.
+
+    Parameters
+    ----------
+    corrected : (N, H, W) float32
+        Frames of the pass corrected with the fitted pattern (radiance).
+    offset : (H, W) float32
+        The fitted offset ``b`` (its profile along the seen lines gives the radial quadratic).
+    good : (H, W) bool
+        Pixels to use.
+    axis : int
+        The unseen lines, as the axis of their means: 1 rows (the profile is ``(H,)``), 0
+        columns (``(W,)``).
+    radial : bool
+        Add the radial quadratic (:func:`radial_line_profile`).
+    """
+    across = 2 - axis  # the frames' axis that runs across the unseen lines
+    x = np.where(good, corrected, np.nan)
+    step = np.nanmedian(np.diff(x, axis=across), axis=(0, 3 - across))
+    fine = fine_part(np.concatenate([[0.0], np.cumsum(np.nan_to_num(step))]))
+    if radial:
+        fine = fine + radial_line_profile(offset, good, axis)
+    return (fine - np.median(fine)).astype(np.float32)
+
+
+def fine_part(profile: np.ndarray) -> np.ndarray:
+    """The stripes of a line profile ``(K,)``: less its Gaussian trend of :data:`FINE_LINES`."""
+    profile = np.asarray(profile, np.float64)
+    return profile - gaussian_filter1d(profile, FINE_LINES, mode="nearest")
+
+
+def radial_line_profile(x: np.ndarray, good: np.ndarray, axis: int) -> np.ndarray:
+    """A radially symmetric pattern's quadratic along the unseen lines (``axis`` as in
+    :func:`unseen_line_profile`), from its profile along the seen ones: the mean of ``x``
+    ``(H, W)`` over each seen line, least-squares quadratic in the coordinate running −0.5 … 0.5
+    across the frame (:func:`thermocal.camera.presets.radial_map`'s), its ``u²`` term put on
+    ``v²`` about the centre (median 0)."""
+    seen = np.ma.masked_array(x, ~good).mean(axis=1 - axis).filled(np.nan)
+    u = np.linspace(-0.5, 0.5, seen.size)
+    ok = np.isfinite(seen)
+    beta = np.polyfit(u[ok], seen[ok], 2)[0] if ok.sum() > 3 else 0.0
+    v = np.linspace(-0.5, 0.5, x.shape[1 - axis])
+    q = beta * v**2
+    return (q - np.median(q)).astype(np.float32)
 
 
 def _regress(L: np.ndarray, s: np.ndarray, dt: np.ndarray | None, w: np.ndarray,

@@ -37,9 +37,10 @@ from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import InvalidInputError, ResolutionMismatchError
 from thermocal.estimation.base import PreparedBurst, view_spread
 from thermocal.estimation.pass_pattern import (
-    LINE_MOTION_PX,
     ResidualPattern,
+    fine_part,
     fit_residual_pattern,
+    radial_line_profile,
 )
 from thermocal.radiometry import TAU2, BandRadiance
 
@@ -66,29 +67,47 @@ def start_band(calibration: Calibration | None, family: str) -> BandRadiance:
 
 @functools.lru_cache(maxsize=16)
 def unseen_line_sigma(family: str, shape: tuple[int, int], fpa_c: float, scene_c: float,
-                      lines: str) -> float:
+                      lines: str, *, radial: bool = True) -> float:
     """How much a unit of ``family`` differs from the family's average unit along ``lines``
-    (``"rows"`` or ``"columns"``): the RMS over the family's training units of the line means
-    (less their mean) of the average unit's error on a uniform scene at ``scene_c`` (°C), FPA
-    ``fpa_c`` (°C), frames of ``shape`` ``(H, W)``. The σ of the line pattern a pass that never
-    moves across those lines leaves (°C); FPA and scene rounded to 5 °C (cached)."""
+    (``"rows"`` or ``"columns"``) beyond what the pass's priors give back (its fine stripes, and
+    a family's radial quadratic: :func:`~thermocal.estimation.pass_pattern.unseen_line_profile`),
+    °C: the RMS over the family's training units of what is left of the line means (less their
+    mean) of the average unit's error on a uniform scene at ``scene_c`` (°C), FPA ``fpa_c``
+    (°C), frames of ``shape`` ``(H, W)``. The radial quadratic is taken, as the fit takes it,
+    from the offset part of the error (its gain part, fitted apart, is left out): the error in
+    radiance is split into ``gain · L + offset`` from two scene levels; ``radial=False``: the
+    quadratic was not given back (a pass that moved across the lines, but too little to show
+    their slow part). The σ of the line pattern a pass that never moves across those lines
+    leaves; FPA and scene rounded to 5 °C (cached)."""
     from thermocal.camera.model import expected_counts
-    from thermocal.camera.presets import make_camera
+    from thermocal.camera.presets import PRESETS, make_camera
     from thermocal.nn.data import TRAIN_UNITS
     from thermocal.nn.inputs import calibrate_frames
 
     nominal = _nominal(family, shape)
+    band = start_band(None, family)
     housing = fpa_c - nominal.thermal.fpa_self_heating_c
-    scene = np.full(shape, scene_c, np.float32)
+    levels = np.array([scene_c, scene_c + 10.0])
+    true = band.radiance(levels + ZERO_CELSIUS_K)
+    per_c = float(band.radiance(scene_c + 0.5 + ZERO_CELSIUS_K)
+                  - band.radiance(scene_c - 0.5 + ZERO_CELSIUS_K))
+    scenes = np.broadcast_to(levels[:, None, None], (2, *shape)).astype(np.float32)
     axis = 1 if lines == "rows" else 0
     profiles = []
     for u in TRAIN_UNITS:
         unit = make_camera(family, unit=u, size=(shape[1], shape[0]))
-        counts = expected_counts(unit, scene[None], [fpa_c], housing_c=[housing])
-        err = calibrate_frames(nominal, counts, np.array([fpa_c]))[0] - scene_c
+        counts = expected_counts(unit, scenes, [fpa_c] * 2, housing_c=[housing] * 2)
+        seen = band.radiance(calibrate_frames(nominal, counts, np.full(2, fpa_c))
+                             + np.float32(ZERO_CELSIUS_K))
+        gain = (seen[1] - seen[0]) / (true[1] - true[0])
+        offset = seen[0] - gain * true[0]
+        err = (seen[0] - true[0]) / per_c  # °C at scene_c
         ok = ~unit.defects
         line = np.nansum(np.where(ok, err, 0), axis=axis) / np.maximum(ok.sum(axis=axis), 1)
-        profiles.append(line - line.mean())
+        left = line - fine_part(line)  # what the pass's priors give back is not left
+        if radial and PRESETS[family].radial_offset:
+            left = left - radial_line_profile(offset, ok, axis) / per_c
+        profiles.append(left - left.mean())
     return float(np.sqrt(np.mean(np.square(profiles))))
 
 
@@ -150,6 +169,15 @@ class SelfCalibration:
         return start_band(self.calibration, self.family)
 
     @property
+    def radial(self) -> bool:
+        """Whether the residual pattern may be taken as radially symmetric along unseen lines:
+        from the family's average unit of a family whose offset is (its unit-to-unit
+        differences are then radial too); from a calibration, no."""
+        from thermocal.camera.presets import PRESETS
+
+        return self.calibration is None and PRESETS[self.family].radial_offset
+
+    @property
     def sigma_model(self) -> Any:
         from thermocal.calibration.uncertainty import CalibrationSigma
 
@@ -197,7 +225,8 @@ class SelfCalibration:
             t = np.asarray(time_s, np.float64)
             est = replace(self, fpa_rates=(t, np.asarray(fpa_rate_c_per_min, np.float64)))
         radiance = est.start_radiance(np.asarray(frames), fpa, time_s)
-        pattern = fit_residual_pattern(radiance, homographies, fpa_c=fpa, use=use, good=good)
+        pattern = fit_residual_pattern(radiance, homographies, fpa_c=fpa, use=use, good=good,
+                                       radial=self.radial)
         return replace(est, pattern=pattern)
 
     def with_level(self, offset: float, sigma_c: float) -> SelfCalibration:
@@ -249,16 +278,17 @@ class SelfCalibration:
 
     def unseen_sigma(self, temperature_c: np.ndarray, fpa_c: float | None) -> float:
         """σ of the line pattern the pass did not show (°C; 0 from a calibration, whose σ holds
-        it, or when the pass moved across both lines)."""
+        it, or when the pass moved across both lines by half a frame or more):
+        :func:`unseen_line_sigma` of each direction of
+        :meth:`~thermocal.estimation.pass_pattern.ResidualPattern.lines_not_identified`."""
         assert self.pattern is not None
-        missing = [lines for lines, moved in zip(("rows", "columns"),
-                                                  self.pattern.motion_px[::-1], strict=True)
-                   if moved < LINE_MOTION_PX]
+        missing = self.pattern.lines_not_identified()
         if self.calibration is not None or not missing or fpa_c is None:
             return 0.0
         fpa, scene = (5.0 * round(v / 5.0) for v in (fpa_c, float(np.median(temperature_c))))
-        return float(np.hypot.reduce([unseen_line_sigma(self.family, temperature_c.shape, fpa,
-                                                        scene, lines) for lines in missing]))
+        return float(np.hypot.reduce([
+            unseen_line_sigma(self.family, temperature_c.shape, fpa, scene, lines,
+                              radial=kind == "all") for lines, kind in missing.items()]))
 
     def uncertainty(self, burst: PreparedBurst, temperature_c: np.ndarray, *, outside: bool
                     ) -> np.ndarray | None:

@@ -104,6 +104,8 @@ class PassSpec:
     ambient_rate_c_per_min : float
         How fast the ambient changes from the first frame on, °C/min (0: the FPA stays at
         ``fpa_c``; else it drifts through the camera's lags).
+    crab_deg : float
+        The pass's crab angle, degrees (0: the ground moves along the rows).
     """
 
     scene: str
@@ -114,6 +116,7 @@ class PassSpec:
     seed: int = 0
     preset: str = "tau2"
     ambient_rate_c_per_min: float = 0.0
+    crab_deg: float = 0.0
 
     def label(self) -> str:
         """``tau2 unit 9 over builtin:aerial`` (the size and frames are the table's)."""
@@ -195,7 +198,8 @@ def simulate_pass(spec: PassSpec, folder: str | os.PathLike[str], *,
     scene = load_pass_scene(spec.scene) if scene_c is None else scene_c
     camera = make_camera(spec.preset, unit=spec.unit, size=spec.size)
     plan = plan_flight(scene, camera, n_frames=spec.n_frames, motion="uav", fpa_c=spec.fpa_c,
-                       seed=spec.seed, ambient_rate_c_per_min=spec.ambient_rate_c_per_min)
+                       seed=spec.seed, ambient_rate_c_per_min=spec.ambient_rate_c_per_min,
+                       crab_deg=spec.crab_deg)
     extra = {"scene": spec.scene, "unit": spec.unit, "preset": spec.preset, "seed": spec.seed,
              "motion": "uav"}
     write_simulated_flight(folder, plan, camera, extra=extra)
@@ -626,6 +630,9 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--preset", default="tau2", help="Camera family of the units.")
     parser.add_argument("--ambient-rate", type=float, default=0.0,
                         help="Ambient change from the first frame on, °C/min (FPA drift).")
+    parser.add_argument("--crab-deg", type=float, default=0.0,
+                        help="Crab angle of the passes, degrees (0: the ground moves along the "
+                        "rows; a crosswind yaws the airframe a few degrees).")
     parser.add_argument("--group", type=int, default=7, help="Frames per group (N).")
     parser.add_argument("--stride", type=int, default=7)
     parser.add_argument("--force", action="store_true", help="--force for every method.")
@@ -650,7 +657,8 @@ def main(argv: list[str] | None = None) -> None:
                 seed = 1000 * (EVAL_SCENES.index(scene) if scene in EVAL_SCENES else 0) + unit
                 spec = PassSpec(scene=scene, unit=unit, n_frames=args.frames, size=size,
                                 fpa_c=args.fpa_c, seed=seed, preset=args.preset,
-                                ambient_rate_c_per_min=args.ambient_rate)
+                                ambient_rate_c_per_min=args.ambient_rate,
+                                crab_deg=args.crab_deg)
                 res = evaluate_pass(spec, methods, tmp, frames=args.group, stride=args.stride)
                 results.append(res)
                 for label, r in res["methods"].items():
@@ -665,7 +673,9 @@ def main(argv: list[str] | None = None) -> None:
             "load_after": ", ".join(f"{x:.1f}" for x in os.getloadavg()),
             "command": "python benchmarks/passes.py " + " ".join(sys.argv[1:] if argv is None
                                                                  else argv),
-            "data": (f"UAV passes (motion `uav`, 3.8 px per frame) of {args.frames} frames of "
+            "data": ("UAV passes (motion `uav`, 3.8 px per frame"
+                     + (f", crab angle {args.crab_deg:g}°" if args.crab_deg else "")
+                     + f") of {args.frames} frames of "
                      f"{w}×{h}, FPA {args.fpa_c:g} °C"
                      + (f" then the ambient changing {args.ambient_rate:+g} °C/min"
                         if args.ambient_rate else "") + f", {args.preset} units "

@@ -118,6 +118,7 @@ def deepir(
     scene_tv: float | None = None,
     offset_smoothness: float = 100.0,
     gain_prior: float = 0.0,
+    device: str = "auto",
 ) -> np.ndarray:
     """Burst NUC by DeepIR (Saragadam et al. 2021): scene as an untrained network, joint fit.
 
@@ -153,6 +154,11 @@ def deepir(
         walks, 10 left a third more error).
     gain_prior : float
         Weight λ_g of ``mean (g − 1)²`` (default 0: the paper only starts the gain at 1).
+    device : str
+        Where torch runs the optimisation: ``"auto"`` (a CUDA GPU when torch sees one, else
+        the CPU), ``"cpu"`` or ``"cuda"``. The starting weights and noise are drawn on the CPU
+        either way; a GPU's sums run in another order, so its output differs from the CPU's
+        in the last digits.
 
     Returns
     -------
@@ -191,6 +197,11 @@ def deepir(
     except ImportError:
         raise InvalidInputError(
             "deepir needs torch (pip install 'thermocal[nn]')") from None
+    if device not in ("auto", "cpu", "cuda"):
+        raise InvalidInputError(f"deepir: device must be auto, cpu or cuda, not {device!r}")
+    if device == "cuda" and not torch.cuda.is_available():
+        raise InvalidInputError("deepir: device cuda asked for, but torch sees no CUDA GPU")
+    dev = torch.device("cuda" if device != "cpu" and torch.cuda.is_available() else "cpu")
 
     # frames to about [0.1, 0.9], the range of the network's sigmoid
     lo, hi = (float(v) for v in np.percentile(y, [1.0, 99.0]))
@@ -211,16 +222,16 @@ def deepir(
     with torch.random.fork_rng(devices=[]):
         torch.manual_seed(seed)
         f32 = torch.float32
-        t_y = torch.as_tensor((y - base) / span, dtype=f32)[:, None]
-        t_q = torch.as_tensor(q, dtype=f32)
-        t_rel = torch.as_tensor(rel, dtype=f32)
-        t_valid = torch.as_tensor(valid, dtype=f32)[:, None]
-        norm = torch.tensor([2.0 / max(wc - 1, 1), 2.0 / max(hc - 1, 1)], dtype=f32)
-        z = 0.1 * torch.rand(1, 8, hc, wc)
-        net = _skip_net(torch, 8, channels, 4, scales)
-        gain = torch.ones(1, 1, hh, w, requires_grad=True)
-        offset = torch.zeros(1, 1, hh, w, requires_grad=True)
-        motion = torch.zeros(n, 2, 3, requires_grad=True)  # translation | linear, pixels
+        t_y = torch.as_tensor((y - base) / span, dtype=f32)[:, None].to(dev)
+        t_q = torch.as_tensor(q, dtype=f32).to(dev)
+        t_rel = torch.as_tensor(rel, dtype=f32).to(dev)
+        t_valid = torch.as_tensor(valid, dtype=f32)[:, None].to(dev)
+        norm = torch.tensor([2.0 / max(wc - 1, 1), 2.0 / max(hc - 1, 1)], dtype=f32).to(dev)
+        z = (0.1 * torch.rand(1, 8, hc, wc)).to(dev)  # drawn on the CPU: the same on any device
+        net = _skip_net(torch, 8, channels, 4, scales).to(dev)
+        gain = torch.ones(1, 1, hh, w, device=dev, requires_grad=True)
+        offset = torch.zeros(1, 1, hh, w, device=dev, requires_grad=True)
+        motion = torch.zeros(n, 2, 3, device=dev, requires_grad=True)  # translation | linear
         opt = torch.optim.Adam([*net.parameters(), gain, offset], lr=lr, foreach=True)
         opt_motion = torch.optim.Adam([motion], lr=lr_motion)
         n_valid = t_valid.sum().clamp_min(1.0)
@@ -250,7 +261,7 @@ def deepir(
             opt.step()
             if refine_motion:
                 opt_motion.step()
-        g, o, v = (t.numpy()[:, 0].astype(np.float64) for t in best_state)
+        g, o, v = (t.cpu().numpy()[:, 0].astype(np.float64) for t in best_state)
 
     # (y − o)/g in normalised units, back to the input's counts; a detector whose gain left the
     # physical range (dead, stuck or hot: the L1 fit drives its gain anywhere) shows the

@@ -583,6 +583,7 @@ def uav_homographies(
     heading_deg: float | None = None,
     attitude_jitter_deg: float = 0.05,
     flight_axis: str = "x",
+    crab_deg: float = 0.0,
     rng: np.random.Generator,
 ) -> np.ndarray:
     """A straight UAV pass over the map with a nadir camera.
@@ -613,6 +614,10 @@ def uav_homographies(
         The frame axis that points along the flight: ``"x"`` (the frame's width, so that
         ``heading_deg=0`` leaves the frames aligned with the map) or ``"y"`` (the frame's height,
         as the Tau2 was mounted in Oz et al. §V-A: ground features then move down the frame).
+    crab_deg : float
+        The crab angle, degrees (−45 … 45): the airframe, and the camera with it, yawed against
+        the track, as a crosswind holds a multirotor or a plane (a few degrees is common); the
+        ground then drifts across the frame's lines at ``sin(crab)`` of its speed.
     rng : numpy.random.Generator
         Source of randomness.
 
@@ -640,6 +645,9 @@ def uav_homographies(
     jitter = _check_nonneg(attitude_jitter_deg, "attitude_jitter_deg", upper=10.0)
     if flight_axis not in ("x", "y"):
         raise InvalidInputError(f"flight_axis: expected 'x' or 'y', got {flight_axis!r}")
+    if not (isinstance(crab_deg, int | float) and math.isfinite(crab_deg)
+            and abs(crab_deg) <= 45.0):
+        raise InvalidInputError(f"crab_deg: expected an angle within ±45°, got {crab_deg!r}")
     if heading_deg is not None:
         try:
             heading_fixed = float(heading_deg)
@@ -661,7 +669,8 @@ def uav_homographies(
         heading = math.radians(heading_fixed if heading_deg is not None else rng.uniform(0, 360))
         # Frame rotation on the map so that the flight axis of the frame points along the heading
         # (screen angles: the direction vector on the map is (cos h, -sin h)).
-        theta = -heading if flight_axis == "x" else math.pi / 2 - heading
+        theta = (-heading if flight_axis == "x" else math.pi / 2 - heading) + math.radians(
+            crab_deg)
         e = np.array([math.cos(heading), -math.sin(heading)])
         att = np.empty((n, 3))
         att[0] = rng.normal(0.0, 1.0, 3)

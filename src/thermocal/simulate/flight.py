@@ -72,16 +72,18 @@ def map_shape_for(motion: str, n_frames: int, frame_size: tuple[int, int]) -> tu
 
 def flight_homographies(
     motion: str, n_frames: int, frame_size: tuple[int, int], map_shape: tuple[int, int], *,
-    rng: np.random.Generator,
+    rng: np.random.Generator, crab_deg: float = 0.0,
 ) -> np.ndarray:
-    """Frame → map homographies ``(N, 3, 3)`` of a walk, a hover or a UAV pass."""
+    """Frame → map homographies ``(N, 3, 3)`` of a walk, a hover or a UAV pass (flown with a
+    crab angle of ``crab_deg``, degrees: :func:`thermocal.scenes.trajectory.uav_homographies`)."""
     map_size = (map_shape[1], map_shape[0])
     if motion == "walk":
         return trajectory.walk_homographies(n_frames, frame_size, map_size, rng=rng)
     if motion == "hover":
         return trajectory.hover_homographies(n_frames, frame_size, map_size, rng=rng)
     if motion == "uav":
-        return trajectory.uav_homographies(n_frames, frame_size, map_size, heading_deg=0.0, rng=rng)
+        return trajectory.uav_homographies(n_frames, frame_size, map_size, heading_deg=0.0,
+                                           crab_deg=crab_deg, rng=rng)
     raise InvalidInputError(f"unknown motion {motion!r}; choose from {', '.join(MOTIONS)}")
 
 
@@ -131,6 +133,7 @@ def plan_flight(
     seed: int = 0,
     thermal: ThermalParams | None = None,
     ambient_rate_c_per_min: float = 0.0,
+    crab_deg: float = 0.0,
 ) -> FlightPlan:
     """Lay out a flight of ``camera`` over ``scene_c`` (°C map, any size: resized into a map).
 
@@ -138,7 +141,8 @@ def plan_flight(
     frame on the ambient changes at ``ambient_rate_c_per_min`` (°C/min; 0: constant), and the
     FPA follows through the camera's thermal lags. The FPA sensor reading is quantised and noisy
     (:func:`thermocal.camera.thermal.fpa_sensor`). ``thermal``: default the camera family's
-    (``camera.thermal``).
+    (``camera.thermal``). ``crab_deg``: a UAV pass's crab angle, degrees (0: the frames' rows
+    along the track).
     """
     thermal = thermal or camera.thermal
     _check_flight_numbers(n_frames, fps)
@@ -148,7 +152,7 @@ def plan_flight(
     h, w = camera.shape
     shape = map_shape_for(motion, n_frames, (w, h))
     big_map = make_long_map(scene, shape) if motion == "uav" else make_map(scene, shape)
-    to_map = flight_homographies(motion, n_frames, (w, h), shape, rng=rng)
+    to_map = flight_homographies(motion, n_frames, (w, h), shape, rng=rng, crab_deg=crab_deg)
     time_s = np.arange(n_frames) / fps
     if not np.isfinite(ambient_rate_c_per_min):
         raise InvalidInputError("the ambient rate must be a finite number of °C/min")

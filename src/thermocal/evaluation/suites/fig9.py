@@ -203,7 +203,11 @@ def main(argv: list[str] | None = None) -> None:
                              methods=methods, size=size)
             print(f"unit {unit} over {scene}: done", flush=True)
     summary = summarise(rows)
-    info = {"machine": machine(), "wall_s": time.perf_counter() - started,
+    import torch
+
+    gpu = (f"; deepir on {torch.cuda.get_device_name(0)} (the other methods on the CPU)"
+           if torch.cuda.is_available() else "")
+    info = {"machine": machine() + gpu, "wall_s": time.perf_counter() - started,
             "command": "python benchmarks/fig9.py " + " ".join(sys.argv[1:] if argv is None
                                                                else argv),
             "data": (f"{len(passes)} UAV passes of {n_frames} frames ({size[0]}×{size[1]}, FPA "
