@@ -34,6 +34,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import os
 import re
 import shutil
@@ -250,12 +251,14 @@ REFERENCE_RADIUS_PX = 6.0
 REFERENCE_SIGMA_C = 0.1
 
 
-def one_reference_disc(spec: PassSpec, folder: Path) -> Path:
+def one_reference_disc(spec: PassSpec, folder: Path, *, sigma_c: float = REFERENCE_SIGMA_C
+                       ) -> Path:
     """One ground reference in one frame (``REF.csv`` in ``folder``): a disc of
     :data:`REFERENCE_RADIUS_PX` px in the pass's middle frame where the true scene is most
     uniform (a water body, a panel) within the frame's middle half (where one aims at it), its
     temperature the truth's mean over the disc plus a thermometer's error drawn with σ
-    :data:`REFERENCE_SIGMA_C` (seeded by the pass)."""
+    ``sigma_c`` (°C, > 0; default :data:`REFERENCE_SIGMA_C`; seeded by the pass), the σ the file
+    states."""
     import tifffile
     from scipy.ndimage import uniform_filter
 
@@ -270,11 +273,11 @@ def one_reference_disc(spec: PassSpec, folder: Path) -> Path:
     var[: h // 4], var[-h // 4 :], var[:, : w // 4], var[:, -w // 4 :] = (np.inf,) * 4
     y, x = np.unravel_index(int(np.argmin(var)), var.shape)
     disc = Reference(0, k, float(x), float(y), REFERENCE_RADIUS_PX, 0.0).disc(truth.shape)
-    error = np.random.default_rng(spec.seed).normal(0.0, REFERENCE_SIGMA_C)
+    error = np.random.default_rng(spec.seed).normal(0.0, sigma_c)
     path = folder / "REF.csv"
     path.write_text("frame,x,y,radius_px,temperature_c,sigma_c\n"
                     f"{k},{x},{y},{REFERENCE_RADIUS_PX:g},{truth[disc].mean() + error:.3f},"
-                    f"{REFERENCE_SIGMA_C:g}\n", encoding="utf-8")
+                    f"{sigma_c:g}\n", encoding="utf-8")
     return path
 
 
@@ -588,7 +591,11 @@ def report(results: Sequence[dict[str, Any]], *, info: dict[str, Any]) -> str:
             f"without it.\n\n{fixed}\n")
 
 
-def _methods_by_name(names: Sequence[str], *, force: bool) -> list[PassMethod]:
+def _methods_by_name(names: Sequence[str], *, force: bool,
+                     reference_sigma_c: float = REFERENCE_SIGMA_C) -> list[PassMethod]:
+    import functools
+
+    one_reference_disc_ = functools.partial(one_reference_disc, sigma_c=reference_sigma_c)
     table = {"kpn": PassMethod("kpn (calibration-free)", "kpn", force=force),
              "mean-other": PassMethod("mean + other unit's two-point", "mean",
                                       other_unit_two_point, force=force),
@@ -598,12 +605,12 @@ def _methods_by_name(names: Sequence[str], *, force: bool) -> list[PassMethod]:
                                            "calibration", own_polynomial, force=True),
              "selfcal": PassMethod("selfcal (calibration-free)", "selfcal", force=force),
              "selfcal-ref": PassMethod("selfcal + one reference disc", "selfcal", force=force,
-                                       references=one_reference_disc),
+                                       references=one_reference_disc_),
              "selfcal-own": PassMethod("selfcal from own polynomial", "selfcal", own_polynomial,
                                        force=True),
              "selfcal-own-ref": PassMethod("selfcal from own polynomial + one reference disc",
                                            "selfcal", own_polynomial, force=True,
-                                           references=one_reference_disc)}
+                                           references=one_reference_disc_)}
     unknown = [n for n in names if n not in table]
     if unknown:
         raise InvalidInputError(f"unknown method {unknown[0]!r}; choose from {', '.join(table)}")
@@ -633,6 +640,8 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--crab-deg", type=float, default=0.0,
                         help="Crab angle of the passes, degrees (0: the ground moves along the "
                         "rows; a crosswind yaws the airframe a few degrees).")
+    parser.add_argument("--reference-sigma-c", type=float, default=REFERENCE_SIGMA_C,
+                        help="σ of the simulated reference thermometer, °C (> 0).")
     parser.add_argument("--group", type=int, default=7, help="Frames per group (N).")
     parser.add_argument("--stride", type=int, default=7)
     parser.add_argument("--force", action="store_true", help="--force for every method.")
@@ -645,7 +654,10 @@ def main(argv: list[str] | None = None) -> None:
     scenes = list(EVAL_SCENES) if args.scenes == "all" else args.scenes.split(",")
     units = [int(u) for u in args.units.split(",")]
     size = parse_size(args.size)
-    methods = _methods_by_name(args.methods.split(","), force=args.force)
+    if not (math.isfinite(args.reference_sigma_c) and args.reference_sigma_c > 0):
+        raise SystemExit("--reference-sigma-c must be a number above 0")
+    methods = _methods_by_name(args.methods.split(","), force=args.force,
+                               reference_sigma_c=args.reference_sigma_c)
     load_before = ", ".join(f"{x:.1f}" for x in os.getloadavg())
     started = time.perf_counter()
     results = []
@@ -685,7 +697,9 @@ def main(argv: list[str] | None = None) -> None:
                      "frames through `thermocal flight` (process_flight); each pivot map scored "
                      "against its frame's truth over the unit's good pixels (dead and hot "
                      f"pixels left out); 'fine': the line profile less its Gaussian of "
-                     f"{DETREND_PX:g} lines")}
+                     f"{DETREND_PX:g} lines"
+                     + (f"; reference thermometer σ {args.reference_sigma_c:g} °C"
+                        if any(m.references is not None for m in methods) else ""))}
     text = report(results, info=info)
     print(text)
     if args.markdown:
