@@ -87,6 +87,19 @@ def test_a_slow_row_pattern_under_motion_along_rows_is_left_to_the_start_model()
     assert any("row pattern's slow part" in s for s in p.unidentified())
 
 
+def test_a_pass_that_crosses_the_rows_by_little_shows_their_stripes_not_their_ramp():
+    frames, hs, _, _, _ = _pass(step=(1.5, 0.3))  # 18 px across 40 rows
+    fpa = np.full(len(frames), 30.0)
+    ramp = np.linspace(-0.1, 0.1, H, dtype=np.float32)[:, None]
+    stripes = (0.05 * np.random.default_rng(3).standard_normal(H)).astype(np.float32)[:, None]
+    before = fit_residual_pattern(frames, hs, fpa_c=fpa)
+    p = fit_residual_pattern(frames + ramp + stripes, hs, fpa_c=fpa)
+    found = _row_profile(p) - _row_profile(before)
+    truth = fine_part(stripes[:, 0] - stripes.mean())
+    assert np.std(fine_part(found)[2:-2] - truth[2:-2]) < np.std(truth) / 2  # seen by motion
+    assert np.abs(found - fine_part(found)).max() < 0.03  # the ramp is not invented
+
+
 def test_fine_row_stripes_under_motion_along_rows_come_from_the_grounds_statistics():
     frames, hs, _, _, _ = _pass()
     fpa = np.full(len(frames), 30.0)

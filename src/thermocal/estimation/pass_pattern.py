@@ -53,6 +53,7 @@ Written by hand: no maintained library fits a scene-based fixed pattern over a r
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import cv2
@@ -153,7 +154,8 @@ class ResidualPattern:
         across them (the module's priors give back fine stripes and a radial quadratic),
         ``"slow"`` where it moved less than :data:`MIN_MOTION_FRACTION` of the frame across
         them (stripes are seen; a pattern as wide as the frame, a ramp across it, is not: the
-        fit's rounds carry it no further than the motion)."""
+        fit's rounds carry it no further than the motion, and the fit keeps the start model's
+        slow part there, with the radial prior)."""
         mx, my = self.motion_px
         h, w = self.shape
         out = {}
@@ -178,7 +180,8 @@ class ResidualPattern:
             else:
                 out.append(f"the {line} pattern's slow part (the scene moved {moved[lines]:.0f} "
                            f"px across the {lines}, under {MIN_MOTION_FRACTION:g} of the frame: "
-                           "stripes are seen, a ramp across the frame is not)")
+                           "stripes are seen, a ramp across the frame is not; a radial "
+                           "quadratic was taken from the other lines where the family has one)")
         if not self.fitted_fpa:
             out.append("the pattern's change with the FPA temperature (FPA span below "
                        f"{MIN_FPA_SPAN_C:g} °C)")
@@ -359,7 +362,17 @@ def fit_residual_pattern(
         b = b + a * line
         if radial and fitted_fpa:
             c = c + np.expand_dims(radial_line_profile(c, good, axis), axis)
-    if unseen:
+    # lines crossed by less than half the frame: the fit shows their stripes, not their slow
+    # part (a ramp across the frame); that stays the start model's, with the radial prior
+    slow = tuple(axis for axis, moved, extent in ((1, motion[1], h), (0, motion[0], w))
+                 if LINE_MOTION_PX <= moved < MIN_MOTION_FRACTION * extent)
+    for axis in slow:
+        profile = np.ma.masked_array(b, ~good).mean(axis=axis).filled(0.0)
+        line = profile - fine_part(profile)
+        if radial:
+            line = line - radial_line_profile(b, good, axis)
+        b = b - np.expand_dims(line, axis).astype(np.float32)
+    if unseen or slow:
         b = (b - np.median(b[good])).astype(np.float32)
         c = (c - np.median(c[good])).astype(np.float32)
     views = inside.sum(axis=0).astype(np.int32)
@@ -390,7 +403,9 @@ def unseen_line_profile(corrected: np.ndarray, offset: np.ndarray, good: np.ndar
     """
     across = 2 - axis  # the frames' axis that runs across the unseen lines
     x = np.where(good, corrected, np.nan)
-    step = np.nanmedian(np.diff(x, axis=across), axis=(0, 3 - across))
+    with warnings.catch_warnings():  # a line of bad pixels only: no step there (0 below)
+        warnings.simplefilter("ignore", RuntimeWarning)
+        step = np.nanmedian(np.diff(x, axis=across), axis=(0, 3 - across))
     fine = fine_part(np.concatenate([[0.0], np.cumsum(np.nan_to_num(step))]))
     if radial:
         fine = fine + radial_line_profile(offset, good, axis)
