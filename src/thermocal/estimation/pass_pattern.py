@@ -154,8 +154,9 @@ class ResidualPattern:
         across them (the module's priors give back fine stripes and a radial quadratic),
         ``"slow"`` where it moved less than :data:`MIN_MOTION_FRACTION` of the frame across
         them (stripes are seen; a pattern as wide as the frame, a ramp across it, is not: the
-        fit's rounds carry it no further than the motion, and the fit keeps the start model's
-        slow part there, with the radial prior)."""
+        fit's rounds carry it no further than the motion; holding its slow part at the start
+        model's there, as for unseen lines, was tried and made crabbed passes worse: the fit
+        trades a partly seen line's gain against its offset)."""
         mx, my = self.motion_px
         h, w = self.shape
         out = {}
@@ -180,8 +181,7 @@ class ResidualPattern:
             else:
                 out.append(f"the {line} pattern's slow part (the scene moved {moved[lines]:.0f} "
                            f"px across the {lines}, under {MIN_MOTION_FRACTION:g} of the frame: "
-                           "stripes are seen, a ramp across the frame is not; a radial "
-                           "quadratic was taken from the other lines where the family has one)")
+                           "stripes are seen, a ramp across the frame is not)")
         if not self.fitted_fpa:
             out.append("the pattern's change with the FPA temperature (FPA span below "
                        f"{MIN_FPA_SPAN_C:g} °C)")
@@ -362,17 +362,7 @@ def fit_residual_pattern(
         b = b + a * line
         if radial and fitted_fpa:
             c = c + np.expand_dims(radial_line_profile(c, good, axis), axis)
-    # lines crossed by less than half the frame: the fit shows their stripes, not their slow
-    # part (a ramp across the frame); that stays the start model's, with the radial prior
-    slow = tuple(axis for axis, moved, extent in ((1, motion[1], h), (0, motion[0], w))
-                 if LINE_MOTION_PX <= moved < MIN_MOTION_FRACTION * extent)
-    for axis in slow:
-        profile = np.ma.masked_array(b, ~good).mean(axis=axis).filled(0.0)
-        line = profile - fine_part(profile)
-        if radial:
-            line = line - radial_line_profile(b, good, axis)
-        b = b - np.expand_dims(line, axis).astype(np.float32)
-    if unseen or slow:
+    if unseen:
         b = (b - np.median(b[good])).astype(np.float32)
         c = (c - np.median(c[good])).astype(np.float32)
     views = inside.sum(axis=0).astype(np.int32)

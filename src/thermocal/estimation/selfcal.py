@@ -67,7 +67,7 @@ def start_band(calibration: Calibration | None, family: str) -> BandRadiance:
 
 @functools.lru_cache(maxsize=16)
 def unseen_line_sigma(family: str, shape: tuple[int, int], fpa_c: float, scene_c: float,
-                      lines: str) -> float:
+                      lines: str, *, radial: bool = True) -> float:
     """How much a unit of ``family`` differs from the family's average unit along ``lines``
     (``"rows"`` or ``"columns"``) beyond what the pass's priors give back (its fine stripes, and
     a family's radial quadratic: :func:`~thermocal.estimation.pass_pattern.unseen_line_profile`),
@@ -75,8 +75,9 @@ def unseen_line_sigma(family: str, shape: tuple[int, int], fpa_c: float, scene_c
     mean) of the average unit's error on a uniform scene at ``scene_c`` (°C), FPA ``fpa_c``
     (°C), frames of ``shape`` ``(H, W)``. The radial quadratic is taken, as the fit takes it,
     from the offset part of the error (its gain part, fitted apart, is left out): the error in
-    radiance is split into ``gain · L + offset`` from two scene levels. The σ of the line
-    pattern a pass that never moves across those lines (or by less than half the frame)
+    radiance is split into ``gain · L + offset`` from two scene levels; ``radial=False``: the
+    quadratic was not given back (a pass that moved across the lines, but too little to show
+    their slow part). The σ of the line pattern a pass that never moves across those lines
     leaves; FPA and scene rounded to 5 °C (cached)."""
     from thermocal.camera.model import expected_counts
     from thermocal.camera.presets import PRESETS, make_camera
@@ -104,7 +105,7 @@ def unseen_line_sigma(family: str, shape: tuple[int, int], fpa_c: float, scene_c
         ok = ~unit.defects
         line = np.nansum(np.where(ok, err, 0), axis=axis) / np.maximum(ok.sum(axis=axis), 1)
         left = line - fine_part(line)  # what the pass's priors give back is not left
-        if PRESETS[family].radial_offset:
+        if radial and PRESETS[family].radial_offset:
             left = left - radial_line_profile(offset, ok, axis) / per_c
         profiles.append(left - left.mean())
     return float(np.sqrt(np.mean(np.square(profiles))))
@@ -286,8 +287,8 @@ class SelfCalibration:
             return 0.0
         fpa, scene = (5.0 * round(v / 5.0) for v in (fpa_c, float(np.median(temperature_c))))
         return float(np.hypot.reduce([
-            unseen_line_sigma(self.family, temperature_c.shape, fpa, scene, lines)
-            for lines in missing]))
+            unseen_line_sigma(self.family, temperature_c.shape, fpa, scene, lines,
+                              radial=kind == "all") for lines, kind in missing.items()]))
 
     def uncertainty(self, burst: PreparedBurst, temperature_c: np.ndarray, *, outside: bool
                     ) -> np.ndarray | None:
