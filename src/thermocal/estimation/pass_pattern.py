@@ -172,16 +172,12 @@ class ResidualPattern:
         out = ["the global level and gain (the start model's; a ground reference fixes them)"]
         moved = dict(zip(("rows", "columns"), self.motion_px[::-1], strict=True))
         for lines, kind in self.lines_not_identified().items():
-            line = lines[:-1]
-            if kind == "all":
-                out.append(f"the {line} pattern's slow part (the scene moved {moved[lines]:.0f} "
-                           f"px across the {lines}; only stripes narrower than {FINE_LINES:g} "
-                           f"{lines}, and a radial quadratic where the family has one, were "
-                           "estimated)")
-            else:
-                out.append(f"the {line} pattern's slow part (the scene moved {moved[lines]:.0f} "
-                           f"px across the {lines}, under {MIN_MOTION_FRACTION:g} of the frame: "
-                           "stripes are seen, a ramp across the frame is not)")
+            why = (f"; only stripes narrower than {FINE_LINES:g} {lines}, and a radial quadratic "
+                   "where the family has one, were estimated" if kind == "all" else
+                   f", under {MIN_MOTION_FRACTION:g} of the frame: stripes are seen, a ramp "
+                   "across the frame is not")
+            out.append(f"the {lines[:-1]} pattern's slow part (the scene moved "
+                       f"{moved[lines]:.0f} px across the {lines}{why})")
         if not self.fitted_fpa:
             out.append("the pattern's change with the FPA temperature (FPA span below "
                        f"{MIN_FPA_SPAN_C:g} °C)")
