@@ -315,7 +315,7 @@ def test_camera_model_from_chamber_radial_is_the_low_frequency_part(fit_run, cam
 
 
 @pytest.mark.parametrize("method", ["two-point", "one-point", "shutter", "polynomial",
-                                    "wolf2016", "lin", "lin-level"])
+                                    "wolf2016", "lin", "lin-level", "lin-lag"])
 def test_every_method_round_trips_through_one_file_layout(fit_run, tmp_path, method):
     session, _ = fit_run
     assert method in CALIBRATION_METHODS

@@ -238,7 +238,7 @@ def expected_frames(data, method: str) -> np.ndarray:
     bb = np.round(data.session.blackbody_c, 6)
     ref = data.fpa_c[0]
     settled = data.usable & (data.stability != UNSTABLE)
-    if method in ("lin", "lin-level"):
+    if method in ("lin", "lin-level", "lin-lag"):
         return data.usable.copy()
     if method == "polynomial":
         return data.usable & (data.stability == STABLE)
@@ -265,9 +265,9 @@ def test_the_frame_counts_are_the_true_ones(sessions, method):
     sat = prepare_chamber(saturating(data.session, [1, moving]))
     cal = fit_calibration(sat, method)
     selected = expected_frames(sat, method)
-    assert selected[1] and selected[moving] == (method in ("lin", "lin-level"))
+    assert selected[1] and selected[moving] == (method in ("lin", "lin-level", "lin-lag"))
     counts = frame_counts(method, cal.info, sat.n_frames)
-    saturated = 2 if method in ("lin", "lin-level", "wolf2016") else 1
+    saturated = 2 if method in ("lin", "lin-level", "lin-lag", "wolf2016") else 1
     assert counts["used"] == int(selected.sum()) - int(selected[[1, moving]].sum())
     assert counts["left_out"].get("saturated") == saturated
     assert counts["used"] + sum(counts["left_out"].values()) == sat.n_frames
@@ -369,7 +369,8 @@ def test_auto_picks_a_method_and_records_why(chamber_files, tmp_path, capsys):
     kept = [r["expected_mae_c"] for r in ranking if "refused" not in r]
     assert kept == sorted(kept) and len(kept) >= 3
     refused = {r["method"]: r["refused"] for r in ranking if "refused" in r}
-    assert set(refused) == {"wolf2016", "lin", "lin-level"} and "shutter" not in str(ranking)
+    assert set(refused) == {"wolf2016", "lin", "lin-level", "lin-lag"}
+    assert "shutter" not in str(ranking)
     assert "rise and fall" in refused["wolf2016"]
     assert f"chose {cal.method}" in stdout and "auto: expected MAE °C polynomial" in stdout
     assert "  skipped wolf2016: needs the FPA to rise and fall" in stdout

@@ -58,7 +58,8 @@ from thermocal.nn.store import (  # noqa: E402
 from thermocal.nn.store import upgrade as upgrade_weights  # noqa: E402
 
 SETPOINTS = (5.0, 15.0, 25.0, 35.0, 45.0, 55.0, 65.0, 75.0)
-METHODS = ("two-point", "one-point", "shutter", "polynomial", "wolf2016", "lin", "lin-level")
+METHODS = ("two-point", "one-point", "shutter", "polynomial", "wolf2016", "lin", "lin-level",
+           "lin-lag")
 #: SHA-256 of the shipped network's state dict (sorted names, shapes, dtypes, bytes) as trained:
 #: the weights of ``kpn_n7.pt`` before its upgrade to version 3, which must not change them.
 SHIPPED_STATE_SHA256 = "818b71db54c54d4a0e3cf9e0edf1b7c2d0614735eb7b9f037ab09e6c65b5564e"
@@ -259,6 +260,11 @@ def test_null_or_wrong_shaped_attributes_are_refused(cal_files, tmp_path, name, 
     ("wolf2016", lambda f: f["s0"].__setitem__((1, 1), 0.0), "S0 is not positive"),
     ("lin", lambda f: f["r"].__setitem__((1, 1), -f["r"][1, 1]), "same sign"),
     ("lin-level", lambda f: f["level_gain"].__setitem__((1, 1), -1.0), "level_gain"),
+    ("lin-lag", lambda f: f["level_gain"].__setitem__((1, 1), -1.0), "level_gain"),
+    ("lin-lag", lambda f: (f.__delitem__("lag"),
+                           f.create_dataset("lag", data=np.zeros((4, 24, 32), np.float32))),
+     "has shape"),
+    ("lin-lag", lambda f: f["lag"].__setitem__((2, 3, 3), np.inf), "not finite"),
     ("shutter", lambda f: f.create_dataset("event_offset", data=np.zeros((2, 24, 32))),
      "event_offset has shape"),
     ("shutter", lambda f: (f.__delitem__("event_time_s"),

@@ -26,7 +26,7 @@ from thermocal.calibration.dataset import (
     fpa_rate_c_per_min,
     prepare_chamber,
 )
-from thermocal.calibration.lin import LinCalibration, fit_planck_curve, lin, lin_level
+from thermocal.calibration.lin import LinCalibration, fit_planck_curve, lin, lin_lag, lin_level
 from thermocal.calibration.polynomial import (
     PolynomialCalibration,
     camera_model_from_chamber,
@@ -87,6 +87,7 @@ __all__ = [
     "fit_two_point",
     "fpa_rate_c_per_min",
     "lin",
+    "lin_lag",
     "lin_level",
     "load_any_calibration",
     "one_point",

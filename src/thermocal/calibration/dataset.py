@@ -95,6 +95,33 @@ def fpa_rate_c_per_min(fpa_c: Any, time_s: Any, *, smooth_s: float = 0.0) -> np.
     return np.where((n >= 3) & (den > 0), slope, raw)
 
 
+def lagged_rate(rate_c_per_min: Any, time_s: Any, tau_s: float) -> np.ndarray:
+    """The FPA rate seen through a first-order lag of time constant ``tau_s`` (s), °C/min,
+    ``(M,)``: ``y' = (r − y) / τ``, exact for a rate held between frames, starting from the first
+    frame's rate (a recording taken as begun at a steady pace).
+
+    What lags the FPA by ``τ`` (optics or housing radiating onto it through their own heat
+    capacity) differs from it by ``−τ·y`` °C: a term in ``y`` is what a calibration needs for
+    them, where the rate itself covers only what follows the FPA at once (Lin et al. eq. 2).
+    Written by hand: scipy's ``lfilter`` needs equal time steps, and frames seldom have them.
+    """
+    r = np.asarray(rate_c_per_min, dtype=np.float64)
+    t = np.asarray(time_s, dtype=np.float64)
+    if r.shape != t.shape or r.ndim != 1:
+        raise InvalidInputError(f"rate {r.shape} and time_s {t.shape} must be equal (M,)")
+    if not tau_s > 0:
+        raise InvalidInputError(f"the lag's time constant must be > 0 s, got {tau_s}")
+    out = np.empty_like(r)
+    if r.size == 0:
+        return out
+    keep = np.exp(-np.diff(t, prepend=t[0]) / tau_s)
+    y = r[0]
+    for k in range(r.size):
+        y = keep[k] * y + (1.0 - keep[k]) * r[k]
+        out[k] = y
+    return out
+
+
 def classify_stability(
     rate_c_per_min: Any, *, stable_c_per_min: float = 0.05, unstable_c_per_min: float = 0.5
 ) -> np.ndarray:

@@ -28,6 +28,26 @@ the mean level and its responsivity at ``T_ref``, from the set-point levels), wh
 ``Gf = (U·g − W·c)/(g − W)`` in closed form, ``U`` being the paper's ``Gf`` and ``W = a1·(T_ref² −
 T0²) + b1·(T_ref − T0)``. Eq. 2–5 are unchanged.
 
+**Extension ``lin-lag``** (not in the paper; ``lin(..., level=True, rate_lags_s=RATE_LAGS_S)``).
+Eq. 2 sees only the FPA's own rate, which is all that a camera whose optics and housing follow
+the FPA at once needs. Optics that lag the FPA by a time constant ``τ`` sit ``−τ·y_τ`` °C from it,
+``y_τ`` being the FPA rate through a first-order lag of ``τ``
+(:func:`~thermocal.calibration.dataset.lagged_rate`); their radiance onto the FPA, and a
+transient that builds up and dies away, follow the rate's *history*, not its present value. A
+cubic in the present rate fitted where the session's FPA changed (its ambient steps, one pace of
+sawtooth) then misses at any other pace: 3.1 °C on the ``boson`` preset's held-out 1 °C/min
+sawtooth (``benchmarks/physics.py``). The extension adds to eq. 2 the lagged rates of
+:data:`RATE_LAGS_S` and their products with ``T0 − T_ref`` (the radiance of what lags changes
+with the FPA temperature): ``Gf = Gc − (m·r³ + n·r² + p·r) − Σ_τ (q_τ + q'_τ·(T0 − T_ref))·y_τ``.
+Frames the FPA holds still while what lags it still moves are eq. 1's, so eq. 1 is refitted
+on its stable frames less eq. 2's terms, and eq. 2 again, :data:`LAG_SWEEPS` times (fitting
+the lag terms with eq. 1 instead confounds them with it where the optics follow the FPA at
+once: 0.10 against 0.065 °C on ``tau2``'s held-out sawtooth). The lags are a fixed,
+log-spaced basis (a lag between them is a mix of its neighbours), chosen on the chamber sessions
+of ``benchmarks/physics.py`` by their in-sample error, not set to a preset's time constants
+(``tau2``: 60 and 300 s; ``boson``: 45, 180 and 240 s). Each recording is taken to begin at a
+steady pace (the lagged rates start at the first frame's rate).
+
 In a chamber the blackbody visits several set points; each set point's level is a free intercept
 of the per-pixel regressions (fixed effects), so (a, b) and (m, n, p) are shared by all set points
 as the paper assumes ("without the requirement of specific blackbody temperature"). All pixels
@@ -59,6 +79,7 @@ from thermocal.calibration.dataset import (
     describe_frames,
     fpa_rate_c_per_min,
     iter_frames,
+    lagged_rate,
     prepare_chamber,
     require_fpa_span,
     require_setpoints,
@@ -78,7 +99,14 @@ from thermocal.errors import FitError, InvalidInputError
 
 METHOD = "lin"
 METHOD_LEVEL = "lin-level"
-METHODS = (METHOD, METHOD_LEVEL)
+METHOD_LAG = "lin-lag"
+METHODS = (METHOD, METHOD_LEVEL, METHOD_LAG)
+
+#: The lags of the ``lin-lag`` extension's rate terms, s (see the module docstring).
+RATE_LAGS_S = (30.0, 120.0, 480.0)
+#: Times ``lin-lag`` refits eq. 1 and eq. 2 in turn (each on what the other leaves; the error
+#: on ``benchmarks/physics.py``'s held-out runs settles after two).
+LAG_SWEEPS = 2
 
 
 def planck_counts(temp_k: Any, r: Any, b: float, f: float, o: Any) -> Any:
@@ -122,6 +150,9 @@ def fit_planck_curve(temp_k: Any, counts: Any) -> tuple[float, float, float, flo
     return tuple(float(p) for p in popt)  # type: ignore[return-value]
 
 
+_LEVEL_ARRAYS = dict.fromkeys(("a1", "b1", "level_counts", "level_gain"), np.float32)
+
+
 @dataclass(frozen=True, eq=False)
 class LinCalibration(StoredCalibrationMixin):
     """Fitted Lin et al. model; maps ``(H, W)`` float32, ``B`` (K) and ``F`` scalars.
@@ -130,7 +161,9 @@ class LinCalibration(StoredCalibrationMixin):
     ``r`` and ``o`` (counts): eq. 4 per pixel. The ``lin-level`` extension adds ``a1``, ``b1``
     (eq. 1's coefficients per W·m⁻²·sr⁻¹ of scene level), ``level_counts`` (counts at the mean
     set-point level at ``T_ref``) and ``level_gain`` (counts per W·m⁻²·sr⁻¹ at ``T_ref``); all
-    ``None`` for the paper's method.
+    ``None`` for the paper's method. The ``lin-lag`` extension adds ``lag`` ``(2K, H, W)``:
+    counts per °C/min of the FPA rate through each lag of ``rate_lags_s`` (K of them, s), then
+    per °C/min·°C of the same times ``T0 − T_ref``.
     """
 
     a: np.ndarray
@@ -152,14 +185,19 @@ class LinCalibration(StoredCalibrationMixin):
     b1: np.ndarray | None = None
     level_counts: np.ndarray | None = None
     level_gain: np.ndarray | None = None
+    lag: np.ndarray | None = None
+    rate_lags_s: tuple[float, ...] = ()
 
     _layout = FileLayout(
         methods=METHODS,
         arrays=dict.fromkeys(("a", "b", "m", "n", "p", "r", "o"), np.float32) | {"bad": bool},
         metadata=dict.fromkeys(("planck_b", "planck_f", "t_ref_c", "rate_smooth_s",
-                                "max_rate_c_per_min"), float),
-        method_arrays={METHOD_LEVEL: dict.fromkeys(("a1", "b1", "level_counts", "level_gain"),
-                                                   np.float32)},
+                                "max_rate_c_per_min"), float) | {
+            "rate_lags_s": lambda v: tuple(float(x) for x in v)},
+        optional_metadata=("rate_lags_s",),
+        method_arrays={METHOD_LEVEL: _LEVEL_ARRAYS,
+                       METHOD_LAG: _LEVEL_ARRAYS | {"lag": np.float32}},
+        stacks={"lag": 2 * len(RATE_LAGS_S)},
     )
 
     @classmethod
@@ -173,8 +211,9 @@ class LinCalibration(StoredCalibrationMixin):
         :data:`~thermocal.calibration.store.RESPONSE_LIMITS_COUNTS` and of one sign (the fit
         gives the pixels whose ``R`` has the other sign the median); ``|O|`` within
         :data:`~thermocal.calibration.store.OFFSET_LIMIT_COUNTS`; ``rate_smooth_s`` in
-        [0, 1 day] s, ``max_rate_c_per_min`` in [0, 1000] °C/min; lin-level: ``level_gain > 0``
-        (the fit gives the others the median) and ``|level_counts|`` within the offset limit."""
+        [0, 1 day] s, ``max_rate_c_per_min`` in [0, 1000] °C/min; lin-level and lin-lag:
+        ``level_gain > 0`` (the fit gives the others the median) and ``|level_counts|`` within
+        the offset limit; lin-lag: one lag in (0, 1 day] s per pair of ``lag`` maps."""
         super()._check_fields(kw, stored, path)
         m = stored.method
         check_scalar(kw["t_ref_c"], "t_ref_c", *FPA_LIMITS_C, path, m, unit="°C")
@@ -188,23 +227,35 @@ class LinCalibration(StoredCalibrationMixin):
         check_offsets(kw["o"], "o", path, m)
         check_scalar(kw["rate_smooth_s"], "rate_smooth_s", 0.0, 86400.0, path, m, unit="s")
         check_scalar(kw["max_rate_c_per_min"], "max_rate_c_per_min", 0.0, 1000.0, path, m)
-        if m == METHOD_LEVEL:
+        if m in (METHOD_LEVEL, METHOD_LAG):
             if not np.all(kw["level_gain"] > 0):
                 raise damaged(path, m, "a level_gain is not positive")
             check_offsets(kw["level_counts"], "level_counts", path, m)
+        if m == METHOD_LAG:
+            lags = kw.get("rate_lags_s", ())
+            if 2 * len(lags) != len(kw["lag"]) or not all(0 < v <= 86400.0 for v in lags):
+                raise damaged(path, m, f"rate_lags_s {lags!r:.60} do not match its lag maps")
 
     @property
     def method(self) -> str:
-        """``"lin"`` (the paper) or ``"lin-level"`` (eq. 1 linear in the scene level)."""
-        return METHOD if self.a1 is None else METHOD_LEVEL
+        """``"lin"`` (the paper), ``"lin-level"`` (eq. 1 linear in the scene level) or
+        ``"lin-lag"`` (lin-level with lagged rates)."""
+        if self.a1 is None:
+            return METHOD
+        return METHOD_LEVEL if self.lag is None else METHOD_LAG
 
     @property
     def shape(self) -> tuple[int, int]:
         return self.bad.shape  # type: ignore[return-value]
 
-    def corrected_counts(self, frames: Any, fpa_c: np.ndarray, rate: np.ndarray) -> np.ndarray:
-        """``Gf`` of eq. 2 for raw counts ``(N, H, W)``, float32."""
+    def corrected_counts(self, frames: Any, fpa_c: np.ndarray, rate: np.ndarray,
+                         time_s: np.ndarray | None = None) -> np.ndarray:
+        """``Gf`` of eq. 2 for raw counts ``(N, H, W)``, float32 (``time_s``: the frame times the
+        lagged rates need, s)."""
         counts = np.asarray(frames)
+        if self.lag is not None:
+            lags = _lagged_rates(rate, np.arange(len(rate)) if time_s is None else time_s,
+                                 self.rate_lags_s)
         out = np.empty(counts.shape, dtype=np.float32)
         tr = np.float32(self.t_ref_c)
         for k, frame in enumerate(counts):
@@ -213,6 +264,9 @@ class LinCalibration(StoredCalibrationMixin):
             g = frame.astype(np.float32)
             g += self.a * (tr * tr - t0 * t0) + self.b * (tr - t0)
             g -= ((self.m * rk + self.n) * rk + self.p) * rk
+            if self.lag is not None:  # the lagged rates and their change with the FPA
+                for j, yj in enumerate(np.concatenate([lags[k], lags[k] * (t0 - tr)])):
+                    g -= np.float32(yj) * self.lag[j]
             if self.a1 is not None:  # lin-level: Gf = U + ℓ·W with ℓ = (Gf − c)/g, solved
                 w = self.a1 * (tr * tr - t0 * t0) + self.b1 * (tr - t0)
                 g = (g * self.level_gain - w * self.level_counts) / (self.level_gain - w)
@@ -238,11 +292,11 @@ class LinCalibration(StoredCalibrationMixin):
                 raise InvalidInputError(
                     "lin: the FPA rate needs the time of each frame (sidecar 'time_s')"
                 )
-            rate = np.zeros(nfr)
+            rate, t = np.zeros(nfr), None
         else:
             t = per_frame_series(time_s, nfr, "time_s", temperature=False)
             rate = fpa_rate_c_per_min(fpa, t, smooth_s=self.rate_smooth_s)
-        gf = self.corrected_counts(counts, fpa, rate)
+        gf = self.corrected_counts(counts, fpa, rate, t)
         out = np.empty_like(gf)
         b, f = np.float32(self.planck_b), np.float32(self.planck_f)
         zero_c = np.float32(ZERO_CELSIUS_K)
@@ -278,8 +332,10 @@ def lin(
     band_m: tuple[float, float] = (7.5e-6, 13.5e-6),
     chunk: int = 64,
     level: bool = False,
+    rate_lags_s: tuple[float, ...] = (),
 ) -> LinCalibration:
-    """Fit Lin et al. to a chamber session (``level=True``: the ``lin-level`` extension).
+    """Fit Lin et al. to a chamber session (``level=True``: the ``lin-level`` extension; with
+    ``rate_lags_s`` as well, ``lin-lag``).
 
     Parameters
     ----------
@@ -293,10 +349,17 @@ def lin(
     level : bool
         Make eq. 1's coefficients linear in the scene level (the ``lin-level`` extension, see
         the module docstring); False is the paper's method.
+    rate_lags_s : tuple of float
+        With ``level``: the lags of the ``lin-lag`` extension's rate terms, s
+        (:data:`RATE_LAGS_S`, the only ones its files hold); empty for the other methods.
     """
+    if rate_lags_s and (not level or len(rate_lags_s) != len(RATE_LAGS_S)):
+        raise InvalidInputError(f"lin: lagged rates need level=True and {len(RATE_LAGS_S)} "
+                                f"lags (as lin-lag's files hold), got {rate_lags_s!r}")
     data = prepare_chamber(session, rate_smooth_s=rate_smooth_s)
     band = band_for(tuple(band_m))
     stable = data.usable & (data.stability == STABLE)
+    lags = _lagged_rates(data.fpa_rate_c_per_min, data.time_s, rate_lags_s)
     what = describe_frames(data, "stable")
     require_setpoints(data, 4, "lin (the Planck curve of eq. 4)", stable, frames=what,
                       record="record >= 4 set points with the FPA held still")
@@ -323,14 +386,8 @@ def lin(
     # pass 1: eq. 1 on stable frames (regressors Δ², Δ; lin-level: also ℓ·Δ², ℓ·Δ), and
     # set-point means for the gain.
     x1 = np.stack([dt**2, dt] + ([ell * dt**2, ell * dt] if level else []), axis=1)
-    k1 = x1.shape[1]
-    xx1 = np.zeros((k1, k1))
-    xy1 = np.zeros((k1, npix))
-    ysum = np.zeros((n_groups, npix))
-    n1 = np.zeros(n_groups)
-    xsum1 = np.zeros((n_groups, k1))
+    sums1 = _GroupSums(x1.shape[1], n_groups, npix)
     ref_counts: np.ndarray | None = None
-    frame_mean = np.full(data.n_frames, np.nan)
     kept = np.zeros(data.n_frames, dtype=bool)
     for idx, block in iter_frames(data.session, all_idx, chunk=chunk):
         keep = scan.check(idx, block)
@@ -338,59 +395,53 @@ def lin(
         if ref_counts is None:
             ref_counts = y[0].copy()
         y -= ref_counts
-        frame_mean[idx] = y.mean(axis=1)
         kept[idx[keep]] = True
         st = keep & stable[idx]
         if st.any():
-            xs = x1[idx[st]]
-            xx1 += xs.T @ xs
-            xy1 += xs.T.astype(np.float32) @ y[st]
-            for g in np.unique(group[idx[st]]):
-                sel = group[idx[st]] == g
-                ysum[g] += y[st][sel].sum(axis=0, dtype=np.float64)
-                n1[g] += sel.sum()
-                xsum1[g] += xs[sel].sum(axis=0)
+            sums1.add(x1[idx[st]], y[st], group[idx[st]])
     assert ref_counts is not None
-    have = n1 > 0
+    have = sums1.n > 0
     # global responsivity (counts per W·m⁻²·sr⁻¹) from the stable set-point means
-    gain = float(np.polyfit(rad_s[have], ysum[have].mean(axis=1) / n1[have], 1)[0])
+    gain = float(np.polyfit(rad_s[have], sums1.ysum[have].mean(axis=1) / sums1.n[have], 1)[0])
     # refer counts to the set point's mean radiance: y' = y − gain·(L − L_s)
     shift = gain * (rad - rad_s[group])
-    ab = _fixed_effects(x1, stable & kept, group, n_groups, xx1, xy1, ysum, n1, xsum1, shift)
+    ab = _fixed_effects(x1, stable & kept, group, sums1, shift)
+
+    # pass 2: eq. 2 on every frame (stable ones anchor each set point's level), rate regressors
+    # (lin-lag: and the lagged rates, alone and times Δ).
+    rate = data.fpa_rate_c_per_min
+    x2 = np.concatenate([np.stack([rate**3, rate**2, rate], axis=1), lags,
+                         lags * dt[:, None]], axis=1)
+    use2 = kept.copy()
+
+    def rate_pass(ab: np.ndarray) -> tuple[np.ndarray, _GroupSums]:
+        """Eq. 2's coefficients ``(K2, P)`` on the frames projected with eq. 1's ``ab``."""
+        sums2 = _GroupSums(x2.shape[1], n_groups, npix)
+        for idx, block in iter_frames(data.session, np.flatnonzero(use2), chunk=chunk):
+            y = block.reshape(len(block), -1).astype(np.float32) - ref_counts
+            y -= _eq1_counts(ab, dt[idx], ell[idx] if level else None)  # to the reference
+            y -= shift[idx].astype(np.float32)[:, None]
+            sums2.add(x2[idx], y, group[idx])
+        if unstable_frames >= 3 and np.ptp(rate[use2]) > 0.1:
+            return sums2.solve(), sums2
+        return np.zeros((x2.shape[1], npix)), sums2
+
+    unstable_frames = int((data.stability[use2] != STABLE).sum())
+    mnp, sums2 = rate_pass(ab)
+    for _ in range(LAG_SWEEPS if rate_lags_s else 0):
+        # what lags the FPA still moves on some of eq. 1's stable frames: eq. 1 again on the
+        # stable frames less eq. 2's terms, then eq. 2 again (fitting the lag terms with eq. 1
+        # instead confounds them with it on a camera whose optics follow the FPA at once)
+        sums1 = _GroupSums(x1.shape[1], n_groups, npix)
+        for idx, block in iter_frames(data.session, np.flatnonzero(stable & kept), chunk=chunk):
+            y = block.reshape(len(block), -1).astype(np.float32) - ref_counts
+            y -= (x2[idx] @ mnp).astype(np.float32)
+            sums1.add(x1[idx], y, group[idx])
+        ab = _fixed_effects(x1, stable & kept, group, sums1, shift)
+        mnp, sums2 = rate_pass(ab)
     a_c, b_c = ab[0], ab[1]  # centred: G0 = c_s + a_c·Δ² + b_c·Δ (+ ℓ·(a1_c·Δ² + b1_c·Δ))
     a1_c, b1_c = (ab[2], ab[3]) if level else (np.zeros(npix), np.zeros(npix))
-
-    # pass 2: eq. 2 on every frame (stable ones anchor each set point's level), rate regressors.
-    rate = data.fpa_rate_c_per_min
-    x2 = np.stack([rate**3, rate**2, rate], axis=1)
-    xx2 = np.zeros((3, 3))
-    xy2 = np.zeros((3, npix))
-    ysum2 = np.zeros((n_groups, npix))
-    n2 = np.zeros(n_groups)
-    xsum2 = np.zeros((n_groups, 3))
-    use2 = kept.copy()
-    for idx, block in iter_frames(data.session, np.flatnonzero(use2), chunk=chunk):
-        y = block.reshape(len(block), -1).astype(np.float32) - ref_counts
-        d = dt[idx].astype(np.float32)[:, None]
-        y -= a_c[None] * d * d + b_c[None] * d  # projected to the reference (eq. 1)
-        if level:
-            y -= ell[idx].astype(np.float32)[:, None] * (a1_c[None] * d * d + b1_c[None] * d)
-        y -= shift[idx].astype(np.float32)[:, None]
-        xs = x2[idx]
-        xx2 += xs.T @ xs
-        xy2 += xs.T.astype(np.float32) @ y
-        for g in np.unique(group[idx]):
-            sel = group[idx] == g
-            ysum2[g] += y[sel].sum(axis=0, dtype=np.float64)
-            n2[g] += sel.sum()
-            xsum2[g] += xs[sel].sum(axis=0)
-    unstable_frames = int((data.stability[use2] != STABLE).sum())
-    if unstable_frames >= 3 and np.ptp(rate[use2]) > 0.1:
-        have2 = n2 > 0
-        mnp = _within_solve(xx2, xy2, n2[have2], xsum2[have2] / n2[have2, None],
-                            ysum2[have2] / n2[have2, None])
-    else:
-        mnp = np.zeros((3, npix))
+    ysum2, n2, xsum2 = sums2.ysum, sums2.n, sums2.xsum
     # each set point's level at the reference, rate 0 (eq. 2 applied), from all its frames
     sp_level = (ysum2 - np.einsum("sk,kp->sp", xsum2, mnp)) / np.maximum(n2, 1)[:, None]
     sp_level += ref_counts[None].astype(np.float64)
@@ -432,6 +483,8 @@ def lin(
     return LinCalibration(
         a=as_map(a_lin), b=as_map(b_lin), m=as_map(mnp[0]), n=as_map(mnp[1]), p=as_map(mnp[2]),
         r=r_map.astype(np.float32), o=o_map.astype(np.float32), bad=bad,
+        lag=(mnp[3:].reshape(-1, h, w).astype(np.float32) if rate_lags_s else None),
+        rate_lags_s=tuple(float(v) for v in rate_lags_s),
         planck_b=planck_b, planck_f=planck_f, t_ref_c=ref,
         fpa_range_c=(float(used.min()), float(used.max())), rate_smooth_s=rate_smooth_s,
         max_rate_c_per_min=float(np.abs(rate[kept]).max()), info=info,
@@ -444,14 +497,65 @@ def lin_level(session: Any, **options: Any) -> LinCalibration:
     return lin(session, level=True, **options)
 
 
+def lin_lag(session: Any, **options: Any) -> LinCalibration:
+    """The ``lin-lag`` extension of Lin et al.: ``lin-level`` with the lagged rates of
+    :data:`RATE_LAGS_S`."""
+    return lin(session, level=True, rate_lags_s=RATE_LAGS_S, **options)
+
+
+def _lagged_rates(rate: np.ndarray, time_s: np.ndarray, lags_s: tuple[float, ...]) -> np.ndarray:
+    """The FPA rate through each lag of ``lags_s``, ``(M, len(lags_s))`` °C/min."""
+    if not lags_s:
+        return np.zeros((np.size(rate), 0))
+    return np.stack([lagged_rate(rate, time_s, tau) for tau in lags_s], axis=1)
+
+
+class _GroupSums:
+    """Running sums of a fixed-effects regression with one intercept per set point: Σ x xᵀ,
+    Σ x y over all frames, and per group the frames, Σ x and Σ y."""
+
+    def __init__(self, k: int, n_groups: int, npix: int) -> None:
+        self.xx = np.zeros((k, k))
+        self.xy = np.zeros((k, npix))
+        self.ysum = np.zeros((n_groups, npix))
+        self.n = np.zeros(n_groups)
+        self.xsum = np.zeros((n_groups, k))
+
+    def add(self, xs: np.ndarray, y: np.ndarray, groups: np.ndarray) -> None:
+        """Frames with regressors ``xs`` ``(F, K)``, counts ``y`` ``(F, P)`` and groups ``(F,)``."""
+        self.xx += xs.T @ xs
+        self.xy += xs.T.astype(np.float32) @ y
+        for g in np.unique(groups):
+            sel = groups == g
+            self.ysum[g] += y[sel].sum(axis=0, dtype=np.float64)
+            self.n[g] += sel.sum()
+            self.xsum[g] += xs[sel].sum(axis=0)
+
+    def solve(self, xy: np.ndarray | None = None, ysum: np.ndarray | None = None) -> np.ndarray:
+        """The shared slopes ``(K, P)`` (``xy``, ``ysum``: the sums to use instead)."""
+        have = self.n > 0
+        ysum = self.ysum if ysum is None else ysum
+        return _within_solve(self.xx, self.xy if xy is None else xy, self.n[have],
+                             self.xsum[have] / self.n[have, None],
+                             ysum[have] / self.n[have, None])
+
+
+def _eq1_counts(ab: np.ndarray, dt: np.ndarray, ell: np.ndarray | None) -> np.ndarray:
+    """Eq. 1's counts ``(F, P)`` of frames at ``Δ = dt`` (``ell``: their scene levels,
+    lin-level) from its centred coefficients ``ab`` (``a_c, b_c[, a1_c, b1_c]``)."""
+    d = dt.astype(np.float32)[:, None]
+    out = ab[0][None] * d * d + ab[1][None] * d
+    if ell is not None:
+        out += ell.astype(np.float32)[:, None] * (ab[2][None] * d * d + ab[3][None] * d)
+    return out
+
+
 def _fixed_effects(
-    x: np.ndarray, sel: np.ndarray, group: np.ndarray, n_groups: int, xx: np.ndarray,
-    xy: np.ndarray, ysum: np.ndarray, n_s: np.ndarray, xsum: np.ndarray, shift: np.ndarray,
+    x: np.ndarray, sel: np.ndarray, group: np.ndarray, sums: _GroupSums, shift: np.ndarray,
 ) -> np.ndarray:
     """Shared slopes of eq. 1 with per-set-point intercepts, counts referred by ``shift``."""
     # Σ x·(y − shift) = Σ x·y − Σ x·shift (shift is per frame, the same for every pixel)
-    xy = xy - (x[sel] * shift[sel, None]).sum(axis=0)[:, None]
-    ysum = ysum - np.array([shift[sel & (group == g)].sum() for g in range(n_groups)])[:, None]
-    have = n_s > 0
-    return _within_solve(xx, xy, n_s[have], xsum[have] / n_s[have, None],
-                         ysum[have] / n_s[have, None])
+    xy = sums.xy - (x[sel] * shift[sel, None]).sum(axis=0)[:, None]
+    ysum = sums.ysum - np.array([shift[sel & (group == g)].sum()
+                                 for g in range(len(sums.n))])[:, None]
+    return sums.solve(xy, ysum)

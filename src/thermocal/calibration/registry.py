@@ -14,7 +14,7 @@ from typing import Any
 
 from thermocal.calibration.base import Calibration, ProtocolWarning, UnverifiedFileWarning
 from thermocal.calibration.dataset import prepare_chamber
-from thermocal.calibration.lin import LinCalibration, lin, lin_level
+from thermocal.calibration.lin import RATE_LAGS_S, LinCalibration, lin, lin_lag, lin_level
 from thermocal.calibration.polynomial import PolynomialCalibration, polynomial
 from thermocal.calibration.protocol import ProtocolCheck, ProtocolNeeds, check_protocol
 from thermocal.calibration.shutter import ShutterCalibration, shutter
@@ -116,6 +116,11 @@ CALIBRATION_METHODS: dict[str, CalibrationInfo] = {
         CalibrationInfo("lin-level", lin_level, LinCalibration,
                         "extension of Lin et al., not in the paper",
                         "lin whose projection follows the scene level", needs=_LIN),
+        CalibrationInfo("lin-lag", lin_lag, LinCalibration,
+                        "extension of Lin et al., not in the paper",
+                        "lin-level whose rate term also sees the FPA rate through lags of "
+                        f"{', '.join(f'{v:g}' for v in RATE_LAGS_S)} s (optics lagging the FPA)",
+                        needs=_LIN),
     )
 }
 

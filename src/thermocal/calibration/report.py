@@ -593,6 +593,7 @@ LEFT_OUT_WHY = {
     "wolf2016": "with the FPA changing or away from the reference",
     "lin": "taken while the blackbody settled",
     "lin-level": "taken while the blackbody settled",
+    "lin-lag": "taken while the blackbody settled",
 }
 #: ``LEFT_OUT_WHY`` of the polynomial model by its ``frames`` option.
 _POLYNOMIAL_WHY = {
