@@ -7,10 +7,11 @@ import math
 import numpy as np
 import pytest
 
+from thermocal.calibration.registry import CALIBRATION_METHODS
 from thermocal.calibration.report import CalibrationReport, fit_with_report
 from thermocal.calibration.uncertainty import MIN_GROWTH_PER_C, CalibrationSigma
 from thermocal.camera.presets import make_camera
-from thermocal.errors import OutsideDomainError
+from thermocal.errors import InvalidInputError, OutsideDomainError
 from thermocal.estimation.calibrated import OzMean, PivotCalibration
 from thermocal.estimation.pipeline import estimate
 from thermocal.simulate.chamber import ChamberPlan, write_simulated_chamber
@@ -125,3 +126,110 @@ def test_estimators_refuse_outside_and_give_sigma(fitted):
     normal = estimate(inside.frames, PivotCalibration(cal), fpa_c=inside.fpa_c)
     assert forced.outside and float(np.median(forced.sigma_c)) > float(np.median(normal.sigma_c))
 
+
+
+# ---------------------------------------------------------------------------- paces
+
+
+def _paced(**kw) -> CalibrationSigma:
+    """A report whose session held the FPA still, then sped up at once to a steady 1.5 °C/min:
+    the rate jumped (its lagged value still 0), then the lagged rate caught up."""
+    jump = [[i, 0] for i in range(16)]
+    hold = [[15, j] for j in range(16)]
+    paces = {"lag_s": 480.0, "cell_c_per_min": 0.1, "cells": [[0, 0], *jump, *hold]}
+    return CalibrationSigma(_report(paces=paces, fpa_rate_c_per_min=(-0.1, 1.55), **kw))
+
+
+def test_paces_a_memoryless_calibration_never_held_are_outside():
+    """A steady 1 °C/min lies between the paces held (still, 1.5 °C/min) but was never held
+    itself: outside, named, with the remedy; the paces held are inside; without paces (a method
+    with memory, an older report) nothing is."""
+    model = _paced()
+    t = np.arange(0.0, 3600.0, 10.0)
+    for pace, unseen in ((0.0, False), (1.5, False), (1.0, True), (-1.0, True)):
+        rate = np.full(t.size, pace)
+        assert model.unseen_paces(rate, t).all() == unseen
+        why = model.outside(np.full((t.size, 2, 2), 25.0), np.full(t.size, 27.0),
+                            rate_c_per_min=rate, time_s=t)
+        assert bool(why) == unseen
+    (why,) = model.outside(np.full((t.size, 2, 2), 25.0), np.full(t.size, 27.0),
+                           rate_c_per_min=np.full(t.size, 1.0), time_s=t)
+    assert "paces its chamber session never held (360 of 360 frames" in why
+    assert "+1.00 °C/min after +1.00 over the last 8 min" in why and "lin-lag" in why
+    # a jump from still to 1 °C/min: held at first (the session jumped through it), not once
+    # the lagged rate has caught up
+    jump = np.where(t >= 100.0, 1.0, 0.0)
+    assert not model.unseen_paces(jump, t)[:12].any() and model.unseen_paces(jump, t)[-1]
+    # the distance in °C/min from the nearest cell held, less half a cell
+    d = model.pace_distance(np.full(t.size, 1.0), t)
+    assert d[-1] == pytest.approx(0.45, abs=0.01)
+    assert not CalibrationSigma(_report()).unseen_paces(np.full(t.size, 1.0), t).any()
+    # σ at an unseen pace: the worst rate bin's σ times the distance in cells; seen: as before
+    steady = model.sigma(np.full((t.size, 1, 1), 25.0), 27.5, rate_c_per_min=np.full(t.size, 1.0),
+                         time_since_start_s=t)[-1, 0, 0]
+    worst = G * 0.6  # the 0.5–1 °C/min bin's √(π/2)·MAE
+    assert steady == pytest.approx(worst * 4.5, rel=0.05)
+    held = model.sigma(np.full((t.size, 1, 1), 25.0), 27.5, rate_c_per_min=np.zeros(t.size),
+                       time_since_start_s=t)[-1, 0, 0]
+    assert held == pytest.approx(G * 0.3 * 0.5, rel=1e-5)
+
+
+def test_paces_survive_json_and_are_checked():
+    model = _paced()
+    again = CalibrationReport.from_dict(model.report.to_dict())
+    assert again.paces == model.report.paces
+    bad = model.report.to_dict() | {"fpa_paces": {"lag_s": 0.0, "cell_c_per_min": 0.1,
+                                                  "cells": [[0, 0]]}}
+    with pytest.raises(InvalidInputError, match="not a calibration report"):
+        CalibrationReport.from_dict(bad)
+
+
+def test_only_memoryless_methods_list_their_paces(fitted):
+    """The report of a method without memory of the FPA's pace lists the paces of its session
+    (a 0.25 °C/min sawtooth: steady near ±0.25 and still at its turns); lin-lag's and
+    wolf2016's do not (their models follow the pace's history or learn it)."""
+    _, _, report = fitted
+    cells = np.array(report.paces["cells"])
+    assert report.paces["lag_s"] == 480.0 and len(cells) >= 3
+    assert [2, 2] in cells.tolist() or [3, 3] in cells.tolist()
+    assert not CALIBRATION_METHODS["lin-lag"].memoryless
+    assert not CALIBRATION_METHODS["wolf2016"].memoryless
+    assert all(CALIBRATION_METHODS[m].memoryless
+               for m in ("two-point", "one-point", "polynomial", "lin", "lin-level"))
+
+
+def test_correct_refuses_a_pace_its_calibration_never_held(fitted, tmp_path, capsys):
+    """`thermocal correct`: a recording whose FPA climbs steadily at 1 °C/min, through a
+    calibration whose session held only ±0.25 °C/min: exit 2, one line naming the paces and
+    lin-lag; --force writes the temperatures with σ grown; the same recording held still is
+    corrected."""
+    from tests.cli_run import run
+    from thermocal.camera.model import render
+    from thermocal.io.recording import Recording, write_recording
+
+    camera, cal, report = fitted
+    cal_path = cal.save(tmp_path / "cal.h5")
+    t = np.arange(0.0, 600.0, 10.0)
+    lo = report.fpa_range_c[0] + 2.0
+    paths = {}
+    for name, fpa in (("climb", lo + t / 60.0), ("still", np.full(t.size, lo + 5.0))):
+        frames = render(camera, np.full(t.size, 25.0), fpa, housing_c=fpa - 1.5,
+                        rng=np.random.default_rng(0))
+        paths[name], _ = write_recording(tmp_path / f"{name}.tiff",
+                                         Recording(frames, fpa_c=fpa, time_s=t))
+    args = ["correct", paths["climb"], "--calibration", cal_path, "--out", tmp_path / "t.tiff",
+            "--sigma-out", tmp_path / "s.tiff"]
+    code, _, err = run(args, capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "paces its chamber session never held" in err and "lin-lag" in err
+    assert not (tmp_path / "t.tiff").exists() and not (tmp_path / "s.tiff").exists()
+    code, _, err = run(args + ["--force"], capsys)
+    assert code == 0 and "corrected all the same (--force)" in err
+    import tifffile
+
+    forced = tifffile.imread(tmp_path / "s.tiff")
+    code, _, err = run(["correct", paths["still"], "--calibration", cal_path, "--out",
+                        tmp_path / "t2.tiff", "--sigma-out", tmp_path / "s2.tiff"], capsys)
+    assert code == 0, err
+    still = tifffile.imread(tmp_path / "s2.tiff")
+    assert np.median(forced[-10:]) > 2.0 * np.median(still[-10:])

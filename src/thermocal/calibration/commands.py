@@ -209,7 +209,8 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
             raise _naming_the_input(exc, frames, calibration_path) from None
     rates = recording_fpa_rates(rec.fpa_c, rec.time_s)
     outside = () if model is None else model.outside(
-        temps, () if rec.fpa_c is None else rec.fpa_c, rate_c_per_min=rates)
+        temps, () if rec.fpa_c is None else rec.fpa_c, rate_c_per_min=rates,
+        time_s=None if rates is None else rec.time_s)
     if outside and not force:
         raise OutsideDomainError(f"{frames}: {'; '.join(outside)}; {REMEDY}")
     for w in caught:

@@ -61,6 +61,11 @@ class CalibrationInfo:
     learns_online : bool
         Whether its ``apply`` learns as frames stream by (an online estimator that starts cold
         on every recording): its report then measures the error by time since the start.
+    memoryless : bool
+        Whether its model takes the camera to have no memory of how its FPA changed (a rate
+        term, if any, sees the present rate only): optics that lag the FPA then make its error
+        depend on the pace history, so it vouches only for the paces its session held (its
+        report lists them; :meth:`~thermocal.calibration.uncertainty.CalibrationSigma.outside`).
     """
 
     name: str
@@ -72,6 +77,7 @@ class CalibrationInfo:
     needs: ProtocolNeeds = ProtocolNeeds("all", 2)
     auto: bool = True
     learns_online: bool = False
+    memoryless: bool = True
 
 
 #: What the methods fitted at one reference FPA temperature need: two set points there.
@@ -109,7 +115,7 @@ CALIBRATION_METHODS: dict[str, CalibrationInfo] = {
                         needs=ProtocolNeeds("reference", 2, fpa_span_c=1.0, fpa_levels=2,
                                             window_c=3.0, window_option="fpa_window_c",
                                             fpa_both_ways=True),
-                        learns_online=True),
+                        learns_online=True, memoryless=False),
         CalibrationInfo("lin", lin, LinCalibration, "Lin et al.",
                         "2nd-order FPA projection, 3rd-order FPA-rate correction, Planck "
                         "R/B/F/O fit", needs=_LIN),
@@ -120,7 +126,7 @@ CALIBRATION_METHODS: dict[str, CalibrationInfo] = {
                         "extension of Lin et al., not in the paper",
                         "lin-level whose rate term also sees the FPA rate through lags of "
                         f"{', '.join(f'{v:g}' for v in RATE_LAGS_S)} s (optics lagging the FPA)",
-                        needs=_LIN),
+                        needs=_LIN, memoryless=False),
     )
 }
 

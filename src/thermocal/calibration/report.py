@@ -45,7 +45,7 @@ import numpy as np
 
 from thermocal._validate import SATURATED_FRACTION, saturated_fraction
 from thermocal.calibration.base import Calibration, ThermocalWarning
-from thermocal.calibration.dataset import ChamberData, iter_frames, prepare_chamber
+from thermocal.calibration.dataset import ChamberData, iter_frames, lagged_rate, prepare_chamber
 from thermocal.errors import InvalidInputError, ThermocalError
 from thermocal.io.chamber import ChamberSession
 
@@ -111,6 +111,13 @@ class CalibrationReport:
     sigma_c : float or None
         The σ that covers the interior folds' pixel errors as a Gaussian's would
         (:func:`coverage_sigma`), °C; None in a report made before it.
+    paces : dict
+        For a method whose model has no memory of how the FPA changed
+        (:attr:`~thermocal.calibration.registry.CalibrationInfo.memoryless`), the FPA paces the
+        session held: ``lag_s`` (:data:`PACE_LAG_S`), ``cell_c_per_min``
+        (:data:`PACE_CELL_C_PER_MIN`) and ``cells``, the visited cells ``[i, j]`` of the plane
+        (FPA rate, the same through a lag of ``lag_s``) / ``cell_c_per_min`` (:func:`paces_of`);
+        empty for the others and in a report made before it.
     by_time : list of dict
         For a method that learns as frames stream by (``wolf2016``'s LMS: it errs most at
         first; :attr:`~thermocal.calibration.registry.CalibrationInfo.learns_online`), the same
@@ -133,6 +140,7 @@ class CalibrationReport:
     by_rate: list[dict[str, Any]] = field(default_factory=list)
     sigma_c: float | None = None
     by_time: list[dict[str, Any]] = field(default_factory=list)
+    paces: dict[str, Any] = field(default_factory=dict)
 
     @property
     def extrapolated_mae_c(self) -> float | None:
@@ -164,6 +172,7 @@ class CalibrationReport:
             "mae_by_fpa_rate_c": self.by_rate,
             "expected_sigma_c": self.sigma_c,
             "mae_by_time_since_start_c": self.by_time,
+            "fpa_paces": self.paces,
             "sample": self.sample,
             "warnings": list(self.warnings),
             "notes": list(self.notes),
@@ -195,6 +204,7 @@ class CalibrationReport:
                 sigma_c=None if d.get("expected_sigma_c") is None else float(
                     d["expected_sigma_c"]),
                 by_time=[dict(r) for r in d.get("mae_by_time_since_start_c", [])],
+                paces=_paces_from(d.get("fpa_paces") or {}),
             )
         except (KeyError, TypeError, ValueError) as exc:
             raise InvalidInputError(f"not a calibration report ({type(exc).__name__}: "
@@ -224,6 +234,10 @@ class CalibrationReport:
                      f"{rlo:+.2f}…{rhi:+.2f} °C/min" + (f" ({rates[0].split(' (')[0]}: errors "
                                                         "measured at these rates only)"
                                                         if rates else ""))
+        if self.paces:
+            lines.append(f"  held steadily at {_steady_paces(self.paces)} °C/min: {self.method}'s "
+                         "rate term sees the present rate only, so frames at paces the session "
+                         "never held are refused (lin-lag follows the pace's history)")
         return lines
 
 
@@ -499,6 +513,7 @@ def cross_validate(
                if errors and CALIBRATION_METHODS[method].learns_online else [])
     if expected is None:
         notes.append("no interior set point or FPA segment could be left out and refitted")
+    paces = paces_of(data) if CALIBRATION_METHODS[method].memoryless else {}
     usable = data.usable
     scene = data.scene_c[usable]
     rate = data.fpa_rate_c_per_min[usable]
@@ -520,7 +535,55 @@ def cross_validate(
         by_rate=by_rate,
         sigma_c=sigma,
         by_time=by_time,
+        paces=paces,
     )
+
+
+#: The lag through which a frame's FPA rate tells the pace it has been changing at, s (the
+#: longest lag of ``lin-lag``'s rate terms: what lags the FPA by minutes).
+PACE_LAG_S = 480.0
+#: Cells of the (FPA rate, lagged FPA rate) plane that :attr:`CalibrationReport.paces` marks as
+#: held, °C/min a side.
+PACE_CELL_C_PER_MIN = 0.1
+
+
+def paces_of(data: ChamberData) -> dict[str, Any]:
+    """The paces a session's usable frames held (:attr:`CalibrationReport.paces`): each frame's
+    FPA rate ``r`` and the same through a first-order lag of :data:`PACE_LAG_S`, ``y``
+    (:func:`~thermocal.calibration.dataset.lagged_rate`), binned in cells of
+    :data:`PACE_CELL_C_PER_MIN`. A steady pace has ``y = r``; a pace just changed, ``y ≠ r``."""
+    use = data.usable
+    y = lagged_rate(data.fpa_rate_c_per_min, data.time_s, PACE_LAG_S)
+    cells = np.unique(np.round(np.stack([data.fpa_rate_c_per_min, y], axis=1)[use]
+                               / PACE_CELL_C_PER_MIN).astype(np.int64), axis=0)
+    return {"lag_s": PACE_LAG_S, "cell_c_per_min": PACE_CELL_C_PER_MIN,
+            "cells": cells.tolist()}
+
+
+def _steady_paces(paces: dict[str, Any]) -> str:
+    """The steady paces of :attr:`CalibrationReport.paces` (cells whose lagged rate is within a
+    cell of the rate) as runs, ``"-0.10…+0.30, +1.40…+1.60"`` °C/min."""
+    cell = paces["cell_c_per_min"]
+    steady = sorted({i for i, j in paces["cells"] if abs(i - j) <= 1})
+    runs: list[list[int]] = []
+    for i in steady:
+        if runs and i == runs[-1][1] + 1:
+            runs[-1][1] = i
+        else:
+            runs.append([i, i])
+    return ", ".join(f"{a * cell:+.2f}" if a == b else f"{a * cell:+.2f}…{b * cell:+.2f}"
+                     for a, b in runs) or "no pace"
+
+
+def _paces_from(d: dict[str, Any]) -> dict[str, Any]:
+    """A report's ``fpa_paces`` read back, checked (``{}`` when absent)."""
+    if not d:
+        return {}
+    cells = np.asarray(d["cells"], dtype=np.int64).reshape(-1, 2)
+    lag, cell = float(d["lag_s"]), float(d["cell_c_per_min"])
+    if not (lag > 0 and cell > 0 and math.isfinite(lag) and math.isfinite(cell)):
+        raise ValueError(f"fpa_paces: lag {lag} s and cell {cell} °C/min must be > 0")
+    return {"lag_s": lag, "cell_c_per_min": cell, "cells": cells.tolist()}
 
 
 #: Edges of the FPA-rate bins of :attr:`CalibrationReport.by_rate`, absolute rates in °C/min.

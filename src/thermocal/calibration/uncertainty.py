@@ -23,8 +23,20 @@ For a temperature ``T`` (°C) measured at FPA temperature ``t`` (°C)::
 - ``√(π/2)``: a Gaussian's σ from its MAE.
 
 :meth:`CalibrationSigma.outside` says why frames lie outside what a calibration was fitted on
-(FPA temperature, scene temperature, FPA rate); the product refuses them unless ``--force``.
-Faster FPA rates than the session's fastest grow σ in proportion to the rate.
+(FPA temperature, scene temperature, FPA rate, and for a memoryless method the FPA's pace
+history); the product refuses them unless ``--force``. Faster FPA rates than the session's
+fastest grow σ in proportion to the rate.
+
+**Paces a memoryless method never held.** A method whose rate term sees only the present FPA rate
+(:attr:`~thermocal.calibration.registry.CalibrationInfo.memoryless`) errs, on a camera whose
+optics lag the FPA, by what the rate's history leaves: 3–4 °C on the ``boson`` preset's held-out
+1 °C/min sawtooth for ``lin-level`` and ``polynomial``, whose sessions held only 1.5 °C/min
+steadily. Its cross-validation sees only the paces of its session, which its report lists
+(:attr:`~thermocal.calibration.report.CalibrationReport.paces`: cells of the plane of the FPA
+rate and the same through a lag of 8 min). A frame whose pace lies more than one cell from
+every cell the session held (:meth:`CalibrationSigma.pace_distance`) is outside; forced, its
+``s`` becomes at least the report's largest rate-bin σ times its distance in cells: how large
+its error is no session measured.
 """
 
 from __future__ import annotations
@@ -37,6 +49,7 @@ from typing import Any
 import numpy as np
 
 from thermocal.calibration.base import Calibration
+from thermocal.calibration.dataset import lagged_rate
 from thermocal.calibration.report import CalibrationReport, report_of
 
 __all__ = ["FPA_MARGIN_C", "MIN_GROWTH_PER_C", "RATE_MARGIN", "REMEDY", "CalibrationSigma"]
@@ -104,6 +117,11 @@ class CalibrationSigma:
         r = self.report
         return r.sigma_c if r.sigma_c is not None else _GAUSS * r.expected_mae_c
 
+    @staticmethod
+    def _bin_sigma(b: dict[str, Any]) -> float:
+        """A rate bin's σ (``√(π/2)·MAE`` in a report made before bins had σ)."""
+        return b["sigma_c"] if b.get("sigma_c") is not None else _GAUSS * b["mae_c"]
+
     def rate_sigma(self, rate_c_per_min: Any) -> np.ndarray:
         """``s(r)`` of each rate (°C/min; ``(N,)``), °C: its bin's σ (the overall σ for a rate
         the session never had; ``√(π/2)·MAE`` of its bin in a report without bin σ)."""
@@ -114,7 +132,7 @@ class CalibrationSigma:
             lo, hi = b["rate_c_per_min"]
             sel = (np.minimum(rate, top) >= lo) & (np.minimum(rate, top) < (
                 math.inf if hi is None else hi))
-            out[sel] = b["sigma_c"] if b.get("sigma_c") is not None else _GAUSS * b["mae_c"]
+            out[sel] = self._bin_sigma(b)
         # faster than the session ever changed: the error of a rate term left out grows with
         # the rate, so σ grows in proportion beyond the fastest rate it covered
         faster = rate > top
@@ -134,6 +152,33 @@ class CalibrationSigma:
             out[(t >= lo) & (t < (math.inf if hi is None else hi))] = b["sigma_c"]
         return out
 
+    def pace_distance(self, rate_c_per_min: Any, time_s: Any) -> np.ndarray:
+        """How far each frame's pace lies from the paces the session held, °C/min ``(N,)``: the
+        Chebyshev distance in the plane (FPA rate, the same through the report's lag) from the
+        nearest held cell's centre, less half a cell, at least 0. ``rate_c_per_min`` and
+        ``time_s`` (s) are one recording's, ``(N,)`` in time order. Zeros where the report
+        lists no paces (a method with memory, or an older report)."""
+        rate = np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)
+        paces = self.report.paces
+        if not paces or rate.size == 0:
+            return np.zeros(rate.shape)
+        cell = paces["cell_c_per_min"]
+        lagged = lagged_rate(rate, np.asarray(time_s, dtype=np.float64).reshape(-1),
+                             paces["lag_s"])
+        held = np.asarray(paces["cells"], dtype=np.float64).reshape(-1, 2) * cell
+        point = np.stack([rate, lagged], axis=1)
+        out = np.empty(rate.shape)
+        for i in range(0, rate.size, 4096):  # (frames × cells) at a time, bounded
+            d = np.abs(point[i:i + 4096, None, :] - held[None]).max(axis=2).min(axis=1)
+            out[i:i + 4096] = np.maximum(d - 0.5 * cell, 0.0)
+        return out
+
+    def unseen_paces(self, rate_c_per_min: Any, time_s: Any) -> np.ndarray:
+        """Which frames ``(N,)`` bool changed at a pace the session never held: more than one
+        cell from every held one (:meth:`pace_distance`)."""
+        cell = self.report.paces.get("cell_c_per_min", math.inf)
+        return self.pace_distance(rate_c_per_min, time_s) > cell
+
     @property
     def max_rate_c_per_min(self) -> float:
         """The fastest FPA rate (absolute) of the chamber session, °C/min."""
@@ -151,6 +196,9 @@ class CalibrationSigma:
         fpa = np.broadcast_to(np.asarray(fpa_c, dtype=np.float64).reshape(-1), frames.shape[:1])
         level = (np.full(frames.shape[0], self._overall_sigma()) if rate_c_per_min is None
                  else np.broadcast_to(self.rate_sigma(rate_c_per_min), frames.shape[:1]))
+        if rate_c_per_min is not None and time_since_start_s is not None and self.report.paces:
+            level = np.maximum(level, self._pace_sigma(rate_c_per_min, time_since_start_s,
+                                                       frames.shape[0]))
         if time_since_start_s is not None:
             level = np.maximum(level, np.broadcast_to(self.start_sigma(time_since_start_s),
                                                       frames.shape[:1]))
@@ -167,13 +215,42 @@ class CalibrationSigma:
         out = (level[:, None, None] * shape + _GAUSS * growth).astype(np.float32)
         return out if temps.ndim == 3 else out[0]
 
-    def outside(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None
-                ) -> tuple[str, ...]:
+    def _pace_sigma(self, rate_c_per_min: Any, time_s: Any, n: int) -> np.ndarray:
+        """``s`` ``(n,)`` of frames at paces the session never held: the largest σ of the
+        report's rate bins times the distance in cells (0 for the others)."""
+        rate = np.broadcast_to(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1), (n,))
+        t = np.broadcast_to(np.asarray(time_s, dtype=np.float64).reshape(-1), (n,))
+        if n > 1 and np.any(np.diff(t) <= 0):
+            return np.zeros(n)  # not one recording in time order: no pace history
+        cell = self.report.paces["cell_c_per_min"]
+        d = self.pace_distance(rate, t)
+        worst = max([self._overall_sigma()] + [self._bin_sigma(b) for b in self.report.by_rate])
+        return np.where(d > cell, worst * d / cell, 0.0)
+
+    def outside(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None,
+                time_s: Any = None) -> tuple[str, ...]:
         """Why frames lie outside what the calibration was fitted on: their FPA temperatures
         (more than :data:`FPA_MARGIN_C` beyond the session's), their FPA rates (°C/min, where
-        known: faster than :data:`RATE_MARGIN` times the session's fastest), or their scene
-        (its 1st–99th percentile beyond the blackbody's range); ``()`` inside."""
+        known: faster than :data:`RATE_MARGIN` times the session's fastest), their paces (with
+        ``time_s``, s, one recording's: a memoryless method's paces the session never held,
+        :meth:`unseen_paces`), or their scene (its 1st–99th percentile beyond the blackbody's
+        range); ``()`` inside."""
         reasons = []
+        if (rate_c_per_min is not None and time_s is not None and np.size(rate_c_per_min) > 1
+                and self.report.paces):
+            rate = np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)
+            t = np.asarray(time_s, dtype=np.float64).reshape(-1)
+            unseen = self.unseen_paces(rate, t)
+            if unseen.any():
+                k = int(np.argmax(unseen))
+                lagged = lagged_rate(rate, t, self.report.paces["lag_s"])
+                reasons.append(
+                    f"the FPA changed at paces its chamber session never held ({int(unseen.sum())}"
+                    f" of {unseen.size} frames; first {rate[k]:+.2f} °C/min "
+                    f"after {float(lagged[k]):+.2f} over the last "
+                    f"{self.report.paces['lag_s'] / 60:.0f} min), for which the "
+                    f"{self.report.method} calibration's rate term, seeing the present rate "
+                    "only, cannot vouch (lin-lag follows the rate's history)")
         if rate_c_per_min is not None and np.size(rate_c_per_min):
             fastest = float(np.max(np.abs(rate_c_per_min)))
             if fastest > RATE_MARGIN * self.max_rate_c_per_min + 0.05:

@@ -17,8 +17,9 @@ training scenes) is run through the product's pipeline, domain check included, o
 The calibrations (every method ``--method auto`` may choose) are fitted with their
 cross-validation report on one unit's chamber session of each family and scored, frame by frame,
 on a held-out run of the same unit (``benchmarks/physics.py``'s sessions: its own physics): a
-frame outside the session's FPA or scene range is refused (scored as ``--force`` gives it); the
-σ of a frame uses its FPA rate, as ``thermocal correct`` does for a recording with frame times.
+frame outside the session's FPA or scene range, or (a memoryless method) at an FPA pace the
+session never held, is refused (scored as ``--force`` gives it); the σ of a frame uses its FPA
+rate and pace history, as ``thermocal correct`` does for a recording with frame times.
 
 Run: ``python -m thermocal.evaluation.suites.coverage [--quick] [--json OUT]``.
 """
@@ -100,18 +101,23 @@ def _run_calibration(cal, model: CalibrationSigma, run: physics.Run, rng) -> dic
         sel = np.flatnonzero(run.part == k)
         rate = fpa_rate_c_per_min(s.fpa_c[sel], s.time_s[sel], smooth_s=RATE_SMOOTH_S)
         since = s.time_s[sel] - s.time_s[sel][0]
-        for i, r, t in zip(sel, rate, since, strict=True):
-            temp = est[i].reshape(-1)[pick]
-            err = temp - run.truth_c[i]
-            outside = model.outside(temp, [s.fpa_c[i]], rate_c_per_min=[r])
-            sigma = model.sigma(temp[None, None], [s.fpa_c[i]], rate_c_per_min=[r],
-                                time_since_start_s=[t])[0, 0]
-            silent += int(not outside and _silent(float(np.abs(err).mean()), sigma))
-            kept["forced" if outside else "accepted"].append((err, sigma))
+        temps = est[sel].reshape(sel.size, -1)[:, pick]
+        sigmas = model.sigma(temps[:, None, :], s.fpa_c[sel], rate_c_per_min=rate,
+                             time_since_start_s=since)[:, 0, :]
+        unseen = model.unseen_paces(rate, since)  # the recording's pace history
+        for j, i in enumerate(sel):
+            err = temps[j] - run.truth_c[i]
+            outside = bool(model.outside(temps[j], [s.fpa_c[i]], rate_c_per_min=[rate[j]])
+                           or unseen[j])
+            silent += int(not outside and _silent(float(np.abs(err).mean()), sigmas[j]))
+            kept["forced" if outside else "accepted"].append((err, sigmas[j]))
     out = {"frames": int(s.n_frames), "refused": len(kept["forced"]), "silent_over_1c": silent,
            "mae_c": float(np.mean(np.abs(est[:, ~run.camera.defects]
                                          - run.truth_c[:, None]))),
            "expected_mae_c": model.report.expected_mae_c}
+    for name, pairs in kept.items():  # the sample's MAE of the accepted and refused frames
+        out[f"mae_{name}_c"] = (float(np.mean(np.abs(np.concatenate([e for e, _ in pairs]))))
+                                if pairs else None)
     for name, pairs in kept.items():
         out[name] = (sigma_coverage(np.concatenate([e for e, _ in pairs]),
                                  np.concatenate([s_ for _, s_ in pairs])) if pairs else None)
@@ -169,7 +175,8 @@ def _cells(cov: dict | None) -> tuple[str, str, str]:
 
 
 def report(rows: list[dict], info: dict) -> str:
-    header = ("method", "data", "bursts / frames", "refused", "MAE °C", "accepted: within 1σ",
+    header = ("method", "data", "bursts / frames", "refused", "MAE °C (accepted / refused)",
+              "accepted: within 1σ",
               "within 2σ", "median σ °C", "refused, if forced: within 1σ", "within 2σ",
               "median σ °C", "silent")
     cells = []
@@ -178,9 +185,12 @@ def report(rows: list[dict], info: dict) -> str:
             cells.append((r["method"], r["data"], "fit refused: " + r["refused_fit"][:90],
                           *["–"] * (len(header) - 3)))
             continue
+        split = "" if "mae_accepted_c" not in r else " ({} / {})".format(
+            *("–" if v is None else f"{v:.2f}" for v in (r["mae_accepted_c"],
+                                                         r["mae_forced_c"])))
         cells.append((r["method"], r["data"], r.get("bursts", r.get("frames")), r["refused"],
-                      f"{r['mae_c']:.2f}", *_cells(r["accepted"]), *_cells(r["forced"]),
-                      r["silent_over_1c"]))
+                      f"{r['mae_c']:.2f}{split}", *_cells(r["accepted"]),
+                      *_cells(r["forced"]), r["silent_over_1c"]))
     table = markdown_table(header, cells)
     return (f"## Coverage of the stated uncertainty\n\nmachine: {info['machine']}; "
             f"{info['wall_s']:.0f} s\n\ndata: bursts of N = 7 frames, 336×256, over the held-out "
