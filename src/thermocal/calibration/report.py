@@ -235,8 +235,8 @@ class CalibrationReport:
                                                         "measured at these rates only)"
                                                         if rates else ""))
         if self.paces:
-            lines.append(f"  held steadily at {_steady_paces(self.paces)} °C/min: {self.method}'s "
-                         "rate term sees the present rate only, so frames at paces the session "
+            lines.append(f"  held steadily at {_steady_paces(self.paces)} °C/min: {self.method} "
+                         "has no memory of how the FPA changed, so frames at paces the session "
                          "never held are refused (lin-lag follows the pace's history)")
         return lines
 

@@ -27,9 +27,10 @@ For a temperature ``T`` (°C) measured at FPA temperature ``t`` (°C)::
 history); the product refuses them unless ``--force``. Faster FPA rates than the session's
 fastest grow σ in proportion to the rate.
 
-**Paces a memoryless method never held.** A method whose rate term sees only the present FPA rate
-(:attr:`~thermocal.calibration.registry.CalibrationInfo.memoryless`) errs, on a camera whose
-optics lag the FPA, by what the rate's history leaves: 3–4 °C on the ``boson`` preset's held-out
+**Paces a memoryless method never held.** A method with no memory of how the FPA changed (a rate
+term, if any, sees the present rate only;
+:attr:`~thermocal.calibration.registry.CalibrationInfo.memoryless`) errs, on a camera whose optics
+lag the FPA, by what the rate's history leaves: 3–4 °C on the ``boson`` preset's held-out
 1 °C/min sawtooth for ``lin-level`` and ``polynomial``, whose sessions held only 1.5 °C/min
 steadily. Its cross-validation sees only the paces of its session, which its report lists
 (:attr:`~thermocal.calibration.report.CalibrationReport.paces`: cells of the plane of the FPA
@@ -248,9 +249,9 @@ class CalibrationSigma:
                     f"the FPA changed at paces its chamber session never held ({int(unseen.sum())}"
                     f" of {unseen.size} frames; first {rate[k]:+.2f} °C/min "
                     f"after {float(lagged[k]):+.2f} over the last "
-                    f"{self.report.paces['lag_s'] / 60:.0f} min), for which the "
-                    f"{self.report.method} calibration's rate term, seeing the present rate "
-                    "only, cannot vouch (lin-lag follows the rate's history)")
+                    f"{self.report.paces['lag_s'] / 60:.0f} min), which the "
+                    f"{self.report.method} calibration, with no memory of how the FPA changed, "
+                    "cannot vouch for (lin-lag follows the pace's history)")
         if rate_c_per_min is not None and np.size(rate_c_per_min):
             fastest = float(np.max(np.abs(rate_c_per_min)))
             if fastest > RATE_MARGIN * self.max_rate_c_per_min + 0.05:

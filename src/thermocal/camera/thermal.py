@@ -10,7 +10,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.signal import lfilter, lfilter_zi
 
 from thermocal._validate import as_float_array, as_temperature_c
 from thermocal.errors import InvalidInputError
@@ -132,6 +131,9 @@ def _lag(u: np.ndarray, dt: float, tau: float) -> np.ndarray:
 
     Exact for an input held constant between samples (zero-order hold), as an IIR filter.
     """
+    # imported here: scipy.signal takes 0.7 s to import, which every command would pay
+    from scipy.signal import lfilter, lfilter_zi
+
     a = np.exp(-dt / tau)
     b, den = [0.0, 1.0 - a], [1.0, -a]
     y, _ = lfilter(b, den, u, zi=lfilter_zi(b, den) * u[0])
