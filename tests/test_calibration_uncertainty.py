@@ -172,6 +172,10 @@ def test_paces_a_memoryless_calibration_never_held_are_outside():
     held = model.sigma(np.full((t.size, 1, 1), 25.0), 27.5, rate_c_per_min=np.zeros(t.size),
                        time_since_start_s=t)[-1, 0, 0]
     assert held == pytest.approx(G * 0.3 * 0.5, rel=1e-5)
+    # one frame (a burst) has no pace history: no pace σ, as it is never refused for its pace
+    one, bare = (model.sigma(np.full((1, 1), 25.0), 27.5, rate_c_per_min=[1.0], **kw)[0, 0]
+                 for kw in ({"time_since_start_s": [3590.0]}, {}))
+    assert one == pytest.approx(bare) and one < steady / 2
 
 
 def test_paces_survive_json_and_are_checked():

@@ -191,13 +191,16 @@ class CalibrationSigma:
         temperatures at FPA temperature ``fpa_c`` (°C: one, or one per frame) changing at
         ``rate_c_per_min`` (°C/min, one or one per frame; None: not known), taken
         ``time_since_start_s`` after their recording began (s; None: not known): the level is
-        at least the report's σ of that time, for a method that learns as frames stream by."""
+        at least the report's σ of that time, for a method that learns as frames stream by;
+        and, for the frames of one recording (``(N, H, W)``, N > 1, in time order) at paces the
+        session never held, :meth:`_pace_sigma` (one frame has no pace history)."""
         temps = np.asarray(temps_c, dtype=np.float64)
         frames = temps if temps.ndim == 3 else temps[None]
         fpa = np.broadcast_to(np.asarray(fpa_c, dtype=np.float64).reshape(-1), frames.shape[:1])
         level = (np.full(frames.shape[0], self._overall_sigma()) if rate_c_per_min is None
                  else np.broadcast_to(self.rate_sigma(rate_c_per_min), frames.shape[:1]))
-        if rate_c_per_min is not None and time_since_start_s is not None and self.report.paces:
+        if (rate_c_per_min is not None and time_since_start_s is not None
+                and frames.shape[0] > 1 and self.report.paces):  # a recording: its paces
             level = np.maximum(level, self._pace_sigma(rate_c_per_min, time_since_start_s,
                                                        frames.shape[0]))
         if time_since_start_s is not None:
@@ -221,7 +224,7 @@ class CalibrationSigma:
         report's rate bins times the distance in cells (0 for the others)."""
         rate = np.broadcast_to(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1), (n,))
         t = np.broadcast_to(np.asarray(time_s, dtype=np.float64).reshape(-1), (n,))
-        if n > 1 and np.any(np.diff(t) <= 0):
+        if np.any(np.diff(t) <= 0):
             return np.zeros(n)  # not one recording in time order: no pace history
         cell = self.report.paces["cell_c_per_min"]
         d = self.pace_distance(rate, t)
