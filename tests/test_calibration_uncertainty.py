@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -10,6 +11,7 @@ import pytest
 from thermocal.calibration.registry import CALIBRATION_METHODS
 from thermocal.calibration.report import CalibrationReport, fit_with_report
 from thermocal.calibration.uncertainty import MIN_GROWTH_PER_C, CalibrationSigma
+from thermocal.camera.model import render
 from thermocal.camera.presets import make_camera
 from thermocal.errors import InvalidInputError, OutsideDomainError
 from thermocal.estimation.calibrated import OzMean, PivotCalibration
@@ -208,7 +210,6 @@ def test_correct_refuses_a_pace_its_calibration_never_held(fitted, tmp_path, cap
     lin-lag; --force writes the temperatures with σ grown; the same recording held still is
     corrected."""
     from tests.cli_run import run
-    from thermocal.camera.model import render
     from thermocal.io.recording import Recording, write_recording
 
     camera, cal, report = fitted
@@ -237,3 +238,33 @@ def test_correct_refuses_a_pace_its_calibration_never_held(fitted, tmp_path, cap
     assert code == 0, err
     still = tifffile.imread(tmp_path / "s2.tiff")
     assert np.median(forced[-10:]) > 2.0 * np.median(still[-10:])
+
+
+def test_flight_refuses_the_groups_at_paces_its_calibration_never_held(fitted, tmp_path):
+    """`thermocal flight` through a calibration judges each group by the recording's pace at
+    its pivot: held still, then climbing steadily at 1 °C/min (the session held ±0.25): the
+    climbing groups are refused with the reason; --force maps them with σ grown."""
+    from thermocal.io.recording import Recording, read_temperature_tiff, write_recording
+    from thermocal.pipeline.flight import FlightOptions, process_flight
+
+    camera, cal, report = fitted
+    cal_path = cal.save(tmp_path / "cal.h5")
+    t = np.arange(0.0, 1800.0, 10.0)
+    fpa = report.fpa_range_c[0] + 2.0 + np.maximum(t - 600.0, 0.0) / 60.0
+    frames = render(camera, np.full(t.size, 25.0), fpa, housing_c=fpa - 1.5,
+                    rng=np.random.default_rng(0))
+    rec, _ = write_recording(tmp_path / "rec.tiff", Recording(frames, fpa_c=fpa, time_s=t))
+    options = {"method": "calibration", "calibration": str(cal_path), "frames": 1,
+               "stride": 30, "preview_every": 0}
+    summary = process_flight(rec, tmp_path / "out", FlightOptions(**options))
+    log = [json.loads(line) for line in (tmp_path / "out" / "log.jsonl").read_text().splitlines()]
+    refused = [e["frame"] for e in log if "error" in e]
+    assert refused and all(f * 10.0 >= 600.0 for f in refused)
+    assert all("paces its chamber session never held" in e["error"] for e in log if "error" in e)
+    assert summary["failed"] == len(refused) < len(log)
+    forced = process_flight(rec, tmp_path / "forced", FlightOptions(**options, force=True))
+    assert forced["failed"] == 0
+    last = max(refused)
+    sig = read_temperature_tiff(tmp_path / "forced" / "temps" / f"frame_{last:06d}_sigma.tiff")
+    first = read_temperature_tiff(tmp_path / "forced" / "temps" / "frame_000000_sigma.tiff")
+    assert np.median(sig) > 2.0 * np.median(first)

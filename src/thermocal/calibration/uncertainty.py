@@ -219,6 +219,30 @@ class CalibrationSigma:
         out = (level[:, None, None] * shape + _GAUSS * growth).astype(np.float32)
         return out if temps.ndim == 3 else out[0]
 
+    def pace_reasons(self, rate_c_per_min: Any, time_s: Any) -> tuple[list[str | None],
+                                                                       np.ndarray]:
+        """One recording's pace check frame by frame (``rate_c_per_min``, ``time_s``: ``(N,)``
+        in time order): why each frame is outside (None: inside) and the σ level it takes
+        forced (°C, ``(N,)``; 0 inside), as :meth:`outside` and :meth:`sigma` judge the whole
+        recording; for a product that decides group by group (``thermocal flight``)."""
+        rate = np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)
+        t = np.asarray(time_s, dtype=np.float64).reshape(-1)
+        if not self.report.paces or rate.size < 2:
+            return [None] * rate.size, np.zeros(rate.size)
+        unseen = self.unseen_paces(rate, t)
+        lagged = lagged_rate(rate, t, self.report.paces["lag_s"])
+        why = [self._pace_reason(r, y) if u else None
+               for r, y, u in zip(rate, lagged, unseen, strict=True)]
+        return why, self._pace_sigma(rate, t, rate.size)
+
+    def _pace_reason(self, rate: float, lagged: float, count: str = "") -> str:
+        """The pace refusal's text for a frame at ``rate`` after ``lagged`` °C/min."""
+        return (f"the FPA changed at paces its chamber session never held ({count}"
+                f"{'first ' if count else ''}{rate:+.2f} °C/min after {lagged:+.2f} over the "
+                f"last {self.report.paces['lag_s'] / 60:.0f} min), which the "
+                f"{self.report.method} calibration, with no memory of how the FPA changed, "
+                "cannot vouch for (lin-lag follows the pace's history)")
+
     def _pace_sigma(self, rate_c_per_min: Any, time_s: Any, n: int) -> np.ndarray:
         """``s`` ``(n,)`` of frames at paces the session never held: the largest σ of the
         report's rate bins times the distance in cells (0 for the others)."""
@@ -248,13 +272,8 @@ class CalibrationSigma:
             if unseen.any():
                 k = int(np.argmax(unseen))
                 lagged = lagged_rate(rate, t, self.report.paces["lag_s"])
-                reasons.append(
-                    f"the FPA changed at paces its chamber session never held ({int(unseen.sum())}"
-                    f" of {unseen.size} frames; first {rate[k]:+.2f} °C/min "
-                    f"after {float(lagged[k]):+.2f} over the last "
-                    f"{self.report.paces['lag_s'] / 60:.0f} min), which the "
-                    f"{self.report.method} calibration, with no memory of how the FPA changed, "
-                    "cannot vouch for (lin-lag follows the pace's history)")
+                reasons.append(self._pace_reason(
+                    rate[k], lagged[k], count=f"{int(unseen.sum())} of {unseen.size} frames; "))
         if rate_c_per_min is not None and np.size(rate_c_per_min):
             fastest = float(np.max(np.abs(rate_c_per_min)))
             if fastest > RATE_MARGIN * self.max_rate_c_per_min + 0.05:

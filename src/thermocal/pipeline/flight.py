@@ -69,7 +69,8 @@ import numpy as np
 from thermocal._validate import check_output_dir
 from thermocal.burst import check_burst, fpa_value
 from thermocal.calibration.dataset import recording_fpa_rates
-from thermocal.errors import InvalidInputError, OutputError, RegistrationError
+from thermocal.calibration.uncertainty import CalibrationSigma
+from thermocal.errors import InvalidInputError, OutputError, OutsideDomainError, RegistrationError
 from thermocal.estimation.base import Estimator
 from thermocal.estimation.pipeline import estimate
 from thermocal.estimation.registry import ESTIMATORS, make_estimator
@@ -176,6 +177,18 @@ def _estimator(options: FlightOptions, frame_shape: tuple[int, int]) -> Estimato
     return estimator
 
 
+def _paces(estimator: Estimator, series: dict[str, Any]) -> tuple[list, np.ndarray] | None:
+    """A calibration's pace check of the whole recording: why each frame is outside, or None,
+    and the σ it takes forced (``CalibrationSigma.pace_reasons``); None for other estimators
+    or without frame times."""
+    model = getattr(estimator, "sigma_model", None)
+    rates, times = series["fpa_rate_c_per_min"], series["time_s"]
+    if (not isinstance(model, CalibrationSigma) or not model.report.paces or rates is None
+            or times is None):
+        return None
+    return model.pace_reasons(rates, times)
+
+
 def _register(estimator: Estimator, frames: np.ndarray) -> SequenceRegistration | None:
     """Frame-to-previous registration of a run of frames; None for a per-frame estimator.
 
@@ -220,6 +233,7 @@ def process_flight(
         estimator = _estimator(options, header.frame_shape)
     series = header.series | {"fpa_rate_c_per_min": recording_fpa_rates(
         header.series["fpa_c"], header.series["time_s"])}
+    series["pace"] = _paces(estimator, series)
     geo = _pivot_tags(header.series.get("frame_metadata"), pivots, options, header.frame_shape)
     per_batch = max(1, BATCH_FRAMES // stride)
     batches = [pivots[b : b + per_batch] for b in range(0, len(pivots), per_batch)]
@@ -555,9 +569,12 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
              "fpa_c": None if fpa is None else float(fpa[pivot]), "warnings": []}
     t = time.perf_counter()
     group = run.frames[first - run.start : first - run.start + n]
+    pace_why = None if series.get("pace") is None else series["pace"][0][pivot]
     try:
         _check_decoded(_undecodable_in(run, first, n), first, n)
         _check_group(group, first, bit_depth)
+        if pace_why is not None and not options.force:  # a calibration's pace, refused
+            raise OutsideDomainError(f"{pace_why}; {estimator.remedy}")
         if estimator.needs_fpa:
             fpa_value(None if fpa is None else fpa[first : first + n], n)
         if run.error is not None:
@@ -584,8 +601,11 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
                 bit_depth=bit_depth)
             temp, sigma = result.temperature_c, result.sigma_c
         entry["warnings"] = sorted({str(w.message) for w in caught})
-        if result.outside:  # estimated all the same (--force): why it is not validated
-            entry["warnings"].append(f"outside the domain (--force): {'; '.join(result.outside)}")
+        outside = result.outside + (() if pace_why is None else (pace_why,))
+        if outside:  # estimated all the same (--force): why it is not validated
+            entry["warnings"].append(f"outside the domain (--force): {'; '.join(outside)}")
+        if pace_why is not None and sigma is not None:  # σ at least the pace's
+            sigma = np.maximum(sigma, np.float32(series["pace"][1][pivot]))
     except (RegistrationError, InvalidInputError) as exc:
         entry["error"] = str(exc)
         tally.failed += 1
