@@ -166,6 +166,8 @@ def test_paces_a_memoryless_calibration_never_held_are_outside():
     d = model.pace_distance(np.full(t.size, 1.0), t)
     assert d[-1] == pytest.approx(0.45, abs=0.01)
     assert not CalibrationSigma(_report()).unseen_paces(np.full(t.size, 1.0), t).any()
+    empty = {"lag_s": 480.0, "cell_c_per_min": 0.1, "cells": []}  # a report that lists none
+    assert not CalibrationSigma(_report(paces=empty)).unseen_paces(np.full(t.size, 1.0), t).any()
     # σ at an unseen pace: the worst rate bin's σ times the distance in cells; seen: as before
     steady = model.sigma(np.full((t.size, 1, 1), 25.0), 27.5, rate_c_per_min=np.full(t.size, 1.0),
                          time_since_start_s=t)[-1, 0, 0]

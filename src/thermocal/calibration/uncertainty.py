@@ -161,7 +161,7 @@ class CalibrationSigma:
         lists no paces (a method with memory, or an older report)."""
         rate = np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)
         paces = self.report.paces
-        if not paces or rate.size == 0:
+        if not paces or not paces["cells"] or rate.size == 0:
             return np.zeros(rate.shape)
         cell = paces["cell_c_per_min"]
         lagged = lagged_rate(rate, np.asarray(time_s, dtype=np.float64).reshape(-1),
