@@ -150,3 +150,12 @@ def test_the_quick_suite_runs_end_to_end(tmp_path, capsys):
     # trained on tau2 only: the network is worse on boson bursts than on tau2's
     assert float(kpn_row["cells"][1]) > float(kpn_row["cells"][0])
     assert "### 3. Summary for README" in text
+
+
+def test_the_other_lags_section_reports_each_variant():
+    fake = [{"family": "boson", "thermal": {"tau_optics_s": 600.0},
+             "methods": {m: [1.0, 0.5, 1.5] for m in P.LAG_METHODS}}]
+    text = P.report({"machine": "test", "quick": True, "lag_variants": fake})
+    assert "### 4. Other lags" in text
+    assert "| boson | tau_optics 600 s | 1.00 / 0.50 / 1.50 | 1.00 / 0.50 / 1.50 |" in text
+    assert len(P.LAG_VARIANTS) == 3 and "lin-lag" in P.LAG_METHODS
