@@ -12,6 +12,17 @@ works from an installed package).
 ============== ==============================================================================
 """
 
-from thermocal.evaluation.scoring import scores, split_error, summarise
+from typing import Any
 
 __all__ = ["scores", "split_error", "summarise"]
+
+
+def __getattr__(name: str) -> Any:
+    """``scores``, ``split_error``, ``summarise`` from :mod:`~thermocal.evaluation.scoring`,
+    imported when first asked for: ``thermocal bench`` names the suites at start-up, and the
+    scores' imports (scikit-image, scipy.stats: 0.4 s) would slow every command."""
+    if name in __all__:
+        from thermocal.evaluation import scoring
+
+        return getattr(scoring, name)
+    raise AttributeError(f"module 'thermocal.evaluation' has no attribute {name!r}")
