@@ -166,6 +166,7 @@ def test_paces_a_memoryless_calibration_never_held_are_outside():
     d = model.pace_distance(np.full(t.size, 1.0), t)
     assert d[-1] == pytest.approx(0.45, abs=0.01)
     assert not CalibrationSigma(_report()).unseen_paces(np.full(t.size, 1.0), t).any()
+    assert not model.unseen_paces(np.full(t.size, 1.0), t[::-1]).any()  # not one recording
     empty = {"lag_s": 480.0, "cell_c_per_min": 0.1, "cells": []}  # a report that lists none
     assert not CalibrationSigma(_report(paces=empty)).unseen_paces(np.full(t.size, 1.0), t).any()
     # σ at an unseen pace: the worst rate bin's σ times the distance in cells; seen: as before

@@ -158,14 +158,16 @@ class CalibrationSigma:
         Chebyshev distance in the plane (FPA rate, the same through the report's lag) from the
         nearest held cell's centre, less half a cell, at least 0. ``rate_c_per_min`` and
         ``time_s`` (s) are one recording's, ``(N,)`` in time order. Zeros where the report
-        lists no paces (a method with memory, or an older report)."""
+        lists no paces (a method with memory, or an older report) and for times out of order
+        (not one recording: no pace history)."""
         rate = np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)
+        t = np.asarray(time_s, dtype=np.float64).reshape(-1)
         paces = self.report.paces
-        if not paces or not paces["cells"] or rate.size == 0:
+        if (not paces or not paces["cells"] or rate.size == 0 or t.shape != rate.shape
+                or np.any(np.diff(t) <= 0)):
             return np.zeros(rate.shape)
         cell = paces["cell_c_per_min"]
-        lagged = lagged_rate(rate, np.asarray(time_s, dtype=np.float64).reshape(-1),
-                             paces["lag_s"])
+        lagged = lagged_rate(rate, t, paces["lag_s"])
         held = np.asarray(paces["cells"], dtype=np.float64).reshape(-1, 2) * cell
         point = np.stack([rate, lagged], axis=1)
         out = np.empty(rate.shape)
@@ -248,8 +250,6 @@ class CalibrationSigma:
         report's rate bins times the distance in cells (0 for the others)."""
         rate = np.broadcast_to(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1), (n,))
         t = np.broadcast_to(np.asarray(time_s, dtype=np.float64).reshape(-1), (n,))
-        if np.any(np.diff(t) <= 0):
-            return np.zeros(n)  # not one recording in time order: no pace history
         cell = self.report.paces["cell_c_per_min"]
         d = self.pace_distance(rate, t)
         worst = max([self._overall_sigma()] + [self._bin_sigma(b) for b in self.report.by_rate])
