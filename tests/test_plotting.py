@@ -97,3 +97,22 @@ def test_fig7_merge_refuses_a_run_given_twice_and_unlike_floors(fig7):
     floor = {"variant": fig7.FLOOR, "n": 1, "mae_c": 1.8, "bias_free_mae_c": 1.7}
     with pytest.raises(SystemExit, match="differ between the files"):
         fig7.to_figure_json(rows + [floor, {**floor, "mae_c": 1.5}], "note")
+
+
+def test_previews_on_one_figure_are_the_bytes_of_a_new_figure_each(tmp_path):
+    """The reused figure (image, colour range and title updated) writes the same PNG as a new
+    figure per map; a map of another size gets a figure of its own."""
+    import numpy as np
+
+    from thermocal.plotting import TemperaturePreviews, save_figure, temperature_figure
+
+    rng = np.random.default_rng(0)
+    maps = [rng.normal(20, 3, (48, 64)), rng.normal(-5, 10, (48, 64)),
+            rng.normal(40, 1, (30, 40))]
+    with TemperaturePreviews(dpi=80) as previews:
+        for i, m in enumerate(maps):
+            previews.save(tmp_path / f"r{i}.png", m, title=f"pivot {i}")
+    for i, m in enumerate(maps):
+        save_figure(temperature_figure(m, title=f"pivot {i}"), tmp_path / f"n{i}.png", dpi=80)
+        assert (tmp_path / f"r{i}.png").read_bytes() == (tmp_path / f"n{i}.png").read_bytes()
+    assert previews._fig is None  # closed on leaving the block

@@ -88,6 +88,7 @@ from thermocal.io.recording import (
     write_temperature_tiff,
 )
 from thermocal.pipeline.flight_log import read_log
+from thermocal.plotting import TemperaturePreviews
 from thermocal.registration.sequence import SequenceRegistration, register_sequence
 
 #: Frames registered together as one sequence (a batch of groups). The batches are fixed by the
@@ -198,12 +199,6 @@ def _register(estimator: Estimator, frames: np.ndarray) -> SequenceRegistration 
     return None if estimator.per_frame else register_sequence(frames)
 
 
-def _preview(path: Path, temp_c: np.ndarray, title: str) -> None:
-    from thermocal.plotting import save_figure, temperature_figure
-
-    save_figure(temperature_figure(temp_c, title=title), path, dpi=80)
-
-
 def process_flight(
     recording: str | Path,
     out_dir: str | Path,
@@ -248,7 +243,8 @@ def process_flight(
     out = _output_dirs(Path(out_dir))  # only now: every check has passed
     _remove_stale_temp_files(out)
     _drop_cut_log_line(out / "log.jsonl")
-    done = _finished_pivots(out, pivots, options, header.frame_shape)
+    previews = TemperaturePreviews(dpi=80)  # one figure for the run's previews
+    done = _finished_pivots(out, pivots, options, header.frame_shape, previews)
     tally = _Tally()
     reader = _FrameWindow(header.stream(max(64, n)), header.frame_shape)
     undecodable: dict[int, tuple[str, str]] = {}  # met in the groups of this run
@@ -256,7 +252,7 @@ def process_flight(
     if pass_fit is not None:
         tally.times.seconds["self-calibration"] = prefit_s
     started = time.perf_counter() - prefit_s
-    with open(out / "log.jsonl", "a", encoding="utf-8") as log:
+    with open(out / "log.jsonl", "a", encoding="utf-8") as log, previews:
         for bi, batch in enumerate(batches):
             b = sum(map(len, batches[:bi]))
             todo = [(b + i, p) for i, p in enumerate(batch) if p not in done]
@@ -278,8 +274,8 @@ def process_flight(
                 undecodable.update((i, (where, why)) for i, where, why in bad)
                 skipped_groups += bool(bad)
                 entry = _process_pivot(run, pivot, series, batch_estimator, options, out, tally,
-                                       preview=_preview_due(options, index),
-                                       bit_depth=header.bit_depth, geo=geo[pivot])
+                                       preview=previews if _preview_due(options, index)
+                                       else None, bit_depth=header.bit_depth, geo=geo[pivot])
                 log.write(json.dumps(entry) + "\n")  # last: the pivot is finished
                 log.flush()
                 if progress:
@@ -551,12 +547,13 @@ def _register_batch(reader: _FrameWindow, estimator: Estimator, batch: list[int]
 
 def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: Estimator,
                    options: FlightOptions, out: Path, tally: _Tally, *,
-                   preview: bool, bit_depth: int,
+                   preview: TemperaturePreviews | None, bit_depth: int,
                    geo: tuple[geotag.MapTags | None, str | None] = (None, None)
                    ) -> dict[str, Any]:
-    """Estimate one pivot's map from its group of ``run``, write it (and its preview) with its
-    tags and reason for no GeoTIFF ``geo`` (:func:`_pivot_tags`) and return its log entry; a
-    group that cannot be estimated is logged with its error.
+    """Estimate one pivot's map from its group of ``run``, write it (and its preview, drawn by
+    ``preview`` when given) with its tags and reason for no GeoTIFF ``geo``
+    (:func:`_pivot_tags`) and return its log entry; a group that cannot be estimated is logged
+    with its error.
 
     The group's frames are validated first (frames that do not decode, saturated or dead
     frames, the FPA temperature), so that a bad group says what is wrong with it rather than
@@ -614,8 +611,8 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
         tally.times.add("estimate", t)
         return entry
     t = tally.times.add("estimate", t)
-    _write_pivot(out, pivot, temp, sigma, _preview_title(options, pivot) if preview else None,
-                 tags=geo[0])
+    _write_pivot(out, pivot, temp, sigma, _preview_title(options, pivot), tags=geo[0],
+                 previews=preview)
     if geo[1] is not None:
         entry["warnings"].append(f"no GeoTIFF tags: {geo[1]}")
     entry["mean_c"] = float(temp.mean())
@@ -652,15 +649,17 @@ def _check_group(group: np.ndarray, first: int, bit_depth: int = 14) -> None:
 
 
 def _write_pivot(out: Path, pivot: int, temp: np.ndarray, sigma: np.ndarray | None,
-                 preview_title: str | None, *, tags: geotag.MapTags | None = None) -> None:
-    """A pivot's preview when titled, its σ map when it has one, then its temperature TIFF
+                 preview_title: str, *, tags: geotag.MapTags | None = None,
+                 previews: TemperaturePreviews | None = None) -> None:
+    """A pivot's preview (by ``previews``, when given), its σ map when it has one, then its
+    temperature TIFF
     (both maps with the georeferencing ``tags`` when given); each written atomically, so that
     the finished ones stand when the disk fills. The map comes last (before the log line that
     its caller writes): a pivot interrupted before its log line is redone whole."""
     name = f"frame_{pivot:06d}"
     try:
-        if preview_title is not None:
-            _preview(out / "previews" / f"{name}.png", temp, preview_title)
+        if previews is not None:
+            previews.save(out / "previews" / f"{name}.png", temp, title=preview_title)
         if sigma is not None:
             write_sigma_tiff(out / "temps" / f"{name}_sigma.tiff", sigma, tags=tags)
         write_temperature_tiff(out / "temps" / f"{name}.tiff", temp, tags=tags)
@@ -786,9 +785,10 @@ def _drop_cut_log_line(log_path: Path) -> None:
 
 
 def _finished_pivots(out: Path, pivots: list[int], options: FlightOptions,
-                     shape: tuple[int, int]) -> set[int]:
+                     shape: tuple[int, int], previews: TemperaturePreviews) -> set[int]:
     """Pivots an earlier run finished: the latest log line of the pivot says it succeeded and its
-    map checks out (:func:`_map_ok`). A missing preview of such a pivot is made from its map."""
+    map checks out (:func:`_map_ok`). A missing preview of such a pivot is made from its map
+    (by ``previews``)."""
     logged = {e["frame"]: e for e in read_log(out / "log.jsonl")}
     done = set()
     for index, pivot in enumerate(pivots):
@@ -804,14 +804,15 @@ def _finished_pivots(out: Path, pivots: list[int], options: FlightOptions,
             continue
         png = out / "previews" / f"{name}.png"
         if _preview_due(options, index) and not png.is_file():
-            _write_pivot_preview(png, temp, _preview_title(options, pivot))
+            _write_pivot_preview(previews, png, temp, _preview_title(options, pivot))
         done.add(pivot)
     return done
 
 
-def _write_pivot_preview(png: Path, temp: np.ndarray, title: str) -> None:
+def _write_pivot_preview(previews: TemperaturePreviews, png: Path, temp: np.ndarray,
+                         title: str) -> None:
     try:
-        _preview(png, temp, title)
+        previews.save(png, temp, title=title)
     except OSError as exc:
         where = f"{exc.filename}: " if exc.filename else ""
         raise OutputError(f"{where}{exc.strerror or exc}; rerun to resume") from None
