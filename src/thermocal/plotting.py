@@ -21,14 +21,18 @@ def pyplot():
 
 def save_figure(fig, path: str | Path, *, dpi: int = 110) -> None:
     """Save ``fig`` to ``path`` atomically and close it."""
+    try:
+        _write_figure(fig, path, dpi)
+    finally:
+        pyplot().close(fig)
+
+
+def _write_figure(fig, path: str | Path, dpi: int) -> None:
+    """Save ``fig`` to ``path`` atomically (its format by the suffix), keeping it open."""
     from thermocal.io.atomic import atomic_path
 
-    plt = pyplot()
-    try:
-        with atomic_path(path) as tmp:
-            fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format=Path(path).suffix.lstrip("."))
-    finally:
-        plt.close(fig)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=dpi, bbox_inches="tight", format=Path(path).suffix.lstrip("."))
 
 
 def burst_report_figure(
@@ -79,14 +83,20 @@ def temperature_figure(temp_c: np.ndarray, *, title: str = ""):
     plt = pyplot()
     h, w = temp_c.shape
     fig, ax = plt.subplots(figsize=(4.5 * w / max(h, w) + 1.2, 4.5 * h / max(h, w)))
-    lo, hi = np.percentile(temp_c, [1, 99])
-    im = ax.imshow(temp_c, cmap="inferno", vmin=lo, vmax=max(hi, lo + 0.1))
+    lo, hi = _temperature_range(temp_c)
+    im = ax.imshow(temp_c, cmap="inferno", vmin=lo, vmax=hi)
     fig.colorbar(im, ax=ax, fraction=0.046, label="°C")
     ax.set_xticks([])
     ax.set_yticks([])
     if title:
         ax.set_title(title, fontsize=9)
     return fig
+
+
+def _temperature_range(temp_c: np.ndarray) -> tuple[float, float]:
+    """The colour range of a temperature map, °C: its 1st–99th percentile, at least 0.1 °C."""
+    lo, hi = np.percentile(temp_c, [1, 99])
+    return lo, max(hi, lo + 0.1)
 
 
 class TemperaturePreviews:
@@ -102,21 +112,17 @@ class TemperaturePreviews:
 
     def save(self, path: str | Path, temp_c: np.ndarray, *, title: str = "") -> None:
         """Write the preview of ``temp_c`` ``(H, W)`` °C to ``path`` (PNG, atomically)."""
-        from thermocal.io.atomic import atomic_path
-
         temp_c = np.asarray(temp_c)
         if self._fig is None or self._fig.axes[0].images[0].get_array().shape != temp_c.shape:
             self.close()
             self._fig = temperature_figure(temp_c, title=title)
         else:
             ax = self._fig.axes[0]
-            lo, hi = np.percentile(temp_c, [1, 99])
             image = ax.images[0]
             image.set_data(temp_c)
-            image.set_clim(lo, max(hi, lo + 0.1))
+            image.set_clim(*_temperature_range(temp_c))
             ax.set_title(title, fontsize=9)
-        with atomic_path(path) as tmp:
-            self._fig.savefig(tmp, dpi=self.dpi, bbox_inches="tight", format="png")
+        _write_figure(self._fig, path, self.dpi)
 
     def close(self) -> None:
         """Free the figure (a later :meth:`save` makes a new one)."""

@@ -413,6 +413,7 @@ def lin(
     x2 = np.concatenate([np.stack([rate**3, rate**2, rate], axis=1), lags,
                          lags * dt[:, None]], axis=1)
     use2 = kept.copy()
+    unstable_frames = int((data.stability[use2] != STABLE).sum())
 
     def rate_pass(ab: np.ndarray) -> tuple[np.ndarray, _GroupSums]:
         """Eq. 2's coefficients ``(K2, P)`` on the frames projected with eq. 1's ``ab``."""
@@ -426,7 +427,6 @@ def lin(
             return sums2.solve(), sums2
         return np.zeros((x2.shape[1], npix)), sums2
 
-    unstable_frames = int((data.stability[use2] != STABLE).sum())
     mnp, sums2 = rate_pass(ab)
     for _ in range(LAG_SWEEPS if rate_lags_s else 0):
         # what lags the FPA still moves on some of eq. 1's stable frames: eq. 1 again on the

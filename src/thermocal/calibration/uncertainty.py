@@ -160,12 +160,18 @@ class CalibrationSigma:
         ``time_s`` (s) are one recording's, ``(N,)`` in time order. Zeros where the report
         lists no paces (a method with memory, or an older report) and for times out of order
         (not one recording: no pace history)."""
+        return self._pace(rate_c_per_min, time_s)[2]
+
+    def _pace(self, rate_c_per_min: Any, time_s: Any
+              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Each frame's rate and lagged rate, °C/min, and its :meth:`pace_distance` (all
+        ``(N,)``; the lagged rate is the rate itself where there is no pace history)."""
         rate = np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)
         t = np.asarray(time_s, dtype=np.float64).reshape(-1)
         paces = self.report.paces
         if (not paces or not paces["cells"] or rate.size == 0 or t.shape != rate.shape
                 or np.any(np.diff(t) <= 0)):
-            return np.zeros(rate.shape)
+            return rate, rate, np.zeros(rate.shape)
         cell = paces["cell_c_per_min"]
         lagged = lagged_rate(rate, t, paces["lag_s"])
         held = np.asarray(paces["cells"], dtype=np.float64).reshape(-1, 2) * cell
@@ -174,13 +180,12 @@ class CalibrationSigma:
         for i in range(0, rate.size, 4096):  # (frames × cells) at a time, bounded
             d = np.abs(point[i:i + 4096, None, :] - held[None]).max(axis=2).min(axis=1)
             out[i:i + 4096] = np.maximum(d - 0.5 * cell, 0.0)
-        return out
+        return rate, lagged, out
 
     def unseen_paces(self, rate_c_per_min: Any, time_s: Any) -> np.ndarray:
         """Which frames ``(N,)`` bool changed at a pace the session never held: more than one
         cell from every held one (:meth:`pace_distance`)."""
-        cell = self.report.paces.get("cell_c_per_min", math.inf)
-        return self.pace_distance(rate_c_per_min, time_s) > cell
+        return self.pace_distance(rate_c_per_min, time_s) > self._pace_cell
 
     @property
     def max_rate_c_per_min(self) -> float:
@@ -203,8 +208,11 @@ class CalibrationSigma:
                  else np.broadcast_to(self.rate_sigma(rate_c_per_min), frames.shape[:1]))
         if (rate_c_per_min is not None and time_since_start_s is not None
                 and frames.shape[0] > 1 and self.report.paces):  # a recording: its paces
-            level = np.maximum(level, self._pace_sigma(rate_c_per_min, time_since_start_s,
-                                                       frames.shape[0]))
+            n = frames.shape[0]
+            level = np.maximum(level, self._pace_sigma(self.pace_distance(
+                np.broadcast_to(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1), (n,)),
+                np.broadcast_to(np.asarray(time_since_start_s, dtype=np.float64).reshape(-1),
+                                (n,)))))
         if time_since_start_s is not None:
             level = np.maximum(level, np.broadcast_to(self.start_sigma(time_since_start_s),
                                                       frames.shape[:1]))
@@ -227,15 +235,18 @@ class CalibrationSigma:
         in time order): why each frame is outside (None: inside) and the σ level it takes
         forced (°C, ``(N,)``; 0 inside), as :meth:`outside` and :meth:`sigma` judge the whole
         recording; for a product that decides group by group (``thermocal flight``)."""
-        rate = np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)
-        t = np.asarray(time_s, dtype=np.float64).reshape(-1)
-        if not self.report.paces or rate.size < 2:
+        rate, lagged, d = self._pace(rate_c_per_min, time_s)
+        if rate.size < 2:
             return [None] * rate.size, np.zeros(rate.size)
-        unseen = self.unseen_paces(rate, t)
-        lagged = lagged_rate(rate, t, self.report.paces["lag_s"])
+        unseen = d > self._pace_cell
         why = [self._pace_reason(r, y) if u else None
                for r, y, u in zip(rate, lagged, unseen, strict=True)]
-        return why, self._pace_sigma(rate, t, rate.size)
+        return why, self._pace_sigma(d)
+
+    @property
+    def _pace_cell(self) -> float:
+        """The report's pace cell, °C/min (inf without paces: nothing is unseen)."""
+        return self.report.paces.get("cell_c_per_min", math.inf)
 
     def _pace_reason(self, rate: float, lagged: float, count: str = "") -> str:
         """The pace refusal's text for a frame at ``rate`` after ``lagged`` °C/min."""
@@ -245,15 +256,13 @@ class CalibrationSigma:
                 f"{self.report.method} calibration, with no memory of how the FPA changed, "
                 "cannot vouch for (lin-lag follows the pace's history)")
 
-    def _pace_sigma(self, rate_c_per_min: Any, time_s: Any, n: int) -> np.ndarray:
-        """``s`` ``(n,)`` of frames at paces the session never held: the largest σ of the
-        report's rate bins times the distance in cells (0 for the others)."""
-        rate = np.broadcast_to(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1), (n,))
-        t = np.broadcast_to(np.asarray(time_s, dtype=np.float64).reshape(-1), (n,))
-        cell = self.report.paces["cell_c_per_min"]
-        d = self.pace_distance(rate, t)
+    def _pace_sigma(self, distance: np.ndarray) -> np.ndarray:
+        """``s`` of frames at paces the session never held, from their :meth:`pace_distance`
+        (°C/min): the largest σ of the report's rate bins times the distance in cells (0 for
+        the others)."""
+        cell = self._pace_cell
         worst = max([self._overall_sigma()] + [self._bin_sigma(b) for b in self.report.by_rate])
-        return np.where(d > cell, worst * d / cell, 0.0)
+        return np.where(distance > cell, worst * distance / cell, 0.0)
 
     def outside(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None,
                 time_s: Any = None) -> tuple[str, ...]:
@@ -266,12 +275,10 @@ class CalibrationSigma:
         reasons = []
         if (rate_c_per_min is not None and time_s is not None and np.size(rate_c_per_min) > 1
                 and self.report.paces):
-            rate = np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)
-            t = np.asarray(time_s, dtype=np.float64).reshape(-1)
-            unseen = self.unseen_paces(rate, t)
+            rate, lagged, d = self._pace(rate_c_per_min, time_s)
+            unseen = d > self._pace_cell
             if unseen.any():
                 k = int(np.argmax(unseen))
-                lagged = lagged_rate(rate, t, self.report.paces["lag_s"])
                 reasons.append(self._pace_reason(
                     rate[k], lagged[k], count=f"{int(unseen.sum())} of {unseen.size} frames; "))
         if rate_c_per_min is not None and np.size(rate_c_per_min):

@@ -115,12 +115,11 @@ def _run_calibration(cal, model: CalibrationSigma, run: physics.Run, rng) -> dic
            "mae_c": float(np.mean(np.abs(est[:, ~run.camera.defects]
                                          - run.truth_c[:, None]))),
            "expected_mae_c": model.report.expected_mae_c}
-    for name, pairs in kept.items():  # the sample's MAE of the accepted and refused frames
-        out[f"mae_{name}_c"] = (float(np.mean(np.abs(np.concatenate([e for e, _ in pairs]))))
-                                if pairs else None)
-    for name, pairs in kept.items():
-        out[name] = (sigma_coverage(np.concatenate([e for e, _ in pairs]),
-                                 np.concatenate([s_ for _, s_ in pairs])) if pairs else None)
+    for name, pairs in kept.items():  # the sample's MAE and coverage, accepted and refused
+        errors = np.concatenate([e for e, _ in pairs]) if pairs else None
+        out[f"mae_{name}_c"] = None if errors is None else float(np.mean(np.abs(errors)))
+        out[name] = (None if errors is None else
+                     sigma_coverage(errors, np.concatenate([s_ for _, s_ in pairs])))
     return out
 
 
