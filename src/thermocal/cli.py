@@ -276,6 +276,7 @@ COMMANDS: list[tuple[str, str]] = [
     ("thermocal.nuc.commands", "nuc"),
     ("thermocal.estimation.commands", "estimate"),
     ("thermocal.nn.commands", "train"),
+    ("thermocal.nn.commands", "export"),
     ("thermocal.pipeline.commands", "flight"),
     ("thermocal.pipeline.commands", "mosaic"),
     ("thermocal.pipeline.commands", "report"),

@@ -15,9 +15,29 @@ from thermocal._validate import (
 )
 from thermocal.errors import InvalidInputError
 from thermocal.estimation.pipeline import estimate as run_pipeline
-from thermocal.estimation.registry import ESTIMATORS, make_estimator, method_help
+from thermocal.estimation.registry import (
+    ESTIMATORS,
+    check_backend_options,
+    make_estimator,
+    method_help,
+)
 
-__all__ = ["estimate", "estimate_file"]
+__all__ = ["backend_options", "estimate", "estimate_file"]
+
+
+def backend_options(command):
+    """``--backend`` and ``--threads``: how a network runs (:mod:`thermocal.nn.backends`)."""
+    from thermocal.nn.backends import BACKENDS, CHOICES
+
+    command = click.option(
+        "--threads", type=click.IntRange(min=1), default=None,
+        help="Threads the network runs on (default: this process's CPU cores).")(command)
+    return click.option(
+        "--backend", type=click.Choice(CHOICES), default="torch", show_default=True,
+        help="What runs the network: " + "; ".join(f"{b.name}: {b.summary}"
+                                                  for b in BACKENDS.values())
+        + "; auto: the fastest installed (onnxruntime and openvino: pip install "
+        "'thermocal[backends]').")(command)
 
 
 def estimate_file(
@@ -32,6 +52,8 @@ def estimate_file(
     calibration: str | os.PathLike[str] | None = None,
     force: bool = False,
     sigma_out: str | os.PathLike[str] | None = None,
+    backend: str = "torch",
+    threads: int | None = None,
 ) -> Path:
     """``thermocal estimate``: read a recording, estimate the pivot's temperature through the
     estimator ``method`` (:data:`~thermocal.estimation.registry.ESTIMATORS`), write it.
@@ -40,7 +62,8 @@ def estimate_file(
     A burst outside the estimator's domain is refused
     (:class:`~thermocal.errors.OutsideDomainError`) unless ``force``, which writes it with a
     warning that names why. ``sigma_out``: where to write its uncertainty (float32 °C, 1σ,
-    ``(H, W)``), refused before any work when the estimator has none.
+    ``(H, W)``), refused before any work when the estimator has none. ``backend``,
+    ``threads``: what runs a network (:func:`~thermocal.estimation.registry.make_estimator`).
     """
     from thermocal.io.open import check_outside_recording, read_any_recording
     from thermocal.io.recording import write_sigma_tiff, write_temperature_tiff
@@ -54,8 +77,11 @@ def estimate_file(
         check_outputs_differ(sigma_out, out, ("--sigma-out", "--out"))
     info = ESTIMATORS.get(method)
     own_constants = info is not None and info.needs == "recording"  # built from the file below
+    if own_constants:
+        check_backend_options(method, backend, threads)
     estimator = (None if own_constants
-                 else make_estimator(method, model=model_path, calibration=calibration))
+                 else make_estimator(method, model=model_path, calibration=calibration,
+                                     backend=backend, threads=threads))
     # a network without its .sigma.json, a calibration without its report
     if sigma_out is not None and estimator is not None and getattr(
             estimator, "sigma_model", None) is None:
@@ -138,6 +164,7 @@ NO_SIGMA_REMEDY = {
               "camera family) instead of refusing it; a warning names why and σ is inflated.")
 @click.option("--sigma-out", type=click.Path(path_type=Path), default=None,
               help="Also write the estimate's standard uncertainty (float32 TIFF, °C, 1σ).")
+@backend_options
 def estimate(
     frames: Path,
     out: Path,
@@ -149,6 +176,8 @@ def estimate(
     calibration: Path | None,
     force: bool,
     sigma_out: Path | None,
+    backend: str,
+    threads: int | None,
 ) -> None:
     """Estimate the scene temperature of a burst's pivot frame (by default the shipped network,
     Oz et al.'s KPN + offset; --method for the others).
@@ -168,5 +197,7 @@ def estimate(
         calibration=calibration,
         force=force,
         sigma_out=sigma_out,
+        backend=backend,
+        threads=threads,
     )
     click.echo(f"wrote {out}", err=True)

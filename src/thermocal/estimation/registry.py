@@ -75,6 +75,8 @@ def make_estimator(
     model: str | os.PathLike[str] | None = None,
     calibration: str | os.PathLike[str] | Calibration | None = None,
     family: str = "tau2",
+    backend: str = "torch",
+    threads: int | None = None,
 ) -> Estimator:
     """Build the estimator ``name`` of :data:`ESTIMATORS`.
 
@@ -83,7 +85,8 @@ def make_estimator(
     ``calibration``; ``selfcal`` starts from that calibration when given, else from the camera
     ``family``'s average unit, and is fitted on a pass by the flight. ``camera`` is made from
     the recording it runs on, once read (:class:`~thermocal.estimation.vendor.VendorCalibration`),
-    not here.
+    not here. ``backend`` and ``threads``: what runs a network, on how many threads
+    (:func:`thermocal.nn.backends.make_runner`); refused for the other methods.
 
     Raises
     ------
@@ -95,6 +98,7 @@ def make_estimator(
     info = ESTIMATORS.get(name)
     if info is None:
         raise InvalidInputError(f"unknown method {name!r}; choose from {', '.join(ESTIMATORS)}")
+    check_backend_options(name, backend, threads)
     if info.needs == "recording":
         raise InvalidInputError(
             f"--method {name} is made from the recording's own constants once it is read: "
@@ -115,7 +119,15 @@ def make_estimator(
         return OzMean(cal) if name == "mean" else PivotCalibration(cal)
     from thermocal.nn.infer import NetworkEstimator  # torch: only for a network
 
-    return NetworkEstimator.from_file(name, model)
+    return NetworkEstimator.from_file(name, model, backend=backend, threads=threads)
+
+
+def check_backend_options(name: str, backend: str, threads: int | None) -> None:
+    """Refuse ``--backend`` or ``--threads`` for a method that runs no network (they would be
+    ignored)."""
+    if ESTIMATORS[name].needs != "model" and (backend != "torch" or threads is not None):
+        raise InvalidInputError(
+            f"--backend and --threads choose how a network runs; --method {name} runs none")
 
 
 def _calibration(calibration: str | os.PathLike[str] | Calibration | None) -> Calibration | None:

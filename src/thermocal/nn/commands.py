@@ -486,3 +486,35 @@ def _train_config(opts: dict[str, Any]):
         workers=opts["workers"],
         device=opts["device"],
     )
+
+
+@click.command("export")
+@click.argument("model", required=False, default=None)
+@click.option("--out", "out", type=click.Path(path_type=Path), required=True,
+              help="Output ONNX file (.onnx).")
+@click.option("--size", default="640x512", show_default=True,
+              help="Frame size WxH the graph runs at (padded up to the network's multiple).")
+@click.option("--method", type=click.Choice(list(VARIANTS)), default="kpn", show_default=True,
+              help="The shipped network to export when MODEL is not given.")
+def export(model: str | None, out: Path, size: str, method: str) -> None:
+    """Export a network (MODEL: a weights file of `thermocal train`; default the shipped one of
+    --method) as an ONNX graph, for ONNX Runtime, OpenVINO, or an edge device's compiler
+    (TensorRT on a Jetson, an NPU's). The graph ends at the network's linear output; how to feed
+    it and read it is stored in its metadata (docs: "Running on an edge device")."""
+    from thermocal._validate import check_not_input, check_output_file, parse_size
+
+    out = check_output_file(out, (".onnx",))
+    width, height = parse_size(size)
+    try:
+        import onnx  # noqa: F401
+    except ImportError:
+        raise InvalidInputError(
+            "exporting needs the onnx package: pip install 'thermocal[backends]'") from None
+    from thermocal.nn.infer import shipped_model_path
+    from thermocal.nn.runners import export_onnx
+
+    weights = Path(model) if model is not None else shipped_model_path(method)
+    check_not_input(out, weights)
+    meta = export_onnx(weights, out, size=(width, height))
+    click.echo(f"wrote {out}: {meta['thermocal.variant']}, N = {meta['thermocal.frames']}, "
+               f"{meta['thermocal.size_px']} px", err=True)

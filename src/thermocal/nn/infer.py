@@ -27,6 +27,7 @@ from thermocal.nn.inputs import (
     sensor_r2,
 )
 from thermocal.nn.model import KPN, frame_means
+from thermocal.nn.runners import Runner, make_runner
 from thermocal.nn.store import load_model, nominal_for
 from thermocal.nn.uncertainty import SigmaModel, sidecar_path
 from thermocal.nn.validity import REMEDY, Domain, outside_domain
@@ -97,6 +98,7 @@ def run_network(
     tile: int | None = None,
     margin: int | None = None,
     r2_frames: np.ndarray | None = None,
+    runner: Runner | None = None,
 ) -> np.ndarray:
     """The network on registered frames ``(N, H, W)`` (counts; for a
     :attr:`~thermocal.nn.model.ModelConfig.calibrated` model, °C through its nominal camera:
@@ -111,7 +113,9 @@ def run_network(
     are (CPU or GPU). A model with position terms (``radial > 0``) takes the frames to be whole
     sensor frames (``R²`` of Oz et al. eq. 16 over ``H × W``); one with ``radial_frames`` also
     needs ``r2_frames (N, H, W)``, where each frame saw each pivot pixel
-    (:func:`~thermocal.nn.inputs.frame_r2`).
+    (:func:`~thermocal.nn.inputs.frame_r2`). ``runner`` runs the network on each tile (an
+    inference backend: :func:`thermocal.nn.backends.make_runner`; default the model itself,
+    eager, on the process's torch threads).
     """
     if tile is None or margin is None:
         default_tile, default_margin = inference_tiling(model)
@@ -141,6 +145,10 @@ def run_network(
     out = np.empty((h, w), dtype=np.float32)
     step = max(tile - 2 * margin, mult)
     model.eval()
+    if runner is None:
+        def runner(*args: Any) -> torch.Tensor:
+            return model(args[0].contiguous(memory_format=torch.channels_last), *args[1:3],
+                         means=args[3], r2=args[4])
     with torch.inference_mode():
         for y0 in range(0, h, step):
             for x0 in range(0, w, step):
@@ -163,8 +171,7 @@ def run_network(
                     vsub = torch.nn.functional.pad(vsub, (0, pw, 0, ph))
                     if rsub is not None:
                         rsub = torch.nn.functional.pad(rsub, (0, pw, 0, ph), mode="replicate")
-                sub = sub.contiguous(memory_format=torch.channels_last)
-                est = model(sub, fpa, vsub, means=means, r2=rsub)[0, 0].cpu().numpy()
+                est = runner(sub, fpa, vsub, means, rsub)[0, 0].cpu().numpy()
                 out[y0:y1, x0:x1] = est[y0 - ya : y1 - ya, x0 - xa : x1 - xa]
                 if h <= tile and w <= tile:
                     break
@@ -200,6 +207,9 @@ class NetworkEstimator:
     ----------
     model, norm
         From :func:`thermocal.nn.store.load_model`.
+    backend, threads
+        What runs the network and on how many threads
+        (:func:`thermocal.nn.backends.make_runner`).
     """
 
     needs_fpa = True
@@ -207,8 +217,10 @@ class NetworkEstimator:
     remedy = REMEDY
 
     def __init__(self, model: KPN, norm: Normalisation, domain: Domain | None = None,
-                 sigma_model: SigmaModel | None = None) -> None:
+                 sigma_model: SigmaModel | None = None, *, backend: str = "torch",
+                 threads: int | None = None) -> None:
         self.model = model
+        self.runner = make_runner(model, backend, threads=threads)
         self.norm = norm
         self.domain = domain
         self.sigma_model = sigma_model
@@ -218,10 +230,11 @@ class NetworkEstimator:
         self.accepts_registered = not model.config.calibrated
 
     @classmethod
-    def from_file(cls, method: str, path: str | os.PathLike[str] | None = None
-                  ) -> NetworkEstimator:
+    def from_file(cls, method: str, path: str | os.PathLike[str] | None = None, *,
+                  backend: str = "torch", threads: int | None = None) -> NetworkEstimator:
         """The network ``method`` from weights file ``path`` (default: the shipped one),
-        refused when the file holds another variant."""
+        refused when the file holds another variant; run on ``backend`` with ``threads``
+        threads (:func:`~thermocal.nn.backends.make_runner`)."""
         path = Path(path) if path is not None else shipped_model_path(method)
         model, norm, content = load_model(path)
         if model.config.variant != method:
@@ -233,7 +246,8 @@ class NetworkEstimator:
         sidecar = sidecar_path(path)
         sigma = (SigmaModel.load(sidecar, weights_sha256=content["sha256"])
                  if sidecar.is_file() else None)
-        return cls(model, norm, Domain.of_network(content["data"], nominal), sigma)
+        return cls(model, norm, Domain.of_network(content["data"], nominal), sigma,
+                   backend=backend, threads=threads)
 
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
         n_model = self.model.config.n_frames
@@ -276,7 +290,8 @@ class NetworkEstimator:
             r2f = _to_model_order(frame_r2(sensor_r2(valid.shape[1:]), burst.homographies,
                                            valid), p)
         return run_network(self.model, self.norm, _to_model_order(burst.warped, p),
-                           _to_model_order(valid, p), burst.fpa_c, r2_frames=r2f)
+                           _to_model_order(valid, p), burst.fpa_c, r2_frames=r2f,
+                           runner=self.runner)
 
 
 def estimate_burst(

@@ -481,8 +481,11 @@ class KPN(nn.Module):
         *,
         means: torch.Tensor | None = None,
         r2: torch.Tensor | None = None,
+        linear: bool = False,
     ) -> torch.Tensor:
-        """See the class docstring; ``means (B, N)`` overrides the frame means (tiling)."""
+        """See the class docstring; ``means (B, N)`` overrides the frame means (tiling);
+        ``linear``: the linear output, before a ``radiance`` model turns it into temperature
+        (what an exported graph holds: :mod:`thermocal.nn.backends`)."""
         c = self.config
         if frames.ndim != 4 or frames.shape[1] != c.n_frames:
             raise InvalidInputError(
@@ -520,7 +523,7 @@ class KPN(nn.Module):
             out = apply_kernels(frames, out, c.kernel)
             if self.offset is not None:
                 out = out + self.offset(means, fpa, r2)
-        return out if self.to_temperature is None else self.to_temperature(out)
+        return out if self.to_temperature is None or linear else self.to_temperature(out)
 
 
 def frame_means(frames: torch.Tensor, valid: torch.Tensor | None) -> torch.Tensor:

@@ -7,6 +7,7 @@ from pathlib import Path
 
 import click
 
+from thermocal.estimation.commands import backend_options
 from thermocal.estimation.registry import ESTIMATORS, method_help
 from thermocal.progress import progress_bar
 
@@ -48,10 +49,12 @@ from thermocal.progress import progress_bar
               help="Ground references for --method selfcal: a CSV with columns frame,x,y,"
               "radius_px,temperature_c (optional emissivity, reflected_c, sigma_c); they fix "
               "the unit's level.")
+@backend_options
 def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
            model: str | None, n_frames: int, stride: int, fpa_c: float | None,
            preview_every: int, force: bool, geotiff: bool, with_mosaic: bool,
-           hfov_deg: float | None, family: str, reference: str | None) -> None:
+           hfov_deg: float | None, family: str, reference: str | None, backend: str,
+           threads: int | None) -> None:
     """Turn a whole RECORDING into one temperature map per pivot: frames.tiff + sidecar, or any
     format thermocal reads (FLIR SEQ/CSQ/FFF, R-JPEGs, a folder of them, a DualTauUAV flight).
     Ends with OUT/report.html (and OUT/mosaic with --mosaic)."""
@@ -66,7 +69,7 @@ def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
     options = FlightOptions(method=method, calibration=calibration, model=model, frames=n_frames,
                             stride=stride, fpa_c=fpa_c, preview_every=preview_every,
                             force=force, geotiff=geotiff, hfov_deg=hfov_deg, family=family,
-                            references=reference)
+                            references=reference, backend=backend, threads=threads)
     total = recording_length(recording)
     with progress_bar() as bar:
         task = bar.add_task("flight", total=total - total % stride or total)

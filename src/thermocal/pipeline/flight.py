@@ -73,7 +73,11 @@ from thermocal.calibration.uncertainty import CalibrationSigma
 from thermocal.errors import InvalidInputError, OutputError, OutsideDomainError, RegistrationError
 from thermocal.estimation.base import Estimator
 from thermocal.estimation.pipeline import estimate
-from thermocal.estimation.registry import ESTIMATORS, make_estimator
+from thermocal.estimation.registry import (
+    ESTIMATORS,
+    check_backend_options,
+    make_estimator,
+)
 from thermocal.io import geotag
 from thermocal.io.atomic import (
     atomic_path,
@@ -117,6 +121,8 @@ class FlightOptions:
     hfov_deg: float | None = None
     family: str = "tau2"
     references: str | None = None
+    backend: str = "torch"
+    threads: int | None = None
 
     def __post_init__(self) -> None:
         info = ESTIMATORS.get(self.method)
@@ -125,6 +131,7 @@ class FlightOptions:
                 f"unknown method {self.method!r}; choose from {', '.join(ESTIMATORS)}")
         if self.frames < 1 or self.stride < 1:
             raise InvalidInputError("--frames and --stride must be >= 1")
+        check_backend_options(self.method, self.backend, self.threads)
         if info.needs == "calibration" and self.calibration is None:
             raise InvalidInputError(f"--method {self.method} needs --calibration CAL.h5")
         if self.preview_every < 0:
@@ -163,7 +170,8 @@ def _estimator(options: FlightOptions, frame_shape: tuple[int, int]) -> Estimato
     """The estimator of ``options``, checked against the recording before any work: the
     calibration's frame size, the network's burst length."""
     estimator = make_estimator(options.method, model=options.model,
-                               calibration=options.calibration, family=options.family)
+                               calibration=options.calibration, family=options.family,
+                               backend=options.backend, threads=options.threads)
     calibration = getattr(estimator, "calibration", None)
     if calibration is not None and tuple(calibration.shape) != tuple(frame_shape):
         raise InvalidInputError(

@@ -123,31 +123,34 @@ def _run_calibration(cal, model: CalibrationSigma, run: physics.Run, rng) -> dic
     return out
 
 
-def calibration_rows(*, quick: bool) -> list[dict]:
+def calibration_rows(*, quick: bool, units: tuple[int, ...] = (physics.UNIT,)) -> list[dict]:
     """Every calibration ``auto`` may choose, fitted with its report on each family's session
-    and scored on the same unit's held-out run."""
+    of each of ``units`` and scored on the same unit's held-out run (unit ``u``'s sessions
+    take the seeds of unit :data:`~thermocal.evaluation.suites.physics.UNIT`'s plus
+    ``u − UNIT``: other noise, other drift)."""
     rng = np.random.default_rng(0)
     size = physics.QUICK_SIZE if quick else physics.SIZE
     rows = []
-    for family in PRESETS:
-        cam = make_camera(family, unit=physics.UNIT, size=size)
-        session = physics.calibration_session(cam, physics.SESSION_SEED, quick)
-        held = physics.held_out_run(cam, physics.HELD_OUT_SEED, quick)
+    for family, unit in ((f, u) for f in PRESETS for u in units):
+        cam = make_camera(family, unit=unit, size=size)
+        shift = unit - physics.UNIT
+        session = physics.calibration_session(cam, physics.SESSION_SEED + shift, quick)
+        held = physics.held_out_run(cam, physics.HELD_OUT_SEED + shift, quick)
         ref = physics.plateau_fpa_c(session.session)
         for name, info in CALIBRATION_METHODS.items():
             if not info.auto:
                 continue
-            label = f"{family} unit {physics.UNIT} (own session → held-out run)"
+            label = f"{family} unit {unit} (own session → held-out run)"
             try:
                 cal, report = fit_with_report(session.session, name,
                                               **({"fpa_ref_c": ref} if info.takes_fpa_ref
                                                  else {}))
             except ThermocalError as exc:
-                rows.append({"method": name, "data": label, "preset": family,
+                rows.append({"method": name, "data": label, "preset": family, "unit": unit,
                              "refused_fit": str(exc).split(";")[0]})
                 continue
             model = CalibrationSigma(report)
-            rows.append({"method": name, "data": label, "preset": family,
+            rows.append({"method": name, "data": label, "preset": family, "unit": unit,
                          **_run_calibration(cal, model, held, rng)})
     return rows
 
@@ -203,15 +206,55 @@ def report(rows: list[dict], info: dict) -> str:
             f"2σ.\n\n{table}\n")
 
 
+def unit_spread(rows: list[dict]) -> str:
+    """Per method and family over the units scored: the range of the accepted frames' coverage
+    at 1σ and 2σ, of their median σ and of the silent frames (is a row's miss the draw of one
+    unit, or the method's?); ``""`` for one unit."""
+    groups: dict[tuple[str, str], list[dict]] = {}
+    for r in rows:
+        if "unit" in r and r.get("accepted"):
+            groups.setdefault((r["method"], r["preset"]), []).append(r)
+    if not groups or max(len(g) for g in groups.values()) < 2:
+        return ""
+
+    def span(values: list[float], fmt: str) -> str:
+        lo, hi = min(values), max(values)
+        return format(lo, fmt) if lo == hi else f"{format(lo, fmt)}–{format(hi, fmt)}"
+
+    cells = [(method, family, ", ".join(str(r["unit"]) for r in g),
+              span([100 * r["accepted"]["within_1sigma"] for r in g], ".1f") + " %",
+              span([100 * r["accepted"]["within_2sigma"] for r in g], ".1f") + " %",
+              span([r["accepted"]["median_sigma_c"] for r in g], ".2f"),
+              span([r["silent_over_1c"] for r in g], "d"))
+             for (method, family), g in groups.items()]
+    header = ("method", "family", "units", "accepted: within 1σ", "within 2σ", "median σ °C",
+              "silent frames")
+    return ("\n### The same, unit by unit\n\nEach unit's own session and held-out run (other "
+            "seeds): the range over the units.\n\n" + markdown_table(header, cells) + "\n")
+
+
+def _units(text: str) -> tuple[int, ...]:
+    """``"101"``, ``"101,103"`` or ``"101-105"`` → the units."""
+    units: list[int] = []
+    for part in text.split(","):
+        lo, _, hi = part.partition("-")
+        units += range(int(lo), int(hi or lo) + 1)
+    return tuple(units)
+
+
 def main(argv: list[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="One burst per scene.")
     parser.add_argument("--json", default=None, help="Write the results as JSON here.")
+    parser.add_argument("--units", type=_units, default=(physics.UNIT,),
+                        help="The calibrations' units, e.g. 101-105 (default %(default)s).")
     args = parser.parse_args(argv)
     start = time.perf_counter()
-    rows = calibration_rows(quick=args.quick) + network_rows(quick=args.quick)
-    info = {"machine": machine(), "wall_s": time.perf_counter() - start, "quick": args.quick}
-    print(report(rows, info))
+    rows = (calibration_rows(quick=args.quick, units=args.units)
+            + network_rows(quick=args.quick))
+    info = {"machine": machine(), "wall_s": time.perf_counter() - start, "quick": args.quick,
+            "units": list(args.units)}
+    print(report(rows, info) + unit_spread(rows))
     if args.json:
         with open(args.json, "w", encoding="utf-8") as f:
             json.dump({**info, "rows": rows}, f, indent=1)

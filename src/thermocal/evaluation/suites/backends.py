@@ -1,0 +1,190 @@
+"""How fast each inference backend runs the shipped network, against the CPU's peak (issue 21).
+
+One 336×256 burst of N = 7 (``tau2`` unit 101 over the held-out aerial scene, FPA 35 °C,
+registered with the true homographies) is prepared once by the estimation pipeline; then the
+network alone (:func:`~thermocal.nn.infer.run_network`: input planes, the network, radiance →
+temperature) runs on it through each installed backend (:mod:`thermocal.nn.backends`) on 1 and
+2 threads, interleaved round by round so that a busy moment of the machine falls on every
+backend alike. Reported: the median time of :data:`ROUNDS` runs after a warm-up (the first
+call, which for ONNX Runtime and OpenVINO exports and compiles the graph, apart), its ratio to
+PyTorch eager on as many threads, the largest difference from PyTorch's temperatures (°C), and
+the multiply-add rate against the peak of this CPU.
+
+**The peak.** Two figures: the rate of a large float32 matrix product (``torch.mm`` of
+:data:`GEMM_SIDE`², MKL/oneDNN: the practical peak of a dense kernel on these cores), and the
+theoretical one, cores × clock (``/proc/cpuinfo``) × FMA lanes per cycle (:data:`FMA_PER_CYCLE`:
+two 256-bit FMA pipes, 16 float32 multiply-adds, on AMD Zen 2-4 and Intel cores with AVX2). The
+network's multiply-adds are counted by :func:`~thermocal.nn.model.count_macs` (convolutions and
+eq. 11's kernels).
+
+Run: ``python -m thermocal.evaluation.suites.backends [--quick] [--json OUT]``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+
+import numpy as np
+
+#: Timed runs per backend and thread count (``--quick``: 3).
+ROUNDS = 9
+#: Side of the matrix product that measures the practical peak.
+GEMM_SIDE = 2048
+#: float32 multiply-adds per cycle per core: two 256-bit FMA units (AVX2; Zen 4 runs AVX-512 on
+#: them too).
+FMA_PER_CYCLE = 16
+THREADS = (1, 2)
+
+
+def _clock_ghz() -> float | None:
+    """The CPU clock /proc/cpuinfo reports, GHz (None elsewhere)."""
+    try:
+        with open("/proc/cpuinfo", encoding="ascii", errors="replace") as f:
+            return float(next(line.split(":")[1] for line in f if line.startswith("cpu MHz"))) / 1e3
+    except (OSError, StopIteration, ValueError):
+        return None
+
+
+def _burst():
+    from thermocal.camera.presets import make_camera
+    from thermocal.estimation.pipeline import estimate
+    from thermocal.nn.infer import NetworkEstimator
+    from thermocal.scenes.builtin import load_builtin_scene
+    from thermocal.simulate.flight import simulate_flight
+
+    cam = make_camera("tau2", unit=101, size=(336, 256))
+    fl = simulate_flight(load_builtin_scene("aerial"), cam, n_frames=7, motion="walk",
+                         fpa_c=35.0, seed=0)
+    captured = {}
+
+    class Capture(NetworkEstimator):  # keeps the prepared burst the network is given
+        def estimate(self, burst):
+            captured["burst"] = burst
+            return super().estimate(burst)
+
+    base = NetworkEstimator.from_file("kpn")
+    estimate(fl.frames, Capture(base.model, base.norm), fpa_c=fl.fpa_c,
+             homographies=fl.homographies, pivot=fl.pivot)
+    return base, captured["burst"]
+
+
+def gemm_rate(threads: int, side: int = GEMM_SIDE, rounds: int = 5) -> float:
+    """Multiply-adds per second of a ``side``² float32 matrix product on ``threads`` threads."""
+    import torch
+
+    torch.set_num_threads(threads)
+    a = torch.rand(side, side)
+    b = torch.rand(side, side)
+    torch.mm(a, b)
+    times = []
+    for _ in range(rounds):
+        t = time.perf_counter()
+        torch.mm(a, b)
+        times.append(time.perf_counter() - t)
+    return side**3 / float(np.median(times))
+
+
+def run(*, quick: bool) -> dict:
+    import torch
+
+    from thermocal.nn import backends
+    from thermocal.nn.infer import _to_model_order, run_network
+    from thermocal.nn.model import count_macs
+    from thermocal.nn.runners import make_runner
+
+    base, burst = _burst()
+    model, norm = base.model, base.norm
+    warped = _to_model_order(burst.warped, burst.pivot)
+    valid = _to_model_order(burst.valid, burst.pivot)
+    macs = count_macs(model, *warped.shape[1:])
+    names = [b for b in backends.BACKENDS if backends.installed(b)]
+    rounds = 3 if quick else ROUNDS
+    rows, reference = [], {}
+    for threads in THREADS:
+        runners, first = {}, {}
+        for name in names:
+            torch.set_num_threads(threads)
+            t = time.perf_counter()
+            runners[name] = make_runner(model, name, threads=threads)
+            out = run_network(model, norm, warped, valid, burst.fpa_c, runner=runners[name])
+            first[name] = time.perf_counter() - t
+            reference.setdefault(name, out)
+        times: dict[str, list[float]] = {name: [] for name in names}
+        for _ in range(rounds):  # interleaved: a busy moment falls on every backend alike
+            for name in names:
+                torch.set_num_threads(threads)
+                t = time.perf_counter()
+                run_network(model, norm, warped, valid, burst.fpa_c, runner=runners[name])
+                times[name].append(time.perf_counter() - t)
+        eager = float(np.median(times["torch"]))
+        for name in names:
+            med = float(np.median(times[name]))
+            rows.append({"backend": name, "threads": threads, "median_s": med,
+                         "min_s": float(np.min(times[name])), "first_call_s": first[name],
+                         "vs_torch": med / eager,
+                         "max_abs_diff_c": float(np.abs(reference[name]
+                                                        - reference["torch"]).max()),
+                         "gmac_per_s": macs / med / 1e9})
+    clock = _clock_ghz()
+    cores = backends.default_threads()
+    peak = {"gemm_gmac_per_s": {t: gemm_rate(t) / 1e9 for t in THREADS},
+            "theoretical_gmac_per_s": None if clock is None else cores * clock * FMA_PER_CYCLE,
+            "clock_ghz": clock, "cores": cores, "fma_per_cycle": FMA_PER_CYCLE}
+    return {"macs": macs, "rows": rows, "peak": peak, "rounds": rounds,
+            "frame": list(warped.shape)}
+
+
+def report(res: dict, info: dict) -> str:
+    from thermocal.evaluation.tables import markdown_table
+
+    peak = res["peak"]
+    theory = peak["theoretical_gmac_per_s"]
+    cells = []
+    for r in res["rows"]:
+        gemm = peak["gemm_gmac_per_s"][r["threads"]]
+        cells.append((r["backend"], r["threads"], f"{1e3 * r['median_s']:.0f}",
+                      f"{1e3 * r['min_s']:.0f}", f"{r['first_call_s']:.2f}",
+                      f"{r['vs_torch']:.2f}", f"{r['max_abs_diff_c']:.1e}",
+                      f"{r['gmac_per_s']:.1f}", f"{100 * r['gmac_per_s'] / gemm:.0f} %",
+                      "–" if theory is None else
+                      f"{100 * r['gmac_per_s'] / (theory * r['threads'] / peak['cores']):.0f} %"))
+    header = ("backend", "threads", "median ms", "best ms", "first call s", "× torch eager",
+              "max |Δ| °C vs torch", "G multiply-adds/s", "of the matrix product's rate",
+              "of the theoretical peak")
+    gemm = ", ".join(f"{v:.1f} on {t} thread{'s' if t > 1 else ''}"
+                     for t, v in peak["gemm_gmac_per_s"].items())
+    return (f"## Inference backends\n\nmachine: {info['machine']}; {info['wall_s']:.0f} s\n\n"
+            f"data: the shipped `kpn` on one burst of N = {res['frame'][0]}, "
+            f"{res['frame'][2]}×{res['frame'][1]} (`tau2` unit 101, held-out aerial scene, "
+            f"FPA 35 °C), the network alone (input planes → temperature), median of "
+            f"{res['rounds']} interleaved runs; {res['macs'] / 1e9:.2f} G multiply-adds per "
+            f"burst. Peak: a {GEMM_SIDE}² float32 matrix product (torch.mm) runs at {gemm} G "
+            "multiply-adds/s; theoretical "
+            + ("unknown" if theory is None else
+               f"{theory:.0f} G/s = {peak['cores']} cores × {peak['clock_ghz']:.2f} GHz × "
+               f"{peak['fma_per_cycle']} float32 FMA per cycle")
+            + f".\n\n{markdown_table(header, cells)}\n")
+
+
+def main(argv: list[str] | None = None) -> None:
+    from thermocal.bench import machine
+
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help="3 runs each.")
+    parser.add_argument("--json", default=None, help="Write the results as JSON here.")
+    args = parser.parse_args(argv)
+    start = time.perf_counter()
+    res = run(quick=args.quick)
+    info = {"machine": machine(), "wall_s": time.perf_counter() - start, "quick": args.quick,
+            "cpus": os.cpu_count()}
+    print(report(res, info))
+    if args.json:
+        with open(args.json, "w", encoding="utf-8") as f:
+            json.dump({**info, **res}, f, indent=1)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,223 @@
+"""What runs the network on a tile, per inference backend (:mod:`thermocal.nn.backends`).
+
+:func:`make_runner` gives :func:`~thermocal.nn.infer.run_network` the model itself (``torch``),
+or its graph exported to ONNX (:func:`onnx_graph`) run by ONNX Runtime or OpenVINO (at f32:
+the same temperatures within 1e-4 °C, tested).
+
+- **What is exported**: the network up to its linear output (``KPN.forward(..., linear=True)``).
+  A ``radiance`` model's last step, band radiance → temperature, interpolates with
+  ``torch.searchsorted``, which torch's exporter cannot write as ONNX; it stays in torch on every
+  backend (:class:`~thermocal.nn.model.RadianceToTemperature`, a few ms per tile).
+- **One graph per tile size**: the graph is traced at the tile's size (torch's TorchScript
+  exporter; its dynamic sizes gave wrong outputs at other sizes), once per size a run meets
+  (one for any frame up to 512 px: :func:`~thermocal.nn.infer.inference_tiling`), in about a
+  second. ``thermocal export`` writes it to a file, for an edge device (a Jetson's TensorRT, an
+  NPU's compiler) to run at its sensor's size.
+- **Threads**: each backend runs on ``threads`` threads (default: the CPU cores this process
+  may use, :func:`~thermocal.nn.backends.default_threads`).
+"""
+
+from __future__ import annotations
+
+import io
+import os
+import warnings
+from collections.abc import Callable
+
+import numpy as np
+import torch
+
+from thermocal.errors import InvalidInputError
+from thermocal.nn.backends import check_threads, resolve_backend
+from thermocal.nn.model import KPN
+
+__all__ = ["INPUT_NAMES", "OPSET", "Runner", "example_inputs", "export_onnx", "make_runner",
+           "onnx_graph"]
+
+#: A runner: ``(frames, fpa, valid, means, r2) → normalised temperature (1, 1, H, W)``, the
+#: arguments of :meth:`KPN.forward <thermocal.nn.model.KPN.forward>` (``r2`` None without
+#: position terms).
+Runner = Callable[..., torch.Tensor]
+
+#: The exported graph's inputs, in order (``r2`` only for a model with position terms).
+INPUT_NAMES = ("frames", "fpa", "valid", "means", "r2")
+#: ONNX opset of the exported graph (ONNX Runtime >= 1.13, OpenVINO >= 2022.3, TensorRT >= 8.5).
+OPSET = 17
+
+
+class _Linear(torch.nn.Module):
+    """The network up to its linear output, with positional inputs (what is exported)."""
+
+    def __init__(self, model: KPN) -> None:
+        super().__init__()
+        self.model = model
+
+    def forward(self, frames: torch.Tensor, fpa: torch.Tensor, valid: torch.Tensor,
+                means: torch.Tensor, r2: torch.Tensor | None = None) -> torch.Tensor:
+        return self.model(frames, fpa, valid, means=means, r2=r2, linear=True)
+
+
+def example_inputs(model: KPN, height: int, width: int) -> tuple[torch.Tensor, ...]:
+    """Inputs of the exported graph for a ``height × width`` tile (zeros; valid everywhere)."""
+    c = model.config
+    n = c.n_frames
+    frames = torch.zeros(1, n, height, width)
+    args = (frames, torch.zeros(1), torch.ones(1, n, height, width, dtype=torch.bool),
+            torch.zeros(1, n))
+    return args + ((torch.zeros(1, c.position_planes, height, width),) if c.radial else ())
+
+
+def onnx_graph(model: KPN, height: int, width: int) -> bytes:
+    """The network (:class:`_Linear`) as an ONNX graph for ``height × width`` tiles (multiples
+    of the model's ``ξ^L``), inputs :data:`INPUT_NAMES` and output ``out`` (1, 1, H, W)."""
+    mult = model.config.multiple
+    if height % mult or width % mult or height < mult or width < mult:
+        raise InvalidInputError(
+            f"an exported graph's size must be multiples of {mult} px, got {width}x{height}")
+    wrapped = _Linear(model).eval()
+    args = example_inputs(model, height, width)
+    buf = io.BytesIO()
+    with warnings.catch_warnings():  # the tracer's warnings on the shape checks: sizes fixed
+        warnings.simplefilter("ignore")
+        torch.onnx.export(wrapped, args, buf, dynamo=False, opset_version=OPSET,
+                          input_names=list(INPUT_NAMES[: len(args)]), output_names=["out"])
+    return buf.getvalue()
+
+
+class _Graphs:
+    """An exported graph per tile size, compiled by ``compile_graph(bytes) → run(feeds)``
+    when first met; the radiance → temperature step in torch."""
+
+    def __init__(self, model: KPN, compile_graph: Callable[[bytes], Callable]) -> None:
+        self.model = model
+        self.compile_graph = compile_graph
+        self.compiled: dict[tuple[int, int], Callable] = {}
+
+    def __call__(self, frames: torch.Tensor, fpa: torch.Tensor, valid: torch.Tensor,
+                 means: torch.Tensor, r2: torch.Tensor | None = None) -> torch.Tensor:
+        size = (int(frames.shape[2]), int(frames.shape[3]))
+        run = self.compiled.get(size)
+        if run is None:
+            run = self.compiled[size] = self.compile_graph(onnx_graph(self.model, *size))
+        feeds = {"frames": frames, "fpa": fpa, "valid": valid, "means": means, "r2": r2}
+        out = torch.from_numpy(np.asarray(run({k: np.ascontiguousarray(v.cpu().numpy())
+                                               for k, v in feeds.items() if v is not None})))
+        return out if self.model.to_temperature is None else self.model.to_temperature(out)
+
+
+def _onnxruntime(threads: int) -> Callable[[bytes], Callable]:
+    import onnxruntime as ort
+
+    def compile_graph(graph: bytes) -> Callable:
+        options = ort.SessionOptions()
+        options.intra_op_num_threads = threads
+        options.inter_op_num_threads = 1
+        session = ort.InferenceSession(graph, options, providers=["CPUExecutionProvider"])
+        return lambda feeds: session.run(None, feeds)[0]
+
+    return compile_graph
+
+
+def _openvino(threads: int) -> Callable[[bytes], Callable]:
+    import openvino as ov
+
+    core = ov.Core()
+
+    def compile_graph(graph: bytes) -> Callable:
+        # f32: the CPU plugin's default on CPUs with bf16 units is bf16 (0.08 off, measured)
+        compiled = core.compile_model(core.read_model(graph), "CPU", {
+            "INFERENCE_PRECISION_HINT": "f32", "INFERENCE_NUM_THREADS": threads,
+            "PERFORMANCE_HINT": "LATENCY"})
+        request = compiled.create_infer_request()
+        return lambda feeds: request.infer(feeds)[0]
+
+    return compile_graph
+
+
+def make_runner(model: KPN, backend: str = "torch", *, threads: int | None = None) -> Runner:
+    """What runs ``model`` on a tile, on ``backend`` (a name of :data:`BACKENDS` or ``auto``)
+    with ``threads`` threads (default :func:`default_threads`). For ``torch`` the thread count
+    is the process's: set (``torch.set_num_threads``) only when ``threads`` is given.
+
+    Raises
+    ------
+    InvalidInputError
+        An unknown or uninstalled backend, or a bad thread count.
+    """
+    name = resolve_backend(backend)
+    n = check_threads(threads)
+    if name == "torch":
+        if threads is not None:  # else torch's own default (its physical cores)
+            torch.set_num_threads(n)
+        model.eval()
+
+        def run(frames: torch.Tensor, fpa: torch.Tensor, valid: torch.Tensor,
+                means: torch.Tensor, r2: torch.Tensor | None = None) -> torch.Tensor:
+            return model(frames.contiguous(memory_format=torch.channels_last), fpa, valid,
+                         means=means, r2=r2)
+
+        return run
+    return _Graphs(model.eval(), _onnxruntime(n) if name == "onnxruntime" else _openvino(n))
+
+
+def export_onnx(weights: str | os.PathLike[str], out: str | os.PathLike[str], *,
+                size: tuple[int, int] = (640, 512)
+                ) -> dict[str, str]:
+    """``thermocal export``: the network of weights file ``weights`` as an ONNX graph for
+    frames of ``size = (W, H)`` px (padded up to the model's multiple), written atomically to
+    ``out``; returns the metadata stored in it (``metadata_props``), which says how to feed it
+    and read it: the normalisation of eq. 20-21, the band and temperature range of a
+    ``radiance`` output, the frames' order (pivot in the middle), the weights' SHA-256.
+
+    Raises
+    ------
+    FileFormatError
+        ``weights`` is not a thermocal weights file.
+    InvalidInputError
+        A size that is not positive.
+    """
+    import json
+
+    import onnx
+
+    from thermocal.io.atomic import atomic_path
+    from thermocal.nn.store import load_model
+
+    w, h = size
+    if w < 1 or h < 1:
+        raise InvalidInputError(f"--size must be positive, got {w}x{h}")
+    model, norm, content = load_model(weights)
+    c = model.config
+    mult = c.multiple
+    hp, wp = -(-h // mult) * mult, -(-w // mult) * mult
+    graph = onnx.load_from_string(onnx_graph(model, hp, wp))
+    temp_range = (norm.temp_min_c, norm.temp_max_c)
+    meta = {
+        "thermocal.variant": c.variant,
+        "thermocal.weights_sha256": str(content.get("sha256")),
+        "thermocal.frames": str(c.n_frames),
+        "thermocal.size_px": f"{wp}x{hp}",
+        "thermocal.inputs": (
+            "frames (1, N, H, W) float32: the registered frames (pivot in the middle), "
+            + ("°C through the nominal camera stored in the weights" if c.calibrated
+               else "raw counts") + ", normalised as eq. 20-21, 0 where a frame does not see "
+            "the pixel; fpa (1,): the normalised FPA temperature; valid (1, N, H, W) bool; "
+            "means (1, N): each frame's mean over its valid pixels"
+            + ("; r2 (1, 1, H, W): the pixels' squared distance from the sensor centre over "
+               "the half-diagonal squared" if c.radial else "")),
+        "thermocal.output": (
+            "out (1, 1, H, W): normalised band radiance over the temperature range; temperature "
+            "= the inverse of Planck's band integral (thermocal.nn.model.RadianceToTemperature)"
+            if c.radiance else "out (1, 1, H, W): normalised temperature (eq. 20)"),
+        "thermocal.normalisation": json.dumps({
+            "temp_min_c": norm.temp_min_c, "temp_max_c": norm.temp_max_c,
+            "counts_min": norm.counts_min, "counts_max": norm.counts_max,
+            "fpa_min_c": norm.fpa_min_c, "fpa_max_c": norm.fpa_max_c}),
+        "thermocal.band_m": json.dumps(list(c.band_m)) if c.radiance else "",
+        "thermocal.temp_range_c": json.dumps(list(temp_range)),
+    }
+    for key, value in meta.items():
+        graph.metadata_props.add(key=key, value=value)
+    with atomic_path(out) as tmp:
+        onnx.save(graph, str(tmp))
+    return meta
