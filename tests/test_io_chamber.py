@@ -466,3 +466,49 @@ def test_import_not_npz(tmp_path):
         import_envchamberctrl_npz(tmp_path / "y.npy")
     with pytest.raises(FileFormatError, match="no such file"):
         import_envchamberctrl_npz(tmp_path / "missing.npz")
+
+
+@pytest.mark.parametrize("layout", ["written", "contiguous", "gzip", "two frames a chunk"])
+def test_frames_are_read_where_they_lie_else_through_h5py(tmp_path, session, layout):
+    """Frames stored uncompressed little-endian (as ChamberWriter writes them, or contiguous)
+    are read at their file offsets; any other layout through h5py; the same frames either way."""
+    from thermocal.io.chamber import frame_offsets
+
+    path = tmp_path / "c.h5"
+    if layout in ("written", "gzip"):
+        write_chamber(path, session, **({"compression": "gzip"} if layout == "gzip" else {}))
+    else:
+        _valid_file(path, frames=session.frames)
+        if layout != "contiguous":
+            with h5py.File(path, "r+") as f:
+                del f["frames"]
+                f.create_dataset("frames", data=session.frames, chunks=(2, H, W))
+    with h5py.File(path, "r") as f:
+        offsets = frame_offsets(f["frames"], path.stat().st_size)
+    assert (offsets is not None) == (layout in ("written", "contiguous"))
+    if offsets is not None:  # an independent reading of the bytes at those offsets
+        for i in (0, M // 2, M - 1):
+            raw = np.fromfile(path, dtype="<u2", count=H * W, offset=int(offsets[i]))
+            assert np.array_equal(raw.reshape(H, W), session.frames[i])
+    lazy = read_chamber(path, frames=False).frames
+    for idx in ([4, 1, 1, 9], [], list(range(M)), [-1]):
+        assert np.array_equal(lazy[np.array(idx, dtype=np.int64)],
+                              session.frames[np.array(idx, dtype=np.int64)])
+    assert np.array_equal(lazy[2:7], session.frames[2:7])
+    assert np.array_equal(lazy[::3], session.frames[::3])
+    for idx, rows in (([7, 2, 2], [0, 1, 2, 5, H - 1]), ([0], [3]), ([], [1, 2])):
+        assert np.array_equal(lazy.read_rows(idx, rows),
+                              session.frames[np.array(idx, dtype=np.int64)][:, rows])
+    with pytest.raises(IndexError, match="rows must increase"):
+        lazy.read_rows([0], [2, 1])
+
+
+def test_a_file_cut_after_its_layout_was_read_is_refused(tmp_path, session):
+    path = write_chamber(tmp_path / "c.h5", session) or tmp_path / "c.h5"
+    lazy = read_chamber(path, frames=False).frames
+    assert np.array_equal(lazy[[0, 5]], session.frames[[0, 5]])  # offsets found and kept
+    size = path.stat().st_size
+    with open(path, "r+b") as f:
+        f.truncate(size - H * W)  # the last frame is cut
+    with pytest.raises(FileFormatError, match=str(path.name)):
+        lazy[[M - 1]]

@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Iterator
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -416,7 +417,10 @@ class FrameScan:
         excluded."""
         clipped = clipped_mask(frames, self.bit_depth)
         keep = saturated_fraction(frames, clipped=clipped) <= SATURATED_FRACTION
-        self.clipped_per_pixel += clipped[keep].sum(axis=0)
+        # few pixels clip: count where they are rather than sum every pixel of every frame
+        where = np.flatnonzero(clipped[keep]) % self.clipped_per_pixel.size
+        self.clipped_per_pixel += np.bincount(
+            where, minlength=self.clipped_per_pixel.size).reshape(self.shape)
         self.excluded.extend(int(i) for i in index[~keep])
         self.n_seen += int(keep.sum())
         return keep
@@ -434,29 +438,38 @@ class FrameScan:
 
 
 def iter_frames(
-    session: ChamberSession, index: np.ndarray | None = None, *, chunk: int = 64
+    session: ChamberSession, index: np.ndarray | None = None, *, chunk: int = 64,
+    rows: np.ndarray | None = None,
 ) -> Iterator[tuple[np.ndarray, np.ndarray]]:
-    """Yield ``(indices, frames)`` blocks of at most ``chunk`` frames (uint16 ``(k, H, W)``).
+    """Yield ``(indices, frames)`` blocks of at most ``chunk`` frames (uint16 ``(k, H, W)``;
+    with ``rows``, increasing row indices, only those rows: ``(k, R, W)``).
 
     ``index`` (sorted frame indices) restricts the frames read; lazily stored frames are read
-    from the file block by block, so memory stays bounded.
+    from the file block by block, the next one while the caller works on this one (two blocks
+    in memory at most).
     """
     frames = session.frames
     n = session.n_frames
     idx = np.arange(n) if index is None else np.asarray(index, dtype=np.int64)
     if idx.size == 0:
         return
-    if isinstance(frames, LazyFrames) and index is None:
-        for sl, block in frames.iter_chunks(chunk):
-            yield np.arange(sl.start, sl.stop), block
+    blocks = [idx[start : start + chunk] for start in range(0, idx.size, chunk)]
+    if isinstance(frames, LazyFrames):  # the next block is read while this one is used
+        def read(sel: np.ndarray) -> np.ndarray:
+            return frames[sel] if rows is None else frames.read_rows(sel, rows)
+
+        with ThreadPoolExecutor(max_workers=1) as reader:
+            ahead = reader.submit(read, blocks[0])
+            for k, sel in enumerate(blocks):
+                block = ahead.result()
+                if k + 1 < len(blocks):
+                    ahead = reader.submit(read, blocks[k + 1])
+                yield sel, block
         return
-    for start in range(0, idx.size, chunk):
-        sel = idx[start : start + chunk]
-        if isinstance(frames, LazyFrames):
-            yield sel, frames[sel]
-        else:
-            contiguous = sel[-1] - sel[0] + 1 == sel.size
-            yield sel, (frames[sel[0] : sel[-1] + 1] if contiguous else frames[sel])
+    for sel in blocks:
+        contiguous = sel[-1] - sel[0] + 1 == sel.size
+        block = frames[sel[0] : sel[-1] + 1] if contiguous else frames[sel]
+        yield sel, (block if rows is None else block[:, rows])
 
 
 def group_means(

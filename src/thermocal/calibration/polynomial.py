@@ -19,7 +19,9 @@ defects) used to make the network's training data (:func:`camera_model_from_cham
 
 from __future__ import annotations
 
+import os
 import warnings
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -150,19 +152,21 @@ class PolynomialCalibration(StoredCalibrationMixin):
         counts = check_frames(frames, self.shape)
         fpa = require_fpa(fpa_c, len(counts), METHOD)
         warn_outside_range(fpa, self.fpa_range_c, METHOD)
+        n = len(counts)
         out = np.empty(counts.shape, dtype=np.float32)
-        band = self.band
-        cache: dict[float, tuple[np.ndarray, np.ndarray]] = {}
-        for k, frame in enumerate(counts):
-            key = float(fpa[k])
-            if key not in cache:
-                dt = key - self.t_ref_c
-                cache = {key: (1.0 / horner(self.gain, dt), horner(self.offset, dt))}
-            inv_gain, offset = cache[key]
-            s = frame.astype(np.float32)
-            s -= offset
-            s *= inv_gain
-            out[k] = _invert_scene(s, self.scene_term, band)
+        pixels = out[0].size if n else 0
+        gain = self.gain.reshape(ORDER + 1, -1).astype(np.float32, copy=False)
+        offset = self.offset.reshape(ORDER + 1, -1).astype(np.float32, copy=False)
+        powers = (np.asarray(fpa, dtype=np.float64)[:, None] - self.t_ref_c) ** np.arange(
+            ORDER + 1)  # (N, 4): the FPA polynomials of many frames as one product
+        flat = out.reshape(n, pixels)
+        step = max(1, _APPLY_BLOCK // max(pixels, 1))
+        for a in range(0, n, step):  # blocks of frames: bounded memory, few Python steps
+            p = powers[a:a + step].astype(np.float32)
+            s = counts[a:a + step].reshape(-1, pixels).astype(np.float32)
+            s -= p @ offset
+            s /= p @ gain
+            flat[a:a + step] = _invert_scene(s, self.scene_term, self.band)
         return fill_bad_pixels(out, self.bad)
 
     def radial(self, *, order: int = 4, centre: tuple[float, float] = (0.0, 0.0)
@@ -238,6 +242,13 @@ class PolynomialCalibration(StoredCalibrationMixin):
             raise damaged(path, METHOD, f"radial_centre = {centre!r:.40}, expected (x, y)")
         for v in centre:
             check_scalar(v, "radial_centre", -1.0, 1.0, path, METHOD)
+
+
+#: Threads the fit's sums run on: the CPU cores this process may use.
+_CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
+
+#: Values (frames × pixels) :meth:`PolynomialCalibration.apply` works on at once.
+_APPLY_BLOCK = 1 << 21
 
 
 def _invert_scene(s: np.ndarray, kind: str, band: BandRadiance) -> np.ndarray:
@@ -335,19 +346,29 @@ def polynomial(
     yy = np.zeros(n_pix)
     ref_counts: np.ndarray | None = None
     scan = FrameScan((h, w), data.session.bit_depth)
-    for idx, block in iter_frames(data.session, used, chunk=chunk):
-        keep = scan.check(idx, block)
-        if keep.any():
-            y = block[keep].reshape(-1, n_pix).astype(np.float32)
-            if ref_counts is None:
-                ref_counts = y[0].copy()
-            y -= ref_counts  # centred counts: float32 sums stay precise
-            a = design[idx[keep]]
-            ata += a.T @ a
-            aty += a.T.astype(np.float32) @ y
-            yy += np.einsum("kp,kp->p", y, y, dtype=np.float64)
-        if progress is not None:
-            progress(len(idx))
+    # the sums of each block over pixel ranges on the CPU's cores (numpy frees the GIL)
+    parts = [slice(p0, min(p0 + -(-n_pix // _CORES), n_pix))
+             for p0 in range(0, n_pix, -(-n_pix // _CORES))]
+    with ThreadPoolExecutor(max_workers=len(parts)) as pool:
+        for idx, block in iter_frames(data.session, used, chunk=chunk):
+            keep = scan.check(idx, block)
+            if keep.any():
+                counts = block[keep].reshape(-1, n_pix)
+                if ref_counts is None:
+                    ref_counts = counts[0].astype(np.float32)
+                a = design[idx[keep]]
+                ata += a.T @ a
+                at = a.T.astype(np.float32)
+
+                def accumulate(part: slice, counts=counts, at=at, ref=ref_counts) -> None:
+                    y = counts[:, part].astype(np.float32)
+                    y -= ref[part]  # centred counts: float32 sums stay precise
+                    aty[:, part] += at @ y
+                    yy[part] += np.einsum("kp,kp->p", y, y, dtype=np.float64)
+
+                list(pool.map(accumulate, parts))
+            if progress is not None:
+                progress(len(idx))
     if ref_counts is None or scan.n_seen < k_cols:
         raise FitError(
             f"the polynomial model needs at least {k_cols} unsaturated frames, got {scan.n_seen}"

@@ -288,9 +288,11 @@ def sample_chamber(data: ChamberData, *, pixels: int = DEFAULT_PIXELS,
     Returns the session reduced to a mosaic of ``TILES_PER_SIDE²`` tiles (about ``pixels``
     pixels in all, spread over the frame) and at most ``max_frames`` frames (every k-th), in
     memory, with the series of ``data`` (FPA rates and stability classes of the whole session);
-    and a bool ``(M',)`` of its frames that are saturated on the whole frame (more than
-    :data:`~thermocal._validate.SATURATED_FRACTION` of their pixels clipped), which no method
-    applies to; and the indices ``(M',)`` of its frames in ``data``.
+    and a bool ``(M',)`` of its frames that are saturated (more than
+    :data:`~thermocal._validate.SATURATED_FRACTION` of their pixels clipped: judged on the
+    full-width rows through the tiles, about a tenth of the frame, and on the tiles), which no
+    method applies to; and the indices ``(M',)`` of its frames in ``data``. Only those rows are
+    read.
     """
     if pixels < 16:
         raise InvalidInputError(f"the report's pixel sample must be >= 16 pixels, got {pixels}")
@@ -307,13 +309,13 @@ def sample_chamber(data: ChamberData, *, pixels: int = DEFAULT_PIXELS,
     crop = np.empty((index.size, rows.size, cols.size), dtype=np.uint16)
     saturated = np.zeros(index.size, dtype=bool)
     pos = 0
-    for _, block in iter_frames(s, index, chunk=chunk):
-        k = len(block)
-        tiles = block[:, rows][:, :, cols]
+    for _, band in iter_frames(s, index, chunk=chunk, rows=rows):  # the tiles' rows alone
+        k = len(band)
+        tiles = band[:, :, cols]
         crop[pos:pos + k] = tiles
-        saturated[pos:pos + k] = np.maximum(saturated_fraction(block, bit_depth),
+        saturated[pos:pos + k] = np.maximum(saturated_fraction(band, bit_depth),
                                             saturated_fraction(tiles, bit_depth)) \
-            > SATURATED_FRACTION  # the whole frame's, or the sample's (which apply refuses)
+            > SATURATED_FRACTION  # the frame's (its rows through the tiles), or the sample's
         pos += k
 
     def sub(series: np.ndarray | None) -> np.ndarray | None:

@@ -1,8 +1,8 @@
 """The benchmark suites, one module each with ``main(argv)``: ``simulator``, ``calibration``,
 ``registration``, ``nuc``, ``kpn``, ``unit_spread``, ``flight``, ``physics``, ``coverage``,
-``backends`` (``python -m thermocal.evaluation.suites.NAME [--quick] [--json OUT]``;
+``backends``, ``chamber_io`` (``python -m thermocal.evaluation.suites.NAME [--quick] [--json OUT]``;
 ``thermocal bench`` runs them all)."""
 
 #: The suites in the order ``thermocal bench`` runs them.
 SUITES = ("simulator", "calibration", "registration", "nuc", "kpn", "unit_spread", "flight",
-          "physics", "coverage", "backends")
+          "physics", "coverage", "backends", "chamber_io")
