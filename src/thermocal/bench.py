@@ -18,6 +18,7 @@ import tempfile
 import time
 from datetime import UTC, datetime
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -113,3 +114,22 @@ def bench(quick: bool, json_out: Path | None, md_out: Path | None, only: tuple[s
     failed = [name for name, run in runs.items() if run["rc"] != 0]
     if failed:
         raise click.ClickException(f"benchmarks failed: {', '.join(failed)}")
+
+
+def suite_main(doc: str, run: Any, report: Any, argv: list[str] | None, *,
+               quick_help: str) -> None:
+    """The command line of a suite that is ``run(quick=…) → results`` and
+    ``report(results, info) → Markdown``: ``[--quick] [--json OUT]``, the machine named."""
+    import argparse
+
+    parser = argparse.ArgumentParser(description=doc.splitlines()[0])
+    parser.add_argument("--quick", action="store_true", help=quick_help)
+    parser.add_argument("--json", default=None, help="Write the results as JSON here.")
+    args = parser.parse_args(argv)
+    start = time.perf_counter()
+    res = run(quick=args.quick)
+    info = {"machine": machine(), "wall_s": time.perf_counter() - start, "quick": args.quick}
+    print(report(res, info))
+    if args.json:
+        with open(args.json, "w", encoding="utf-8") as f:
+            json.dump({**info, **res}, f, indent=1)

@@ -278,6 +278,7 @@ COMMANDS: list[tuple[str, str]] = [
     ("thermocal.nn.commands", "train"),
     ("thermocal.nn.commands", "export"),
     ("thermocal.pipeline.commands", "flight"),
+    ("thermocal.pipeline.commands", "campaign"),
     ("thermocal.pipeline.commands", "mosaic"),
     ("thermocal.pipeline.commands", "report"),
     ("thermocal.io.commands", "info"),

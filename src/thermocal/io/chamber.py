@@ -318,7 +318,8 @@ def frame_offsets(dset: h5py.Dataset, file_size: int) -> np.ndarray | None:
 
 
 def _pread_frames(path: Path, offsets: np.ndarray, idx: np.ndarray, shape: tuple[int, ...],
-                  *, parts: list[tuple[int, int]] | None = None) -> np.ndarray:
+                  *, parts: list[tuple[int, int]] | None = None,
+                  out: np.ndarray | None = None) -> np.ndarray:
     """Frames ``idx`` read where :func:`frame_offsets` says they lie, each straight into the
     result (``os.preadv``, one call per frame).
 
@@ -328,9 +329,10 @@ def _pread_frames(path: Path, offsets: np.ndarray, idx: np.ndarray, shape: tuple
     reads). Used only for the uncompressed layout :class:`ChamberWriter` writes; a short read
     (a file cut since its layout was read) is an error. ``parts``: ``(start, length)`` byte
     ranges of each frame to read, one after the other into ``shape`` (default: the whole
-    frame).
+    frame). ``out``: a little-endian uint16 ``(len(idx), *shape)`` array to read into.
     """
-    out = np.empty((idx.size, *shape), dtype="<u2")
+    if out is None:
+        out = np.empty((idx.size, *shape), dtype="<u2")
     fd = os.open(path, os.O_RDONLY)
     try:
         for k, i in enumerate(idx):

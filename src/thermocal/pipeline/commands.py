@@ -93,6 +93,67 @@ def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
     )
 
 
+@click.command("campaign")
+@click.argument("inputs", nargs=-1, required=True, type=click.Path(path_type=Path))
+@click.option("--out", "out_dir", type=click.Path(path_type=Path), required=True,
+              help="Output folder: one flight folder per recording, and campaign.json (a rerun "
+              "resumes).")
+@click.option("--scheduler", default=None,
+              help="Address of a running Dask scheduler (tcp://HOST:8786; one of dask-jobqueue "
+              "or dask-kubernetes); default: a LocalCluster of this machine's cores.")
+@click.option("--workers", type=int, default=None,
+              help="Workers of the LocalCluster (default: this process's CPU cores).")
+@click.option("--method", type=click.Choice(list(ESTIMATORS)), default="kpn", show_default=True,
+              help=method_help())
+@click.option("--calibration", type=click.Path(dir_okay=False), default=None,
+              help="Calibration file for --method mean|calibration (selfcal: its start).")
+@click.option("--model", type=click.Path(dir_okay=False), default=None,
+              help="Network weights (default: the shipped model of --method).")
+@click.option("--frames", "n_frames", type=int, default=7, show_default=True,
+              help="Frames per group (the network's N).")
+@click.option("--stride", type=int, default=7, show_default=True, help="Frames between pivots.")
+@click.option("--preview-every", type=int, default=1, show_default=True,
+              help="A PNG preview every K pivots (0: none).")
+@click.option("--force", is_flag=True,
+              help="Estimate groups outside the method's domain instead of failing them.")
+@backend_options
+def campaign(inputs: tuple[Path, ...], out_dir: Path, scheduler: str | None,
+             workers: int | None, method: str, calibration: str | None, model: str | None,
+             n_frames: int, stride: int, preview_every: int, force: bool, backend: str,
+             threads: int | None) -> None:
+    """Process many RECORDINGS as `thermocal flight` runs, each a task on a Dask cluster (a
+    LocalCluster of this machine by default, or --scheduler): OUT/<name> per recording, the
+    same bytes as `thermocal flight`; a failed recording is reported in OUT/campaign.json and
+    the others go on."""
+    from thermocal._validate import check_not_input
+    from thermocal.errors import InvalidInputError, ThermocalError
+    from thermocal.pipeline.campaign import campaign_tasks, run_campaign
+    from thermocal.pipeline.flight import FlightOptions
+
+    if workers is not None and workers < 1:
+        raise InvalidInputError(f"--workers must be >= 1, got {workers}")
+    check_not_input(out_dir, *inputs, calibration, model)
+    options = FlightOptions(method=method, calibration=calibration, model=model,
+                            frames=n_frames, stride=stride, preview_every=preview_every,
+                            force=force, backend=backend, threads=threads)
+    tasks = campaign_tasks(list(inputs), out_dir, options)
+    with progress_bar() as bar:
+        task = bar.add_task("campaign", total=sum(t.frames for t in tasks))
+        summary = run_campaign(tasks, out_dir, scheduler=scheduler, workers=workers,
+                               progress=lambda k: bar.advance(task, k))
+    for r in summary["recordings"]:
+        click.echo(f"{r['name']}: " + (f"{r['processed']} maps made, "
+                                       f"{r['skipped_already_done']} already done, "
+                                       f"{r['failed_groups']} groups failed" if r["ok"]
+                                       else f"failed: {r['error']}"), err=True)
+    if summary["failed"]:
+        raise ThermocalError(
+            f"{summary['failed']} of {len(tasks)} recordings failed (the others are done); "
+            f"each one's error is in {Path(out_dir) / 'campaign.json'}")
+    click.echo(f"{len(tasks)} recordings processed into {out_dir} in "
+               f"{summary['wall_time_s']:.1f} s", err=True)
+
+
 def _command_line() -> str:
     """The running command with every option it took, defaults included, as a shell would
     take it (for the report: it reruns the same way even after the defaults change)."""

@@ -1,8 +1,9 @@
 """The benchmark suites, one module each with ``main(argv)``: ``simulator``, ``calibration``,
 ``registration``, ``nuc``, ``kpn``, ``unit_spread``, ``flight``, ``physics``, ``coverage``,
-``backends``, ``chamber_io`` (``python -m thermocal.evaluation.suites.NAME [--quick] [--json OUT]``;
-``thermocal bench`` runs them all)."""
+``backends``, ``chamber_io``, ``campaign``
+(``python -m thermocal.evaluation.suites.NAME [--quick] [--json OUT]``; ``thermocal bench`` runs
+them all)."""
 
 #: The suites in the order ``thermocal bench`` runs them.
 SUITES = ("simulator", "calibration", "registration", "nuc", "kpn", "unit_spread", "flight",
-          "physics", "coverage", "backends", "chamber_io")
+          "physics", "coverage", "backends", "chamber_io", "campaign")

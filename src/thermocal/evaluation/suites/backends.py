@@ -22,9 +22,6 @@ Run: ``python -m thermocal.evaluation.suites.backends [--quick] [--json OUT]``.
 
 from __future__ import annotations
 
-import argparse
-import json
-import os
 import time
 
 import numpy as np
@@ -170,21 +167,9 @@ def report(res: dict, info: dict) -> str:
 
 
 def main(argv: list[str] | None = None) -> None:
-    from thermocal.bench import machine
+    from thermocal.bench import suite_main
 
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--quick", action="store_true", help="3 runs each.")
-    parser.add_argument("--json", default=None, help="Write the results as JSON here.")
-    args = parser.parse_args(argv)
-    start = time.perf_counter()
-    res = run(quick=args.quick)
-    info = {"machine": machine(), "wall_s": time.perf_counter() - start, "quick": args.quick,
-            "cpus": os.cpu_count()}
-    print(report(res, info))
-    if args.json:
-        with open(args.json, "w", encoding="utf-8") as f:
-            json.dump({**info, **res}, f, indent=1)
-
+    suite_main(__doc__, run, report, argv, quick_help="3 runs each.")
 
 if __name__ == "__main__":
     main()

@@ -1,0 +1,225 @@
+"""``thermocal campaign``: many recordings processed as ``thermocal flight`` runs, as tasks on a
+Dask cluster.
+
+Each recording is one task: :func:`~thermocal.pipeline.flight.process_flight` into
+``OUT/<name>/`` (``name``: the recording's file or folder name, made unique in the order given),
+so that every recording's folder is what ``thermocal flight RECORDING --out OUT/<name>`` writes,
+the same bytes (tested). The tasks run on a :class:`distributed.LocalCluster` of this machine's
+cores by default, or on the scheduler at ``--scheduler ADDRESS`` — one started by
+``dask-jobqueue`` on a batch cluster or ``dask-kubernetes`` on Kubernetes: the workers there
+need thermocal installed and the recordings and ``OUT`` at the same paths (a shared file
+system).
+
+- **Resumable**: a rerun resumes each flight where it stopped (a flight's own resume: its
+  finished maps are verified and kept).
+- **A failed task is reported, not fatal**: a recording whose flight fails (a bad recording
+  found while streaming, every group failed, a worker that died twice) is named in
+  ``OUT/campaign.json`` with its error; the others go on. The command exits 2 when any failed.
+- **Threads**: with ``W`` workers of a LocalCluster on ``C`` cores, each worker's thread pools
+  (the network's, OpenCV's, the registration's) get ``max(1, C // W)`` threads (``--threads``
+  sets the network's).
+
+Everything is checked before a task starts: every input a recording (its header read), the
+options a flight would refuse, the scheduler reachable.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, replace
+from pathlib import Path
+from typing import Any
+
+from thermocal.errors import InvalidInputError, ThermocalError
+from thermocal.pipeline.flight import FlightOptions
+
+__all__ = ["CampaignTask", "campaign_tasks", "run_campaign"]
+
+#: Seconds to wait for a scheduler given by address.
+CONNECT_TIMEOUT_S = 10
+#: Times a task is retried after its worker died (then reported as failed).
+RETRIES = 1
+
+
+@dataclass(frozen=True)
+class CampaignTask:
+    """One recording's flight: where it is read, where it is written, how."""
+
+    name: str
+    recording: str
+    out_dir: str
+    frames: int
+    options: FlightOptions
+    #: Threads the worker's pools may use (None: as they are).
+    threads: int | None = None
+
+
+def campaign_tasks(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[str],
+                   options: FlightOptions) -> list[CampaignTask]:
+    """The campaign's tasks, after checking every input is a recording (its header read) and
+    every output folder lies outside the recordings.
+
+    Raises
+    ------
+    InvalidInputError, FileFormatError
+        An input that is not a recording (named), the same recording twice, ``out`` inside one.
+    """
+    from thermocal._validate import check_not_input
+    from thermocal.io.open import check_outside_recording, recording_length
+
+    if not inputs:
+        raise InvalidInputError("give at least one recording")
+    tasks, names, seen = [], set(), set()
+    for raw in inputs:
+        path = Path(raw)
+        real = path.resolve()
+        if real in seen:
+            raise InvalidInputError(f"{path}: given twice")
+        seen.add(real)
+        try:
+            n = recording_length(path)
+        except ThermocalError as exc:
+            text = str(exc)
+            raise type(exc)(text if text.startswith(str(path)) else f"{path}: {text}") from None
+        stem = path.stem if path.is_file() else path.name
+        name, k = stem, 2
+        while name in names:
+            name, k = f"{stem}-{k}", k + 1
+        names.add(name)
+        target = Path(out) / name
+        check_not_input(target, path)
+        check_outside_recording(path, (out, "--out"))
+        tasks.append(CampaignTask(name, str(path), str(target), n, options))
+    return tasks
+
+
+def _run_task(task: CampaignTask) -> dict[str, Any]:
+    """One flight, on a worker: its summary's counts, or its error (a failed flight is a result,
+    not an exception: the campaign goes on)."""
+    import warnings
+
+    from thermocal.pipeline.flight import process_flight
+    from thermocal.pipeline.report import write_report
+
+    started = time.perf_counter()
+    if task.threads is not None:
+        _limit_threads(task.threads)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            summary = process_flight(task.recording, task.out_dir, task.options)
+            write_report(task.out_dir)
+    except ThermocalError as exc:
+        return {"name": task.name, "recording": task.recording, "ok": False,
+                "error": str(exc), "seconds": time.perf_counter() - started}
+    done = summary["processed"] + summary["skipped_already_done"]
+    return {"name": task.name, "recording": task.recording, "out": task.out_dir,
+            "ok": done > 0, "processed": summary["processed"],
+            "skipped_already_done": summary["skipped_already_done"],
+            "failed_groups": summary["failed"], "groups": summary["groups"],
+            "warnings": sorted({str(w.message) for w in caught}),
+            **({} if done > 0 else {"error": f"every group failed: {summary.get('first_error')}"}),
+            "seconds": time.perf_counter() - started}
+
+
+def _limit_threads(n: int) -> None:
+    """Size the thread pools of this worker process to its share of the cores: OpenCV's and the
+    registration's (which default to every core, and would make the workers of one machine fight
+    over them); a network's are set by the flight's own ``threads``."""
+    import cv2
+
+    from thermocal.registration import _dense
+
+    cv2.setNumThreads(n)
+    _dense.DEFAULT_WORKERS = n
+
+
+def connect(scheduler: str | None, workers: int) -> Any:
+    """A :class:`distributed.Client` of the scheduler at ``scheduler``, or of a new
+    :class:`distributed.LocalCluster` of ``workers`` single-threaded worker processes.
+
+    Raises
+    ------
+    InvalidInputError
+        dask.distributed not installed, or the scheduler unreachable.
+    """
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        raise InvalidInputError(
+            "thermocal campaign needs dask.distributed: pip install 'thermocal[campaign]'"
+        ) from None
+    if scheduler is not None:
+        try:
+            return Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
+        except (OSError, TimeoutError, ValueError) as exc:
+            raise InvalidInputError(
+                f"cannot reach the Dask scheduler at {scheduler} "
+                f"({type(exc).__name__}: {str(exc).splitlines()[0][:120] if str(exc) else ''}); "
+                "start one (dask scheduler, dask-jobqueue, dask-kubernetes) or leave out "
+                "--scheduler for this machine's cores") from None
+    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                           dashboard_address=":0")  # any free port: no clash, no warning
+    return Client(cluster)
+
+
+def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
+                 scheduler: str | None = None, workers: int | None = None,
+                 progress: Callable[[int], None] | None = None) -> dict[str, Any]:
+    """Run ``tasks`` on the cluster; write and return ``OUT/campaign.json`` (each recording's
+    result, in the order given). ``progress(k)`` after each finished recording of ``k`` frames.
+    """
+    from thermocal.io.atomic import ensure_output_dir, write_json_atomic
+    from thermocal.nn.backends import default_threads
+
+    cores = default_threads()
+    n_workers = workers or cores
+    if n_workers < 1:
+        raise InvalidInputError(f"--workers must be >= 1, got {n_workers}")
+    started = time.perf_counter()
+    client = connect(scheduler, n_workers)
+    from distributed import as_completed  # installed: connect() checked
+    connected = time.perf_counter()
+    try:
+        out_dir = ensure_output_dir(out)  # only now: every check has passed
+        share = max(1, cores // n_workers) if scheduler is None else None
+        futures = {}
+        for task in tasks:
+            if share is not None:  # this machine's cores, shared out between its workers
+                task = replace(task, threads=share)
+                if task.options.threads is None and _runs_network(task):
+                    task = replace(task, options=replace(task.options, threads=share))
+            futures[client.submit(_run_task, task, key=f"thermocal-flight-{task.name}",
+                                  pure=False, retries=RETRIES)] = task
+        results: dict[str, dict[str, Any]] = {}
+        for future in as_completed(futures):
+            task = futures[future]
+            try:
+                results[task.name] = future.result()
+            except Exception as exc:  # noqa: BLE001 - a dead worker, a lost task: reported
+                results[task.name] = {"name": task.name, "recording": task.recording,
+                                      "ok": False, "error": f"{type(exc).__name__}: {exc}"}
+            if progress is not None:
+                progress(task.frames)
+    finally:
+        client.close()
+        cluster = getattr(client, "cluster", None)
+        if cluster is not None:
+            cluster.close()
+    summary = {"recordings": [results[t.name] for t in tasks],
+               "failed": sum(not results[t.name]["ok"] for t in tasks),
+               "workers": n_workers, "scheduler": scheduler or "LocalCluster",
+               "options": asdict(tasks[0].options) if tasks else {},
+               "wall_time_s": time.perf_counter() - started,
+               "cluster_start_s": connected - started}
+    write_json_atomic(out_dir / "campaign.json", summary)
+    return summary
+
+
+def _runs_network(task: CampaignTask) -> bool:
+    """Whether the task's method runs a network (whose threads the campaign shares out)."""
+    from thermocal.estimation.registry import ESTIMATORS
+
+    return ESTIMATORS[task.options.method].needs == "model"

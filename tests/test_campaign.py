@@ -1,0 +1,99 @@
+"""thermocal campaign (issue 21): recordings as flight tasks on a 2-worker LocalCluster give the
+bytes of sequential flights; a failed recording is reported, not fatal; bad input is one line."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("distributed")
+
+from thermocal.pipeline import campaign  # noqa: E402
+from thermocal.pipeline.campaign import campaign_tasks, run_campaign  # noqa: E402
+from thermocal.pipeline.flight import FlightOptions, process_flight  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def data(tmp_path_factory):
+    """A polynomial calibration of one unit and two short UAV passes of it."""
+    from thermocal.evaluation.suites.campaign import recordings_and_calibration
+
+    tmp = tmp_path_factory.mktemp("campaign")
+    recordings_and_calibration(tmp, frames=25, count=2, size=(64, 48))
+    return tmp
+
+
+def _options(data: Path) -> FlightOptions:
+    return FlightOptions(method="mean", calibration=str(data / "cal.h5"), stride=3,
+                         preview_every=2)
+
+
+def _outputs(out: Path) -> dict[str, bytes]:
+    """Every output but those holding timings (summary, report), by path."""
+    return {str(p.relative_to(out)): p.read_bytes() for p in sorted(out.rglob("*"))
+            if p.is_file() and p.name not in ("summary.json", "report.html")}
+
+
+def test_a_campaign_gives_the_bytes_of_sequential_flights_and_resumes(data, tmp_path):
+    recordings = [data / "pass0", data / "pass1"]
+    for r in recordings:
+        process_flight(r, tmp_path / "seq" / r.name, _options(data))
+    out = tmp_path / "campaign"
+    summary = run_campaign(campaign_tasks(recordings, out, _options(data)), out, workers=2)
+    assert summary["failed"] == 0 and summary["workers"] == 2
+    assert [r["name"] for r in summary["recordings"]] == ["pass0", "pass1"]
+    for r in recordings:
+        seq, par = _outputs(tmp_path / "seq" / r.name), _outputs(out / r.name)
+        assert len(seq) > 10 and seq == par
+        assert (out / r.name / "report.html").is_file()
+    assert json.loads((out / "campaign.json").read_text())["failed"] == 0
+    # rerun: every map is kept (resume), none remade
+    sorted((out / "pass1" / "temps").glob("frame_??????.tiff"))[0].unlink()
+    again = run_campaign(campaign_tasks(recordings, out, _options(data)), out, workers=1)
+    by_name = {r["name"]: r for r in again["recordings"]}
+    assert by_name["pass0"]["processed"] == 0 and by_name["pass1"]["processed"] == 1
+    resumed, seq = _outputs(out / "pass1"), _outputs(tmp_path / "seq" / "pass1")
+    assert resumed.pop("log.jsonl") != seq.pop("log.jsonl")  # the retry is logged
+    assert resumed == seq
+
+
+def test_a_failed_recording_is_reported_and_the_others_finish(data, tmp_path):
+    good, gone = data / "pass0", tmp_path / "gone"
+    shutil.copytree(data / "pass1", gone)
+    tasks = campaign_tasks([gone, good], tmp_path / "out", _options(data))
+    shutil.rmtree(gone)  # lost after the campaign checked it
+    summary = run_campaign(tasks, tmp_path / "out", workers=2)
+    gone_result, good_result = summary["recordings"]
+    assert summary["failed"] == 1
+    assert not gone_result["ok"] and "gone" in gone_result["error"]
+    assert good_result["ok"] and good_result["processed"] > 0
+
+
+def test_same_names_are_made_unique_in_the_order_given(data, tmp_path):
+    other = tmp_path / "b" / "pass0"
+    shutil.copytree(data / "pass0", other)
+    tasks = campaign_tasks([data / "pass0", other], tmp_path / "out", _options(data))
+    assert [t.name for t in tasks] == ["pass0", "pass0-2"]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["{data}/cal.h5"], "cal.h5"),
+    (["{data}/pass0", "{data}/pass0"], "given twice"),
+    (["{data}/pass0", "--scheduler", "tcp://127.0.0.1:9"], "cannot reach the Dask scheduler"),
+    (["{data}/pass0", "--workers", "0"], "--workers"),
+    (["{data}/pass0", "--method", "mean"], "--calibration"),
+])
+def test_bad_campaign_input_is_one_line_exit_2_and_writes_nothing(data, tmp_path, capsys,
+                                                                 monkeypatch, args, message):
+    from thermocal.cli import main
+
+    monkeypatch.setattr(campaign, "CONNECT_TIMEOUT_S", 2)
+    out = tmp_path / "out"
+    with pytest.raises(SystemExit) as e:
+        main(["campaign", *[a.replace("{data}", str(data)) for a in args], "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert e.value.code == 2 and "\n" not in err and message in err, err
+    assert not out.exists()
