@@ -106,12 +106,12 @@ def outside_domain(domain: Domain, frames_c: np.ndarray | None, fpa_c: float
                        "the network was trained on")
     if frames_c is None:
         return tuple(reasons)
-    level = float(np.median(frames_c))
+    # the median and the 1st and 99th percentiles in one pass
+    p1, level, p99 = (float(v) for v in np.percentile(frames_c, [1, 50, 99]))
     lo, hi = domain.scene_level_c
     if not lo <= level <= hi:
         reasons.append(f"the scene's median {level:.1f} °C is outside the {lo:g}–{hi:g} °C of "
                        "its training scenes")
-    p1, p99 = (float(v) for v in np.percentile(frames_c, [1, 99]))
     lo, hi = domain.scene_clip_c
     if p1 < lo or p99 > hi:
         reasons.append(f"the scene spans {p1:.0f}…{p99:.0f} °C, beyond the {lo:g}…{hi:g} °C of "
