@@ -19,7 +19,6 @@ defects) used to make the network's training data (:func:`camera_model_from_cham
 
 from __future__ import annotations
 
-import os
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
@@ -60,6 +59,7 @@ from thermocal.calibration.store import (
 )
 from thermocal.camera.model import horner
 from thermocal.constants import ZERO_CELSIUS_K
+from thermocal.cores import available_cores
 from thermocal.errors import FitError, InvalidInputError
 from thermocal.radiometry import BandRadiance
 
@@ -244,9 +244,6 @@ class PolynomialCalibration(StoredCalibrationMixin):
             check_scalar(v, "radial_centre", -1.0, 1.0, path, METHOD)
 
 
-#: Threads the fit's sums run on: the CPU cores this process may use.
-_CORES = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count() or 1
-
 #: Values (frames × pixels) :meth:`PolynomialCalibration.apply` works on at once.
 _APPLY_BLOCK = 1 << 21
 
@@ -347,8 +344,8 @@ def polynomial(
     ref_counts: np.ndarray | None = None
     scan = FrameScan((h, w), data.session.bit_depth)
     # the sums of each block over pixel ranges on the CPU's cores (numpy frees the GIL)
-    parts = [slice(p0, min(p0 + -(-n_pix // _CORES), n_pix))
-             for p0 in range(0, n_pix, -(-n_pix // _CORES))]
+    width = -(-n_pix // available_cores())
+    parts = [slice(p0, min(p0 + width, n_pix)) for p0 in range(0, n_pix, width)]
     with ThreadPoolExecutor(max_workers=len(parts)) as pool:
         for idx, block in iter_frames(data.session, used, chunk=chunk):
             keep = scan.check(idx, block)

@@ -14,9 +14,9 @@ runs each: :mod:`thermocal.nn.runners`.
 from __future__ import annotations
 
 import importlib.util
-import os
 from dataclasses import dataclass
 
+from thermocal.cores import available_cores
 from thermocal.errors import InvalidInputError
 
 __all__ = ["AUTO_ORDER", "BACKENDS", "CHOICES", "BackendInfo", "check_threads", "default_threads",
@@ -71,11 +71,9 @@ def resolve_backend(name: str) -> str:
 
 
 def default_threads() -> int:
-    """The CPU cores this process may run on (its affinity, else ``os.cpu_count()``)."""
-    try:
-        return len(os.sched_getaffinity(0))
-    except AttributeError:  # not on Linux
-        return os.cpu_count() or 1
+    """The threads a backend runs on by default: the CPU cores this process may use
+    (:func:`thermocal.cores.available_cores`)."""
+    return available_cores()
 
 
 def check_threads(threads: int | None) -> int:

@@ -6,8 +6,9 @@ the same temperatures within 1e-4 °C, tested).
 
 - **What is exported**: the network up to its linear output (``KPN.forward(..., linear=True)``).
   A ``radiance`` model's last step, band radiance → temperature, interpolates with
-  ``torch.searchsorted``, which torch's exporter cannot write as ONNX; it stays in torch on every
-  backend (:class:`~thermocal.nn.model.RadianceToTemperature`, a few ms per tile).
+  ``torch.searchsorted``, which torch's exporter cannot write as ONNX; it stays outside the
+  graph: the model's own table (:class:`~thermocal.nn.model.RadianceToTemperature`), read in
+  numpy for the graph backends (:func:`_interp`, the same numbers, a few ms per tile).
 - **One graph per tile size**: the graph is traced at the tile's size (torch's TorchScript
   exporter; its dynamic sizes gave wrong outputs at other sizes), once per size a run meets
   (one for any frame up to 512 px: :func:`~thermocal.nn.infer.inference_tiling`), in about a
@@ -86,7 +87,7 @@ def onnx_graph(model: KPN, height: int, width: int) -> bytes:
 
 class _Graphs:
     """An exported graph per tile size, compiled by ``compile_graph(bytes) → run(feeds)``
-    when first met; the radiance → temperature step in torch."""
+    when first met; the radiance → temperature step through the model's table in numpy."""
 
     def __init__(self, model: KPN, compile_graph: Callable[[bytes], Callable]) -> None:
         self.model = model

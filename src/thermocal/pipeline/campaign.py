@@ -171,11 +171,11 @@ def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
     """Run ``tasks`` on the cluster; write and return ``OUT/campaign.json`` (each recording's
     result, in the order given). ``progress(k)`` after each finished recording of ``k`` frames.
     """
+    from thermocal.cores import available_cores
     from thermocal.io.atomic import ensure_output_dir, write_json_atomic
-    from thermocal.nn.backends import default_threads
 
-    cores = default_threads()
-    n_workers = workers or cores
+    cores = available_cores()
+    n_workers = cores if workers is None else workers
     if n_workers < 1:
         raise InvalidInputError(f"--workers must be >= 1, got {n_workers}")
     started = time.perf_counter()

@@ -12,26 +12,42 @@ from thermocal.estimation.registry import ESTIMATORS, method_help
 from thermocal.progress import progress_bar
 
 
+def flight_options(command):
+    """The options of ``thermocal flight`` that ``thermocal campaign`` passes on to each of its
+    flights: the method and its files, the groups, the previews, ``--force``, and how a network
+    runs (:func:`~thermocal.estimation.commands.backend_options`)."""
+    options = [
+        click.option("--method", type=click.Choice(list(ESTIMATORS)), default="kpn",
+                     show_default=True, help=method_help()),
+        click.option("--calibration", type=click.Path(dir_okay=False), default=None,
+                     help="Calibration file (thermocal calibrate) for --method "
+                     "mean|calibration; for --method selfcal, the model to start from "
+                     "(default: the family's average unit)."),
+        click.option("--model", type=click.Path(dir_okay=False), default=None,
+                     help="Network weights (default: the shipped model of --method)."),
+        click.option("--frames", "n_frames", type=int, default=7, show_default=True,
+                     help="Frames per group (the network's N)."),
+        click.option("--stride", type=int, default=7, show_default=True,
+                     help="Frames between pivots."),
+        click.option("--preview-every", type=int, default=1, show_default=True,
+                     help="A PNG preview every K pivots (0: none)."),
+        click.option("--force", is_flag=True,
+                     help="Estimate groups outside the method's domain (FPA or scene range, "
+                     "camera family) instead of failing them; the log says why each is not "
+                     "validated."),
+    ]
+    command = backend_options(command)
+    for option in reversed(options):  # listed in --help in this order
+        command = option(command)
+    return command
+
+
 @click.command("flight")
 @click.argument("recording", type=click.Path(path_type=Path))
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), required=True,
               help="Output folder (created; a rerun resumes).")
-@click.option("--method", type=click.Choice(list(ESTIMATORS)), default="kpn", show_default=True,
-              help=method_help())
-@click.option("--calibration", type=click.Path(dir_okay=False), default=None,
-              help="Calibration file (thermocal calibrate) for --method mean|calibration; for "
-              "--method selfcal, the model to start from (default: the family's average unit).")
-@click.option("--model", type=click.Path(dir_okay=False), default=None,
-              help="Network weights (default: the shipped model of --method).")
-@click.option("--frames", "n_frames", type=int, default=7, show_default=True,
-              help="Frames per group (the network's N).")
-@click.option("--stride", type=int, default=7, show_default=True, help="Frames between pivots.")
+@flight_options
 @click.option("--fpa-c", type=float, default=None, help="FPA temperature, °C (overrides sidecar).")
-@click.option("--preview-every", type=int, default=1, show_default=True,
-              help="A PNG preview every K pivots (0: none).")
-@click.option("--force", is_flag=True,
-              help="Estimate groups outside the method's domain (FPA or scene range, camera "
-              "family) instead of failing them; the log says why each is not validated.")
 @click.option("--geotiff", is_flag=True,
               help="Also GeoTIFF tags (EPSG:4326, rotated by the yaw) in the maps of nadir "
               "frames with GPS and DJI relative altitude; the maps of frames with GPS always "
@@ -49,7 +65,6 @@ from thermocal.progress import progress_bar
               help="Ground references for --method selfcal: a CSV with columns frame,x,y,"
               "radius_px,temperature_c (optional emissivity, reflected_c, sigma_c); they fix "
               "the unit's level.")
-@backend_options
 def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
            model: str | None, n_frames: int, stride: int, fpa_c: float | None,
            preview_every: int, force: bool, geotiff: bool, with_mosaic: bool,
@@ -101,22 +116,9 @@ def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
 @click.option("--scheduler", default=None,
               help="Address of a running Dask scheduler (tcp://HOST:8786; one of dask-jobqueue "
               "or dask-kubernetes); default: a LocalCluster of this machine's cores.")
-@click.option("--workers", type=int, default=None,
+@click.option("--workers", type=click.IntRange(min=1), default=None,
               help="Workers of the LocalCluster (default: this process's CPU cores).")
-@click.option("--method", type=click.Choice(list(ESTIMATORS)), default="kpn", show_default=True,
-              help=method_help())
-@click.option("--calibration", type=click.Path(dir_okay=False), default=None,
-              help="Calibration file for --method mean|calibration (selfcal: its start).")
-@click.option("--model", type=click.Path(dir_okay=False), default=None,
-              help="Network weights (default: the shipped model of --method).")
-@click.option("--frames", "n_frames", type=int, default=7, show_default=True,
-              help="Frames per group (the network's N).")
-@click.option("--stride", type=int, default=7, show_default=True, help="Frames between pivots.")
-@click.option("--preview-every", type=int, default=1, show_default=True,
-              help="A PNG preview every K pivots (0: none).")
-@click.option("--force", is_flag=True,
-              help="Estimate groups outside the method's domain instead of failing them.")
-@backend_options
+@flight_options
 def campaign(inputs: tuple[Path, ...], out_dir: Path, scheduler: str | None,
              workers: int | None, method: str, calibration: str | None, model: str | None,
              n_frames: int, stride: int, preview_every: int, force: bool, backend: str,
@@ -126,12 +128,10 @@ def campaign(inputs: tuple[Path, ...], out_dir: Path, scheduler: str | None,
     same bytes as `thermocal flight`; a failed recording is reported in OUT/campaign.json and
     the others go on."""
     from thermocal._validate import check_not_input
-    from thermocal.errors import InvalidInputError, ThermocalError
+    from thermocal.errors import ThermocalError
     from thermocal.pipeline.campaign import campaign_tasks, run_campaign
     from thermocal.pipeline.flight import FlightOptions
 
-    if workers is not None and workers < 1:
-        raise InvalidInputError(f"--workers must be >= 1, got {workers}")
     check_not_input(out_dir, *inputs, calibration, model)
     options = FlightOptions(method=method, calibration=calibration, model=model,
                             frames=n_frames, stride=stride, preview_every=preview_every,
