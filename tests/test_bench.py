@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from thermocal.bench import BENCHMARKS, machine, markdown_report
@@ -44,3 +45,25 @@ def test_bench_runs_the_simulator_benchmark(tmp_path):
     data = json.loads(out.read_text())
     assert data["benchmarks"]["simulator"]["rc"] == 0
     assert "640x512" in md.read_text()
+
+
+def test_coverage_tables_say_whether_any_level_of_sigma_meets_the_bands():
+    from thermocal.evaluation.suites.coverage import report, unit_spread
+    from thermocal.metrics import rescaled_coverage, sigma_coverage
+
+    rng = np.random.default_rng(0)
+    gauss, rect = rng.normal(0.0, 1.0, 4000), rng.uniform(-1.0, 1.0, 4000)
+    sigma = np.full(4000, 0.5)
+    rows = []
+    for unit in (101, 102):
+        for method, err in (("lin", gauss), ("two-point", rect)):
+            rows.append({"method": method, "data": f"tau2 unit {unit}", "preset": "tau2",
+                         "unit": unit, "frames": 10, "refused": 0, "silent_over_1c": 0,
+                         "mae_c": float(np.abs(err).mean()), "accepted": sigma_coverage(err, sigma),
+                         "forced": None, "accepted_rescaled": rescaled_coverage(err, sigma)})
+    text = report(rows, {"machine": "test", "wall_s": 1.0})
+    lines = {ln.split("|")[1].strip(): ln for ln in text.splitlines() if "tau2 unit 101" in ln}
+    assert "×2.0" in lines["lin"] and "no k in band" not in lines["lin"]
+    assert "no k in band" in lines["two-point"]
+    spread = unit_spread(rows)
+    assert "(2 of 2)" in spread and "(0 of 2)" in spread

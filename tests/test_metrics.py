@@ -288,6 +288,24 @@ def test_sigma_coverage_of_gaussian_errors():
         sigma_coverage(np.zeros(3), np.ones(4))
 
 
+
+def test_rescaled_coverage_finds_the_level_of_a_gaussian_and_not_of_a_rectangle():
+    from thermocal.metrics import rescaled_coverage
+
+    rng = np.random.default_rng(1)
+    sigma = rng.uniform(0.5, 2.0, 100_000)
+    # a Gaussian error stated at a third of its σ: the factor 3 puts it back in band
+    cov = rescaled_coverage(rng.normal(0.0, sigma), sigma / 3.0)
+    assert cov["in_band"] and cov["factor"] == pytest.approx(3.0, rel=0.03)
+    assert cov["within_1sigma"] == pytest.approx(0.683, abs=0.01)
+    # a systematic error of nearly constant size (rectangular): no factor meets both bands
+    rect = rescaled_coverage(rng.uniform(-1.0, 1.0, 100_000), np.ones(100_000))
+    assert not rect["in_band"]
+    assert rect["within_2sigma"] > 0.98 or rect["within_1sigma"] < 0.63
+    with pytest.raises(InvalidInputError):
+        rescaled_coverage(np.zeros(3), np.ones(4))
+
+
 # ------------------------------------------------------------------ the parts of the error
 
 

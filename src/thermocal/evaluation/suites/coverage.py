@@ -44,7 +44,7 @@ from thermocal.estimation.pipeline import estimate
 from thermocal.evaluation.heldout import eval_bursts
 from thermocal.evaluation.suites import physics
 from thermocal.evaluation.tables import markdown_table
-from thermocal.metrics import sigma_coverage
+from thermocal.metrics import rescaled_coverage, sigma_coverage
 from thermocal.nn.infer import NetworkEstimator
 
 __all__ = ["calibration_rows", "main", "network_rows"]
@@ -79,7 +79,16 @@ def _run(network: NetworkEstimator, bursts: list[dict]) -> dict:
     for name, pairs in kept.items():
         out[name] = (sigma_coverage(np.concatenate([e for e, _ in pairs]),
                                  np.concatenate([s for _, s in pairs])) if pairs else None)
+    out["accepted_rescaled"] = _rescaled(kept["accepted"])
     return out
+
+
+def _rescaled(pairs: list[tuple[np.ndarray, np.ndarray]]) -> dict | None:
+    """:func:`~thermocal.metrics.rescaled_coverage` of ``(errors, σ)`` pairs (None without)."""
+    if not pairs:
+        return None
+    return rescaled_coverage(np.concatenate([e for e, _ in pairs]),
+                             np.concatenate([s for _, s in pairs]))
 
 
 def _silent(mae: float, sigma: np.ndarray) -> bool:
@@ -120,6 +129,7 @@ def _run_calibration(cal, model: CalibrationSigma, run: physics.Run, rng) -> dic
         out[f"mae_{name}_c"] = None if errors is None else float(np.mean(np.abs(errors)))
         out[name] = (None if errors is None else
                      sigma_coverage(errors, np.concatenate([s_ for _, s_ in pairs])))
+    out["accepted_rescaled"] = _rescaled(kept["accepted"])
     return out
 
 
@@ -176,11 +186,18 @@ def _cells(cov: dict | None) -> tuple[str, str, str]:
             f"{cov['median_sigma_c']:.2f}")
 
 
+def _rescaled_cell(res: dict | None) -> str:
+    if res is None:
+        return "–"
+    return (f"×{res['factor']:.2f}: {100 * res['within_1sigma']:.0f} / "
+            f"{100 * res['within_2sigma']:.0f} %" + ("" if res["in_band"] else " (no k in band)"))
+
+
 def report(rows: list[dict], info: dict) -> str:
     header = ("method", "data", "bursts / frames", "refused", "MAE °C (accepted / refused)",
               "accepted: within 1σ",
               "within 2σ", "median σ °C", "refused, if forced: within 1σ", "within 2σ",
-              "median σ °C", "silent")
+              "median σ °C", "silent", "accepted, best σ × k: within 1σ / 2σ")
     cells = []
     for r in rows:
         if "refused_fit" in r:
@@ -192,7 +209,8 @@ def report(rows: list[dict], info: dict) -> str:
                                                          r["mae_forced_c"])))
         cells.append((r["method"], r["data"], r.get("bursts", r.get("frames")), r["refused"],
                       f"{r['mae_c']:.2f}{split}", *_cells(r["accepted"]),
-                      *_cells(r["forced"]), r["silent_over_1c"]))
+                      *_cells(r["forced"]), r["silent_over_1c"],
+                      _rescaled_cell(r.get("accepted_rescaled"))))
     table = markdown_table(header, cells)
     return (f"## Coverage of the stated uncertainty\n\nmachine: {info['machine']}; "
             f"{info['wall_s']:.0f} s\n\ndata: bursts of N = 7 frames, 336×256, over the held-out "
@@ -203,7 +221,10 @@ def report(rows: list[dict], info: dict) -> str:
             "the domain check lets through; refused: the rest, scored as `--force` gives it "
             "(σ grown or inflated); silent: accepted bursts or frames whose MAE exceeds both "
             "1 °C and twice their median σ. Targets: 68 ± 5 % within 1σ, 95 ± 3 % within "
-            f"2σ.\n\n{table}\n")
+            "2σ. Best σ × k: the one factor on every accepted σ that comes closest to those "
+            "shares (chosen on the errors it scores: a diagnostic, not a correction); \"no k in "
+            "band\": no overall level of this σ meets both bands, its errors over σ are not "
+            f"spread as a Gaussian's.\n\n{table}\n")
 
 
 def unit_spread(rows: list[dict]) -> str:
@@ -225,12 +246,23 @@ def unit_spread(rows: list[dict]) -> str:
               span([100 * r["accepted"]["within_1sigma"] for r in g], ".1f") + " %",
               span([100 * r["accepted"]["within_2sigma"] for r in g], ".1f") + " %",
               span([r["accepted"]["median_sigma_c"] for r in g], ".2f"),
-              span([r["silent_over_1c"] for r in g], "d"))
+              span([r["silent_over_1c"] for r in g], "d"),
+              _rescaled_span([r.get("accepted_rescaled") for r in g], span))
              for (method, family), g in groups.items()]
     header = ("method", "family", "units", "accepted: within 1σ", "within 2σ", "median σ °C",
-              "silent frames")
+              "silent frames", "best σ × k (units with a k in band)")
     return ("\n### The same, unit by unit\n\nEach unit's own session and held-out run (other "
             "seeds): the range over the units.\n\n" + markdown_table(header, cells) + "\n")
+
+
+def _rescaled_span(results: list[dict | None], span) -> str:
+    """The range of the best factors over units, and in how many units some factor meets both
+    bands."""
+    done = [r for r in results if r is not None]
+    if not done:
+        return "–"
+    return (f"×{span([r['factor'] for r in done], '.2f')} "
+            f"({sum(r['in_band'] for r in done)} of {len(done)})")
 
 
 def _units(text: str) -> tuple[int, ...]:
