@@ -11,6 +11,9 @@ import pytest
 
 pytest.importorskip("distributed")
 
+from distributed.diagnostics.plugin import WorkerPlugin  # noqa: E402
+
+from thermocal.cores import available_cores  # noqa: E402
 from thermocal.pipeline import campaign  # noqa: E402
 from thermocal.pipeline.campaign import campaign_tasks, run_campaign  # noqa: E402
 from thermocal.pipeline.flight import FlightOptions, process_flight  # noqa: E402
@@ -50,6 +53,10 @@ def test_a_campaign_gives_the_bytes_of_sequential_flights_and_resumes(data, tmp_
         assert len(seq) > 10 and seq == par
         assert (out / r.name / "report.html").is_file()
     assert json.loads((out / "campaign.json").read_text())["failed"] == 0
+    # each worker registers on its share of the cores
+    share = max(1, available_cores() // 2)
+    flight_options = json.loads((out / "pass0" / "summary.json").read_text())["options"]
+    assert flight_options["registration_threads"] == share
     # rerun: every map is kept (resume), none remade
     sorted((out / "pass1" / "temps").glob("frame_??????.tiff"))[0].unlink()
     again = run_campaign(campaign_tasks(recordings, out, _options(data)), out, workers=1)
@@ -97,3 +104,36 @@ def test_bad_campaign_input_is_one_line_exit_2_and_writes_nothing(data, tmp_path
     err = capsys.readouterr().err.strip()
     assert e.value.code == 2 and "\n" not in err and message in err, err
     assert not out.exists()
+
+
+class _DiesOn(WorkerPlugin):
+    """A worker plugin that kills its worker process when it starts a task whose key holds
+    ``name`` (a worker lost mid-task: out of memory, a node gone)."""
+
+    def __init__(self, name: str) -> None:
+        self.name = name
+
+    def transition(self, key, start, finish, **kwargs) -> None:  # noqa: D102
+        import os
+
+        if finish == "executing" and self.name in str(key):
+            os._exit(1)
+
+
+def test_a_worker_that_dies_mid_task_is_reported_and_the_others_finish(data, tmp_path):
+    import sys
+
+    import cloudpickle
+    from distributed import Client, LocalCluster
+
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the plugin, to the workers
+    tasks = campaign_tasks([data / "pass0", data / "pass1"], tmp_path / "out", _options(data))
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=":0") as cluster, Client(cluster) as client:
+        client.register_plugin(_DiesOn("flight-pass0"), name="dies")
+        summary = run_campaign(tasks, tmp_path / "out", scheduler=cluster.scheduler_address)
+    dead, good = summary["recordings"]
+    assert summary["failed"] == 1 and summary["scheduler"] == cluster.scheduler_address
+    assert not dead["ok"] and "KilledWorker" in dead["error"]
+    assert good["ok"] and good["processed"] > 0
+    assert json.loads((tmp_path / "out" / "campaign.json").read_text())["failed"] == 1

@@ -74,10 +74,28 @@ def test_mean_of_registered_group(setup, tmp_path):
         (tmp_path / "o" / "previews").iterdir())
 
 
+def test_registration_runs_on_the_threads_it_is_given(setup, tmp_path, monkeypatch):
+    from thermocal.pipeline import flight
+
+    asked, register = [], flight.register_sequence
+
+    def spy(frames, **kwargs):
+        asked.append(kwargs.get("workers"))
+        return register(frames, **kwargs)
+
+    monkeypatch.setattr(flight, "register_sequence", spy)
+    options = FlightOptions(method="mean", calibration=str(setup / "cal.h5"), preview_every=0,
+                            registration_threads=1)
+    process_flight(setup / "flight" / "frames.tiff", tmp_path / "o", options)
+    assert asked and set(asked) == {1}
+
+
 def test_bad_input(setup, tmp_path):
     rec = setup / "flight" / "frames.tiff"
     with pytest.raises(InvalidInputError, match="needs --calibration"):
         FlightOptions(method="mean")
+    with pytest.raises(InvalidInputError, match="registration threads"):
+        FlightOptions(method="mean", calibration=str(setup / "cal.h5"), registration_threads=0)
     (tmp_path / "file").write_text("")
     with pytest.raises(InvalidInputError):
         process_flight(rec, tmp_path / "file", FlightOptions(method="calibration",

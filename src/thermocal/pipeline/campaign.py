@@ -52,7 +52,7 @@ class CampaignTask:
     out_dir: str
     frames: int
     options: FlightOptions
-    #: Threads the worker's pools may use (None: as they are).
+    #: Threads the worker's OpenCV pool may use (None: as it is).
     threads: int | None = None
 
 
@@ -105,7 +105,11 @@ def _run_task(task: CampaignTask) -> dict[str, Any]:
 
     started = time.perf_counter()
     if task.threads is not None:
-        _limit_threads(task.threads)
+        import cv2
+
+        # OpenCV has one process-wide pool, which defaults to every core: the workers of one
+        # machine would fight over them
+        cv2.setNumThreads(task.threads)
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -122,18 +126,6 @@ def _run_task(task: CampaignTask) -> dict[str, Any]:
             "warnings": sorted({str(w.message) for w in caught}),
             **({} if done > 0 else {"error": f"every group failed: {summary.get('first_error')}"}),
             "seconds": time.perf_counter() - started}
-
-
-def _limit_threads(n: int) -> None:
-    """Size the thread pools of this worker process to its share of the cores: OpenCV's and the
-    registration's (which default to every core, and would make the workers of one machine fight
-    over them); a network's are set by the flight's own ``threads``."""
-    import cv2
-
-    from thermocal.registration import _dense
-
-    cv2.setNumThreads(n)
-    _dense.DEFAULT_WORKERS = n
 
 
 def connect(scheduler: str | None, workers: int) -> Any:
@@ -188,9 +180,10 @@ def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
         futures = {}
         for task in tasks:
             if share is not None:  # this machine's cores, shared out between its workers
-                task = replace(task, threads=share)
-                if task.options.threads is None and _runs_network(task):
-                    task = replace(task, options=replace(task.options, threads=share))
+                options = replace(task.options, registration_threads=share)
+                if options.threads is None and _runs_network(task):
+                    options = replace(options, threads=share)
+                task = replace(task, threads=share, options=options)
             futures[client.submit(_run_task, task, key=f"thermocal-flight-{task.name}",
                                   pure=False, retries=RETRIES)] = task
         results: dict[str, dict[str, Any]] = {}

@@ -123,6 +123,9 @@ class FlightOptions:
     references: str | None = None
     backend: str = "torch"
     threads: int | None = None
+    #: Threads the registration may use (None: its default, up to two); a campaign's worker
+    #: gives its share of the cores.
+    registration_threads: int | None = None
 
     def __post_init__(self) -> None:
         info = ESTIMATORS.get(self.method)
@@ -132,6 +135,9 @@ class FlightOptions:
         if self.frames < 1 or self.stride < 1:
             raise InvalidInputError("--frames and --stride must be >= 1")
         check_backend_options(self.method, self.backend, self.threads)
+        if self.registration_threads is not None and self.registration_threads < 1:
+            raise InvalidInputError(
+                f"registration threads must be >= 1, got {self.registration_threads}")
         if info.needs == "calibration" and self.calibration is None:
             raise InvalidInputError(f"--method {self.method} needs --calibration CAL.h5")
         if self.preview_every < 0:
@@ -198,13 +204,14 @@ def _paces(estimator: Estimator, series: dict[str, Any]) -> tuple[list, np.ndarr
     return model.pace_reasons(rates, times)
 
 
-def _register(estimator: Estimator, frames: np.ndarray) -> SequenceRegistration | None:
+def _register(estimator: Estimator, frames: np.ndarray, workers: int | None
+              ) -> SequenceRegistration | None:
     """Frame-to-previous registration of a run of frames; None for a per-frame estimator.
 
     Consecutive frames of a recording overlap most, and the run's many frames give a good
     fixed-pattern estimate: far faster and more accurate than registering each group alone.
     """
-    return None if estimator.per_frame else register_sequence(frames)
+    return None if estimator.per_frame else register_sequence(frames, workers=workers)
 
 
 def process_flight(
@@ -271,6 +278,7 @@ def process_flight(
                 continue
             # the whole batch, done pivots included: the same frames as an uninterrupted run
             run = _register_batch(reader, estimator, batch, n, tally.times,
+                                  workers=options.registration_threads,
                                   known=pass_fit.registered.get(bi) if pass_fit else None)
             batch_estimator = estimator
             if pass_fit is not None:
@@ -410,7 +418,8 @@ class _PassFit:
         reader = _FrameWindow(header.stream(max(64, n)), header.frame_shape)
         fits, maps, registered = {}, {}, {}
         for bi in sorted({0, *where.values()}):
-            run = _register_batch(reader, estimator, batches[bi], n, StageTimes())
+            run = _register_batch(reader, estimator, batches[bi], n, StageTimes(),
+                                  workers=options.registration_threads)
             registered[bi] = replace(run, frames=run.frames[:0])
             try:
                 fitted = _fit_batch(estimator, run, series)
@@ -535,9 +544,11 @@ def _stand_ins(frames: np.ndarray, bad: list[int]) -> np.ndarray:
 
 
 def _register_batch(reader: _FrameWindow, estimator: Estimator, batch: list[int], n: int,
-                    times: StageTimes, *, known: _Batch | None = None) -> _Batch:
+                    times: StageTimes, *, workers: int | None = None,
+                    known: _Batch | None = None) -> _Batch:
     """Read the frames of the groups of ``batch`` (pivots) and register them as one sequence
-    (the registration of ``known``, the same batch read before, when given)."""
+    on ``workers`` threads (None: the registration's default), or take the registration of
+    ``known``, the same batch read before."""
     t = time.perf_counter()
     a, z = batch[0] - n // 2, batch[-1] - n // 2 + n
     frames, undecodable = reader.frames(a, z)
@@ -545,7 +556,8 @@ def _register_batch(reader: _FrameWindow, estimator: Estimator, batch: list[int]
     if known is not None:
         return _Batch(a, frames, known.sequence, known.error, undecodable)
     try:
-        sequence = _register(estimator, _stand_ins(frames, [i - a for i, _, _ in undecodable]))
+        sequence = _register(estimator, _stand_ins(frames, [i - a for i, _, _ in undecodable]),
+                             workers)
         error = None
     except (RegistrationError, InvalidInputError) as exc:
         sequence, error = None, str(exc)
