@@ -271,3 +271,31 @@ def test_flight_refuses_the_groups_at_paces_its_calibration_never_held(fitted, t
     sig = read_temperature_tiff(tmp_path / "forced" / "temps" / f"frame_{last:06d}_sigma.tiff")
     first = read_temperature_tiff(tmp_path / "forced" / "temps" / "frame_000000_sigma.tiff")
     assert np.median(sig) > 2.0 * np.median(first)
+
+
+def test_the_pipeline_judges_a_bursts_pace_from_its_recording(fitted):
+    """`estimate()` given a burst's FPA rate and its rate through the pace's lag (what a
+    recording tells of the minutes before): a steady 1 °C/min the session never held is
+    refused with the reason and the remedy; forced, its σ grows; a steady pace the session
+    held, or no lagged rate (no history), passes as before."""
+    camera, cal, report = fitted
+    scene = 15.0 + 10.0 * np.random.default_rng(0).random((96, 96))
+    fpa = 0.5 * sum(report.fpa_range_c)
+    burst = simulate_flight(scene, camera, n_frames=5, motion="walk", fpa_c=fpa, seed=1)
+    estimator = PivotCalibration(cal)
+    args = {"fpa_c": burst.fpa_c, "time_since_start_s": 900.0}
+    with pytest.raises(OutsideDomainError, match="paces its chamber session never held "
+                                                 r"\(\+1\.00 °C/min after \+1\.00"):
+        estimate(burst.frames, estimator, fpa_rate_c_per_min=1.0,
+                 fpa_lagged_rate_c_per_min=1.0, **args)
+    forced = estimate(burst.frames, estimator, fpa_rate_c_per_min=1.0,
+                      fpa_lagged_rate_c_per_min=1.0, force=True, **args)
+    pace, rate = forced.outside  # and faster than the session's fastest (0.31 °C/min)
+    assert "lin-lag" in pace and "faster than the 0.31 °C/min" in rate
+    held = estimate(burst.frames, estimator, fpa_rate_c_per_min=0.25,
+                    fpa_lagged_rate_c_per_min=0.25, **args)
+    assert held.outside == ()
+    assert np.median(forced.sigma_c) > 2.0 * np.median(held.sigma_c)
+    no_history = estimate(burst.frames, estimator, fpa_rate_c_per_min=0.25, **args)
+    assert no_history.outside == ()
+    np.testing.assert_array_equal(no_history.temperature_c, held.temperature_c)

@@ -135,5 +135,6 @@ def test_a_worker_that_dies_mid_task_is_reported_and_the_others_finish(data, tmp
     dead, good = summary["recordings"]
     assert summary["failed"] == 1 and summary["scheduler"] == cluster.scheduler_address
     assert not dead["ok"] and "KilledWorker" in dead["error"]
-    assert good["ok"] and good["processed"] > 0
+    # its task may have run again after a worker it shared the cluster with died: it resumed
+    assert good["ok"] and good["processed"] + good["skipped_already_done"] == good["groups"] > 0
     assert json.loads((tmp_path / "out" / "campaign.json").read_text())["failed"] == 1

@@ -55,7 +55,7 @@ class Recorder:
         self.seen.append(("calibrate", frames.copy(), fpa_c))
         return frames.astype(np.float32) * 0.5 + np.arange(frames.shape[2], dtype=np.float32)
 
-    def outside(self, calibrated, fpa_c):
+    def outside(self, calibrated, fpa_c, *, pace=None):
         self.seen.append(("outside", calibrated.shape, fpa_c))
         return self.reasons
 

@@ -172,15 +172,23 @@ class CalibrationSigma:
         if (not paces or not paces["cells"] or rate.size == 0 or t.shape != rate.shape
                 or np.any(np.diff(t) <= 0)):
             return rate, rate, np.zeros(rate.shape)
-        cell = paces["cell_c_per_min"]
         lagged = lagged_rate(rate, t, paces["lag_s"])
+        return rate, lagged, self._distance(rate, lagged)
+
+    def _distance(self, rate: np.ndarray, lagged: np.ndarray) -> np.ndarray:
+        """:meth:`pace_distance` of points (rate, lagged rate), °C/min ``(N,)`` each; zeros
+        where the report lists no paces."""
+        paces = self.report.paces
+        if not paces or not paces["cells"]:
+            return np.zeros(rate.shape)
+        cell = paces["cell_c_per_min"]
         held = np.asarray(paces["cells"], dtype=np.float64).reshape(-1, 2) * cell
         point = np.stack([rate, lagged], axis=1)
         out = np.empty(rate.shape)
         for i in range(0, rate.size, 4096):  # (frames × cells) at a time, bounded
             d = np.abs(point[i:i + 4096, None, :] - held[None]).max(axis=2).min(axis=1)
             out[i:i + 4096] = np.maximum(d - 0.5 * cell, 0.0)
-        return rate, lagged, out
+        return out
 
     def unseen_paces(self, rate_c_per_min: Any, time_s: Any) -> np.ndarray:
         """Which frames ``(N,)`` bool changed at a pace the session never held: more than one
@@ -193,14 +201,15 @@ class CalibrationSigma:
         return float(max(abs(v) for v in self.report.fpa_rate_c_per_min))
 
     def sigma(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None,
-              time_since_start_s: Any = None) -> np.ndarray:
+              time_since_start_s: Any = None, lagged_rate_c_per_min: Any = None) -> np.ndarray:
         """σ (°C, float32, the shape of ``temps_c``: ``(H, W)`` or ``(N, H, W)``) of
         temperatures at FPA temperature ``fpa_c`` (°C: one, or one per frame) changing at
         ``rate_c_per_min`` (°C/min, one or one per frame; None: not known), taken
         ``time_since_start_s`` after their recording began (s; None: not known): the level is
         at least the report's σ of that time, for a method that learns as frames stream by;
         and, for the frames of one recording (``(N, H, W)``, N > 1, in time order) at paces the
-        session never held, :meth:`_pace_sigma` (one frame has no pace history)."""
+        session never held, :meth:`_pace_sigma` (one frame has no pace history: give its
+        ``lagged_rate_c_per_min``, °C/min, one or one per frame, taken from its recording)."""
         temps = np.asarray(temps_c, dtype=np.float64)
         frames = temps if temps.ndim == 3 else temps[None]
         fpa = np.broadcast_to(np.asarray(fpa_c, dtype=np.float64).reshape(-1), frames.shape[:1])
@@ -213,6 +222,12 @@ class CalibrationSigma:
                 np.broadcast_to(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1), (n,)),
                 np.broadcast_to(np.asarray(time_since_start_s, dtype=np.float64).reshape(-1),
                                 (n,)))))
+        elif rate_c_per_min is not None and lagged_rate_c_per_min is not None:  # paces given
+            n = frames.shape[0]
+            rate = np.broadcast_to(np.asarray(rate_c_per_min, np.float64).reshape(-1), (n,))
+            lagged = np.broadcast_to(np.asarray(lagged_rate_c_per_min, np.float64).reshape(-1),
+                                     (n,))
+            level = np.maximum(level, self._pace_sigma(self._distance(rate, lagged)))
         if time_since_start_s is not None:
             level = np.maximum(level, np.broadcast_to(self.start_sigma(time_since_start_s),
                                                       frames.shape[:1]))
@@ -228,20 +243,6 @@ class CalibrationSigma:
         growth = k_scene * d_scene + (k_fpa * d_fpa)[:, None, None]
         out = (level[:, None, None] * shape + _GAUSS * growth).astype(np.float32)
         return out if temps.ndim == 3 else out[0]
-
-    def pace_reasons(self, rate_c_per_min: Any, time_s: Any) -> tuple[list[str | None],
-                                                                       np.ndarray]:
-        """One recording's pace check frame by frame (``rate_c_per_min``, ``time_s``: ``(N,)``
-        in time order): why each frame is outside (None: inside) and the σ level it takes
-        forced (°C, ``(N,)``; 0 inside), as :meth:`outside` and :meth:`sigma` judge the whole
-        recording; for a product that decides group by group (``thermocal flight``)."""
-        rate, lagged, d = self._pace(rate_c_per_min, time_s)
-        if rate.size < 2:
-            return [None] * rate.size, np.zeros(rate.size)
-        unseen = d > self._pace_cell
-        why = [self._pace_reason(r, y) if u else None
-               for r, y, u in zip(rate, lagged, unseen, strict=True)]
-        return why, self._pace_sigma(d)
 
     @property
     def _pace_cell(self) -> float:
@@ -264,23 +265,45 @@ class CalibrationSigma:
         worst = max([self._overall_sigma()] + [self._bin_sigma(b) for b in self.report.by_rate])
         return np.where(distance > cell, worst * distance / cell, 0.0)
 
+    def outside_burst(self, temps_c: np.ndarray, fpa_c: float | None, pace: Any
+                      ) -> tuple[str, ...]:
+        """:meth:`outside` for one burst of calibrated frames ``(N, H, W)`` at FPA temperature
+        ``fpa_c`` (°C; None: not known) changing at ``pace`` (a
+        :class:`~thermocal.estimation.base.FpaPace` or None: not known): its FPA rate against
+        the session's fastest, and for a memoryless method its rate and lagged rate against the
+        paces the session held."""
+        rate = None if pace is None else [pace.rate_c_per_min]
+        lagged = (None if pace is None or pace.lagged_c_per_min is None
+                  else [pace.lagged_c_per_min])
+        return self.outside(temps_c, () if fpa_c is None else fpa_c, rate_c_per_min=rate,
+                            lagged_rate_c_per_min=lagged)
+
     def outside(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None,
-                time_s: Any = None) -> tuple[str, ...]:
+                time_s: Any = None, lagged_rate_c_per_min: Any = None) -> tuple[str, ...]:
         """Why frames lie outside what the calibration was fitted on: their FPA temperatures
         (more than :data:`FPA_MARGIN_C` beyond the session's), their FPA rates (°C/min, where
         known: faster than :data:`RATE_MARGIN` times the session's fastest), their paces (with
         ``time_s``, s, one recording's: a memoryless method's paces the session never held,
-        :meth:`unseen_paces`), or their scene (its 1st–99th percentile beyond the blackbody's
-        range); ``()`` inside."""
+        :meth:`unseen_paces`; or, given each frame's ``lagged_rate_c_per_min``, °C/min, taken
+        from its recording, by its rate and lagged rate), or their scene (its 1st–99th
+        percentile beyond the blackbody's range); ``()`` inside."""
         reasons = []
-        if (rate_c_per_min is not None and time_s is not None and np.size(rate_c_per_min) > 1
-                and self.report.paces):
-            rate, lagged, d = self._pace(rate_c_per_min, time_s)
+        if rate_c_per_min is not None and self.report.paces and (
+                lagged_rate_c_per_min is not None
+                or (time_s is not None and np.size(rate_c_per_min) > 1)):
+            if lagged_rate_c_per_min is not None:
+                rate = np.asarray(rate_c_per_min, np.float64).reshape(-1)
+                lagged = np.broadcast_to(
+                    np.asarray(lagged_rate_c_per_min, np.float64).reshape(-1), rate.shape)
+                d = self._distance(rate, lagged)
+            else:
+                rate, lagged, d = self._pace(rate_c_per_min, time_s)
             unseen = d > self._pace_cell
             if unseen.any():
                 k = int(np.argmax(unseen))
-                reasons.append(self._pace_reason(
-                    rate[k], lagged[k], count=f"{int(unseen.sum())} of {unseen.size} frames; "))
+                count = (f"{int(unseen.sum())} of {unseen.size} frames; " if unseen.size > 1
+                         else "")
+                reasons.append(self._pace_reason(rate[k], lagged[k], count=count))
         if rate_c_per_min is not None and np.size(rate_c_per_min):
             fastest = float(np.max(np.abs(rate_c_per_min)))
             if fastest > RATE_MARGIN * self.max_rate_c_per_min + 0.05:

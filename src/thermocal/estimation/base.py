@@ -4,11 +4,30 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Protocol, runtime_checkable
+from typing import Any, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["Estimate", "Estimator", "PreparedBurst", "view_spread"]
+__all__ = ["Estimate", "Estimator", "FpaPace", "PreparedBurst", "view_spread"]
+
+
+class FpaPace(NamedTuple):
+    """How the FPA temperature was changing at a burst, from its whole recording (a burst's
+    fraction of a second cannot show it).
+
+    Attributes
+    ----------
+    rate_c_per_min : float
+        The FPA rate, °C/min.
+    lagged_c_per_min : float or None
+        The same seen through a first-order lag of
+        :data:`~thermocal.calibration.report.PACE_LAG_S`
+        (:func:`~thermocal.calibration.dataset.lagged_rate`), °C/min: how it has been changing
+        over the last minutes; None without the recording's history.
+    """
+
+    rate_c_per_min: float
+    lagged_c_per_min: float | None = None
 
 
 @dataclass(frozen=True)
@@ -65,6 +84,9 @@ class PreparedBurst:
     time_since_start_s : float or None
         How long after its recording began the burst was taken, s, where known (an online
         calibration errs most at first); for the uncertainty.
+    fpa_lagged_rate_c_per_min : float or None
+        The FPA rate through the pace's lag (:class:`FpaPace`), where the recording's history
+        is known; for the uncertainty of a calibration with no memory of the FPA's pace.
     """
 
     frames: np.ndarray
@@ -75,6 +97,7 @@ class PreparedBurst:
     fpa_c: float | None
     fpa_rate_c_per_min: float | None = None
     time_since_start_s: float | None = None
+    fpa_lagged_rate_c_per_min: float | None = None
 
 
 @runtime_checkable
@@ -122,10 +145,11 @@ class Estimator(Protocol):
         times (or None)."""
         ...
 
-    def outside(self, calibrated: np.ndarray, fpa_c: float | None) -> tuple[str, ...]:
+    def outside(self, calibrated: np.ndarray, fpa_c: float | None, *,
+                pace: FpaPace | None = None) -> tuple[str, ...]:
         """Why a burst lies outside what the estimator was fitted or trained on, from its
-        :meth:`calibrate` output ``(N, H, W)`` and FPA temperature (°C): one clause per failed
-        check, ``()`` inside."""
+        :meth:`calibrate` output ``(N, H, W)``, FPA temperature (°C) and, where known, how the
+        FPA was changing (``pace``): one clause per failed check, ``()`` inside."""
         ...
 
     def estimate(self, burst: PreparedBurst) -> np.ndarray:

@@ -10,7 +10,7 @@ import numpy as np
 from thermocal.calibration.base import Calibration
 from thermocal.calibration.uncertainty import REMEDY, CalibrationSigma
 from thermocal.errors import ResolutionMismatchError
-from thermocal.estimation.base import Estimate, PreparedBurst, view_spread
+from thermocal.estimation.base import Estimate, FpaPace, PreparedBurst, view_spread
 from thermocal.estimation.pipeline import estimate
 
 __all__ = ["OzMean", "PivotCalibration", "naive_mean"]
@@ -28,13 +28,16 @@ class _ThroughCalibration:
         self.calibration = calibration
         self.sigma_model = CalibrationSigma.of(calibration)
 
-    def outside(self, calibrated: np.ndarray, fpa_c: float | None) -> tuple[str, ...]:
-        """The FPA and scene ranges of the calibration's chamber session
-        (:meth:`~thermocal.calibration.uncertainty.CalibrationSigma.outside`; the FPA only when
-        the burst has one); ``()`` for a calibration without a report (an older file)."""
+    def outside(self, calibrated: np.ndarray, fpa_c: float | None, *,
+                pace: FpaPace | None = None) -> tuple[str, ...]:
+        """The FPA and scene ranges of the calibration's chamber session, and where ``pace`` is
+        known its FPA rates and (a memoryless method) its paces
+        (:meth:`~thermocal.calibration.uncertainty.CalibrationSigma.outside_burst`; the FPA
+        only when the burst has one); ``()`` for a calibration without a report (an older
+        file)."""
         if self.sigma_model is None:
             return ()
-        return self.sigma_model.outside(calibrated, () if fpa_c is None else fpa_c)
+        return self.sigma_model.outside_burst(calibrated, fpa_c, pace)
 
     def uncertainty(self, burst: PreparedBurst, temperature_c: np.ndarray, *, outside: bool
                     ) -> np.ndarray | None:
@@ -46,8 +49,10 @@ class _ThroughCalibration:
             return None
         rate = None if burst.fpa_rate_c_per_min is None else [burst.fpa_rate_c_per_min]
         since = None if burst.time_since_start_s is None else [burst.time_since_start_s]
+        lagged = (None if rate is None or burst.fpa_lagged_rate_c_per_min is None
+                  else [burst.fpa_lagged_rate_c_per_min])
         return self.sigma_model.sigma(temperature_c, burst.fpa_c, rate_c_per_min=rate,
-                                      time_since_start_s=since)
+                                      time_since_start_s=since, lagged_rate_c_per_min=lagged)
 
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
         shape = tuple(self.calibration.shape)

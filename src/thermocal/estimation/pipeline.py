@@ -30,7 +30,7 @@ from thermocal.burst import (
     pivot_index,
 )
 from thermocal.errors import InvalidInputError, OutsideDomainError
-from thermocal.estimation.base import Estimate, Estimator, PreparedBurst
+from thermocal.estimation.base import Estimate, Estimator, FpaPace, PreparedBurst
 from thermocal.registration.warp import warp_to_pivot
 
 __all__ = ["domain_stage", "estimate", "register_stage"]
@@ -47,15 +47,16 @@ def register_stage(
 
 
 def domain_stage(estimator: Estimator, calibrated: np.ndarray, fpa_c: float | None, *,
-                 force: bool) -> tuple[str, ...]:
-    """Stage 4's check: why the burst lies outside ``estimator``'s domain (``()`` inside).
+                 force: bool, pace: FpaPace | None = None) -> tuple[str, ...]:
+    """Stage 4's check: why the burst, at FPA temperature ``fpa_c`` (°C) changing at ``pace``
+    (where known), lies outside ``estimator``'s domain (``()`` inside).
 
     Raises
     ------
     OutsideDomainError
         Outside, unless ``force``: one line with every reason and the estimator's remedy.
     """
-    reasons = estimator.outside(calibrated, fpa_c)
+    reasons = estimator.outside(calibrated, fpa_c, pace=pace)
     if reasons and not force:
         raise OutsideDomainError(f"{'; '.join(reasons)}; {estimator.remedy}")
     return reasons
@@ -74,6 +75,7 @@ def estimate(
     force: bool = False,
     fpa_rate_c_per_min: float | None = None,
     time_since_start_s: float | None = None,
+    fpa_lagged_rate_c_per_min: float | None = None,
     bit_depth: int = 14,
 ) -> Estimate:
     """The pivot frame's temperature of a raw burst through ``estimator``.
@@ -108,6 +110,10 @@ def estimate(
     time_since_start_s : float, optional
         How long after its recording began the burst was taken, s (for an online
         calibration's uncertainty).
+    fpa_lagged_rate_c_per_min : float, optional
+        The FPA rate through the pace's lag, °C/min (:class:`~thermocal.estimation.base.FpaPace`,
+        from the whole recording): with ``fpa_rate_c_per_min``, a calibration with no memory of
+        the FPA's pace refuses a pace its chamber session never held (unless ``force``: σ grown).
     bit_depth : int
         The counts' bit depth (14 for a Tau2 core; 16 for FLIR files): saturation is at
         ``2**bit_depth − 1``.
@@ -134,9 +140,10 @@ def estimate(
         valid[p] = True
         hs = np.repeat(np.eye(3)[None], arr.shape[0], axis=0)
         calibrated = estimator.calibrate(arr, fpa_c, time_s)
-        outside = domain_stage(estimator, calibrated, fpa, force=force)
+        outside = domain_stage(estimator, calibrated, fpa, force=force, pace=_pace(
+            fpa_rate_c_per_min, fpa_lagged_rate_c_per_min))
         burst = PreparedBurst(arr, calibrated, valid, hs, p, fpa, fpa_rate_c_per_min,
-                              time_since_start_s)
+                              time_since_start_s, fpa_lagged_rate_c_per_min)
         return _estimate_of(estimator, burst, outside)
     if registered and not estimator.accepts_registered:
         raise InvalidInputError(
@@ -149,7 +156,8 @@ def estimate(
     filled = fill_stuck_pixels(arr, hs)[0] if fill_defects and not registered else arr
     # 4. calibrate
     calibrated = estimator.calibrate(filled, fpa if estimator.needs_fpa else fpa_c, time_s)
-    outside = domain_stage(estimator, calibrated, fpa, force=force)
+    outside = domain_stage(estimator, calibrated, fpa, force=force,
+                           pace=_pace(fpa_rate_c_per_min, fpa_lagged_rate_c_per_min))
     # 5. warp
     if registered and homographies is None:
         warped = np.asarray(calibrated, dtype=np.float32)
@@ -160,8 +168,13 @@ def estimate(
     check_overlap(valid, p)
     # 6. estimate
     burst = PreparedBurst(filled, warped, valid, hs, p, fpa, fpa_rate_c_per_min,
-                          time_since_start_s)
+                          time_since_start_s, fpa_lagged_rate_c_per_min)
     return _estimate_of(estimator, burst, outside)
+
+
+def _pace(rate_c_per_min: float | None, lagged_c_per_min: float | None) -> FpaPace | None:
+    """The burst's :class:`~thermocal.estimation.base.FpaPace`, None without its rate."""
+    return None if rate_c_per_min is None else FpaPace(rate_c_per_min, lagged_c_per_min)
 
 
 def _estimate_of(estimator: Estimator, burst: PreparedBurst, outside: tuple[str, ...]

@@ -254,12 +254,14 @@ class SelfCalibration:
         temps = np.asarray(temps, np.float32)
         return fill_bad_pixels(temps, self.pattern.bad)  # a new array, filled in place
 
-    def outside(self, calibrated: np.ndarray, fpa_c: float | None) -> tuple[str, ...]:
-        """The start calibration's ranges (FPA, scene); the family's average unit has none."""
+    def outside(self, calibrated: np.ndarray, fpa_c: float | None, *,
+                pace: Any = None) -> tuple[str, ...]:
+        """The start calibration's ranges (FPA, scene; its FPA rates and paces where ``pace``
+        is known); the family's average unit has none."""
         model = self.sigma_model
         if model is None:
             return ()
-        return model.outside(calibrated, () if fpa_c is None else fpa_c)
+        return model.outside_burst(calibrated, fpa_c, pace)
 
     def estimate(self, burst: PreparedBurst) -> np.ndarray:
         """Oz et al. eq. 9 on the corrected frames: the registered mean."""

@@ -98,7 +98,8 @@ class VendorCalibration:
         return np.stack([np.asarray(p.raw_to_temperature_c(f.astype(np.float64)), np.float32)
                          for p, f in zip(self.plancks, frames, strict=True)])
 
-    def outside(self, calibrated: np.ndarray, fpa_c: float | None) -> tuple[str, ...]:
+    def outside(self, calibrated: np.ndarray, fpa_c: float | None, *,
+                pace: Any = None) -> tuple[str, ...]:
         """``()``: counts the formula cannot convert are refused by it
         (:meth:`~thermocal.radiometry.FlirPlanck.raw_to_temperature_c`)."""
         return ()

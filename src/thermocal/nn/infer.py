@@ -267,7 +267,8 @@ class NetworkEstimator:
             return frames
         return calibrated_frames(self.model, frames, fpa_c)
 
-    def outside(self, calibrated: np.ndarray, fpa_c: float | None) -> tuple[str, ...]:
+    def outside(self, calibrated: np.ndarray, fpa_c: float | None, *,
+                pace: Any = None) -> tuple[str, ...]:
         """:func:`thermocal.nn.validity.outside_domain` of the network's training domain (the
         FPA range alone for a network of raw counts; nothing without a ``domain``)."""
         if self.domain is None or fpa_c is None:

@@ -68,9 +68,9 @@ import numpy as np
 
 from thermocal._validate import check_output_dir
 from thermocal.burst import check_burst, fpa_value
-from thermocal.calibration.dataset import recording_fpa_rates
-from thermocal.calibration.uncertainty import CalibrationSigma
-from thermocal.errors import InvalidInputError, OutputError, OutsideDomainError, RegistrationError
+from thermocal.calibration.dataset import lagged_rate, recording_fpa_rates
+from thermocal.calibration.report import PACE_LAG_S
+from thermocal.errors import InvalidInputError, OutputError, RegistrationError
 from thermocal.estimation.base import Estimator
 from thermocal.estimation.pipeline import estimate
 from thermocal.estimation.registry import (
@@ -192,16 +192,14 @@ def _estimator(options: FlightOptions, frame_shape: tuple[int, int]) -> Estimato
     return estimator
 
 
-def _paces(estimator: Estimator, series: dict[str, Any]) -> tuple[list, np.ndarray] | None:
-    """A calibration's pace check of the whole recording: why each frame is outside, or None,
-    and the σ it takes forced (``CalibrationSigma.pace_reasons``); None for other estimators
-    or without frame times."""
-    model = getattr(estimator, "sigma_model", None)
+def _lagged_rates(series: dict[str, Any]) -> np.ndarray | None:
+    """The recording's FPA rate through the pace's lag, °C/min ``(M,)``
+    (:class:`~thermocal.estimation.base.FpaPace`): what a calibration with no memory of the
+    FPA's pace is checked on, group by group; None without rates or increasing frame times."""
     rates, times = series["fpa_rate_c_per_min"], series["time_s"]
-    if (not isinstance(model, CalibrationSigma) or not model.report.paces or rates is None
-            or times is None):
+    if rates is None or times is None or np.any(np.diff(np.asarray(times, np.float64)) <= 0):
         return None
-    return model.pace_reasons(rates, times)
+    return lagged_rate(rates, times, PACE_LAG_S)
 
 
 def _register(estimator: Estimator, frames: np.ndarray, workers: int | None
@@ -243,7 +241,7 @@ def process_flight(
         estimator = _estimator(options, header.frame_shape)
     series = header.series | {"fpa_rate_c_per_min": recording_fpa_rates(
         header.series["fpa_c"], header.series["time_s"])}
-    series["pace"] = _paces(estimator, series)
+    series["fpa_lagged_rate_c_per_min"] = _lagged_rates(series)
     geo = _pivot_tags(header.series.get("frame_metadata"), pivots, options, header.frame_shape)
     per_batch = max(1, BATCH_FRAMES // stride)
     batches = [pivots[b : b + per_batch] for b in range(0, len(pivots), per_batch)]
@@ -586,12 +584,10 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
              "fpa_c": None if fpa is None else float(fpa[pivot]), "warnings": []}
     t = time.perf_counter()
     group = run.frames[first - run.start : first - run.start + n]
-    pace_why = None if series.get("pace") is None else series["pace"][0][pivot]
+    rates, lagged = series["fpa_rate_c_per_min"], series["fpa_lagged_rate_c_per_min"]
     try:
         _check_decoded(_undecodable_in(run, first, n), first, n)
         _check_group(group, first, bit_depth)
-        if pace_why is not None and not options.force:  # a calibration's pace, refused
-            raise OutsideDomainError(f"{pace_why}; {estimator.remedy}")
         if estimator.needs_fpa:
             fpa_value(None if fpa is None else fpa[first : first + n], n)
         if run.error is not None:
@@ -612,17 +608,15 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
                 fpa_c=None if fpa is None else fpa[first : first + n],
                 time_s=None if time_s is None else time_s[first : first + n],
                 pivot=n // 2, homographies=homographies, force=options.force,
-                fpa_rate_c_per_min=None if series["fpa_rate_c_per_min"] is None
-                else float(series["fpa_rate_c_per_min"][pivot]),
+                fpa_rate_c_per_min=None if rates is None else float(rates[pivot]),
+                fpa_lagged_rate_c_per_min=None if lagged is None else float(lagged[pivot]),
                 time_since_start_s=None if time_s is None else float(time_s[pivot] - time_s[0]),
                 bit_depth=bit_depth)
             temp, sigma = result.temperature_c, result.sigma_c
         entry["warnings"] = sorted({str(w.message) for w in caught})
-        outside = result.outside + (() if pace_why is None else (pace_why,))
-        if outside:  # estimated all the same (--force): why it is not validated
-            entry["warnings"].append(f"outside the domain (--force): {'; '.join(outside)}")
-        if pace_why is not None and sigma is not None:  # σ at least the pace's
-            sigma = np.maximum(sigma, np.float32(series["pace"][1][pivot]))
+        if result.outside:  # estimated all the same (--force): why it is not validated
+            entry["warnings"].append(
+                f"outside the domain (--force): {'; '.join(result.outside)}")
     except (RegistrationError, InvalidInputError) as exc:
         entry["error"] = str(exc)
         tally.failed += 1
