@@ -205,6 +205,25 @@ def test_polynomial_streams_in_chunks_to_the_same_answer(fit_run):
     np.testing.assert_allclose(a.offset, b.offset, rtol=1e-5, atol=1e-2)
 
 
+def test_polynomial_sums_tile_by_tile_as_in_one_product(monkeypatch):
+    """The fit's normal-equation sums, tile by tile over pixels (a last tile short), equal the
+    plain products: ``at @ y`` and ``Σ y²`` of the counts centred on ``ref``, in float64."""
+    import importlib
+
+    poly = importlib.import_module("thermocal.calibration.polynomial")
+    monkeypatch.setattr(poly, "_TILE_PIXELS", 7)
+    rng = np.random.default_rng(3)
+    counts = rng.integers(0, 16383, (5, 40), dtype=np.uint16)
+    ref = counts[0].astype(np.float32)
+    at = rng.normal(size=(3, 5)).astype(np.float32)
+    aty, yy = np.ones((3, 40)), np.ones(40)
+    for part in (slice(0, 17), slice(17, 40)):
+        poly._accumulate(counts, at, ref, aty, yy, part)
+    y = counts.astype(np.float64) - ref
+    np.testing.assert_allclose(aty, 1.0 + at.astype(np.float64) @ y, rtol=1e-5)
+    np.testing.assert_array_equal(yy, 1.0 + (y**2).sum(axis=0))
+
+
 def test_polynomial_radial_fit_is_low_frequency(fit_run, camera):
     session, _ = fit_run
     cal = fit_calibration(session, "polynomial", scene="radiance", t_ref_c=25.0)

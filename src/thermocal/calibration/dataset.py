@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from thermocal._validate import SATURATED_FRACTION, clipped_mask, saturated_fraction
+from thermocal._validate import SATURATED_FRACTION, clipped_mask
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import FitError, InvalidInputError
 from thermocal.io.chamber import ChamberSession, LazyFrames
@@ -415,12 +415,20 @@ class FrameScan:
         """Return a bool ``(k,)`` of frames to keep; saturated frames (more than
         :data:`~thermocal._validate.SATURATED_FRACTION` of their pixels clipped) are recorded as
         excluded."""
-        clipped = clipped_mask(frames, self.bit_depth)
-        keep = saturated_fraction(frames, clipped=clipped) <= SATURATED_FRACTION
+        k = len(frames)
+        flat = frames.reshape(k, -1)
+        size = flat.shape[1]
+        top = 2**self.bit_depth - 1
+        if flat.dtype.kind == "u" and np.iinfo(flat.dtype).max >= top:
+            # one pass: an unsigned count − 1 wraps 0 round to the type's top
+            where = np.flatnonzero(np.subtract(flat, 1, dtype=flat.dtype) >= top - 1)
+        else:
+            where = np.flatnonzero(clipped_mask(flat, self.bit_depth))
         # few pixels clip: count where they are rather than sum every pixel of every frame
-        where = np.flatnonzero(clipped[keep]) % self.clipped_per_pixel.size
+        frame_of, pixel_of = np.divmod(where, size)
+        keep = np.bincount(frame_of, minlength=k) / size <= SATURATED_FRACTION
         self.clipped_per_pixel += np.bincount(
-            where, minlength=self.clipped_per_pixel.size).reshape(self.shape)
+            pixel_of[keep[frame_of]], minlength=self.clipped_per_pixel.size).reshape(self.shape)
         self.excluded.extend(int(i) for i in index[~keep])
         self.n_seen += int(keep.sum())
         return keep

@@ -260,6 +260,29 @@ def _invert_scene(s: np.ndarray, kind: str, band: BandRadiance) -> np.ndarray:
     return band.temperature(s) - np.float32(ZERO_CELSIUS_K)
 
 
+#: Pixels of a block accumulated at once: a tile of centred counts stays in the core's cache
+#: between its three uses (64 frames × 4096 pixels × 4 bytes = 1 MB).
+_TILE_PIXELS = 4096
+def _accumulate(counts: np.ndarray, at: np.ndarray, ref: np.ndarray, aty: np.ndarray,
+                yy: np.ndarray, part: slice) -> None:
+    """Add one block's normal-equation sums over the pixels ``part`` to ``aty`` ``(K, P)`` and
+    ``yy`` ``(P,)`` (float64, in place): ``at @ y`` and ``Σ y²`` of the centred counts
+    ``y = counts − ref`` (``counts`` ``(k, P)`` uint16, ``at`` ``(K, k)`` and ``ref`` ``(P,)``
+    float32), tile by tile so that each tile is read from memory once (by hand: numpy has no
+    fused pass for the three, and BLAS sees each tile while it is in cache)."""
+    k = counts.shape[0]
+    y_buf = np.empty((k, _TILE_PIXELS), dtype=np.float32)
+    y64_buf = np.empty((k, _TILE_PIXELS), dtype=np.float64)
+    for p0 in range(part.start, part.stop, _TILE_PIXELS):
+        p1 = min(p0 + _TILE_PIXELS, part.stop)
+        y, y64 = y_buf[:, : p1 - p0], y64_buf[:, : p1 - p0]
+        np.subtract(counts[:, p0:p1], ref[p0:p1], out=y, dtype=np.float32)  # centred counts
+        aty[:, p0:p1] += at @ y
+        # Σ y² in float64: the residual is what is left of it after the fit, 1e-5 of it
+        np.copyto(y64, y)
+        yy[p0:p1] += np.einsum("kp,kp->p", y64, y64)
+
+
 def polynomial(
     session: Any,
     *,
@@ -343,27 +366,25 @@ def polynomial(
     yy = np.zeros(n_pix)
     ref_counts: np.ndarray | None = None
     scan = FrameScan((h, w), data.session.bit_depth)
-    # the sums of each block over pixel ranges on the CPU's cores (numpy frees the GIL)
+    from threadpoolctl import threadpool_limits  # here: only a fit pays for its import
+
+    # the sums of each block over pixel ranges on the CPU's cores (numpy frees the GIL), BLAS
+    # on one thread in each: its own threads would fight ours for the same cores
     width = -(-n_pix // available_cores())
     parts = [slice(p0, min(p0 + width, n_pix)) for p0 in range(0, n_pix, width)]
-    with ThreadPoolExecutor(max_workers=len(parts)) as pool:
+    with (ThreadPoolExecutor(max_workers=len(parts)) as pool,
+          threadpool_limits(limits=1, user_api="blas")):
         for idx, block in iter_frames(data.session, used, chunk=chunk):
             keep = scan.check(idx, block)
             if keep.any():
-                counts = block[keep].reshape(-1, n_pix)
+                counts = (block if keep.all() else block[keep]).reshape(-1, n_pix)  # no copy
                 if ref_counts is None:
                     ref_counts = counts[0].astype(np.float32)
                 a = design[idx[keep]]
                 ata += a.T @ a
-                at = a.T.astype(np.float32)
-
-                def accumulate(part: slice, counts=counts, at=at, ref=ref_counts) -> None:
-                    y = counts[:, part].astype(np.float32)
-                    y -= ref[part]  # centred counts: float32 sums stay precise
-                    aty[:, part] += at @ y
-                    yy[part] += np.einsum("kp,kp->p", y, y, dtype=np.float64)
-
-                list(pool.map(accumulate, parts))
+                at = np.ascontiguousarray(a.T, dtype=np.float32)
+                list(pool.map(lambda part, c=counts, at=at, ref=ref_counts: _accumulate(
+                    c, at, ref, aty, yy, part), parts))
             if progress is not None:
                 progress(len(idx))
     if ref_counts is None or scan.n_seen < k_cols:
