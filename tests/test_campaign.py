@@ -138,3 +138,25 @@ def test_a_worker_that_dies_mid_task_is_reported_and_the_others_finish(data, tmp
     # its task may have run again after a worker it shared the cluster with died: it resumed
     assert good["ok"] and good["processed"] + good["skipped_already_done"] == good["groups"] > 0
     assert json.loads((tmp_path / "out" / "campaign.json").read_text())["failed"] == 1
+
+
+def test_a_long_recording_runs_in_segments_and_gives_the_bytes_of_one_flight(tmp_path,
+                                                                            monkeypatch):
+    """A recording of 3 batches (1,100 frames), one batch per segment: three segment tasks and
+    a finishing one on the 2-worker cluster give the bytes of one `thermocal flight`; the
+    campaign reports one recording with the summed counts."""
+    from thermocal.evaluation.suites.campaign import recordings_and_calibration
+
+    (rec,), cal = recordings_and_calibration(tmp_path, frames=1100, count=1, size=(32, 24))
+    options = FlightOptions(method="mean", calibration=str(cal), stride=16, preview_every=8)
+    monkeypatch.setattr(campaign, "SEGMENT_BATCHES", 1)  # where the tasks are made
+    tasks = campaign_tasks([rec], tmp_path / "out", options)
+    assert [t.segment for t in tasks] == [(0, 1), (1, 2), (2, 3)]
+    assert sum(t.frames for t in tasks) == 1100
+    seq = process_flight(rec, tmp_path / "seq", options)
+    summary = run_campaign(tasks, tmp_path / "out", workers=2)
+    (result,) = summary["recordings"]
+    assert summary["failed"] == 0 and result["ok"] and result["segments"] == 3
+    assert result["processed"] == seq["processed"] > 0
+    assert _outputs(tmp_path / "out" / rec.name) == _outputs(tmp_path / "seq")
+    assert (tmp_path / "out" / rec.name / "report.html").is_file()

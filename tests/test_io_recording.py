@@ -323,6 +323,23 @@ def test_iter_recording_chunks(tmp_path, rec, chunk):
     assert all(not isinstance(b, np.memmap) and b.flags.writeable for _, b in blocks)
 
 
+@pytest.mark.parametrize("start", [0, 1, 4, N - 1, N])
+def test_iter_recording_from_a_frame(tmp_path, rec, frames, start):
+    """From frame ``start`` on, memory-mapped and page by page: the same frames, numbered in
+    the recording."""
+    write_recording(tmp_path / "r.tiff", rec)
+    with tifffile.TiffWriter(tmp_path / "g.tiff") as tw:
+        for frame in frames:
+            tw.write(frame, metadata=None, compression="zlib")
+    for path, data in ((tmp_path / "r.tiff", rec.frames), (tmp_path / "g.tiff", frames)):
+        blocks = list(iter_recording(path, chunk=3, start=start))
+        assert [s for s, _ in blocks] == list(range(start, len(data), 3))
+        got = np.concatenate([b for _, b in blocks]) if blocks else data[:0]
+        np.testing.assert_array_equal(got, data[start:])
+    with pytest.raises(InvalidInputError, match="start"):
+        iter_recording(tmp_path / "r.tiff", start=-1)
+
+
 def test_iter_recording_generic_pages(tmp_path, frames):
     with tifffile.TiffWriter(tmp_path / "g.tiff") as tw:
         for frame in frames:

@@ -264,6 +264,12 @@ def test_seq_streams_records_in_order(tmp_path):
     assert [c.start for c in chunks] == [0, 2, 4]
     np.testing.assert_array_equal(np.concatenate([c.frames for c in chunks]), frames)
     np.testing.assert_allclose(np.concatenate([c.time_s for c in chunks]), 0.04 * np.arange(5))
+    # a stream from frame 3 on: the frames before it dropped, numbered in the recording
+    from thermocal.io.open import open_stream
+
+    part = list(open_stream(path).stream(2, start=3))
+    assert part[0][0] == 3
+    np.testing.assert_array_equal(np.concatenate([c[1] for c in part]), frames[3:])
     # a SEQ whose records are separated by padding, with another name
     padded = tmp_path / "padded.bin"
     padded.write_bytes(_fff(frames[0]) + b"\x00" * 7 + _fff(frames[1]))

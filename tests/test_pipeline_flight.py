@@ -90,6 +90,45 @@ def test_registration_runs_on_the_threads_it_is_given(setup, tmp_path, monkeypat
     assert asked and set(asked) == {1}
 
 
+def _outputs(out) -> dict[str, bytes]:
+    """Every output but those holding timings (summary, report), by path."""
+    return {str(p.relative_to(out)): p.read_bytes() for p in sorted(out.rglob("*"))
+            if p.is_file() and p.name not in ("summary.json", "report.html")}
+
+
+def test_a_flight_in_segments_gives_the_bytes_of_one_run(setup, tmp_path, monkeypatch):
+    """Batches of 2 groups: segments (0, 2) and (2, 3) of a 6-group flight, finished, are the
+    bytes of one run; a segment rerun and a second finish (an interrupted campaign resumed)
+    change nothing; the segments' counts add up; a selfcal flight is not split."""
+    from thermocal.pipeline import flight
+
+    monkeypatch.setattr(flight, "BATCH_FRAMES", 7)
+    rec = setup / "flight" / "frames.tiff"
+    options = FlightOptions(method="mean", calibration=str(setup / "cal.h5"), stride=3,
+                            preview_every=2)
+    assert flight.flight_batches(23, options) == 3
+    whole = process_flight(rec, tmp_path / "one", options)
+    parts = [process_flight(rec, tmp_path / "seg", options, segment=span)
+             for span in ((2, 3), (0, 2))]  # in any order, as a cluster runs them
+    assert sorted(p["groups"] for p in parts) == [2, 4]
+    assert sorted((tmp_path / "seg").glob("log.segment-*.jsonl"))
+    summary = flight.finish_segments(rec, tmp_path / "seg", options, parts)
+    assert not list((tmp_path / "seg").glob("log.segment-*.jsonl"))
+    assert summary["processed"] == whole["processed"] == 6 and summary["segments"] == 2
+    assert _outputs(tmp_path / "seg") == _outputs(tmp_path / "one")
+    again = process_flight(rec, tmp_path / "seg", options, segment=(2, 3))
+    assert again["processed"] == 0 and again["skipped_already_done"] == 2
+    flight.finish_segments(rec, tmp_path / "seg", options, [parts[1], again])
+    assert _outputs(tmp_path / "seg") == _outputs(tmp_path / "one")
+    with pytest.raises(InvalidInputError, match="do not cover"):
+        flight.finish_segments(rec, tmp_path / "seg", options, [parts[1]])
+    with pytest.raises(InvalidInputError, match="segment"):
+        process_flight(rec, tmp_path / "x", options, segment=(2, 9))
+    with pytest.raises(InvalidInputError, match="fits across the whole recording"):
+        process_flight(rec, tmp_path / "x", FlightOptions(method="selfcal"), segment=(0, 1))
+    assert not (tmp_path / "x").exists()
+
+
 def test_bad_input(setup, tmp_path):
     rec = setup / "flight" / "frames.tiff"
     with pytest.raises(InvalidInputError, match="needs --calibration"):

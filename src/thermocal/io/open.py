@@ -814,20 +814,24 @@ class StreamHeader:
     prefetched: list[Iterator[FrameChunk]] = dataclasses.field(
         default_factory=list, repr=False, compare=False)
 
-    def stream(self, chunk: int) -> Iterator[
+    def stream(self, chunk: int, *, start: int = 0) -> Iterator[
             tuple[int, np.ndarray, tuple[tuple[int, str, str], ...]]]:
-        """``(first frame index, frames (k, H, W) uint16, undecodable)`` in order (the first
-        call of this or :meth:`chunks` goes on from the frames :func:`open_stream` decoded
-        already; the chunks' sizes may differ). A frame whose raw image does not decode is
-        zeros, named in its chunk's ``undecodable``: ``(index in the recording, where,
-        reason)`` (:attr:`FrameChunk.undecodable`)."""
+        """``(first frame index, frames (k, H, W) uint16, undecodable)`` in order from frame
+        ``start`` (the first call of this or :meth:`chunks` goes on from the frames
+        :func:`open_stream` decoded already; the chunks' sizes may differ). A frame whose raw
+        image does not decode is zeros, named in its chunk's ``undecodable``: ``(index in the
+        recording, where, reason)`` (:attr:`FrameChunk.undecodable`). The project's TIFF
+        starts reading at ``start``; the other formats are read from their first frame (their
+        frames before ``start`` decoded and dropped)."""
         if self.source is None:
-            return ((start, frames, ()) for start, frames in iter_recording(self.path,
-                                                                            chunk=chunk))
+            return ((first, frames, ()) for first, frames in iter_recording(
+                self.path, chunk=chunk, start=start))
         if not self.prefetched:
-            return ((c.start, c.frames, c.undecodable)
-                    for c in self.source.iter_frames(chunk, placeholders=True))
-        return _rechunk(self.prefetched.pop(), chunk)
+            chunks = ((c.start, c.frames, c.undecodable)
+                      for c in self.source.iter_frames(chunk, placeholders=True))
+        else:
+            chunks = _rechunk(self.prefetched.pop(), chunk)
+        return chunks if start == 0 else _from_frame(chunks, start)
 
     def chunks(self, chunk: int) -> Iterator[tuple[int, np.ndarray]]:
         """``(first frame index, frames (k, H, W) uint16)`` in order, as :meth:`stream`; a
@@ -845,6 +849,17 @@ def undecodable_text(index: int, where: str, reason: str) -> str:
     named = ("" if where == str(index)
              else f" (frame {where} of its file)" if where.isdigit() else f" ({where})")
     return f"frame {index}{named} does not decode ({reason})"
+
+
+def _from_frame(chunks: Iterator[tuple[int, np.ndarray, tuple[tuple[int, str, str], ...]]],
+                start: int) -> Iterator[tuple[int, np.ndarray, tuple[tuple[int, str, str], ...]]]:
+    """The chunks of :meth:`StreamHeader.stream` from frame ``start`` on: those before it
+    dropped, the one across it cut."""
+    for first, frames, undecodable in chunks:
+        if first + len(frames) <= start:
+            continue
+        cut = max(0, start - first)
+        yield (first + cut, frames[cut:], tuple(u for u in undecodable if u[0] >= start))
 
 
 def _rechunk(stream: Iterator[FrameChunk], chunk: int) -> Iterator[

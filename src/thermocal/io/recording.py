@@ -586,7 +586,7 @@ def read_recording_header(
 
 
 def iter_recording(
-    path: str | os.PathLike[str], *, chunk: int = 64
+    path: str | os.PathLike[str], *, chunk: int = 64, start: int = 0
 ) -> Iterator[tuple[int, np.ndarray]]:
     """Iterate over a recording's frames in chunks without loading the whole file.
 
@@ -600,6 +600,8 @@ def iter_recording(
         The recording TIFF. Its sidecar, if any, is read only for ``bit_depth``.
     chunk : int, optional
         Frames per chunk (default 64); the last chunk may be shorter.
+    start : int, optional
+        The first frame read (default 0); the frames before it are not read.
 
     Yields
     ------
@@ -617,6 +619,8 @@ def iter_recording(
     """
     if isinstance(chunk, bool) or not isinstance(chunk, int | np.integer) or chunk < 1:
         raise InvalidInputError(f"chunk: expected a positive number of frames, got {chunk!r}")
+    if isinstance(start, bool) or not isinstance(start, int | np.integer) or start < 0:
+        raise InvalidInputError(f"start: expected a frame index >= 0, got {start!r}")
     tiff_path = Path(path)
     json_path = sidecar_path(tiff_path)
     bit_depth = _sidecar_bit_depth(_read_sidecar(json_path), json_path)
@@ -632,11 +636,11 @@ def iter_recording(
         raise _open_error(tiff_path, exc) from None
     if info.dtype != np.uint16:
         raise FileFormatError(f"{tiff_path}: expected uint16 raw counts, got {info.dtype}")
-    return _iter_stack(tiff_path, info, byteorder, int(chunk), bit_depth)
+    return _iter_stack(tiff_path, info, byteorder, int(chunk), bit_depth, int(start))
 
 
 def _iter_stack(
-    path: Path, info: _StackInfo, byteorder: str, chunk: int, bit_depth: int
+    path: Path, info: _StackInfo, byteorder: str, chunk: int, bit_depth: int, first: int = 0
 ) -> Iterator[tuple[int, np.ndarray]]:
     shape = (info.n, info.height, info.width)
     max_count = 2**bit_depth - 1
@@ -655,13 +659,13 @@ def _iter_stack(
             path, dtype=np.dtype(byteorder + "u2"), mode="r", offset=info.dataoffset, shape=shape
         )
         try:
-            for start in range(0, info.n, chunk):
+            for start in range(first, info.n, chunk):
                 yield checked(start, np.array(mm[start : start + chunk]))
         finally:
             del mm
         return
     with tifffile.TiffFile(path) as tif:
-        for start in range(0, info.n, chunk):
+        for start in range(first, info.n, chunk):
             stop = min(start + chunk, info.n)
             try:
                 block = tif.asarray(key=range(start, stop), series=0)

@@ -137,9 +137,11 @@ def _openvino(threads: int) -> Callable[[bytes], Callable]:
 
     def compile_graph(graph: bytes) -> Callable:
         # f32: the CPU plugin's default on CPUs with bf16 units is bf16 (0.08 off, measured)
+        # no pinning: processes beside this one (a campaign's workers) would pin theirs to the
+        # same cores
         compiled = core.compile_model(core.read_model(graph), "CPU", {
             "INFERENCE_PRECISION_HINT": "f32", "INFERENCE_NUM_THREADS": threads,
-            "PERFORMANCE_HINT": "LATENCY"})
+            "PERFORMANCE_HINT": "LATENCY", "ENABLE_CPU_PINNING": False})
         request = compiled.create_infer_request()
         return lambda feeds: request.infer(feeds)[0]
 

@@ -10,8 +10,14 @@ cores by default, or on the scheduler at ``--scheduler ADDRESS`` — one started
 need thermocal installed and the recordings and ``OUT`` at the same paths (a shared file
 system).
 
+- **Long recordings in segments**: a recording of more than :data:`SEGMENT_BATCHES` of the
+  flight's batches (:data:`~thermocal.pipeline.flight.BATCH_FRAMES` frames each) is split into
+  segments of that many batches, each a task (``process_flight(..., segment=...)``), and
+  finished by one more (:func:`~thermocal.pipeline.flight.finish_segments`: the log in order,
+  the summary) once all its segments are done: the same bytes as one flight (tested). A
+  flight-level method (``selfcal``) fits across the recording: one task.
 - **Resumable**: a rerun resumes each flight where it stopped (a flight's own resume: its
-  finished maps are verified and kept).
+  finished maps are verified and kept; a segment's, those of its segment).
 - **A failed task is reported, not fatal**: a recording whose flight fails (a bad recording
   found while streaming, every group failed, a worker that died twice) is named in
   ``OUT/campaign.json`` with its error; the others go on. The command exits 2 when any failed.
@@ -41,6 +47,10 @@ __all__ = ["CampaignTask", "campaign_tasks", "run_campaign"]
 CONNECT_TIMEOUT_S = 10
 #: Times a task is retried after its worker died (then reported as failed).
 RETRIES = 1
+#: Batches of a flight (:data:`~thermocal.pipeline.flight.BATCH_FRAMES` frames each) per task
+#: of a long recording. Fixed, not set by the number of workers: the outputs never depend on
+#: the cluster.
+SEGMENT_BATCHES = 2
 
 
 @dataclass(frozen=True)
@@ -54,6 +64,8 @@ class CampaignTask:
     options: FlightOptions
     #: Threads the worker's OpenCV pool may use (None: as it is).
     threads: int | None = None
+    #: The flight's batches ``(first, stop)`` this task does (None: the whole recording).
+    segment: tuple[int, int] | None = None
 
 
 def campaign_tasks(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[str],
@@ -91,8 +103,23 @@ def campaign_tasks(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[
         target = Path(out) / name
         check_not_input(target, path)
         check_outside_recording(path, (out, "--out"))
-        tasks.append(CampaignTask(name, str(path), str(target), n, options))
+        tasks.extend(_segments(CampaignTask(name, str(path), str(target), n, options)))
     return tasks
+
+
+def _segments(task: CampaignTask) -> list[CampaignTask]:
+    """``task`` split into segments of :data:`SEGMENT_BATCHES` batches (itself when its
+    recording has no more, or its method fits across the recording); each segment's
+    ``frames`` are its share of the recording's, for the progress bar."""
+    from thermocal.estimation.registry import ESTIMATORS
+    from thermocal.pipeline.flight import BATCH_FRAMES, flight_batches
+
+    batches = flight_batches(task.frames, task.options)
+    if batches <= SEGMENT_BATCHES or ESTIMATORS[task.options.method].needs == "pass":
+        return [task]
+    spans = [(a, min(a + SEGMENT_BATCHES, batches)) for a in range(0, batches, SEGMENT_BATCHES)]
+    frames = [min(task.frames, z * BATCH_FRAMES) - a * BATCH_FRAMES for a, z in spans]
+    return [replace(task, segment=span, frames=f) for span, f in zip(spans, frames, strict=True)]
 
 
 def _run_task(task: CampaignTask) -> dict[str, Any]:
@@ -113,11 +140,44 @@ def _run_task(task: CampaignTask) -> dict[str, Any]:
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
+            if task.segment is not None:  # its counts, for the recording's finishing task
+                return {"name": task.name, "ok": True, "segment": process_flight(
+                    task.recording, task.out_dir, task.options, segment=task.segment)}
             summary = process_flight(task.recording, task.out_dir, task.options)
             write_report(task.out_dir)
     except ThermocalError as exc:
-        return {"name": task.name, "recording": task.recording, "ok": False,
-                "error": str(exc), "seconds": time.perf_counter() - started}
+        return _failed(task, str(exc), started)
+    return _result(task, summary, caught, started)
+
+
+def _finish_task(task: CampaignTask, segments: list[dict[str, Any]]) -> dict[str, Any]:
+    """The last task of a recording run in segments, on a worker: its log and summary
+    (:func:`~thermocal.pipeline.flight.finish_segments`) and report; the recording's result,
+    its counts summed over the segments."""
+    import warnings
+
+    from thermocal.pipeline.flight import finish_segments
+    from thermocal.pipeline.report import write_report
+
+    started = time.perf_counter()
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            summary = finish_segments(task.recording, task.out_dir, task.options, segments)
+            write_report(task.out_dir)
+    except ThermocalError as exc:
+        return _failed(task, str(exc), started)
+    return _result(task, summary, caught, started - sum(r["wall_time_s"] for r in segments))
+
+
+def _failed(task: CampaignTask, error: str, started: float) -> dict[str, Any]:
+    return {"name": task.name, "recording": task.recording, "ok": False, "error": error,
+            "seconds": time.perf_counter() - started}
+
+
+def _result(task: CampaignTask, summary: dict[str, Any], caught: list, started: float
+            ) -> dict[str, Any]:
+    """A finished flight's result from its summary (``caught``: its warnings)."""
     done = summary["processed"] + summary["skipped_already_done"]
     return {"name": task.name, "recording": task.recording, "out": task.out_dir,
             "ok": done > 0, "processed": summary["processed"],
@@ -125,6 +185,7 @@ def _run_task(task: CampaignTask) -> dict[str, Any]:
             "failed_groups": summary["failed"], "groups": summary["groups"],
             "warnings": sorted({str(w.message) for w in caught}),
             **({} if done > 0 else {"error": f"every group failed: {summary.get('first_error')}"}),
+            **({"segments": summary["segments"]} if "segments" in summary else {}),
             "seconds": time.perf_counter() - started}
 
 
@@ -184,16 +245,32 @@ def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
                 if options.threads is None and _runs_network(task):
                     options = replace(options, threads=share)
                 task = replace(task, threads=share, options=options)
-            futures[client.submit(_run_task, task, key=f"thermocal-flight-{task.name}",
-                                  pure=False, retries=RETRIES)] = task
+            key = f"thermocal-flight-{task.name}" + (
+                "" if task.segment is None else f"-segment-{task.segment[0]}")
+            futures[client.submit(_run_task, task, key=key, pure=False,
+                                  retries=RETRIES)] = task
         results: dict[str, dict[str, Any]] = {}
-        for future in as_completed(futures):
+        segments: dict[str, list[dict[str, Any]]] = {}  # a recording's finished segments
+        parts = {t.name: sum(u.name == t.name for u in tasks) for t in tasks}
+        running = as_completed(futures)
+        for future in running:
             task = futures[future]
             try:
-                results[task.name] = future.result()
+                result = future.result()
             except Exception as exc:  # noqa: BLE001 - a dead worker, a lost task: reported
-                results[task.name] = {"name": task.name, "recording": task.recording,
-                                      "ok": False, "error": f"{type(exc).__name__}: {exc}"}
+                result = {"name": task.name, "recording": task.recording, "ok": False,
+                          "error": f"{type(exc).__name__}: {exc}"}
+            if task.segment is not None and result.get("segment") is not None:
+                done = segments.setdefault(task.name, [])
+                done.append(result["segment"])
+                if len(done) == parts[task.name]:  # every segment: finish the recording
+                    last = client.submit(_finish_task, task, done, pure=False,
+                                         key=f"thermocal-flight-{task.name}-finish",
+                                         retries=RETRIES)
+                    futures[last] = replace(task, segment=None, frames=0)
+                    running.add(last)
+            elif task.name not in results or results[task.name]["ok"]:  # its first failure
+                results[task.name] = result | {"recording": task.recording}
             if progress is not None:
                 progress(task.frames)
     finally:
@@ -201,8 +278,9 @@ def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
         cluster = getattr(client, "cluster", None)
         if cluster is not None:
             cluster.close()
-    summary = {"recordings": [results[t.name] for t in tasks],
-               "failed": sum(not results[t.name]["ok"] for t in tasks),
+    names = list(dict.fromkeys(t.name for t in tasks))  # a recording's segments: one result
+    summary = {"recordings": [results[name] for name in names],
+               "failed": sum(not results[name]["ok"] for name in names),
                "workers": n_workers, "scheduler": scheduler or "LocalCluster",
                "options": asdict(tasks[0].options) if tasks else {},
                "wall_time_s": time.perf_counter() - started,

@@ -148,9 +148,9 @@ def campaign(inputs: tuple[Path, ...], out_dir: Path, scheduler: str | None,
                                        else f"failed: {r['error']}"), err=True)
     if summary["failed"]:
         raise ThermocalError(
-            f"{summary['failed']} of {len(tasks)} recordings failed (the others are done); "
-            f"each one's error is in {Path(out_dir) / 'campaign.json'}")
-    click.echo(f"{len(tasks)} recordings processed into {out_dir} in "
+            f"{summary['failed']} of {len(summary['recordings'])} recordings failed (the others "
+            f"are done); each one's error is in {Path(out_dir) / 'campaign.json'}")
+    click.echo(f"{len(summary['recordings'])} recordings processed into {out_dir} in "
                f"{summary['wall_time_s']:.1f} s", err=True)
 
 

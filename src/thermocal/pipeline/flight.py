@@ -47,6 +47,15 @@ A rerun with the same options resumes, and gives the same bytes as an uninterrup
 
 The output folders are created only once the options, the estimator and the recording have been
 checked: bad input leaves nothing behind.
+
+**Segments** (``thermocal campaign``'s tasks of a long recording): ``process_flight(...,
+segment=(first, stop))`` does only the batches ``first … stop − 1``, into the flight's own
+folders, its log lines into ``OUT/log.segment-FIRST.jsonl`` (several segments of one recording
+run at once, in other processes, each writing only its own pivots' files), and returns its
+counts instead of a summary; :func:`finish_segments` then appends their log lines to
+``OUT/log.jsonl`` in order and writes the summary. The batches being fixed by place, the maps,
+previews and log are the bytes of one uninterrupted run. Not for a flight-level estimator
+(``selfcal``), which fits across batches.
 """
 
 from __future__ import annotations
@@ -212,6 +221,18 @@ def _register(estimator: Estimator, frames: np.ndarray, workers: int | None
     return None if estimator.per_frame else register_sequence(frames, workers=workers)
 
 
+def flight_batches(n_frames: int, options: FlightOptions) -> int:
+    """How many batches (:data:`BATCH_FRAMES`) a flight of a recording of ``n_frames`` frames
+    registers: what a campaign splits a long recording by (a flight-level estimator joins a
+    short last batch to the one before: not split)."""
+    pivots = pivots_of(n_frames, options.frames, options.stride)
+    return -(-len(pivots) // max(1, BATCH_FRAMES // options.stride))
+
+
+def _segment_log(out: Path, segment: tuple[int, int]) -> Path:
+    return out / f"log.segment-{segment[0]:05d}.jsonl"
+
+
 def process_flight(
     recording: str | Path,
     out_dir: str | Path,
@@ -219,12 +240,18 @@ def process_flight(
     *,
     progress: Callable[[int], None] | None = None,
     command: str | None = None,
+    segment: tuple[int, int] | None = None,
 ) -> dict[str, Any]:
     """Process a recording into per-pivot temperature maps in ``out_dir``; returns the summary.
 
     ``progress(k)`` is called with the number of frames each finished group advanced;
     ``command`` (the command line that runs it) is kept in the summary, for the report.
+    ``segment``: only batches ``first … stop − 1`` (see the module docstring); returns their
+    counts, for :func:`finish_segments`.
     """
+    if segment is not None and ESTIMATORS[options.method].needs == "pass":
+        raise InvalidInputError(f"--method {options.method} fits across the whole recording: "
+                                "it cannot run in segments")
     header = open_stream(recording, fpa_c=options.fpa_c)
     if header.series["fpa_c"] is None and not ESTIMATORS[options.method].per_frame:
         raise InvalidInputError(
@@ -253,20 +280,30 @@ def process_flight(
     pass_fit = (_PassFit.before(header, batches, estimator, options, series)
                 if flight_level else None)
     prefit_s = time.perf_counter() - prefit_started
+    if segment is not None and not 0 <= segment[0] < segment[1] <= len(batches):
+        raise InvalidInputError(f"segment {segment}: the flight has batches 0…{len(batches)}")
     out = _output_dirs(Path(out_dir))  # only now: every check has passed
-    _remove_stale_temp_files(out)
-    _drop_cut_log_line(out / "log.jsonl")
+    log_path = out / "log.jsonl" if segment is None else _segment_log(out, segment)
+    if segment is None:  # a segment's neighbours may be writing theirs now
+        _remove_stale_temp_files(out)
+    _drop_cut_log_line(log_path)
+    mine = range(len(batches)) if segment is None else range(*segment)
     previews = TemperaturePreviews(dpi=80)  # one figure for the run's previews
-    done = _finished_pivots(out, pivots, options, header.frame_shape, previews)
+    done = _finished_pivots(out, pivots, options, header.frame_shape, previews,
+                            logs=(out / "log.jsonl", log_path),
+                            only={p for bi in mine for p in batches[bi]})
     tally = _Tally()
-    reader = _FrameWindow(header.stream(max(64, n)), header.frame_shape)
+    first = 0 if segment is None else max(0, batches[segment[0]][0] - n // 2)
+    reader = _FrameWindow(header.stream(max(64, n), start=first), header.frame_shape)
     undecodable: dict[int, tuple[str, str]] = {}  # met in the groups of this run
     skipped_groups = 0
     if pass_fit is not None:
         tally.times.seconds["self-calibration"] = prefit_s
     started = time.perf_counter() - prefit_s
-    with open(out / "log.jsonl", "a", encoding="utf-8") as log, previews:
+    with open(log_path, "a", encoding="utf-8") as log, previews:
         for bi, batch in enumerate(batches):
+            if bi not in mine:
+                continue
             b = sum(map(len, batches[:bi]))
             todo = [(b + i, p) for i, p in enumerate(batch) if p not in done]
             tally.skipped += len(batch) - len(todo)
@@ -294,16 +331,84 @@ def process_flight(
                 log.flush()
                 if progress:
                     progress(stride)
-    about = {"format": header.source.format if header.source is not None else "tiff",
-             "damaged_frames": [{"frame": where, "reason": why} for where, why in header.damaged]
-             + [{"frame": where, "recording_index": i, "reason": why}
-                for i, (where, why) in sorted(undecodable.items())],
-             **({"command": command} if command is not None else {}),
-             **({"selfcal": pass_fit.summary()} if pass_fit is not None else {})}
+    if segment is not None:
+        return {"segment": list(segment), "groups": sum(len(batches[bi]) for bi in mine),
+                "processed": tally.processed, "skipped_already_done": tally.skipped,
+                "failed": tally.failed, "first_error": tally.first_error,
+                "stage_seconds": tally.times.seconds,
+                "wall_time_s": time.perf_counter() - started, "skipped_groups": skipped_groups,
+                "undecodable": [[i, where, why] for i, (where, why) in undecodable.items()]}
+    about = _about(header, undecodable, command,
+                   {"selfcal": pass_fit.summary()} if pass_fit is not None else {})
     summary = _finish(out, header.path, options, len(pivots), tally,
                       time.perf_counter() - started, about=about)
     if undecodable:
         warnings.warn(_undecodable_warning(header.path, undecodable, skipped_groups),
+                      stacklevel=2)
+    return summary
+
+
+def _about(header: Any, undecodable: dict[int, tuple[str, str]], command: str | None,
+           extra: dict[str, Any]) -> dict[str, Any]:
+    """The summary's facts of the recording: its format, the frames left out at open and those
+    that did not decode while streamed, the command."""
+    return {"format": header.source.format if header.source is not None else "tiff",
+            "damaged_frames": [{"frame": where, "reason": why} for where, why in header.damaged]
+            + [{"frame": where, "recording_index": i, "reason": why}
+               for i, (where, why) in sorted(undecodable.items())],
+            **({"command": command} if command is not None else {}), **extra}
+
+
+def finish_segments(recording: str | Path, out_dir: str | Path, options: FlightOptions,
+                    results: list[dict[str, Any]], *, command: str | None = None
+                    ) -> dict[str, Any]:
+    """Finish a flight run in segments (``results``: what :func:`process_flight` returned for
+    each, every batch of the recording once): their log lines appended to ``log.jsonl`` in the
+    segments' order (a line already there is not appended twice: a rerun after an interrupted
+    finish), their log files removed, ``log.csv`` and ``summary.json`` written (``processed``
+    and the stage times summed over the segments, ``wall_time_s`` too); the summary."""
+    header = open_stream(recording, fpa_c=options.fpa_c)
+    out = Path(out_dir)
+    results = sorted(results, key=lambda r: r["segment"][0])
+    spans = [tuple(r["segment"]) for r in results]
+    n_batches = flight_batches(header.n_frames, options)
+    if [a for a, _ in spans] != [0, *[z for _, z in spans[:-1]]] or spans[-1][1] != n_batches:
+        raise InvalidInputError(f"segments {spans} do not cover the flight's {n_batches} "
+                                "batches once each")
+    _remove_stale_temp_files(out)
+    main = out / "log.jsonl"
+    _drop_cut_log_line(main)
+    kept = main.read_bytes() if main.is_file() else b""
+    seen = set(kept.splitlines(keepends=True))
+    added = []
+    for span in spans:
+        path = _segment_log(out, span)
+        _drop_cut_log_line(path)
+        for line in path.read_bytes().splitlines(keepends=True) if path.is_file() else ():
+            if line not in seen:
+                added.append(line)
+                seen.add(line)
+    if added:
+        with atomic_path(main) as tmp:
+            Path(tmp).write_bytes(kept + b"".join(added))
+    for span in spans:
+        _segment_log(out, span).unlink(missing_ok=True)
+    tally = _Tally(processed=sum(r["processed"] for r in results),
+                   skipped=sum(r["skipped_already_done"] for r in results),
+                   failed=sum(r["failed"] for r in results),
+                   first_error=next((r["first_error"] for r in results if r["first_error"]),
+                                    None))
+    for r in results:
+        for stage, seconds in r["stage_seconds"].items():
+            tally.times.seconds[stage] = tally.times.seconds.get(stage, 0.0) + seconds
+    undecodable = {int(i): (where, why) for r in results for i, where, why in r["undecodable"]}
+    pivots = pivots_of(header.n_frames, options.frames, options.stride)
+    summary = _finish(out, header.path, options, len(pivots), tally,
+                      sum(r["wall_time_s"] for r in results),
+                      about=_about(header, undecodable, command, {"segments": len(results)}))
+    if undecodable:
+        warnings.warn(_undecodable_warning(header.path, undecodable,
+                                           sum(r["skipped_groups"] for r in results)),
                       stacklevel=2)
     return summary
 
@@ -770,7 +875,8 @@ def _output_dirs(out: Path) -> Path:
 #: The temporary files of :func:`~thermocal.io.atomic.atomic_path` for what a flight writes, by
 #: output folder.
 _TEMP_FILES = {
-    ".": (temp_name_pattern("log", ".csv"), temp_name_pattern("summary", ".json")),
+    ".": (temp_name_pattern("log", ".csv"), temp_name_pattern("summary", ".json"),
+          temp_name_pattern("log", ".jsonl")),
     "temps": (temp_name_pattern(r"frame_\d{6,}(?:_sigma)?", ".tiff"),),
     "previews": (temp_name_pattern(r"frame_\d{6,}", ".png"),),
 }
@@ -799,13 +905,16 @@ def _drop_cut_log_line(log_path: Path) -> None:
 
 
 def _finished_pivots(out: Path, pivots: list[int], options: FlightOptions,
-                     shape: tuple[int, int], previews: TemperaturePreviews) -> set[int]:
-    """Pivots an earlier run finished: the latest log line of the pivot says it succeeded and its
-    map checks out (:func:`_map_ok`). A missing preview of such a pivot is made from its map
-    (by ``previews``)."""
-    logged = {e["frame"]: e for e in read_log(out / "log.jsonl")}
+                     shape: tuple[int, int], previews: TemperaturePreviews, *,
+                     logs: tuple[Path, ...], only: set[int]) -> set[int]:
+    """Pivots of ``only`` an earlier run finished: the latest line of the pivot in ``logs`` (in
+    that order) says it succeeded and its map checks out (:func:`_map_ok`). A missing preview of
+    such a pivot is made from its map (by ``previews``)."""
+    logged = {e["frame"]: e for log in dict.fromkeys(logs) for e in read_log(log)}
     done = set()
     for index, pivot in enumerate(pivots):
+        if pivot not in only:
+            continue
         entry = logged.get(pivot)
         if entry is None or "error" in entry:
             continue
@@ -867,4 +976,5 @@ def _write_csv(path: Path, entries: list[dict[str, Any]]) -> None:
                              e.get("registration_correlation"), warned, e.get("error", "")])
 
 
-__all__ = ["FlightOptions", "pivots_of", "process_flight"]
+__all__ = ["FlightOptions", "finish_segments", "flight_batches", "pivots_of",
+           "process_flight"]
