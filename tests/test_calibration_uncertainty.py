@@ -183,6 +183,21 @@ def test_paces_a_memoryless_calibration_never_held_are_outside():
     assert one == pytest.approx(bare) and one < steady / 2
 
 
+def test_a_bursts_pace_sigma_grows_only_at_paces_never_held():
+    from thermocal.estimation.base import FpaPace
+
+    model = _paced()
+    t = np.arange(0.0, 3600.0, 10.0)  # the same as the recording's σ at a steady 1 °C/min
+    steady = model.sigma(np.full((t.size, 1, 1), 25.0), 27.5, rate_c_per_min=np.full(t.size, 1.0),
+                         time_since_start_s=t)[-1, 0, 0]
+    one = model.sigma(np.full((1, 1), 25.0), 27.5, rate_c_per_min=[1.0],
+                      lagged_rate_c_per_min=[1.0])[0, 0]
+    assert one == pytest.approx(steady, rel=1e-3)
+    assert model.burst_pace_sigma(FpaPace(1.0, 1.0)) > 0.0
+    assert model.burst_pace_sigma(FpaPace(0.0, 0.0)) == 0.0  # held still
+    assert model.burst_pace_sigma(FpaPace(1.0)) == model.burst_pace_sigma(None) == 0.0
+
+
 def test_paces_survive_json_and_are_checked():
     model = _paced()
     again = CalibrationReport.from_dict(model.report.to_dict())

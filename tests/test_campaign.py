@@ -7,6 +7,7 @@ import json
 import shutil
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 pytest.importorskip("distributed")
@@ -160,3 +161,21 @@ def test_a_long_recording_runs_in_segments_and_gives_the_bytes_of_one_flight(tmp
     assert result["processed"] == seq["processed"] > 0
     assert _outputs(tmp_path / "out" / rec.name) == _outputs(tmp_path / "seq")
     assert (tmp_path / "out" / rec.name / "report.html").is_file()
+
+
+def test_task_keys_cannot_collide_and_a_short_recording_is_one_task(data, tmp_path):
+    """Keys put the kind of task first (a recording named ``a-finish`` and ``a``'s finishing
+    task differ); a recording too short for a group is left to its task to report."""
+    from thermocal.io.recording import Recording, write_recording
+
+    seg = campaign.CampaignTask("a", "a", "out/a", 2000, _options(data), segment=(0, 2))
+    keys = {campaign._task_key(seg), campaign._task_key(seg, finish=True),
+            campaign._task_key(campaign.CampaignTask("a-finish", "x", "out/x", 9,
+                                                     _options(data))),
+            campaign._task_key(campaign.CampaignTask("a-segment-0", "y", "out/y", 9,
+                                                     _options(data)))}
+    assert len(keys) == 4
+    short, _ = write_recording(tmp_path / "short.tiff", Recording(
+        np.full((2, 48, 64), 8000, np.uint16), fpa_c=np.full(2, 28.0), time_s=np.arange(2.0)))
+    tasks = campaign_tasks([short, data / "pass0"], tmp_path / "out", _options(data))
+    assert [t.segment for t in tasks] == [None, None]

@@ -302,6 +302,8 @@ def test_rescaled_coverage_finds_the_level_of_a_gaussian_and_not_of_a_rectangle(
     rect = rescaled_coverage(rng.uniform(-1.0, 1.0, 100_000), np.ones(100_000))
     assert not rect["in_band"]
     assert rect["within_2sigma"] > 0.98 or rect["within_1sigma"] < 0.63
+    # a σ of 0 covers nothing, at any factor (as in sigma_coverage)
+    assert rescaled_coverage(np.ones(2), np.array([1.0, 0.0]))["within_2sigma"] <= 0.5
     with pytest.raises(InvalidInputError):
         rescaled_coverage(np.zeros(3), np.ones(4))
 

@@ -677,12 +677,14 @@ def rescaled_coverage(errors: Any, sigma: Any, *,
     if e.shape != s.shape or e.size == 0:
         raise InvalidInputError(f"rescaled_coverage: errors {e.shape} and σ {s.shape} must "
                                 "match, non-empty")
-    z = np.sort((e / s).ravel())
-    z = z[np.isfinite(z)]
-    if z.size == 0:
+    with np.errstate(divide="ignore", invalid="ignore"):
+        z = (e / s).ravel()
+    z = np.sort(np.where(np.isnan(z), np.inf, z))  # as sigma_coverage: NaN is not covered
+    finite = z[np.isfinite(z)]
+    if finite.size == 0:
         raise InvalidInputError("rescaled_coverage: no finite error / σ")
     # every k at which a share changes: the z's themselves (1σ) and their halves (2σ)
-    k = np.unique(np.concatenate([z, 0.5 * z]))
+    k = np.unique(np.concatenate([finite, 0.5 * finite]))
     k = k[k > 0] if np.any(k > 0) else np.array([1.0])
     one = np.searchsorted(z, k, side="right") / z.size
     two = np.searchsorted(z, 2.0 * k, side="right") / z.size

@@ -265,6 +265,15 @@ class CalibrationSigma:
         worst = max([self._overall_sigma()] + [self._bin_sigma(b) for b in self.report.by_rate])
         return np.where(distance > cell, worst * distance / cell, 0.0)
 
+    def burst_pace_sigma(self, pace: Any) -> float:
+        """The σ level a burst changing at ``pace`` (an
+        :class:`~thermocal.estimation.base.FpaPace`, or None) takes at a pace the session never
+        held (:meth:`_pace_sigma`), °C; 0 at a held pace, or without the pace's history."""
+        if pace is None or pace.lagged_c_per_min is None:
+            return 0.0
+        return float(self._pace_sigma(self._distance(np.array([pace.rate_c_per_min]),
+                                                      np.array([pace.lagged_c_per_min])))[0])
+
     def outside_burst(self, temps_c: np.ndarray, fpa_c: float | None, pace: Any
                       ) -> tuple[str, ...]:
         """:meth:`outside` for one burst of calibrated frames ``(N, H, W)`` at FPA temperature

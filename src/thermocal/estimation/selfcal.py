@@ -35,7 +35,7 @@ import numpy as np
 from thermocal.calibration.base import Calibration, fill_bad_pixels
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import InvalidInputError, ResolutionMismatchError
-from thermocal.estimation.base import PreparedBurst, view_spread
+from thermocal.estimation.base import FpaPace, PreparedBurst, view_spread
 from thermocal.estimation.pass_pattern import (
     ResidualPattern,
     fine_part,
@@ -269,13 +269,17 @@ class SelfCalibration:
         return ((burst.warped * burst.valid).sum(axis=0) / np.maximum(count, 1)).astype(
             np.float32)
 
-    def level_sigma(self, temperature_c: np.ndarray, fpa_c: float | None) -> np.ndarray:
-        """σ of the level no motion reveals, °C ``(H, W)``."""
+    def level_sigma(self, temperature_c: np.ndarray, fpa_c: float | None, *,
+                    pace: Any = None) -> np.ndarray:
+        """σ of the level no motion reveals, °C ``(H, W)``: a start calibration's at least the
+        level of a ``pace`` (:class:`~thermocal.estimation.base.FpaPace`) its session never
+        held."""
         if self.level_sigma_c is not None:
             return np.full(temperature_c.shape, self.level_sigma_c, np.float32)
         model = self.sigma_model
         if model is not None and fpa_c is not None:
-            return np.asarray(model.sigma(temperature_c, fpa_c), np.float32)
+            return np.maximum(np.asarray(model.sigma(temperature_c, fpa_c), np.float32),
+                              np.float32(model.burst_pace_sigma(pace)))
         return np.full(temperature_c.shape, FAMILY_LEVEL_SIGMA_C, np.float32)
 
     def unseen_sigma(self, temperature_c: np.ndarray, fpa_c: float | None) -> float:
@@ -298,7 +302,9 @@ class SelfCalibration:
         float32; the pattern's standard error converted from radiance at each pixel's
         temperature."""
         assert self.pattern is not None
-        level = self.level_sigma(temperature_c, burst.fpa_c).astype(np.float64)
+        pace = (None if burst.fpa_rate_c_per_min is None else
+                FpaPace(burst.fpa_rate_c_per_min, burst.fpa_lagged_rate_c_per_min))
+        level = self.level_sigma(temperature_c, burst.fpa_c, pace=pace).astype(np.float64)
         unseen = self.unseen_sigma(temperature_c, burst.fpa_c)
         t_k = temperature_c.astype(np.float64) + ZERO_CELSIUS_K
         dl_dt = (self.band.radiance(t_k + 0.5) - self.band.radiance(t_k - 0.5))

@@ -114,11 +114,15 @@ def _segments(task: CampaignTask) -> list[CampaignTask]:
     from thermocal.estimation.registry import ESTIMATORS
     from thermocal.pipeline.flight import BATCH_FRAMES, flight_batches
 
+    if task.frames < task.options.frames or ESTIMATORS[task.options.method].needs == "pass":
+        return [task]  # too short for a group (its task says so), or fitted across the whole
     batches = flight_batches(task.frames, task.options)
-    if batches <= SEGMENT_BATCHES or ESTIMATORS[task.options.method].needs == "pass":
+    if batches <= SEGMENT_BATCHES:
         return [task]
     spans = [(a, min(a + SEGMENT_BATCHES, batches)) for a in range(0, batches, SEGMENT_BATCHES)]
-    frames = [min(task.frames, z * BATCH_FRAMES) - a * BATCH_FRAMES for a, z in spans]
+    span_frames = max(1, BATCH_FRAMES // task.options.stride) * task.options.stride
+    frames = [min(task.frames, z * span_frames) - a * span_frames for a, z in spans]
+    frames[-1] = task.frames - sum(frames[:-1])  # the progress bar's total: every frame
     return [replace(task, segment=span, frames=f) for span, f in zip(spans, frames, strict=True)]
 
 
@@ -245,9 +249,7 @@ def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
                 if options.threads is None and _runs_network(task):
                     options = replace(options, threads=share)
                 task = replace(task, threads=share, options=options)
-            key = f"thermocal-flight-{task.name}" + (
-                "" if task.segment is None else f"-segment-{task.segment[0]}")
-            futures[client.submit(_run_task, task, key=key, pure=False,
+            futures[client.submit(_run_task, task, key=_task_key(task), pure=False,
                                   retries=RETRIES)] = task
         results: dict[str, dict[str, Any]] = {}
         segments: dict[str, list[dict[str, Any]]] = {}  # a recording's finished segments
@@ -265,7 +267,7 @@ def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
                 done.append(result["segment"])
                 if len(done) == parts[task.name]:  # every segment: finish the recording
                     last = client.submit(_finish_task, task, done, pure=False,
-                                         key=f"thermocal-flight-{task.name}-finish",
+                                         key=_task_key(task, finish=True),
                                          retries=RETRIES)
                     futures[last] = replace(task, segment=None, frames=0)
                     running.add(last)
@@ -287,6 +289,16 @@ def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
                "cluster_start_s": connected - started}
     write_json_atomic(out_dir / "campaign.json", summary)
     return summary
+
+
+def _task_key(task: CampaignTask, *, finish: bool = False) -> str:
+    """The task's key on the scheduler: the kind of task before the recording's name, so that
+    no name makes another task's key (``a``'s finishing task and a recording ``a-finish``)."""
+    if finish:
+        return f"thermocal-finish-{task.name}"
+    if task.segment is None:
+        return f"thermocal-flight-{task.name}"
+    return f"thermocal-segment-{task.segment[0]}-{task.name}"
 
 
 def _runs_network(task: CampaignTask) -> bool:

@@ -367,6 +367,8 @@ def finish_segments(recording: str | Path, out_dir: str | Path, options: FlightO
     segments' order (a line already there is not appended twice: a rerun after an interrupted
     finish), their log files removed, ``log.csv`` and ``summary.json`` written (``processed``
     and the stage times summed over the segments, ``wall_time_s`` too); the summary."""
+    if not results:
+        raise InvalidInputError("finish_segments: no segment to finish")
     header = open_stream(recording, fpa_c=options.fpa_c)
     out = Path(out_dir)
     results = sorted(results, key=lambda r: r["segment"][0])
