@@ -277,7 +277,11 @@ def clipped_mask(frames: np.ndarray, bit_depth: int = 14, *, registered: bool = 
 
     In ``registered`` frames 0 marks pixels a frame does not cover: only the top counts.
     """
-    clipped = frames >= 2**bit_depth - 1
+    top = 2**bit_depth - 1
+    if not registered and frames.dtype.kind == "u" and np.iinfo(frames.dtype).max >= top:
+        # one pass: an unsigned count − 1 wraps 0 round to the type's top
+        return np.subtract(frames, 1, dtype=frames.dtype) >= top - 1
+    clipped = frames >= top
     if not registered:
         clipped |= frames <= 0
     return clipped

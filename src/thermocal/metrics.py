@@ -42,9 +42,9 @@ __all__ = [
     "netd_map",
     "psnr",
     "rmse",
+    "rescaled_coverage",
     "roughness",
     "row_bands",
-    "rescaled_coverage",
     "sigma_coverage",
     "ssim",
 ]

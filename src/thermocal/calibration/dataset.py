@@ -418,12 +418,7 @@ class FrameScan:
         k = len(frames)
         flat = frames.reshape(k, -1)
         size = flat.shape[1]
-        top = 2**self.bit_depth - 1
-        if flat.dtype.kind == "u" and np.iinfo(flat.dtype).max >= top:
-            # one pass: an unsigned count − 1 wraps 0 round to the type's top
-            where = np.flatnonzero(np.subtract(flat, 1, dtype=flat.dtype) >= top - 1)
-        else:
-            where = np.flatnonzero(clipped_mask(flat, self.bit_depth))
+        where = np.flatnonzero(clipped_mask(flat, self.bit_depth))
         # few pixels clip: count where they are rather than sum every pixel of every frame
         frame_of, pixel_of = np.divmod(where, size)
         keep = np.bincount(frame_of, minlength=k) / size <= SATURATED_FRACTION

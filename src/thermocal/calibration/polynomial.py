@@ -263,6 +263,8 @@ def _invert_scene(s: np.ndarray, kind: str, band: BandRadiance) -> np.ndarray:
 #: Pixels of a block accumulated at once: a tile of centred counts stays in the core's cache
 #: between its three uses (64 frames × 4096 pixels × 4 bytes = 1 MB).
 _TILE_PIXELS = 4096
+
+
 def _accumulate(counts: np.ndarray, at: np.ndarray, ref: np.ndarray, aty: np.ndarray,
                 yy: np.ndarray, part: slice) -> None:
     """Add one block's normal-equation sums over the pixels ``part`` to ``aty`` ``(K, P)`` and

@@ -8,7 +8,7 @@ from typing import Any, NamedTuple, Protocol, runtime_checkable
 
 import numpy as np
 
-__all__ = ["Estimate", "Estimator", "FpaPace", "PreparedBurst", "view_spread"]
+__all__ = ["Estimate", "Estimator", "FpaPace", "PreparedBurst", "fpa_pace", "view_spread"]
 
 
 class FpaPace(NamedTuple):
@@ -28,6 +28,12 @@ class FpaPace(NamedTuple):
 
     rate_c_per_min: float
     lagged_c_per_min: float | None = None
+
+
+def fpa_pace(rate_c_per_min: float | None, lagged_c_per_min: float | None = None
+             ) -> FpaPace | None:
+    """A burst's :class:`FpaPace`, None without its rate."""
+    return None if rate_c_per_min is None else FpaPace(rate_c_per_min, lagged_c_per_min)
 
 
 @dataclass(frozen=True)
@@ -98,6 +104,11 @@ class PreparedBurst:
     fpa_rate_c_per_min: float | None = None
     time_since_start_s: float | None = None
     fpa_lagged_rate_c_per_min: float | None = None
+
+    @property
+    def pace(self) -> FpaPace | None:
+        """How the FPA was changing at the burst (:func:`fpa_pace`), None where not known."""
+        return fpa_pace(self.fpa_rate_c_per_min, self.fpa_lagged_rate_c_per_min)
 
 
 @runtime_checkable

@@ -30,7 +30,7 @@ from thermocal.burst import (
     pivot_index,
 )
 from thermocal.errors import InvalidInputError, OutsideDomainError
-from thermocal.estimation.base import Estimate, Estimator, FpaPace, PreparedBurst
+from thermocal.estimation.base import Estimate, Estimator, FpaPace, PreparedBurst, fpa_pace
 from thermocal.registration.warp import warp_to_pivot
 
 __all__ = ["domain_stage", "estimate", "register_stage"]
@@ -135,13 +135,13 @@ def estimate(
     # the burst's FPA temperature: required by some estimators, used by all that get one (their
     # domain and uncertainty)
     fpa = fpa_value(fpa_c, arr.shape[0]) if estimator.needs_fpa or fpa_c is not None else None
+    pace = fpa_pace(fpa_rate_c_per_min, fpa_lagged_rate_c_per_min)
     if estimator.per_frame:  # the pivot frame alone: its calibration, not registered
         valid = np.zeros(arr.shape, dtype=bool)
         valid[p] = True
         hs = np.repeat(np.eye(3)[None], arr.shape[0], axis=0)
         calibrated = estimator.calibrate(arr, fpa_c, time_s)
-        outside = domain_stage(estimator, calibrated, fpa, force=force, pace=_pace(
-            fpa_rate_c_per_min, fpa_lagged_rate_c_per_min))
+        outside = domain_stage(estimator, calibrated, fpa, force=force, pace=pace)
         burst = PreparedBurst(arr, calibrated, valid, hs, p, fpa, fpa_rate_c_per_min,
                               time_since_start_s, fpa_lagged_rate_c_per_min)
         return _estimate_of(estimator, burst, outside)
@@ -156,8 +156,7 @@ def estimate(
     filled = fill_stuck_pixels(arr, hs)[0] if fill_defects and not registered else arr
     # 4. calibrate
     calibrated = estimator.calibrate(filled, fpa if estimator.needs_fpa else fpa_c, time_s)
-    outside = domain_stage(estimator, calibrated, fpa, force=force,
-                           pace=_pace(fpa_rate_c_per_min, fpa_lagged_rate_c_per_min))
+    outside = domain_stage(estimator, calibrated, fpa, force=force, pace=pace)
     # 5. warp
     if registered and homographies is None:
         warped = np.asarray(calibrated, dtype=np.float32)
@@ -170,11 +169,6 @@ def estimate(
     burst = PreparedBurst(filled, warped, valid, hs, p, fpa, fpa_rate_c_per_min,
                           time_since_start_s, fpa_lagged_rate_c_per_min)
     return _estimate_of(estimator, burst, outside)
-
-
-def _pace(rate_c_per_min: float | None, lagged_c_per_min: float | None) -> FpaPace | None:
-    """The burst's :class:`~thermocal.estimation.base.FpaPace`, None without its rate."""
-    return None if rate_c_per_min is None else FpaPace(rate_c_per_min, lagged_c_per_min)
 
 
 def _estimate_of(estimator: Estimator, burst: PreparedBurst, outside: tuple[str, ...]

@@ -35,7 +35,7 @@ import numpy as np
 from thermocal.calibration.base import Calibration, fill_bad_pixels
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import InvalidInputError, ResolutionMismatchError
-from thermocal.estimation.base import FpaPace, PreparedBurst, view_spread
+from thermocal.estimation.base import PreparedBurst, view_spread
 from thermocal.estimation.pass_pattern import (
     ResidualPattern,
     fine_part,
@@ -302,9 +302,8 @@ class SelfCalibration:
         float32; the pattern's standard error converted from radiance at each pixel's
         temperature."""
         assert self.pattern is not None
-        pace = (None if burst.fpa_rate_c_per_min is None else
-                FpaPace(burst.fpa_rate_c_per_min, burst.fpa_lagged_rate_c_per_min))
-        level = self.level_sigma(temperature_c, burst.fpa_c, pace=pace).astype(np.float64)
+        level = self.level_sigma(temperature_c, burst.fpa_c, pace=burst.pace).astype(
+            np.float64)
         unseen = self.unseen_sigma(temperature_c, burst.fpa_c)
         t_k = temperature_c.astype(np.float64) + ZERO_CELSIUS_K
         dl_dt = (self.band.radiance(t_k + 0.5) - self.band.radiance(t_k - 0.5))

@@ -127,51 +127,59 @@ def _segments(task: CampaignTask) -> list[CampaignTask]:
 
 
 def _run_task(task: CampaignTask) -> dict[str, Any]:
-    """One flight, on a worker: its summary's counts, or its error (a failed flight is a result,
-    not an exception: the campaign goes on)."""
-    import warnings
-
+    """One flight, or one segment of it, on a worker: its summary's counts (a segment's counts,
+    for the recording's finishing task), or its error (a failed flight is a result, not an
+    exception: the campaign goes on)."""
     from thermocal.pipeline.flight import process_flight
-    from thermocal.pipeline.report import write_report
 
-    started = time.perf_counter()
     if task.threads is not None:
         import cv2
 
         # OpenCV has one process-wide pool, which defaults to every core: the workers of one
         # machine would fight over them
         cv2.setNumThreads(task.threads)
-    try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            if task.segment is not None:  # its counts, for the recording's finishing task
+    if task.segment is not None:
+        import warnings
+
+        started = time.perf_counter()
+        try:
+            with warnings.catch_warnings():  # the finishing task warns for the recording
+                warnings.simplefilter("ignore")
                 return {"name": task.name, "ok": True, "segment": process_flight(
                     task.recording, task.out_dir, task.options, segment=task.segment)}
-            summary = process_flight(task.recording, task.out_dir, task.options)
-            write_report(task.out_dir)
-    except ThermocalError as exc:
-        return _failed(task, str(exc), started)
-    return _result(task, summary, caught, started)
+        except ThermocalError as exc:
+            return _failed(task, str(exc), started)
+    return _reported(task, lambda: process_flight(task.recording, task.out_dir, task.options))
 
 
 def _finish_task(task: CampaignTask, segments: list[dict[str, Any]]) -> dict[str, Any]:
     """The last task of a recording run in segments, on a worker: its log and summary
     (:func:`~thermocal.pipeline.flight.finish_segments`) and report; the recording's result,
     its counts summed over the segments."""
+    from thermocal.pipeline.flight import finish_segments
+
+    return _reported(task, lambda: finish_segments(task.recording, task.out_dir, task.options,
+                                                   segments),
+                     earlier_s=sum(r["wall_time_s"] for r in segments))
+
+
+def _reported(task: CampaignTask, flight: Callable[[], dict[str, Any]], *,
+              earlier_s: float = 0.0) -> dict[str, Any]:
+    """``flight()`` (a flight's summary) and its report, its warnings kept: the recording's
+    result (its ``seconds`` with ``earlier_s`` of its segments), or its error."""
     import warnings
 
-    from thermocal.pipeline.flight import finish_segments
     from thermocal.pipeline.report import write_report
 
-    started = time.perf_counter()
+    started = time.perf_counter() - earlier_s
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            summary = finish_segments(task.recording, task.out_dir, task.options, segments)
+            summary = flight()
             write_report(task.out_dir)
     except ThermocalError as exc:
         return _failed(task, str(exc), started)
-    return _result(task, summary, caught, started - sum(r["wall_time_s"] for r in segments))
+    return _result(task, summary, caught, started)
 
 
 def _failed(task: CampaignTask, error: str, started: float) -> dict[str, Any]:

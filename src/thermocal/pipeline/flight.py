@@ -225,8 +225,13 @@ def flight_batches(n_frames: int, options: FlightOptions) -> int:
     """How many batches (:data:`BATCH_FRAMES`) a flight of a recording of ``n_frames`` frames
     registers: what a campaign splits a long recording by (a flight-level estimator joins a
     short last batch to the one before: not split)."""
-    pivots = pivots_of(n_frames, options.frames, options.stride)
-    return -(-len(pivots) // max(1, BATCH_FRAMES // options.stride))
+    return len(_batches(pivots_of(n_frames, options.frames, options.stride), options.stride))
+
+
+def _batches(pivots: list[int], stride: int) -> list[list[int]]:
+    """The pivots in batches of :data:`BATCH_FRAMES` frames, by place in the recording."""
+    per_batch = max(1, BATCH_FRAMES // stride)
+    return [pivots[b : b + per_batch] for b in range(0, len(pivots), per_batch)]
 
 
 def _segment_log(out: Path, segment: tuple[int, int]) -> Path:
@@ -270,10 +275,9 @@ def process_flight(
         header.series["fpa_c"], header.series["time_s"])}
     series["fpa_lagged_rate_c_per_min"] = _lagged_rates(series)
     geo = _pivot_tags(header.series.get("frame_metadata"), pivots, options, header.frame_shape)
-    per_batch = max(1, BATCH_FRAMES // stride)
-    batches = [pivots[b : b + per_batch] for b in range(0, len(pivots), per_batch)]
+    batches = _batches(pivots, stride)
     flight_level = ESTIMATORS[options.method].needs == "pass"
-    if flight_level and len(batches) > 1 and len(batches[-1]) < per_batch // 2:
+    if flight_level and len(batches) > 1 and len(batches[-1]) < len(batches[0]) // 2:
         # a short last batch would be too short to fit on: it joins the one before
         batches[-2:] = [batches[-2] + batches[-1]]
     prefit_started = time.perf_counter()

@@ -171,5 +171,6 @@ def main(argv: list[str] | None = None) -> None:
 
     suite_main(__doc__, run, report, argv, quick_help="3 runs each.")
 
+
 if __name__ == "__main__":
     main()

@@ -167,5 +167,6 @@ def main(argv: list[str] | None = None) -> None:
 
     suite_main(__doc__, run, report, argv, quick_help="320x256, 3 runs.")
 
+
 if __name__ == "__main__":
     main()
