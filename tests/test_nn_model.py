@@ -11,6 +11,7 @@ from thermocal.errors import InvalidInputError  # noqa: E402
 from thermocal.nn.loss import kpn_loss, masked_l1  # noqa: E402
 from thermocal.nn.model import (  # noqa: E402
     KPN,
+    KernelHead,
     ModelConfig,
     OffsetBlock,
     RadianceToTemperature,
@@ -69,6 +70,27 @@ def test_apply_kernels_known_answer():
     right = torch.zeros(6, 7)
     right[:, :-1] = frames[0, 1, :, 1:]
     assert torch.allclose(out, frames[0, 0] + 2.0 * right)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_the_folded_head_is_eq11_with_the_heads_kernels(seed):
+    """KernelHead.apply (the last 1×1 conv folded into a K×K conv of the frames) gives what
+    apply_kernels gives with the kernels the head outputs, and the same gradients."""
+    torch.manual_seed(seed)
+    n, k, mu = 3, 5, 6
+    head = KernelHead(mu, n * k * k).double()
+    for p in head.parameters():
+        torch.nn.init.normal_(p)
+    frames = torch.rand(2, n, 9, 11, dtype=torch.float64, requires_grad=True)
+    feats = torch.rand(2, mu, 9, 11, dtype=torch.float64)
+    want = apply_kernels(frames, head(feats), k)
+    got = head.apply(frames, feats, k)
+    assert got.shape == (2, 1, 9, 11)
+    assert torch.allclose(got, want, rtol=1e-12, atol=1e-10)
+    g_want = torch.autograd.grad(want.sum(), [frames, *head.parameters()])
+    g_got = torch.autograd.grad(got.sum(), [frames, *head.parameters()])
+    for a, b in zip(g_want, g_got, strict=True):
+        assert torch.allclose(a, b, rtol=1e-10, atol=1e-10)
 
 
 def test_untrained_kpn_is_the_mean_of_the_frames():
@@ -144,8 +166,9 @@ def test_count_macs_matches_a_hand_count():
     m = KPN(cfg)
     h, w = 8, 8
     px = h * w
-    # input conv 2→4 (3×3); bottom block 4→4→4→4 (3×3); head 4→4→4→(2·9) (1×1); eq. 11
-    want = px * (2 * 4 * 9 + 3 * 4 * 4 * 9 + 4 * 4 + 4 * 4 + 4 * 18) + 2 * 9 * px
+    # input conv 2→4 (3×3); bottom block 4→4→4→4 (3×3); head 4→4→4 (1×1); eq. 11 folded:
+    # a 3×3 conv 2→(4+1) and a 4-channel product
+    want = px * (2 * 4 * 9 + 3 * 4 * 4 * 9 + 4 * 4 + 4 * 4) + px * (5 * 2 * 9 + 4)
     assert count_macs(m, h, w) == want
     assert np.isfinite(count_parameters(m))
 
