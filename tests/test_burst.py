@@ -110,3 +110,39 @@ def test_eq9_mean_leaves_no_defect_trail(camera):
         errs[fill] = np.abs(est.temperature_c - truth)[inner]
     assert errs[False].max() > 10.0  # a hot pixel's share of a 5-frame mean
     assert errs[True].max() < 5.0 and errs[True].mean() < errs[False].mean()
+
+
+def _stuck_by_the_rule(frames, homographies, min_counts):
+    """The rule of stuck_pixels taken literally: every frame's full median, every pixel."""
+    import cv2
+
+    out = np.ones(frames.shape[1:], dtype=bool)
+    for f in np.asarray(frames, dtype=np.float32):
+        d = np.abs(f - cv2.medianBlur(f, 3))
+        out &= d > max(min_counts, 10.0 * 1.4826 * float(np.median(d)))
+    if homographies is not None:
+        out &= scene_motion_px(homographies, out.shape) >= 2.0
+    return out
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_stuck_pixels_give_what_the_rule_gives_with_every_median(seed):
+    """The medians taken only where they can raise the threshold, the motion only at the
+    candidates: the same mask as the rule with a full median per frame, on noisy and quiet
+    bursts (where the median does and does not raise the threshold)."""
+    rng = np.random.default_rng(seed)
+    for _ in range(60):
+        n, h, w = int(rng.integers(3, 8)), int(rng.integers(8, 40)), int(rng.integers(8, 40))
+        frames = (8000 + rng.normal(0, float(rng.choice([1, 8, 40, 300])), (n, h, w)))
+        frames = frames.astype(np.float32 if rng.random() < 0.5 else np.uint16)
+        bad = rng.random((h, w)) < 0.04
+        frames[:, bad] = rng.choice([0, 16000])
+        if rng.random() < 0.3:  # a defect that one frame does not show
+            frames[int(rng.integers(n)), bad] = 8000
+        hs = None
+        if rng.random() < 0.7:
+            hs = np.repeat(np.eye(3)[None], n, axis=0)
+            hs[:, 1, 2] = rng.uniform(-4, 4, n) * float(rng.random() < 0.8)
+        min_counts = float(rng.choice([5.0, 100.0]))
+        want = _stuck_by_the_rule(frames, hs, min_counts)
+        assert np.array_equal(stuck_pixels(frames, hs, min_counts=min_counts), want)

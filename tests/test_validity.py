@@ -98,3 +98,17 @@ def test_estimate_command_refuses_and_forces(tmp_path, network, capsys):
     code, text, err = run(["estimate", path, "--out", tmp_path / "h_t.tiff"], capsys)
     text += err
     assert code == 2 and "FPA temperature 58.0 °C" in text
+
+
+def test_line_medians_are_numpys_medians():
+    from thermocal.metrics import _line_medians
+
+    rng = np.random.default_rng(3)
+    for _ in range(100):
+        h, w = (int(v) for v in rng.integers(1, 40, 2))
+        a = (rng.standard_normal((h, w)) * 100).astype(np.float32)
+        if rng.random() < 0.3:
+            a = np.round(a)  # ties
+        if rng.random() < 0.2:
+            a[int(rng.integers(h)), int(rng.integers(w))] = np.nan
+        assert np.array_equal(_line_medians(a), np.median(a, axis=1), equal_nan=True)

@@ -638,9 +638,18 @@ def line_patterns(frames_c: np.ndarray) -> tuple[float, float]:
         blur = cv2.GaussianBlur(frame, (0, 0), LINE_HIGH_PASS_PX,
                                 borderType=cv2.BORDER_REPLICATE)  # scipy's mode="nearest"
         high = frame - blur
-        rows.append(float(np.std(np.median(high, axis=1))))
-        cols.append(float(np.std(np.median(high, axis=0))))
+        rows.append(float(np.std(_line_medians(high))))
+        cols.append(float(np.std(_line_medians(np.ascontiguousarray(high.T)))))
     return float(np.median(rows)), float(np.median(cols))
+
+
+def _line_medians(a: np.ndarray) -> np.ndarray:
+    """``np.median(a, axis=1)`` of a float32 ``(H, W)``, the same numbers, by sorting each row
+    (numpy's vectorised sort of short rows: 6× faster than the median's partition per row)."""
+    s = np.sort(a, axis=1)
+    n = a.shape[1]
+    med = s[:, n // 2] if n % 2 else (s[:, n // 2 - 1] + s[:, n // 2]) / np.float32(2)
+    return np.where(np.isnan(a).any(axis=1), np.float32(np.nan), med)
 
 
 def sigma_coverage(errors: Any, sigma: Any) -> dict[str, float]:
