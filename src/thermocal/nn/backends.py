@@ -40,8 +40,10 @@ BACKENDS = {
     "openvino": BackendInfo("openvino", "openvino",
                             "OpenVINO, CPU plugin at f32, the exported ONNX graph"),
 }
-#: ``auto``'s order: fastest first (``benchmarks/backends.py``, one 336×256 burst of 7 on two
-#: cores: OpenVINO 0.43, ONNX Runtime 0.76 of PyTorch's time).
+#: ``auto``'s order: fastest first (``benchmarks/backends.py``, one 336×256 burst of 7: on one
+#: thread OpenVINO 0.78, ONNX Runtime 0.85 of PyTorch's time; on two the three within their
+#: run-to-run spread since the kernel step was folded). A fixed order, not a race: the same
+#: backend, and so the same bytes, on every run.
 AUTO_ORDER = ("openvino", "onnxruntime", "torch")
 
 

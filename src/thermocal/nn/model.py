@@ -15,8 +15,8 @@ gray levels registered onto the pivot (eq. 21), the FPA temperature ``(B,)`` nor
   (``μ + 1`` output channels, :func:`fold_kernel_conv`) and a ``μ``-channel dot product per pixel
   (:func:`apply_folded_kernels`). What :class:`KPN` runs, in training and inference: the same
   multiply-adds, but none of the ``N·K²``-channel tensors (kernels, patches) that made the
-  kernel step a third of the network's time (1.6× faster eager, 1.2× through OpenVINO, 336×256,
-  2 threads; equal to 1e-5 °C: ``benchmarks/backends.py``).
+  kernel step half of eager's time and a third of OpenVINO's (2× faster eager, 1.2× through
+  OpenVINO, 336×256, 2 threads; equal to 1e-5 °C: ``benchmarks/backends.py``).
 * :class:`OffsetBlock`: eq. 10, a polynomial of degree ν in each frame's mean gray level and in
   the FPA temperature, averaged over frames; with ``radial > 0`` (an addition to the paper) also
   in the pixel's ``R²`` on the sensor, a radial offset map (the UNet then sees ``R²`` too).
