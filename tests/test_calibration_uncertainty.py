@@ -314,3 +314,26 @@ def test_the_pipeline_judges_a_bursts_pace_from_its_recording(fitted):
     no_history = estimate(burst.frames, estimator, fpa_rate_c_per_min=0.25, **args)
     assert no_history.outside == ()
     np.testing.assert_array_equal(no_history.temperature_c, held.temperature_c)
+
+
+def test_a_flight_lags_the_rate_by_its_calibrations_own_pace_lag(fitted):
+    """The flight's lagged rates use the lag the calibration's paces were binned at (its
+    report's ``lag_s``), not a constant; none without a calibration's σ (a network)."""
+    from dataclasses import replace
+
+    from thermocal.calibration.dataset import lagged_rate
+    from thermocal.pipeline.flight import _lagged_rates
+
+    _, cal, report = fitted
+    t = np.arange(0.0, 1200.0, 10.0)
+    series = {"fpa_rate_c_per_min": np.where(t > 300.0, 0.5, 0.0), "time_s": t}
+    estimator = PivotCalibration(cal)
+    np.testing.assert_array_equal(
+        _lagged_rates(series, estimator),
+        lagged_rate(series["fpa_rate_c_per_min"], t, report.paces["lag_s"]))
+    estimator.sigma_model = CalibrationSigma(
+        replace(report, paces=report.paces | {"lag_s": 60.0}))
+    np.testing.assert_array_equal(_lagged_rates(series, estimator),
+                                  lagged_rate(series["fpa_rate_c_per_min"], t, 60.0))
+    assert _lagged_rates(series, object()) is None
+    assert _lagged_rates(series | {"time_s": t[::-1]}, estimator) is None

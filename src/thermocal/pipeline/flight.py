@@ -78,7 +78,6 @@ import numpy as np
 from thermocal._validate import check_output_dir
 from thermocal.burst import check_burst, fpa_value
 from thermocal.calibration.dataset import lagged_rate, recording_fpa_rates
-from thermocal.calibration.report import PACE_LAG_S
 from thermocal.errors import InvalidInputError, OutputError, RegistrationError
 from thermocal.estimation.base import Estimator
 from thermocal.estimation.pipeline import estimate
@@ -201,14 +200,19 @@ def _estimator(options: FlightOptions, frame_shape: tuple[int, int]) -> Estimato
     return estimator
 
 
-def _lagged_rates(series: dict[str, Any]) -> np.ndarray | None:
-    """The recording's FPA rate through the pace's lag, °C/min ``(M,)``
-    (:class:`~thermocal.estimation.base.FpaPace`): what a calibration with no memory of the
-    FPA's pace is checked on, group by group; None without rates or increasing frame times."""
+def _lagged_rates(series: dict[str, Any], estimator: Estimator) -> np.ndarray | None:
+    """The recording's FPA rate through the lag of the paces ``estimator``'s calibration was
+    judged on (its report's ``lag_s``), °C/min ``(M,)``
+    (:class:`~thermocal.estimation.base.FpaPace`): what a calibration with no memory of the FPA's
+    pace is checked on, group by group; None without such a calibration, without rates or
+    without increasing frame times."""
+    model = getattr(estimator, "sigma_model", None)  # a calibration's σ (calibrated, selfcal)
+    lag_s = (model.report.paces or {}).get("lag_s") if model is not None else None
     rates, times = series["fpa_rate_c_per_min"], series["time_s"]
-    if rates is None or times is None or np.any(np.diff(np.asarray(times, np.float64)) <= 0):
+    if (lag_s is None or rates is None or times is None
+            or np.any(np.diff(np.asarray(times, np.float64)) <= 0)):
         return None
-    return lagged_rate(rates, times, PACE_LAG_S)
+    return lagged_rate(rates, times, float(lag_s))
 
 
 def _register(estimator: Estimator, frames: np.ndarray, workers: int | None
@@ -273,7 +277,7 @@ def process_flight(
         estimator = _estimator(options, header.frame_shape)
     series = header.series | {"fpa_rate_c_per_min": recording_fpa_rates(
         header.series["fpa_c"], header.series["time_s"])}
-    series["fpa_lagged_rate_c_per_min"] = _lagged_rates(series)
+    series["fpa_lagged_rate_c_per_min"] = _lagged_rates(series, estimator)
     geo = _pivot_tags(header.series.get("frame_metadata"), pivots, options, header.frame_shape)
     batches = _batches(pivots, stride)
     flight_level = ESTIMATORS[options.method].needs == "pass"
