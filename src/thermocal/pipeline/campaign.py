@@ -112,7 +112,7 @@ def _segments(task: CampaignTask) -> list[CampaignTask]:
     recording has no more, or its method fits across the recording); each segment's
     ``frames`` are its share of the recording's, for the progress bar."""
     from thermocal.estimation.registry import ESTIMATORS
-    from thermocal.pipeline.flight import BATCH_FRAMES, flight_batches
+    from thermocal.pipeline.flight import batch_span, flight_batches
 
     if task.frames < task.options.frames or ESTIMATORS[task.options.method].needs == "pass":
         return [task]  # too short for a group (its task says so), or fitted across the whole
@@ -120,7 +120,7 @@ def _segments(task: CampaignTask) -> list[CampaignTask]:
     if batches <= SEGMENT_BATCHES:
         return [task]
     spans = [(a, min(a + SEGMENT_BATCHES, batches)) for a in range(0, batches, SEGMENT_BATCHES)]
-    span_frames = max(1, BATCH_FRAMES // task.options.stride) * task.options.stride
+    span_frames = batch_span(task.options.stride)
     frames = [min(task.frames, z * span_frames) - a * span_frames for a, z in spans]
     frames[-1] = task.frames - sum(frames[:-1])  # the progress bar's total: every frame
     return [replace(task, segment=span, frames=f) for span, f in zip(spans, frames, strict=True)]

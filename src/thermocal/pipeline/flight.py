@@ -78,6 +78,7 @@ import numpy as np
 from thermocal._validate import check_output_dir
 from thermocal.burst import check_burst, fpa_value
 from thermocal.calibration.dataset import lagged_rate, recording_fpa_rates
+from thermocal.calibration.uncertainty import CalibrationSigma
 from thermocal.errors import InvalidInputError, OutputError, RegistrationError
 from thermocal.estimation.base import Estimator
 from thermocal.estimation.pipeline import estimate
@@ -207,7 +208,8 @@ def _lagged_rates(series: dict[str, Any], estimator: Estimator) -> np.ndarray | 
     pace is checked on, group by group; None without such a calibration, without rates or
     without increasing frame times."""
     model = getattr(estimator, "sigma_model", None)  # a calibration's σ (calibrated, selfcal)
-    lag_s = (model.report.paces or {}).get("lag_s") if model is not None else None
+    lag_s = ((model.report.paces or {}).get("lag_s") if isinstance(model, CalibrationSigma)
+             else None)
     rates, times = series["fpa_rate_c_per_min"], series["time_s"]
     if (lag_s is None or rates is None or times is None
             or np.any(np.diff(np.asarray(times, np.float64)) <= 0)):
@@ -232,9 +234,15 @@ def flight_batches(n_frames: int, options: FlightOptions) -> int:
     return len(_batches(pivots_of(n_frames, options.frames, options.stride), options.stride))
 
 
+def batch_span(stride: int) -> int:
+    """How many frames of the recording one batch of pivots spans (:data:`BATCH_FRAMES`, a
+    whole number of strides, at least one)."""
+    return max(1, BATCH_FRAMES // stride) * stride
+
+
 def _batches(pivots: list[int], stride: int) -> list[list[int]]:
-    """The pivots in batches of :data:`BATCH_FRAMES` frames, by place in the recording."""
-    per_batch = max(1, BATCH_FRAMES // stride)
+    """The pivots in batches of :func:`batch_span` frames, by place in the recording."""
+    per_batch = batch_span(stride) // stride
     return [pivots[b : b + per_batch] for b in range(0, len(pivots), per_batch)]
 
 
@@ -986,5 +994,5 @@ def _write_csv(path: Path, entries: list[dict[str, Any]]) -> None:
                              e.get("registration_correlation"), warned, e.get("error", "")])
 
 
-__all__ = ["FlightOptions", "finish_segments", "flight_batches", "pivots_of",
+__all__ = ["FlightOptions", "batch_span", "finish_segments", "flight_batches", "pivots_of",
            "process_flight"]
