@@ -1,5 +1,7 @@
 """The folded kernel step against the formed kernels on a CUDA GPU: inference on one and 16
-bursts and a training step (the shipped configuration, random weights; times in ms).
+bursts and a training step at the shipped network's batch and crop (its configuration, random
+weights; times in ms, CUDA's default TF32 convolutions; the largest difference of the outputs
+with TF32 off, so that it shows the folding's rounding alone).
 
 Run on a machine with a GPU: ``python benchmarks/fold_gpu.py [--json OUT]`` (CI has none; the
 CPU figures are ``benchmarks/backends.py``'s)."""
@@ -7,14 +9,12 @@ CPU figures are ``benchmarks/backends.py``'s)."""
 import argparse
 import json
 import time
+from dataclasses import fields
 
 import torch
 
-from thermocal.evaluation.suites.backends import _kernels_formed
-from thermocal.nn.model import KPN, ModelConfig
-
-SHIPPED = ModelConfig(n_frames=7, mu=16, xi=2, levels=3, kernel=5, degree=4, variant="kpn",
-                      fpa_input=True, centre=True, radiance=True, radial=2, calibrated=True)
+from thermocal.nn.commands import SHIPPED
+from thermocal.nn.model import KPN, ModelConfig, with_formed_kernels
 
 
 def _ms(fn, rounds: int = 20) -> float:
@@ -28,24 +28,38 @@ def _ms(fn, rounds: int = 20) -> float:
     return (time.perf_counter() - t) / rounds * 1e3
 
 
+def _max_diff(a: KPN, b: KPN, *inputs: torch.Tensor, r2: torch.Tensor) -> float:
+    """The largest difference of two networks' outputs with TF32 off (float32 throughout)."""
+    keep = torch.backends.cudnn.allow_tf32
+    torch.backends.cudnn.allow_tf32 = False
+    try:
+        with torch.inference_mode():
+            return float((a(*inputs, r2=r2) - b(*inputs, r2=r2)).abs().max())
+    finally:
+        torch.backends.cudnn.allow_tf32 = keep
+
+
 def run() -> dict:
     dev = "cuda"
+    config = ModelConfig(**{f.name: SHIPPED[f.name] for f in fields(ModelConfig)
+                            if f.name in SHIPPED})
     torch.manual_seed(0)
-    folded = KPN(SHIPPED).to(dev).eval()
-    formed = _kernels_formed(folded)
-    out = {"device": torch.cuda.get_device_name(0), "torch": torch.__version__}
-    p = SHIPPED.position_planes
+    folded = KPN(config).to(dev).eval()
+    formed = with_formed_kernels(folded)
+    out = {"device": torch.cuda.get_device_name(0), "torch": torch.__version__,
+           "tf32_convolutions": torch.backends.cudnn.allow_tf32}
+    p, n = config.position_planes, config.n_frames
     for h, w, b in [(256, 336, 1), (512, 640, 1), (256, 336, 16)]:
-        x, f = torch.rand(b, 7, h, w, device=dev), torch.rand(b, device=dev)
+        x, f = torch.rand(b, n, h, w, device=dev), torch.rand(b, device=dev)
         r2 = torch.rand(b, p, h, w, device=dev)
+        out[f"infer_{w}x{h}_b{b}_maxdiff_fp32"] = _max_diff(folded, formed, x, f, r2=r2)
         with torch.inference_mode():
-            out[f"infer_{w}x{h}_b{b}_maxdiff"] = float(
-                (folded(x, f, r2=r2) - formed(x, f, r2=r2)).abs().max())
             for name, m in (("folded", folded), ("formed", formed)):
                 key = f"infer_{w}x{h}_b{b}_{name}_ms"
                 out[key] = _ms(lambda m=m, x=x, f=f, r2=r2: m(x, f, r2=r2))
-    x, f = torch.rand(64, 7, 64, 64, device=dev), torch.rand(64, device=dev)
-    r2 = torch.rand(64, p, 64, 64, device=dev)
+    batch, crop = SHIPPED["batch"], SHIPPED["crop"]
+    x, f = torch.rand(batch, n, crop, crop, device=dev), torch.rand(batch, device=dev)
+    r2 = torch.rand(batch, p, crop, crop, device=dev)
     for name, m in (("folded", folded), ("formed", formed)):
         m.train()
         opt = torch.optim.Adam(m.parameters(), 1e-4)
@@ -55,7 +69,7 @@ def run() -> dict:
             m(x, f, r2=r2).abs().mean().backward()
             opt.step()
 
-        out[f"train_step_b64_crop64_{name}_ms"] = _ms(step)
+        out[f"train_step_b{batch}_crop{crop}_{name}_ms"] = _ms(step)
     return out
 
 

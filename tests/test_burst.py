@@ -112,14 +112,14 @@ def test_eq9_mean_leaves_no_defect_trail(camera):
     assert errs[True].max() < 5.0 and errs[True].mean() < errs[False].mean()
 
 
-def _stuck_by_the_rule(frames, homographies, min_counts):
+def _stuck_by_the_rule(frames, homographies, min_counts, k):
     """The rule of stuck_pixels taken literally: every frame's full median, every pixel."""
     import cv2
 
     out = np.ones(frames.shape[1:], dtype=bool)
     for f in np.asarray(frames, dtype=np.float32):
         d = np.abs(f - cv2.medianBlur(f, 3))
-        out &= d > max(min_counts, 10.0 * 1.4826 * float(np.median(d)))
+        out &= d > max(min_counts, k * 1.4826 * float(np.median(d)))
     if homographies is not None:
         out &= scene_motion_px(homographies, out.shape) >= 2.0
     return out
@@ -140,9 +140,12 @@ def test_stuck_pixels_give_what_the_rule_gives_with_every_median(seed):
         if rng.random() < 0.3:  # a defect that one frame does not show
             frames[int(rng.integers(n)), bad] = 8000
         hs = None
-        if rng.random() < 0.7:
+        if rng.random() < 0.7:  # shifts, rotations, a little perspective
             hs = np.repeat(np.eye(3)[None], n, axis=0)
-            hs[:, 1, 2] = rng.uniform(-4, 4, n) * float(rng.random() < 0.8)
+            hs[:, :2, :2] += rng.normal(0, 0.02, (n, 2, 2))
+            hs[:, :2, 2] = rng.uniform(-4, 4, (n, 2)) * float(rng.random() < 0.8)
+            hs[:, 2, :2] = rng.normal(0, 1e-4, (n, 2))
         min_counts = float(rng.choice([5.0, 100.0]))
-        want = _stuck_by_the_rule(frames, hs, min_counts)
-        assert np.array_equal(stuck_pixels(frames, hs, min_counts=min_counts), want)
+        k = float(rng.choice([0.0, 3.0, 10.0]))
+        want = _stuck_by_the_rule(frames, hs, min_counts, k)
+        assert np.array_equal(stuck_pixels(frames, hs, min_counts=min_counts, k=k), want)

@@ -15,9 +15,12 @@ from thermocal.nn.model import (  # noqa: E402
     ModelConfig,
     OffsetBlock,
     RadianceToTemperature,
+    apply_folded_kernels,
     apply_kernels,
     count_macs,
     count_parameters,
+    fold_kernel_conv,
+    with_formed_kernels,
 )
 
 
@@ -74,7 +77,7 @@ def test_apply_kernels_known_answer():
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_the_folded_head_is_eq11_with_the_heads_kernels(seed):
-    """KernelHead.apply (the last 1×1 conv folded into a K×K conv of the frames) gives what
+    """KernelHead.kernel_sum (the last 1×1 conv folded into a K×K conv of the frames) gives what
     apply_kernels gives with the kernels the head outputs, and the same gradients."""
     torch.manual_seed(seed)
     n, k, mu = 3, 5, 6
@@ -84,13 +87,50 @@ def test_the_folded_head_is_eq11_with_the_heads_kernels(seed):
     frames = torch.rand(2, n, 9, 11, dtype=torch.float64, requires_grad=True)
     feats = torch.rand(2, mu, 9, 11, dtype=torch.float64)
     want = apply_kernels(frames, head(feats), k)
-    got = head.apply(frames, feats, k)
+    got = head.kernel_sum(frames, feats, k)
     assert got.shape == (2, 1, 9, 11)
     assert torch.allclose(got, want, rtol=1e-12, atol=1e-10)
     g_want = torch.autograd.grad(want.sum(), [frames, *head.parameters()])
     g_got = torch.autograd.grad(got.sum(), [frames, *head.parameters()])
     for a, b in zip(g_want, g_got, strict=True):
         assert torch.allclose(a, b, rtol=1e-10, atol=1e-10)
+
+
+@pytest.mark.parametrize("config", [
+    {"n_frames": 7, "mu": 8, "levels": 2, "kernel": 5, "radiance": True, "radial": 2},
+    {"n_frames": 1, "mu": 4, "levels": 1, "kernel": 1, "variant": "kpn-no-offset"},
+    {"n_frames": 3, "mu": 4, "levels": 0, "kernel": 3, "variant": "e2e"},
+])
+def test_the_whole_network_folded_is_the_network_with_its_kernels_formed(config):
+    """KPN.forward (folded) against with_formed_kernels(KPN) on random weights: the same
+    temperatures to float rounding; the copy leaves the model alone, and nn.Module.apply
+    still walks every module (the head's method does not shadow it)."""
+    cfg = ModelConfig(**config)
+    m = KPN(cfg).eval()
+    for p in m.parameters():
+        torch.nn.init.normal_(p, std=0.2)
+    formed = with_formed_kernels(m)
+    x = torch.rand(2, cfg.n_frames, 16, 24)
+    fpa = torch.rand(2)
+    r2 = torch.rand(2, cfg.position_planes, 16, 24) if cfg.radial else None
+    with torch.no_grad():
+        want, got = formed(x, fpa, r2=r2), m(x, fpa, r2=r2)
+    assert torch.allclose(got, want, rtol=1e-5, atol=1e-5)
+    assert type(m.head) is KernelHead and type(formed.head) is not KernelHead
+    visited = []
+    m.apply(visited.append)
+    assert m.head in visited and len(visited) == len(list(m.modules()))
+
+
+def test_the_folded_kernels_check_their_shapes():
+    head = KernelHead(4, 2 * 9)
+    with pytest.raises(InvalidInputError, match="kernel taps"):
+        fold_kernel_conv(head.net[-1].weight, head.net[-1].bias, 3, 3)
+    with pytest.raises(InvalidInputError, match="kernel taps"):  # 3 frames, kernels for 2
+        head.kernel_sum(torch.rand(1, 3, 8, 8), torch.rand(1, 4, 8, 8), 3)
+    folded = fold_kernel_conv(head.net[-1].weight, head.net[-1].bias, 2, 3)
+    with pytest.raises(InvalidInputError, match="do not match"):
+        apply_folded_kernels(torch.rand(1, 2, 8, 8), torch.rand(1, 4, 8, 9), folded, 3)
 
 
 def test_untrained_kpn_is_the_mean_of_the_frames():

@@ -103,9 +103,10 @@ def stuck_pixels(
     (:func:`scene_motion_px`): a static scene's point sources and thin lines are not defects.
     Without homographies the scene is taken to move. Bursts of fewer than 3 frames give none.
 
-    The robust deviation (a median over the frame) is taken only for the pixels that pass
-    ``min_counts`` in every frame, and only when it can raise the threshold above it: the
-    same answer as taking it for every frame.
+    Each frame's robust deviation (the median of its differences) is taken only while some
+    pixel is still a candidate and only when it can raise the frame's threshold above
+    ``min_counts``; the scene's motion only at the candidates: the same answer as the rule with
+    every median and the whole frame's motion.
     """
     import cv2  # a 3×3 median of float32 frames
 
@@ -113,28 +114,26 @@ def stuck_pixels(
     out = np.zeros(arr.shape[1:], dtype=bool)
     if arr.shape[0] < 3:
         return out
-    diffs = []
-    rows = cols = np.zeros(0, dtype=np.intp)
-    for i, f in enumerate(arr):
+    scale = k * 1.4826
+    # the median raises the threshold only if at least half the frame lies above
+    # min_counts / scale (an O(pixels) count in place of the median, in most frames); a hair
+    # below it, so that rounding cannot skip a median that matters
+    gate = min_counts / scale * (1.0 - 1e-6) if scale > 0 else np.inf
+    rows = cols = None
+    for f in arr:
         f = f.astype(np.float32)
         d = np.abs(f - cv2.medianBlur(f, 3))
-        if i == 0:
+        if rows is None:
             rows, cols = np.nonzero(d > min_counts)
         else:
             keep = d[rows, cols] > min_counts
             rows, cols = rows[keep], cols[keep]
-        if rows.size == 0:
-            return out
-        diffs.append(d)
-    scale = k * 1.4826
-    gate = min_counts / scale * (1.0 - 1e-6)  # a hair below: rounding cannot skip a median
-    for d in diffs:
-        # the median can raise the threshold only if at least half the frame lies above
-        # min_counts / scale (an O(pixels) count instead of the median, in most frames)
-        if np.count_nonzero(d > gate) * 2 >= d.size:
+        if rows.size and np.count_nonzero(d > gate) * 2 >= d.size:
             keep = d[rows, cols] > max(min_counts, scale * float(np.median(d)))
             rows, cols = rows[keep], cols[keep]
-    if homographies is not None and rows.size:
+        if rows.size == 0:
+            return out
+    if homographies is not None:
         moved = scene_motion_at(homographies, rows, cols) >= min_motion_px
         rows, cols = rows[moved], cols[moved]
     out[rows, cols] = True

@@ -20,10 +20,11 @@ class FpaPace(NamedTuple):
     rate_c_per_min : float
         The FPA rate, °C/min.
     lagged_c_per_min : float or None
-        The same seen through a first-order lag of
-        :data:`~thermocal.calibration.report.PACE_LAG_S`
-        (:func:`~thermocal.calibration.dataset.lagged_rate`), °C/min: how it has been changing
-        over the last minutes; None without the recording's history.
+        The same seen through a first-order lag (:func:`~thermocal.calibration.dataset.lagged_rate`)
+        of the time constant the calibration's paces were binned at (its report's ``lag_s``,
+        :data:`~thermocal.calibration.report.PACE_LAG_S` so far), °C/min: how it has been
+        changing over the last minutes; None without the recording's history or without a
+        calibration that judges paces.
     """
 
     rate_c_per_min: float

@@ -6,8 +6,9 @@
 ``openvino``    OpenVINO's CPU plugin at f32 on the same graph
 =============== =================================================================================
 
-``auto`` is the first installed of :data:`AUTO_ORDER`, fastest first as ``benchmarks/backends.py``
-measures them. ONNX Runtime and OpenVINO are the optional extra ``thermocal[backends]``. What
+``auto`` is the first installed of :data:`AUTO_ORDER`, fastest first on one thread as
+``benchmarks/backends.py`` measures them (on two the three lie within their run-to-run
+spread). ONNX Runtime and OpenVINO are the optional extra ``thermocal[backends]``. What
 runs each: :mod:`thermocal.nn.runners`.
 """
 
@@ -40,10 +41,10 @@ BACKENDS = {
     "openvino": BackendInfo("openvino", "openvino",
                             "OpenVINO, CPU plugin at f32, the exported ONNX graph"),
 }
-#: ``auto``'s order: fastest first (``benchmarks/backends.py``, one 336×256 burst of 7: on one
-#: thread OpenVINO 0.78, ONNX Runtime 0.85 of PyTorch's time; on two the three within their
-#: run-to-run spread since the kernel step was folded). A fixed order, not a race: the same
-#: backend, and so the same bytes, on every run.
+#: ``auto``'s order: fastest first on one thread (``benchmarks/backends.py``, one 336×256 burst
+#: of 7: OpenVINO 0.78, ONNX Runtime 0.85 of PyTorch's time; on two threads the three lie within
+#: their run-to-run spread since the kernel step was folded). A fixed order, not a race: the
+#: same backend, and so the same bytes, on every run.
 AUTO_ORDER = ("openvino", "onnxruntime", "torch")
 
 

@@ -10,13 +10,14 @@ gray levels registered onto the pivot (eq. 21), the FPA temperature ``(B,)`` nor
 * :class:`KernelHead`: three 1×1 convs (GeLU on the first two) giving ``N·K²`` channels.
 * :func:`apply_kernels`: eq. 11, the per-pixel ``K × K`` kernel of every frame applied to the
   ``K × K`` patch of that frame around the pixel, summed over frames.
-  :meth:`KernelHead.apply` computes the same sum without forming the ``N·K²`` kernels: the head's
-  last 1×1 conv and eq. 11 are both linear, so they fold into one ``K × K`` conv of the frames
-  (``μ + 1`` output channels, :func:`fold_kernel_conv`) and a ``μ``-channel dot product per pixel
-  (:func:`apply_folded_kernels`). What :class:`KPN` runs, in training and inference: the same
-  multiply-adds, but none of the ``N·K²``-channel tensors (kernels, patches) that made the
-  kernel step half of eager's time and a third of OpenVINO's (2× faster eager, 1.2× through
-  OpenVINO, 336×256, 2 threads; equal to 1e-5 °C: ``benchmarks/backends.py``).
+  :meth:`KernelHead.kernel_sum` computes the same sum without forming the ``N·K²`` kernels:
+  the head's last 1×1 conv and eq. 11 are both linear, so they fold into one ``K × K`` conv of
+  the frames (``μ + 1`` output channels, :func:`fold_kernel_conv`) and a ``μ``-channel product
+  per pixel (:func:`apply_folded_kernels`). What :class:`KPN` runs, in training and inference:
+  the same multiply-adds, but none of the ``N·K²``-channel tensors (kernels, patches) that made
+  the kernel step half of eager's time (2× faster eager on one 336×256 burst, 2 threads) and,
+  in the exported graph, gathers and layout reorders around the convolutions; equal to 1e-5 °C
+  (``benchmarks/backends.py``). :func:`with_formed_kernels` gives the network as it was.
 * :class:`OffsetBlock`: eq. 10, a polynomial of degree ν in each frame's mean gray level and in
   the FPA temperature, averaged over frames; with ``radial > 0`` (an addition to the paper) also
   in the pixel's ``R²`` on the sensor, a radial offset map (the UNet then sees ``R²`` too).
@@ -53,11 +54,11 @@ __all__ = [
     "apply_folded_kernels",
     "apply_kernels",
     "count_macs",
-    "fold_kernel_conv",
     "count_parameters",
+    "fold_kernel_conv",
     "frame_means",
+    "with_formed_kernels",
 ]
-
 
 
 #: Bounds of the integer sizes of :class:`ModelConfig` (inclusive). They hold every network
@@ -292,7 +293,7 @@ class KernelHead(nn.Module):
         """``(B, μ, H, W) → (B, c_out, H, W)``."""
         return self.net(x)
 
-    def apply(self, frames: torch.Tensor, x: torch.Tensor, k: int) -> torch.Tensor:
+    def kernel_sum(self, frames: torch.Tensor, x: torch.Tensor, k: int) -> torch.Tensor:
         """Eq. 11 with the kernels this head makes from features ``x (B, μ, H, W)``, applied to
         ``frames (B, N, H, W)`` (``apply_kernels(frames, self(x), k)``), folded
         (:func:`apply_folded_kernels`); ``(B, 1, H, W)``."""
@@ -332,7 +333,12 @@ def fold_kernel_conv(weight: torch.Tensor, bias: torch.Tensor, n_frames: int, k:
     """The kernel head's last 1×1 conv (``weight (N·K², μ, 1, 1)``, ``bias (N·K²,)``, frame-major
     taps as :func:`apply_kernels` reads them) as the weight ``(μ + 1, N, K, K)`` of one ``K × K``
     conv of the frames: output channel ``m < μ`` is ``Σ_n Σ_j W[n·K² + j, m] · S_j(I_n)``, the last
-    the same with the bias. A view of the parameters (gradients flow through it)."""
+    the same with the bias. A differentiable function of the parameters (a new tensor)."""
+    if k < 1 or k % 2 == 0 or weight.shape[0] != n_frames * k * k or weight.shape[2:] != (1, 1) \
+            or bias.shape != (n_frames * k * k,):
+        raise InvalidInputError(
+            f"a 1×1 conv to {n_frames}·{k}² kernel taps (odd K) is needed, got weight "
+            f"{tuple(weight.shape)}, bias {tuple(bias.shape)}")
     mu = weight.shape[1]
     taps = weight.reshape(n_frames, k, k, mu).permute(3, 0, 1, 2)
     return torch.cat([taps, bias.reshape(1, n_frames, k, k)], dim=0)
@@ -343,8 +349,25 @@ def apply_folded_kernels(frames: torch.Tensor, hidden: torch.Tensor, folded: tor
     """Eq. 11 through the folded head: ``Σ_m h_m · (F * I)_m + (F * I)_μ`` with ``h = hidden
     (B, μ, H, W)`` (the head before its last conv), ``F = folded`` (:func:`fold_kernel_conv`) and
     ``frames I (B, N, H, W)`` zero-padded as in :func:`apply_kernels`; ``(B, 1, H, W)``."""
+    b, n, h, w = frames.shape
+    mu = hidden.shape[1]
+    if folded.shape != (mu + 1, n, k, k) or hidden.shape != (b, mu, h, w):
+        raise InvalidInputError(
+            f"folded kernels {tuple(folded.shape)} and features {tuple(hidden.shape)} do not "
+            f"match frames {(b, n, h, w)} and K = {k}")
     q = F.conv2d(frames, folded, padding=k // 2)
     return (hidden * q[:, :-1]).sum(dim=1, keepdim=True) + q[:, -1:]
+
+
+def with_formed_kernels(model: KPN) -> KPN:
+    """A copy of ``model`` that forms its head's ``N·K²`` kernels and applies them
+    (:func:`apply_kernels`) instead of the folded sum: the network as it ran before the folding,
+    the same numbers to float rounding (the baseline of ``benchmarks/backends.py``)."""
+    import copy
+
+    formed = copy.deepcopy(model)
+    formed.head.__class__ = _FormedKernelHead
+    return formed
 
 
 class OffsetBlock(nn.Module):
@@ -440,6 +463,13 @@ def _interp(x: torch.Tensor, xg: torch.Tensor, yg: torch.Tensor) -> torch.Tensor
     i = torch.searchsorted(xg, x.detach().contiguous()).clamp(1, len(xg) - 1)
     x0, x1, y0, y1 = xg[i - 1], xg[i], yg[i - 1], yg[i]
     return y0 + (x - x0) * ((y1 - y0) / (x1 - x0))
+
+
+class _FormedKernelHead(KernelHead):
+    """:class:`KernelHead` forming its kernels (:func:`with_formed_kernels`)."""
+
+    def kernel_sum(self, frames: torch.Tensor, x: torch.Tensor, k: int) -> torch.Tensor:
+        return apply_kernels(frames, self(x), k)
 
 
 class KPN(nn.Module):
@@ -557,7 +587,7 @@ class KPN(nn.Module):
         if c.variant == "e2e":
             out = self.head(feats) + means.mean(dim=1).view(b, 1, 1, 1)
         else:
-            out = self.head.apply(frames, feats, c.kernel)
+            out = self.head.kernel_sum(frames, feats, c.kernel)
             if self.offset is not None:
                 out = out + self.offset(means, fpa, r2)
         return out if self.to_temperature is None or linear else self.to_temperature(out)
@@ -578,7 +608,7 @@ def count_parameters(model: nn.Module) -> int:
 
 def count_macs(model: KPN, height: int, width: int) -> int:
     """Multiply-accumulates of one forward pass on a ``height × width`` burst: the convs and
-    eq. 11 as :class:`KPN` computes it (:meth:`KernelHead.apply`: the folded ``K × K`` conv and
+    eq. 11 as :class:`KPN` computes it (:meth:`KernelHead.kernel_sum`: the folded ``K × K`` conv and
     the ``μ``-channel product, in place of the head's last conv and the kernels' products)."""
     macs = 0
 
