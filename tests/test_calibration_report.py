@@ -380,3 +380,30 @@ def test_auto_is_in_the_help(capsys):
     code, stdout, _ = run(["calibrate", "--help"], capsys)
     assert code == 0 and "auto" in stdout and "cross-validate every method" in " ".join(
         stdout.split())
+
+
+@pytest.mark.parametrize(("family", "warned"), [("tau2", False), ("boson", True)])
+def test_plateaus_that_end_before_the_camera_settles_are_warned_of(family, warned):
+    """A memoryless method's report says when its error was still changing at the ends of the
+    session's ambient plateaus (the physics suite's 20-minute steps: `boson`'s optics lag by a
+    second-order response and have not settled; `tau2`'s have), and what to record; a method
+    that follows the settling (lin-lag) is not warned."""
+    from thermocal.calibration.report import fit_with_report, plateau_ends, settling_warning
+    from thermocal.evaluation.suites.physics import SESSION_SEED, calibration_session
+
+    run = calibration_session(make_camera(family, unit=101, size=(32, 24)), SESSION_SEED, False)
+    _, report = fit_with_report(run.session, "polynomial")
+    said = [w for w in report.warnings if "plateaus ended before the camera settled" in w]
+    assert bool(said) is warned
+    if warned:
+        assert "record plateaus long enough" in said[0] and "lin-lag" in said[0]
+        _, lag = fit_with_report(run.session, "lin-lag")
+        assert not any("settled" in w for w in lag.warnings)
+    # no ambient series, no plateau to judge
+    from dataclasses import replace
+
+    from thermocal.calibration.dataset import prepare_chamber
+
+    data = prepare_chamber(replace(run.session, ambient_c=None))
+    assert plateau_ends(data, data.usable) == []
+    assert settling_warning(None, data, data.usable, "polynomial") is None

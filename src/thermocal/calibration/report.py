@@ -27,6 +27,11 @@ session whose FPA only rises says nothing of a falling one, and its report says 
 the fit used and why it left the others out, and the protocol's warnings; it is stored in the
 calibration file (``info["report"]``, JSON) and read back by :func:`report_of`.
 
+A method with no memory of how the FPA changed also gets a warning when the session's ambient
+plateaus ended before the camera settled (:func:`settling_warning`): its error, on the fit's own
+frames, was still changing at their ends, so a camera held still for longer than they lasted
+(its optics settling on) may be off by more than the report measured.
+
 :func:`fit_with_report` checks the protocol
 (:func:`~thermocal.calibration.registry.check_session`), fits and cross-validates one method
 (``thermocal calibrate``); :func:`auto_calibration`
@@ -385,6 +390,69 @@ def frame_errors(calibration: Calibration, data: ChamberData, scored: np.ndarray
     return out, out.mean(axis=1, dtype=np.float64)
 
 
+#: The end of an ambient plateau whose error trend says whether the camera had settled, s; a
+#: plateau needs 1.5 times it to be judged.
+SETTLE_WINDOW_S = 480.0
+#: An error still changing by more than this at the plateaus' ends (median over them), °C/min:
+#: the camera had not settled. Set between the two camera families on the physics suite's
+#: 20-minute steps: `polynomial`, `lin`, `lin-level` −0.03…0.00 on `tau2`, +0.08…+0.12 on
+#: `boson` (whose optics lag by a second-order response).
+SETTLE_SLOPE_C_PER_MIN = 0.05
+
+
+def plateau_ends(data: ChamberData, scored: np.ndarray) -> list[np.ndarray]:
+    """The ``scored`` frames (indices) of the last :data:`SETTLE_WINDOW_S` of each ambient
+    plateau of ``data`` (a run of one chamber set point, ``ambient_c``, at least 1.5 times that
+    long, within one recording); none without an ambient series."""
+    ambient = data.session.ambient_c
+    if ambient is None:
+        return []
+    amb, t = np.asarray(ambient, dtype=np.float64), data.time_s
+    cut = np.flatnonzero((np.diff(amb) != 0) | (np.diff(t) > SETTLE_WINDOW_S)) + 1
+    ends = []
+    for run in np.split(np.arange(amb.size), cut):
+        if run.size and t[run[-1]] - t[run[0]] >= 1.5 * SETTLE_WINDOW_S:
+            end = run[(t[run] >= t[run[-1]] - SETTLE_WINDOW_S) & scored[run]]
+            if end.size >= 5:
+                ends.append(end)
+    return ends
+
+
+def settling_warning(calibration: Calibration, data: ChamberData, scored: np.ndarray,
+                     method: str) -> str | None:
+    """The warning that the session's plateaus ended before the camera settled, or None: the
+    slope (°C/min) of ``calibration``'s signed mean error in time over each of
+    :func:`plateau_ends`, fitted beside a quadratic in the blackbody's temperature (the error
+    depends on the scene level, and the set points cycle), median over the plateaus, beyond
+    :data:`SETTLE_SLOPE_C_PER_MIN`."""
+    slopes = []
+    for end in plateau_ends(data, scored):
+        err = _signed_errors(calibration, data, end)
+        minutes = (data.time_s[end] - data.time_s[end[0]]) / 60.0
+        level = (data.scene_c[end] - data.scene_c[end].mean()) / 50.0
+        design = np.stack([minutes, np.ones(end.size), level, level**2], axis=1)
+        slopes.append(float(np.linalg.lstsq(design, err, rcond=None)[0][0]))
+    if not slopes or abs(float(np.median(slopes))) <= SETTLE_SLOPE_C_PER_MIN:
+        return None
+    slope = float(np.median(slopes))
+    return (f"the session's plateaus ended before the camera settled: {method}'s error was "
+            f"still changing by {slope:+.2f} °C/min over their last {SETTLE_WINDOW_S / 60:.0f} "
+            f"min (median of {len(slopes)} plateaus); with no memory of how the FPA changed, it "
+            "may be off by more than its σ once a camera has held still longer than they "
+            "lasted: record plateaus long enough for this error to stop changing, or use "
+            "lin-lag, which follows the settling")
+
+
+def _signed_errors(calibration: Calibration, data: ChamberData, idx: np.ndarray) -> np.ndarray:
+    """Frames ``idx`` of ``data`` through ``calibration``: each one's mean less the blackbody's
+    temperature, °C ``(len(idx),)``."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ThermocalWarning)  # a plateau at the range's end
+        est = calibration.apply(np.asarray(data.session.frames[idx]), fpa_c=data.fpa_c[idx],
+                                time_s=data.time_s[idx])
+    return est.reshape(idx.size, -1).mean(axis=1, dtype=np.float64) - data.scene_c[idx]
+
+
 def coverage_sigma(abs_errors: np.ndarray) -> float:
     """The σ that best covers ``abs_errors`` (°C, any shape) as a Gaussian's would: the one
     whose shares of errors within 1σ and 2σ come closest (least squares) to 68.3 % and 95.4 %.
@@ -516,6 +584,14 @@ def cross_validate(
     if expected is None:
         notes.append("no interior set point or FPA segment could be left out and refitted")
     paces = paces_of(data) if CALIBRATION_METHODS[method].memoryless else {}
+    found = list(protocol_warnings or [])
+    if CALIBRATION_METHODS[method].memoryless and plateau_ends(small, scorable):
+        try:  # the fit on the sample, all its frames
+            settling = settling_warning(_fit(small, method, refit_options), small, scorable,
+                                        method)
+        except ThermocalError:
+            settling = None  # no fit on the sample: the folds' notes say why
+        found += [settling] if settling else []
     usable = data.usable
     scene = data.scene_c[usable]
     rate = data.fpa_rate_c_per_min[usable]
@@ -531,7 +607,7 @@ def cross_validate(
         frames=dict(counts or {}),
         sample={"pixels": int(small.frame_shape[0] * small.frame_shape[1]),
                 "frames": int(small.n_frames)},
-        warnings=list(protocol_warnings or []),
+        warnings=found,
         notes=notes,
         options=_json_options(options),
         by_rate=by_rate,
