@@ -407,3 +407,26 @@ def test_plateaus_that_end_before_the_camera_settles_are_warned_of(family, warne
     data = prepare_chamber(replace(run.session, ambient_c=None))
     assert plateau_ends(data, data.usable) == []
     assert settling_warning(None, data, data.usable, "polynomial") is None
+
+
+def test_plateaus_are_found_in_a_logged_ambient_with_its_noise():
+    """Plateau ends from a chamber's logged temperature (noise ±0.1 °C) as from its set points:
+    the last 8 minutes of each 20-minute plateau, none of a ramp or of a short plateau."""
+    from dataclasses import replace
+
+    from thermocal.calibration.dataset import prepare_chamber
+    from thermocal.calibration.report import SETTLE_WINDOW_S, plateau_ends
+
+    t = np.arange(0.0, 3600.0, 10.0)
+    steps = np.select([t < 1200, t < 2400, t < 3000], [10.0, 20.0, 30.0], 30.0 + (t - 3000) / 60)
+    noisy = steps + np.random.default_rng(0).uniform(-0.1, 0.1, t.size)
+    session = ChamberSession(np.full((t.size, 4, 4), 8000, np.uint16),
+                             blackbody_c=np.full(t.size, 30.0), fpa_c=steps + 5.0, time_s=t,
+                             ambient_c=noisy)
+    data = prepare_chamber(session)
+    ends = plateau_ends(data, np.ones(t.size, bool))
+    assert len(ends) == 2  # the 10-minute plateau at 30 °C, then a ramp: not judged
+    for end, stop in zip(ends, (1200.0, 2400.0), strict=True):
+        assert t[end[-1]] < stop and t[end[0]] >= t[end[-1]] - SETTLE_WINDOW_S
+    assert plateau_ends(prepare_chamber(replace(session, ambient_c=None)),
+                        np.ones(t.size, bool)) == []

@@ -393,6 +393,8 @@ def frame_errors(calibration: Calibration, data: ChamberData, scored: np.ndarray
 #: The end of an ambient plateau whose error trend says whether the camera had settled, s; a
 #: plateau needs 1.5 times it to be judged.
 SETTLE_WINDOW_S = 480.0
+#: An ambient plateau: the chamber's temperature within this of where the plateau ended, °C.
+PLATEAU_BAND_C = 0.25
 #: An error still changing by more than this at the plateaus' ends (median over them), °C/min:
 #: the camera had not settled. Set between the two camera families on the physics suite's
 #: 20-minute steps: `polynomial`, `lin`, `lin-level` −0.03…0.00 on `tau2`, +0.08…+0.12 on
@@ -402,20 +404,27 @@ SETTLE_SLOPE_C_PER_MIN = 0.05
 
 def plateau_ends(data: ChamberData, scored: np.ndarray) -> list[np.ndarray]:
     """The ``scored`` frames (indices) of the last :data:`SETTLE_WINDOW_S` of each ambient
-    plateau of ``data`` (a run of one chamber set point, ``ambient_c``, at least 1.5 times that
-    long, within one recording); none without an ambient series."""
+    plateau of ``data``: a run over which the chamber's ``ambient_c`` stays within
+    :data:`PLATEAU_BAND_C` of where it ended (a set point, or a logged temperature with its
+    noise), at least 1.5 times that long, within one recording; none without an ambient
+    series."""
     ambient = data.session.ambient_c
     if ambient is None:
         return []
     amb, t = np.asarray(ambient, dtype=np.float64), data.time_s
-    cut = np.flatnonzero((np.diff(amb) != 0) | (np.diff(t) > SETTLE_WINDOW_S)) + 1
-    ends = []
-    for run in np.split(np.arange(amb.size), cut):
-        if run.size and t[run[-1]] - t[run[0]] >= 1.5 * SETTLE_WINDOW_S:
-            end = run[(t[run] >= t[run[-1]] - SETTLE_WINDOW_S) & scored[run]]
+    ends, last = [], amb.size - 1
+    while last >= 0:  # by hand: each run is judged from where it ended, backwards
+        first = last
+        while (first > 0 and abs(amb[first - 1] - amb[last]) <= PLATEAU_BAND_C
+               and t[first] - t[first - 1] <= SETTLE_WINDOW_S):
+            first -= 1
+        run = np.arange(first, last + 1)
+        if t[last] - t[first] >= 1.5 * SETTLE_WINDOW_S:
+            end = run[(t[run] >= t[last] - SETTLE_WINDOW_S) & scored[run]]
             if end.size >= 5:
                 ends.append(end)
-    return ends
+        last = first - 1
+    return ends[::-1]
 
 
 def settling_warning(calibration: Calibration, data: ChamberData, scored: np.ndarray,
