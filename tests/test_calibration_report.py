@@ -406,7 +406,7 @@ def test_plateaus_that_end_before_the_camera_settles_are_warned_of(family, warne
 
     data = prepare_chamber(replace(run.session, ambient_c=None))
     assert plateau_ends(data, data.usable) == []
-    assert settling_warning(None, data, data.usable, "polynomial") is None
+    assert settling_warning(None, data, [], "polynomial") is None
 
 
 def test_plateaus_are_found_in_a_logged_ambient_with_its_noise():

@@ -381,10 +381,7 @@ def frame_errors(calibration: Calibration, data: ChamberData, scored: np.ndarray
     idx = np.flatnonzero(scored)
     if idx.size == 0:
         return out, np.full(data.n_frames, np.nan)
-    frames = np.asarray(data.session.frames[idx])
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ThermocalWarning)  # refits applied outside their range
-        est = calibration.apply(frames, fpa_c=data.fpa_c[idx], time_s=data.time_s[idx])
+    est = _applied(calibration, data, idx)
     out[idx] = np.abs(est - data.scene_c[idx, None, None].astype(np.float32)).reshape(
         idx.size, pixels)
     return out, out.mean(axis=1, dtype=np.float64)
@@ -427,15 +424,15 @@ def plateau_ends(data: ChamberData, scored: np.ndarray) -> list[np.ndarray]:
     return ends[::-1]
 
 
-def settling_warning(calibration: Calibration, data: ChamberData, scored: np.ndarray,
+def settling_warning(calibration: Calibration, data: ChamberData, ends: list[np.ndarray],
                      method: str) -> str | None:
     """The warning that the session's plateaus ended before the camera settled, or None: the
-    slope (°C/min) of ``calibration``'s signed mean error in time over each of
-    :func:`plateau_ends`, fitted beside a quadratic in the blackbody's temperature (the error
-    depends on the scene level, and the set points cycle), median over the plateaus, beyond
-    :data:`SETTLE_SLOPE_C_PER_MIN`."""
+    slope (°C/min) of ``calibration``'s signed mean error in time over each of ``ends``
+    (:func:`plateau_ends` of ``data``), fitted beside a quadratic in the blackbody's
+    temperature (the error depends on the scene level, and the set points cycle), median over
+    the plateaus, beyond :data:`SETTLE_SLOPE_C_PER_MIN`."""
     slopes = []
-    for end in plateau_ends(data, scored):
+    for end in ends:
         err = _signed_errors(calibration, data, end)
         minutes = (data.time_s[end] - data.time_s[end[0]]) / 60.0
         level = (data.scene_c[end] - data.scene_c[end].mean()) / 50.0
@@ -455,11 +452,18 @@ def settling_warning(calibration: Calibration, data: ChamberData, scored: np.nda
 def _signed_errors(calibration: Calibration, data: ChamberData, idx: np.ndarray) -> np.ndarray:
     """Frames ``idx`` of ``data`` through ``calibration``: each one's mean less the blackbody's
     temperature, °C ``(len(idx),)``."""
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ThermocalWarning)  # a plateau at the range's end
-        est = calibration.apply(np.asarray(data.session.frames[idx]), fpa_c=data.fpa_c[idx],
-                                time_s=data.time_s[idx])
+    est = _applied(calibration, data, idx)
     return est.reshape(idx.size, -1).mean(axis=1, dtype=np.float64) - data.scene_c[idx]
+
+
+def _applied(calibration: Calibration, data: ChamberData, idx: np.ndarray) -> np.ndarray:
+    """Frames ``idx`` of ``data`` through ``calibration``, as one recording in time order, °C
+    ``(len(idx), H, W)``; its range warnings silenced (refits applied outside their range, a
+    plateau at the range's end)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ThermocalWarning)
+        return calibration.apply(np.asarray(data.session.frames[idx]), fpa_c=data.fpa_c[idx],
+                                 time_s=data.time_s[idx])
 
 
 def coverage_sigma(abs_errors: np.ndarray) -> float:
@@ -594,10 +598,10 @@ def cross_validate(
         notes.append("no interior set point or FPA segment could be left out and refitted")
     paces = paces_of(data) if CALIBRATION_METHODS[method].memoryless else {}
     found = list(protocol_warnings or [])
-    if CALIBRATION_METHODS[method].memoryless and plateau_ends(small, scorable):
+    ends = plateau_ends(small, scorable) if CALIBRATION_METHODS[method].memoryless else []
+    if ends:
         try:  # the fit on the sample, all its frames
-            settling = settling_warning(_fit(small, method, refit_options), small, scorable,
-                                        method)
+            settling = settling_warning(_fit(small, method, refit_options), small, ends, method)
         except ThermocalError:
             settling = None  # no fit on the sample: the folds' notes say why
         found += [settling] if settling else []

@@ -162,11 +162,17 @@ class CalibrationSigma:
         (not one recording: no pace history)."""
         return self._pace(rate_c_per_min, time_s)[2]
 
-    def _pace(self, rate_c_per_min: Any, time_s: Any
+    def _pace(self, rate_c_per_min: Any, time_s: Any, lagged_rate_c_per_min: Any = None
               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each frame's rate and lagged rate, °C/min, and its :meth:`pace_distance` (all
-        ``(N,)``; the lagged rate is the rate itself where there is no pace history)."""
+        ``(N,)``): the lagged rate given (``lagged_rate_c_per_min``, one or one per frame,
+        taken from the frames' recording), or made from the rates of one recording at
+        ``time_s`` (the rate itself where there is no pace history)."""
         rate = np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)
+        if lagged_rate_c_per_min is not None:
+            lagged = np.broadcast_to(
+                np.asarray(lagged_rate_c_per_min, dtype=np.float64).reshape(-1), rate.shape)
+            return rate, lagged, self._distance(rate, lagged)
         t = np.asarray(time_s, dtype=np.float64).reshape(-1)
         paces = self.report.paces
         if (not paces or not paces["cells"] or rate.size == 0 or t.shape != rate.shape
@@ -215,19 +221,16 @@ class CalibrationSigma:
         fpa = np.broadcast_to(np.asarray(fpa_c, dtype=np.float64).reshape(-1), frames.shape[:1])
         level = (np.full(frames.shape[0], self._overall_sigma()) if rate_c_per_min is None
                  else np.broadcast_to(self.rate_sigma(rate_c_per_min), frames.shape[:1]))
-        if (rate_c_per_min is not None and time_since_start_s is not None
-                and frames.shape[0] > 1 and self.report.paces):  # a recording: its paces
-            n = frames.shape[0]
-            level = np.maximum(level, self._pace_sigma(self.pace_distance(
+        n = frames.shape[0]
+        recording = bool(time_since_start_s is not None and n > 1 and self.report.paces)
+        if rate_c_per_min is not None and (recording or lagged_rate_c_per_min is not None):
+            # a recording: its own paces; else the lagged rates given
+            d = self._pace(
                 np.broadcast_to(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1), (n,)),
                 np.broadcast_to(np.asarray(time_since_start_s, dtype=np.float64).reshape(-1),
-                                (n,)))))
-        elif rate_c_per_min is not None and lagged_rate_c_per_min is not None:  # paces given
-            n = frames.shape[0]
-            rate = np.broadcast_to(np.asarray(rate_c_per_min, np.float64).reshape(-1), (n,))
-            lagged = np.broadcast_to(np.asarray(lagged_rate_c_per_min, np.float64).reshape(-1),
-                                     (n,))
-            level = np.maximum(level, self._pace_sigma(self._distance(rate, lagged)))
+                                (n,)) if recording else None,
+                None if recording else lagged_rate_c_per_min)[2]
+            level = np.maximum(level, self._pace_sigma(d))
         if time_since_start_s is not None:
             level = np.maximum(level, np.broadcast_to(self.start_sigma(time_since_start_s),
                                                       frames.shape[:1]))
@@ -300,13 +303,7 @@ class CalibrationSigma:
         if rate_c_per_min is not None and self.report.paces and (
                 lagged_rate_c_per_min is not None
                 or (time_s is not None and np.size(rate_c_per_min) > 1)):
-            if lagged_rate_c_per_min is not None:
-                rate = np.asarray(rate_c_per_min, np.float64).reshape(-1)
-                lagged = np.broadcast_to(
-                    np.asarray(lagged_rate_c_per_min, np.float64).reshape(-1), rate.shape)
-                d = self._distance(rate, lagged)
-            else:
-                rate, lagged, d = self._pace(rate_c_per_min, time_s)
+            rate, lagged, d = self._pace(rate_c_per_min, time_s, lagged_rate_c_per_min)
             unseen = d > self._pace_cell
             if unseen.any():
                 k = int(np.argmax(unseen))
