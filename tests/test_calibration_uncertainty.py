@@ -198,6 +198,87 @@ def test_a_bursts_pace_sigma_grows_only_at_paces_never_held():
     assert model.burst_pace_sigma(FpaPace(1.0)) == model.burst_pace_sigma(None) == 0.0
 
 
+def _stilled() -> CalibrationSigma:
+    """:func:`_paced`, from a session that had not settled and held the FPA still for at most
+    10 minutes at 25–30 °C, 5 minutes at 30–35 °C."""
+    model = _paced()
+    still = {"band_c": 0.15, "bin_c": 5.0, "longest_s": [[5, 600.0], [6, 300.0]]}
+    from dataclasses import replace
+
+    return CalibrationSigma(replace(model.report, paces=model.report.paces | {"still": still}))
+
+
+def test_still_time_is_the_run_behind_each_frame_within_its_band():
+    """Against the definition, frame by frame (a random walk, a recording gap)."""
+    from thermocal.calibration.dataset import still_time
+
+    def by_definition(f, t, band, gap):
+        out = np.zeros(f.size)
+        for i in range(f.size):
+            j = i
+            while j > 0 and abs(f[j - 1] - f[i]) <= band and t[j] - t[j - 1] <= gap:
+                j -= 1
+            out[i] = t[i] - t[j]
+        return out
+
+    rng = np.random.default_rng(1)
+    for scale in (0.02, 0.05, 0.2):
+        f = 30.0 + np.cumsum(rng.normal(0.0, scale, 400))
+        t = np.cumsum(rng.uniform(0.5, 2.0, 400))
+        t[200:] += 100.0  # a new recording
+        np.testing.assert_allclose(still_time(f, t, band_c=0.15, max_gap_s=50.0),
+                                   by_definition(f, t, 0.15, 50.0))
+    assert still_time([], [], band_c=0.15, max_gap_s=50.0).shape == (0,)
+    with pytest.raises(InvalidInputError, match="must be equal"):
+        still_time([1.0, 2.0], [0.0], band_c=0.15, max_gap_s=50.0)
+
+
+def test_a_camera_held_still_longer_than_an_unsettled_session_is_outside():
+    """Held at 27 °C for 20 minutes: inside for the session's 10 minutes there, then outside,
+    named with the remedy, σ grown with the excess; at 32 °C outside after 5 minutes; a
+    report that lists no stillness (a session that settled) judges none."""
+    from thermocal.estimation.base import FpaPace
+
+    model = _stilled()
+    t = np.arange(0.0, 1200.0, 10.0)
+    rate, temps = np.zeros(t.size), np.full((t.size, 1, 1), 25.0)
+    unseen = model.unseen_paces(rate, t, fpa_c=np.full(t.size, 27.0))
+    assert not unseen[t <= 600.0].any() and unseen[t > 600.0].all()
+    assert model.unseen_paces(rate, t, fpa_c=np.full(t.size, 32.0))[t > 300.0].all()
+    assert not model.unseen_paces(rate, t).any()  # without the FPA: its pace only
+    (why,) = model.outside(temps, np.full(t.size, 27.0), rate_c_per_min=rate, time_s=t)
+    assert "held its FPA still (59 of 120 frames; first at 27.0 °C for 10 min)" in why
+    assert "record plateaus long enough" in why and "lin-lag" in why
+    sigma = model.sigma(temps, np.full(t.size, 27.0), rate_c_per_min=rate,
+                        time_since_start_s=t)[:, 0, 0]
+    worst = G * 0.6
+    assert sigma[-1] == pytest.approx(worst * 1190.0 / 600.0, rel=1e-3)
+    assert sigma[0] == pytest.approx(sigma[t <= 600.0][-1]) and sigma[0] < worst
+    settled = _paced()
+    assert settled.outside(temps, np.full(t.size, 27.0), rate_c_per_min=rate, time_s=t) == ()
+    # a burst: its stillness from its recording (FpaPace.still_s)
+    one = model.outside_burst(np.full((3, 1, 1), 25.0), 27.0, FpaPace(0.0, 0.0, 900.0))
+    assert len(one) == 1 and "for 15 min), 1.5× longer" in one[0]
+    assert model.outside_burst(np.full((3, 1, 1), 25.0), 27.0, FpaPace(0.0, 0.0, 500.0)) == ()
+    assert model.burst_pace_sigma(FpaPace(0.0, 0.0, 900.0), 27.0) == pytest.approx(worst * 1.5)
+    assert model.burst_pace_sigma(FpaPace(0.0, 0.0, 900.0)) == 0.0  # no FPA: not judged
+    assert model.burst_pace_sigma(FpaPace(0.0, 0.0, 500.0), 27.0) == 0.0
+    # an FPA bin the session never held takes the nearest bin's stretch
+    assert model.still_excess([48.0], [600.0])[0] == pytest.approx(2.0)
+
+
+def test_stillness_survives_json_and_is_checked():
+    model = _stilled()
+    again = CalibrationReport.from_dict(json.loads(json.dumps(model.report.to_dict())))
+    assert again.paces == model.report.paces
+    for bad in ({"band_c": 0.0}, {"longest_s": [[5, -1.0]]}, {"longest_s": [[5.5, 60.0]]},
+                {"longest_s": []}, {"bin_c": math.inf}):
+        paces = model.report.to_dict()["fpa_paces"]
+        paces = paces | {"still": paces["still"] | bad}
+        with pytest.raises(InvalidInputError, match="not a calibration report"):
+            CalibrationReport.from_dict(model.report.to_dict() | {"fpa_paces": paces})
+
+
 def test_paces_survive_json_and_are_checked():
     model = _paced()
     again = CalibrationReport.from_dict(model.report.to_dict())
@@ -316,24 +397,57 @@ def test_the_pipeline_judges_a_bursts_pace_from_its_recording(fitted):
     np.testing.assert_array_equal(no_history.temperature_c, held.temperature_c)
 
 
+def test_the_pipeline_judges_a_bursts_stillness_from_its_recording(fitted):
+    """Given how long the FPA had held still (from its recording), a calibration whose session
+    had not settled refuses a burst held still longer than the session was, and forced, grows
+    its σ; shorter, as before."""
+    from dataclasses import replace
+
+    camera, cal, report = fitted
+    scene = 15.0 + 10.0 * np.random.default_rng(0).random((96, 96))
+    fpa = 0.5 * sum(report.fpa_range_c)
+    burst = simulate_flight(scene, camera, n_frames=5, motion="walk", fpa_c=fpa, seed=1)
+    estimator = PivotCalibration(cal)
+    bins = range(int(report.fpa_range_c[0] // 5), int(report.fpa_range_c[1] // 5) + 1)
+    still = {"band_c": 0.15, "bin_c": 5.0, "longest_s": [[b, 600.0] for b in bins]}
+    estimator.sigma_model = CalibrationSigma(replace(report, paces=report.paces | {
+        "still": still}))
+    args = {"fpa_c": burst.fpa_c, "fpa_rate_c_per_min": 0.0, "fpa_lagged_rate_c_per_min": 0.0}
+    with pytest.raises(OutsideDomainError, match="held its FPA still .* 3.0× longer"):
+        estimate(burst.frames, estimator, fpa_still_s=1800.0, **args)
+    forced = estimate(burst.frames, estimator, fpa_still_s=1800.0, force=True, **args)
+    held = estimate(burst.frames, estimator, fpa_still_s=300.0, **args)
+    assert held.outside == () and len(forced.outside) == 1
+    assert np.median(forced.sigma_c) > 2.0 * np.median(held.sigma_c)
+    np.testing.assert_array_equal(forced.temperature_c, held.temperature_c)
+
+
 def test_a_flight_lags_the_rate_by_its_calibrations_own_pace_lag(fitted):
     """The flight's lagged rates use the lag the calibration's paces were binned at (its
-    report's ``lag_s``), not a constant; none without a calibration's σ (a network)."""
+    report's ``lag_s``), not a constant; none without a calibration's σ (a network); its
+    stillness only where the report judges it (a session that had not settled)."""
     from dataclasses import replace
 
     from thermocal.calibration.dataset import lagged_rate
-    from thermocal.pipeline.flight import _lagged_rates
+    from thermocal.pipeline.flight import _pace_history
 
     _, cal, report = fitted
     t = np.arange(0.0, 1200.0, 10.0)
-    series = {"fpa_rate_c_per_min": np.where(t > 300.0, 0.5, 0.0), "time_s": t}
+    series = {"fpa_rate_c_per_min": np.where(t > 300.0, 0.5, 0.0), "time_s": t,
+              "fpa_c": 30.0 + np.maximum(t - 300.0, 0.0) / 120.0}
     estimator = PivotCalibration(cal)
+    history = _pace_history(series, estimator)
     np.testing.assert_array_equal(
-        _lagged_rates(series, estimator),
+        history["fpa_lagged_rate_c_per_min"],
         lagged_rate(series["fpa_rate_c_per_min"], t, report.paces["lag_s"]))
-    estimator.sigma_model = CalibrationSigma(
-        replace(report, paces=report.paces | {"lag_s": 60.0}))
-    np.testing.assert_array_equal(_lagged_rates(series, estimator),
+    assert history["fpa_still_s"] is None and "still" not in report.paces
+    estimator.sigma_model = CalibrationSigma(replace(report, paces=report.paces | {
+        "lag_s": 60.0, "still": {"band_c": 0.15, "bin_c": 5.0, "longest_s": [[6, 120.0]]}}))
+    history = _pace_history(series, estimator)
+    np.testing.assert_array_equal(history["fpa_lagged_rate_c_per_min"],
                                   lagged_rate(series["fpa_rate_c_per_min"], t, 60.0))
-    assert _lagged_rates(series, object()) is None
-    assert _lagged_rates(series | {"time_s": t[::-1]}, estimator) is None
+    still = history["fpa_still_s"]
+    assert still[30] == 300.0 and still[-1] == 10.0  # rising 0.083 °C a frame
+    none = {"fpa_lagged_rate_c_per_min": None, "fpa_still_s": None}
+    assert _pace_history(series, object()) == none
+    assert _pace_history(series | {"time_s": t[::-1]}, estimator) == none

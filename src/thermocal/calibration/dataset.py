@@ -123,6 +123,45 @@ def lagged_rate(rate_c_per_min: Any, time_s: Any, tau_s: float) -> np.ndarray:
     return out
 
 
+def still_time(fpa_c: Any, time_s: Any, *, band_c: float, max_gap_s: float) -> np.ndarray:
+    """How long each frame's FPA had stayed within ``band_c`` (°C) of its present temperature,
+    s ``(M,)``: ``t[i] − t[j]`` for the earliest frame ``j`` from which every frame up to ``i``
+    lies within the band, its recording's start at most (a gap between frames longer than
+    ``max_gap_s``, s, starts a recording: what the FPA did then is not known). ``fpa_c`` and
+    ``time_s`` ``(M,)``, in time order.
+
+    Written by hand (binary lifting over sparse tables of running maxima and minima, all frames
+    at once: O(M log M)): no library finds, for every element, the longest run behind it within
+    a band of its own value.
+    """
+    f = np.asarray(fpa_c, dtype=np.float64)
+    t = np.asarray(time_s, dtype=np.float64)
+    if f.shape != t.shape or f.ndim != 1:
+        raise InvalidInputError(f"fpa_c {f.shape} and time_s {t.shape} must be equal (M,)")
+    n = f.size
+    if n == 0:
+        return np.zeros(0)
+    recording = np.cumsum(np.diff(t, prepend=t[0]) > max_gap_s)
+    first = np.searchsorted(recording, recording)  # each frame's recording's first frame
+    tables = [(f, f)]  # level p: max and min of f[k : k + 2**p]
+    while 2 ** len(tables) <= n:
+        half = 2 ** (len(tables) - 1)
+        hi, lo = tables[-1]
+        tables.append((np.maximum(hi[:-half], hi[half:]), np.minimum(lo[:-half], lo[half:])))
+    start = np.arange(n)
+    top, bottom = f.copy(), f.copy()  # max and min of f[start : i + 1]
+    for p in range(len(tables) - 1, -1, -1):
+        hi, lo = tables[p]
+        cand = start - 2**p
+        ok = cand >= first
+        k = np.where(ok, cand, 0)
+        new_top, new_bottom = np.maximum(top, hi[k]), np.minimum(bottom, lo[k])
+        ok &= (new_top <= f + band_c) & (new_bottom >= f - band_c)
+        start = np.where(ok, cand, start)
+        top, bottom = np.where(ok, new_top, top), np.where(ok, new_bottom, bottom)
+    return t - t[start]
+
+
 def classify_stability(
     rate_c_per_min: Any, *, stable_c_per_min: float = 0.05, unstable_c_per_min: float = 0.5
 ) -> np.ndarray:

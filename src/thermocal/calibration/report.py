@@ -30,7 +30,10 @@ calibration file (``info["report"]``, JSON) and read back by :func:`report_of`.
 A method with no memory of how the FPA changed also gets a warning when the session's ambient
 plateaus ended before the camera settled (:func:`settling_warning`): its error, on the fit's own
 frames, was still changing at their ends, so a camera held still for longer than they lasted
-(its optics settling on) may be off by more than the report measured.
+(its optics settling on) may be off by more than the report measured. Its report then lists how
+long the session held the FPA still at each FPA temperature (:func:`stillness_of`), and frames
+held still for longer are outside what it vouches for
+(:class:`~thermocal.calibration.uncertainty.CalibrationSigma`).
 
 :func:`fit_with_report` checks the protocol
 (:func:`~thermocal.calibration.registry.check_session`), fits and cross-validates one method
@@ -50,7 +53,13 @@ import numpy as np
 
 from thermocal._validate import SATURATED_FRACTION, saturated_fraction
 from thermocal.calibration.base import Calibration, ThermocalWarning
-from thermocal.calibration.dataset import ChamberData, iter_frames, lagged_rate, prepare_chamber
+from thermocal.calibration.dataset import (
+    ChamberData,
+    iter_frames,
+    lagged_rate,
+    prepare_chamber,
+    still_time,
+)
 from thermocal.errors import InvalidInputError, ThermocalError
 from thermocal.io.chamber import ChamberSession
 
@@ -122,7 +131,10 @@ class CalibrationReport:
         session held: ``lag_s`` (:data:`PACE_LAG_S`), ``cell_c_per_min``
         (:data:`PACE_CELL_C_PER_MIN`) and ``cells``, the visited cells ``[i, j]`` of the plane
         (FPA rate, the same through a lag of ``lag_s``) / ``cell_c_per_min`` (:func:`paces_of`);
-        empty for the others and in a report made before it.
+        and, where the session's plateaus ended before the camera settled
+        (:func:`settling_warning`), ``still``: how long it held the FPA still at each FPA
+        temperature (:func:`stillness_of`). Empty for the others and in a report made before
+        it.
     by_time : list of dict
         For a method that learns as frames stream by (``wolf2016``'s LMS: it errs most at
         first; :attr:`~thermocal.calibration.registry.CalibrationInfo.learns_online`), the same
@@ -243,6 +255,11 @@ class CalibrationReport:
             lines.append(f"  held steadily at {_steady_paces(self.paces)} °C/min: {self.method} "
                          "has no memory of how the FPA changed, so frames at paces the session "
                          "never held are refused (lin-lag follows the pace's history)")
+        if self.paces.get("still"):
+            held = [s for _, s in self.paces["still"]["longest_s"]]
+            lines.append(f"  held the FPA still for {min(held) / 60:.0f}…{max(held) / 60:.0f} "
+                         "min at a time, before the camera settled: frames held still for "
+                         "longer are refused")
         return lines
 
 
@@ -445,8 +462,9 @@ def settling_warning(calibration: Calibration, data: ChamberData, ends: list[np.
             f"still changing by {slope:+.2f} °C/min over their last {SETTLE_WINDOW_S / 60:.0f} "
             f"min (median of {len(slopes)} plateaus); with no memory of how the FPA changed, it "
             "may be off by more than its σ once a camera has held still longer than they "
-            "lasted: record plateaus long enough for this error to stop changing, or use "
-            "lin-lag, which follows the settling")
+            "lasted (such frames are refused; --force gives them with σ grown): record plateaus "
+            "long enough for this error to stop changing, or use lin-lag, which follows the "
+            "settling")
 
 
 def _signed_errors(calibration: Calibration, data: ChamberData, idx: np.ndarray) -> np.ndarray:
@@ -605,6 +623,7 @@ def cross_validate(
         except ThermocalError:
             settling = None  # no fit on the sample: the folds' notes say why
         found += [settling] if settling else []
+        paces = paces | ({"still": stillness_of(data)} if settling else {})
     usable = data.usable
     scene = data.scene_c[usable]
     rate = data.fpa_rate_c_per_min[usable]
@@ -651,6 +670,26 @@ def paces_of(data: ChamberData) -> dict[str, Any]:
             "cells": cells.tolist()}
 
 
+#: The FPA held still: within this of its present temperature, °C (a plateau's creep and the
+#: sensor's noise).
+STILL_BAND_C = 0.15
+#: The FPA bins of :func:`stillness_of`, °C.
+STILL_BIN_C = 5.0
+
+
+def stillness_of(data: ChamberData) -> dict[str, Any]:
+    """How long a session held the FPA still (:attr:`CalibrationReport.paces`' ``still``):
+    ``band_c`` (:data:`STILL_BAND_C`), ``bin_c`` (:data:`STILL_BIN_C`) and ``longest_s``, for
+    each FPA bin ``[i, s]`` (FPA ``i·bin_c … (i + 1)·bin_c`` °C) the longest that a usable
+    frame's FPA had stayed within the band (:func:`~thermocal.calibration.dataset.still_time`,
+    a gap of :data:`PACE_LAG_S` between frames ending a stretch), s."""
+    still = still_time(data.fpa_c, data.time_s, band_c=STILL_BAND_C, max_gap_s=PACE_LAG_S)
+    use = data.usable
+    bins = np.floor(data.fpa_c[use] / STILL_BIN_C).astype(np.int64)
+    longest = [[int(b), float(still[use][bins == b].max())] for b in np.unique(bins)]
+    return {"band_c": STILL_BAND_C, "bin_c": STILL_BIN_C, "longest_s": longest}
+
+
 def _steady_paces(paces: dict[str, Any]) -> str:
     """The steady paces of :attr:`CalibrationReport.paces` (cells whose lagged rate is within a
     cell of the rate) as runs, ``"-0.10…+0.30, +1.40…+1.60"`` °C/min."""
@@ -674,7 +713,19 @@ def _paces_from(d: dict[str, Any]) -> dict[str, Any]:
     lag, cell = float(d["lag_s"]), float(d["cell_c_per_min"])
     if not (lag > 0 and cell > 0 and math.isfinite(lag) and math.isfinite(cell)):
         raise ValueError(f"fpa_paces: lag {lag} s and cell {cell} °C/min must be > 0")
-    return {"lag_s": lag, "cell_c_per_min": cell, "cells": cells.tolist()}
+    out = {"lag_s": lag, "cell_c_per_min": cell, "cells": cells.tolist()}
+    if d.get("still") is not None:
+        still = d["still"]
+        band, width = float(still["band_c"]), float(still["bin_c"])
+        longest = np.asarray(still["longest_s"], dtype=np.float64).reshape(-1, 2)
+        if not (0 < band < math.inf and 0 < width < math.inf and longest.size
+                and np.all(np.isfinite(longest)) and np.all(longest[:, 1] >= 0)
+                and np.all(longest[:, 0] == np.round(longest[:, 0]))):
+            raise ValueError("fpa_paces: still needs band and bin > 0 and finite longest "
+                             "stretches >= 0 by whole bins")
+        out["still"] = {"band_c": band, "bin_c": width,
+                        "longest_s": [[int(i), float(v)] for i, v in longest]}
+    return out
 
 
 #: Edges of the FPA-rate bins of :attr:`CalibrationReport.by_rate`, absolute rates in °C/min.

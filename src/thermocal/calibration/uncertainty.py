@@ -38,6 +38,17 @@ rate and the same through a lag of 8 min). A frame whose pace lies more than one
 every cell the session held (:meth:`CalibrationSigma.pace_distance`) is outside; forced, its
 ``s`` becomes at least the report's largest rate-bin σ times its distance in cells: how large
 its error is no session measured.
+
+**Stillness a session never reached.** Where the session's plateaus ended before the camera
+settled (:func:`~thermocal.calibration.report.settling_warning`: a memoryless method's error was
+still changing at their ends), a camera held still for longer than they lasted is in a state
+the session never showed: on the ``boson`` preset, the 30-minute hold at the top of a held-out
+ramp drifts on to +1.0…+1.25 °C for ``polynomial`` where σ said 0.5. The report then lists the
+longest the session held the FPA still at each FPA temperature (its ``paces["still"]``,
+:func:`~thermocal.calibration.report.stillness_of`); a frame held still for longer
+(:meth:`CalibrationSigma.still_excess` > 1) is outside, and forced, its ``s`` becomes at least
+the report's largest rate-bin σ times that excess. A session that settled lists none: its
+frames are judged by their pace alone.
 """
 
 from __future__ import annotations
@@ -50,8 +61,8 @@ from typing import Any
 import numpy as np
 
 from thermocal.calibration.base import Calibration
-from thermocal.calibration.dataset import lagged_rate
-from thermocal.calibration.report import CalibrationReport, report_of
+from thermocal.calibration.dataset import lagged_rate, still_time
+from thermocal.calibration.report import PACE_LAG_S, CalibrationReport, report_of
 
 __all__ = ["FPA_MARGIN_C", "MIN_GROWTH_PER_C", "RATE_MARGIN", "REMEDY", "CalibrationSigma"]
 
@@ -196,10 +207,67 @@ class CalibrationSigma:
             out[i:i + 4096] = np.maximum(d - 0.5 * cell, 0.0)
         return out
 
-    def unseen_paces(self, rate_c_per_min: Any, time_s: Any) -> np.ndarray:
-        """Which frames ``(N,)`` bool changed at a pace the session never held: more than one
-        cell from every held one (:meth:`pace_distance`)."""
-        return self.pace_distance(rate_c_per_min, time_s) > self._pace_cell
+    def unseen_paces(self, rate_c_per_min: Any, time_s: Any, *, fpa_c: Any = None
+                     ) -> np.ndarray:
+        """Which frames ``(N,)`` bool of one recording changed at a pace the session never
+        held: more than one cell from every held one (:meth:`pace_distance`), or, given their
+        FPA temperatures ``fpa_c`` (°C ``(N,)``), held it still longer than the session did
+        (:meth:`still_excess`)."""
+        unseen = self.pace_distance(rate_c_per_min, time_s) > self._pace_cell
+        if fpa_c is not None:
+            unseen |= self._still(fpa_c, time_s)[1] > 1.0
+        return unseen
+
+    def still_excess(self, fpa_c: Any, still_s: Any) -> np.ndarray:
+        """How many times longer each frame had held its FPA still than the session ever did
+        ``(N,)``: ``still_s`` (s; :func:`~thermocal.calibration.dataset.still_time` of its
+        recording) over the session's longest at its FPA temperature ``fpa_c`` (°C; the FPA bin
+        of the report's ``paces["still"]``, else the nearest bin it lists). Zeros where the
+        report lists no stillness (a session that settled, a method with memory, an older
+        report)."""
+        f = np.asarray(fpa_c, dtype=np.float64).reshape(-1)
+        s = np.broadcast_to(np.asarray(still_s, dtype=np.float64).reshape(-1), f.shape)
+        still = (self.report.paces or {}).get("still")
+        if not still or f.size == 0:
+            return np.zeros(f.shape)
+        table = np.asarray(still["longest_s"], dtype=np.float64).reshape(-1, 2)
+        bins = np.floor(f / still["bin_c"])
+        nearest = np.abs(bins[:, None] - table[None, :, 0]).argmin(axis=1)
+        return s / np.maximum(table[nearest, 1], 1.0)
+
+    def _still(self, fpa_c: Any, time_s: Any, still_s: Any = None
+               ) -> tuple[np.ndarray, np.ndarray]:
+        """How long frames had held their FPA still, s, and its :meth:`still_excess` (both
+        ``(N,)``): the stillness given (``still_s``, one or one per frame, taken from their
+        recording), or that of the frames of one recording at ``time_s`` (s, in time order);
+        zeros where neither is known or the report lists no stillness."""
+        f = np.asarray(fpa_c, dtype=np.float64).reshape(-1)
+        still = (self.report.paces or {}).get("still")
+        zeros = np.zeros(f.shape)
+        if not still:
+            return zeros, zeros
+        if still_s is None:
+            t = None if time_s is None else np.asarray(time_s, dtype=np.float64).reshape(-1)
+            if t is None or t.shape != f.shape or f.size < 2 or np.any(np.diff(t) <= 0):
+                return zeros, zeros
+            still_s = still_time(f, t, band_c=still["band_c"], max_gap_s=PACE_LAG_S)
+        held = np.broadcast_to(np.asarray(still_s, dtype=np.float64).reshape(-1), f.shape)
+        return held, self.still_excess(f, held)
+
+    def _worst_sigma(self) -> float:
+        """The largest σ of the report's rate bins (or its overall σ), °C: the level of frames
+        in a state no session measured, per unit of how far beyond it they lie."""
+        return max([self._overall_sigma()] + [self._bin_sigma(b) for b in self.report.by_rate])
+
+    def _still_reason(self, fpa: float, still: float, excess: float, count: str = "") -> str:
+        """The stillness refusal's text for a frame at ``fpa`` °C held still ``still`` s, that
+        is ``excess`` times the session's longest."""
+        return (f"the camera held its FPA still ({count}{'first ' if count else ''}at "
+                f"{fpa:.1f} °C for {still / 60:.0f} min), {excess:.1f}× longer than its chamber "
+                f"session did there, whose plateaus ended before the camera settled: the "
+                f"{self.report.method} calibration, with no memory of how the FPA changed, "
+                "cannot vouch for the state it settles into (record plateaus long enough for "
+                "its error to stop changing, or use lin-lag, which follows the settling)")
 
     @property
     def max_rate_c_per_min(self) -> float:
@@ -207,15 +275,18 @@ class CalibrationSigma:
         return float(max(abs(v) for v in self.report.fpa_rate_c_per_min))
 
     def sigma(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None,
-              time_since_start_s: Any = None, lagged_rate_c_per_min: Any = None) -> np.ndarray:
+              time_since_start_s: Any = None, lagged_rate_c_per_min: Any = None,
+              still_s: Any = None) -> np.ndarray:
         """σ (°C, float32, the shape of ``temps_c``: ``(H, W)`` or ``(N, H, W)``) of
         temperatures at FPA temperature ``fpa_c`` (°C: one, or one per frame) changing at
         ``rate_c_per_min`` (°C/min, one or one per frame; None: not known), taken
         ``time_since_start_s`` after their recording began (s; None: not known): the level is
         at least the report's σ of that time, for a method that learns as frames stream by;
         and, for the frames of one recording (``(N, H, W)``, N > 1, in time order) at paces the
-        session never held, :meth:`_pace_sigma` (one frame has no pace history: give its
-        ``lagged_rate_c_per_min``, °C/min, one or one per frame, taken from its recording)."""
+        session never held, :meth:`_pace_sigma`, or held still longer than the session did,
+        the report's largest rate-bin σ times :meth:`still_excess` (one frame has no pace
+        history: give its ``lagged_rate_c_per_min``, °C/min, and ``still_s``, s, one or one
+        per frame, taken from its recording)."""
         temps = np.asarray(temps_c, dtype=np.float64)
         frames = temps if temps.ndim == 3 else temps[None]
         fpa = np.broadcast_to(np.asarray(fpa_c, dtype=np.float64).reshape(-1), frames.shape[:1])
@@ -231,6 +302,8 @@ class CalibrationSigma:
                                 (n,)) if recording else None,
                 None if recording else lagged_rate_c_per_min)[2]
             level = np.maximum(level, self._pace_sigma(d))
+        excess = self._still(fpa, time_since_start_s if recording else None, still_s)[1]
+        level = np.maximum(level, np.where(excess > 1.0, self._worst_sigma() * excess, 0.0))
         if time_since_start_s is not None:
             level = np.maximum(level, np.broadcast_to(self.start_sigma(time_since_start_s),
                                                       frames.shape[:1]))
@@ -265,17 +338,23 @@ class CalibrationSigma:
         (°C/min): the largest σ of the report's rate bins times the distance in cells (0 for
         the others)."""
         cell = self._pace_cell
-        worst = max([self._overall_sigma()] + [self._bin_sigma(b) for b in self.report.by_rate])
-        return np.where(distance > cell, worst * distance / cell, 0.0)
+        return np.where(distance > cell, self._worst_sigma() * distance / cell, 0.0)
 
-    def burst_pace_sigma(self, pace: Any) -> float:
-        """The σ level a burst changing at ``pace`` (an
-        :class:`~thermocal.estimation.base.FpaPace`, or None) takes at a pace the session never
-        held (:meth:`_pace_sigma`), °C; 0 at a held pace, or without the pace's history."""
-        if pace is None or pace.lagged_c_per_min is None:
+    def burst_pace_sigma(self, pace: Any, fpa_c: float | None = None) -> float:
+        """The σ level a burst at FPA temperature ``fpa_c`` (°C; None: not known) changing at
+        ``pace`` (an :class:`~thermocal.estimation.base.FpaPace`, or None) takes at a pace the
+        session never held (:meth:`_pace_sigma`) or held still longer than the session did
+        (:meth:`sigma`), °C; 0 at a held pace, or without the pace's history."""
+        if pace is None:
             return 0.0
-        return float(self._pace_sigma(self._distance(np.array([pace.rate_c_per_min]),
-                                                      np.array([pace.lagged_c_per_min])))[0])
+        level = 0.0
+        if pace.lagged_c_per_min is not None:
+            level = float(self._pace_sigma(self._distance(
+                np.array([pace.rate_c_per_min]), np.array([pace.lagged_c_per_min])))[0])
+        if pace.still_s is not None and fpa_c is not None:
+            excess = float(self.still_excess([fpa_c], [pace.still_s])[0])
+            level = max(level, self._worst_sigma() * excess if excess > 1.0 else 0.0)
+        return level
 
     def outside_burst(self, temps_c: np.ndarray, fpa_c: float | None, pace: Any
                       ) -> tuple[str, ...]:
@@ -287,18 +366,22 @@ class CalibrationSigma:
         rate = None if pace is None else [pace.rate_c_per_min]
         lagged = (None if pace is None or pace.lagged_c_per_min is None
                   else [pace.lagged_c_per_min])
+        still = None if pace is None or pace.still_s is None else [pace.still_s]
         return self.outside(temps_c, () if fpa_c is None else fpa_c, rate_c_per_min=rate,
-                            lagged_rate_c_per_min=lagged)
+                            lagged_rate_c_per_min=lagged, still_s=still)
 
     def outside(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None,
-                time_s: Any = None, lagged_rate_c_per_min: Any = None) -> tuple[str, ...]:
+                time_s: Any = None, lagged_rate_c_per_min: Any = None,
+                still_s: Any = None) -> tuple[str, ...]:
         """Why frames lie outside what the calibration was fitted on: their FPA temperatures
         (more than :data:`FPA_MARGIN_C` beyond the session's), their FPA rates (°C/min, where
         known: faster than :data:`RATE_MARGIN` times the session's fastest), their paces (with
         ``time_s``, s, one recording's: a memoryless method's paces the session never held,
         :meth:`unseen_paces`; or, given each frame's ``lagged_rate_c_per_min``, °C/min, taken
-        from its recording, by its rate and lagged rate), or their scene (its 1st–99th
-        percentile beyond the blackbody's range); ``()`` inside."""
+        from its recording, by its rate and lagged rate), their stillness (where the session's
+        plateaus ended before the camera settled: the FPA held still longer than the session
+        did there, :meth:`still_excess`, from ``time_s`` or each frame's ``still_s``, s), or
+        their scene (its 1st–99th percentile beyond the blackbody's range); ``()`` inside."""
         reasons = []
         if rate_c_per_min is not None and self.report.paces and (
                 lagged_rate_c_per_min is not None
@@ -317,6 +400,13 @@ class CalibrationSigma:
                                f"{self.max_rate_c_per_min:.2f} °C/min of the "
                                f"{self.report.method} calibration's chamber session")
         fpa = np.asarray(fpa_c, dtype=np.float64).reshape(-1)
+        if fpa.size and (still_s is not None or time_s is not None):
+            held, excess = self._still(fpa, time_s, still_s)
+            if np.any(excess > 1.0):
+                k = int(np.argmax(excess > 1.0))
+                count = (f"{int(np.sum(excess > 1.0))} of {excess.size} frames; "
+                         if excess.size > 1 else "")
+                reasons.append(self._still_reason(fpa[k], held[k], excess[k], count=count))
         flo, fhi = self.report.fpa_range_c
         if fpa.size and (fpa.min() < flo - FPA_MARGIN_C or fpa.max() > fhi + FPA_MARGIN_C):
             reasons.append(f"the FPA temperature {fpa.min():.1f}…{fpa.max():.1f} °C is outside "

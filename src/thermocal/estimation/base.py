@@ -25,16 +25,23 @@ class FpaPace(NamedTuple):
         :data:`~thermocal.calibration.report.PACE_LAG_S` so far), °C/min: how it has been
         changing over the last minutes; None without the recording's history or without a
         calibration that judges paces.
+    still_s : float or None
+        How long the FPA had stayed within the band of its temperature at the burst that the
+        calibration's report judges stillness by
+        (:func:`~thermocal.calibration.dataset.still_time`), s; None without the recording's
+        history or without a calibration that judges it.
     """
 
     rate_c_per_min: float
     lagged_c_per_min: float | None = None
+    still_s: float | None = None
 
 
-def fpa_pace(rate_c_per_min: float | None, lagged_c_per_min: float | None = None
-             ) -> FpaPace | None:
+def fpa_pace(rate_c_per_min: float | None, lagged_c_per_min: float | None = None,
+             still_s: float | None = None) -> FpaPace | None:
     """A burst's :class:`FpaPace`, None without its rate."""
-    return None if rate_c_per_min is None else FpaPace(rate_c_per_min, lagged_c_per_min)
+    return (None if rate_c_per_min is None
+            else FpaPace(rate_c_per_min, lagged_c_per_min, still_s))
 
 
 @dataclass(frozen=True)
@@ -94,6 +101,9 @@ class PreparedBurst:
     fpa_lagged_rate_c_per_min : float or None
         The FPA rate through the pace's lag (:class:`FpaPace`), where the recording's history
         is known; for the uncertainty of a calibration with no memory of the FPA's pace.
+    fpa_still_s : float or None
+        How long the FPA had held still at the burst (:class:`FpaPace`), s, where the
+        recording's history is known; for the same.
     """
 
     frames: np.ndarray
@@ -105,11 +115,13 @@ class PreparedBurst:
     fpa_rate_c_per_min: float | None = None
     time_since_start_s: float | None = None
     fpa_lagged_rate_c_per_min: float | None = None
+    fpa_still_s: float | None = None
 
     @property
     def pace(self) -> FpaPace | None:
         """How the FPA was changing at the burst (:func:`fpa_pace`), None where not known."""
-        return fpa_pace(self.fpa_rate_c_per_min, self.fpa_lagged_rate_c_per_min)
+        return fpa_pace(self.fpa_rate_c_per_min, self.fpa_lagged_rate_c_per_min,
+                        self.fpa_still_s)
 
 
 @runtime_checkable

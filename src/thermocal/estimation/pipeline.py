@@ -76,6 +76,7 @@ def estimate(
     fpa_rate_c_per_min: float | None = None,
     time_since_start_s: float | None = None,
     fpa_lagged_rate_c_per_min: float | None = None,
+    fpa_still_s: float | None = None,
     bit_depth: int = 14,
 ) -> Estimate:
     """The pivot frame's temperature of a raw burst through ``estimator``.
@@ -114,6 +115,11 @@ def estimate(
         The FPA rate through the pace's lag, °C/min (:class:`~thermocal.estimation.base.FpaPace`,
         from the whole recording): with ``fpa_rate_c_per_min``, a calibration with no memory of
         the FPA's pace refuses a pace its chamber session never held (unless ``force``: σ grown).
+    fpa_still_s : float, optional
+        How long the FPA had held still at the burst, s
+        (:class:`~thermocal.estimation.base.FpaPace`, from the whole recording): such a
+        calibration whose session had not settled refuses a camera held still longer than its
+        session did (unless ``force``: σ grown).
     bit_depth : int
         The counts' bit depth (14 for a Tau2 core; 16 for FLIR files): saturation is at
         ``2**bit_depth − 1``.
@@ -135,7 +141,7 @@ def estimate(
     # the burst's FPA temperature: required by some estimators, used by all that get one (their
     # domain and uncertainty)
     fpa = fpa_value(fpa_c, arr.shape[0]) if estimator.needs_fpa or fpa_c is not None else None
-    pace = fpa_pace(fpa_rate_c_per_min, fpa_lagged_rate_c_per_min)
+    pace = fpa_pace(fpa_rate_c_per_min, fpa_lagged_rate_c_per_min, fpa_still_s)
     if estimator.per_frame:  # the pivot frame alone: its calibration, not registered
         valid = np.zeros(arr.shape, dtype=bool)
         valid[p] = True
@@ -143,7 +149,7 @@ def estimate(
         calibrated = estimator.calibrate(arr, fpa_c, time_s)
         outside = domain_stage(estimator, calibrated, fpa, force=force, pace=pace)
         burst = PreparedBurst(arr, calibrated, valid, hs, p, fpa, fpa_rate_c_per_min,
-                              time_since_start_s, fpa_lagged_rate_c_per_min)
+                              time_since_start_s, fpa_lagged_rate_c_per_min, fpa_still_s)
         return _estimate_of(estimator, burst, outside)
     if registered and not estimator.accepts_registered:
         raise InvalidInputError(
@@ -167,7 +173,7 @@ def estimate(
     check_overlap(valid, p)
     # 6. estimate
     burst = PreparedBurst(filled, warped, valid, hs, p, fpa, fpa_rate_c_per_min,
-                          time_since_start_s, fpa_lagged_rate_c_per_min)
+                          time_since_start_s, fpa_lagged_rate_c_per_min, fpa_still_s)
     return _estimate_of(estimator, burst, outside)
 
 

@@ -77,7 +77,8 @@ import numpy as np
 
 from thermocal._validate import check_output_dir
 from thermocal.burst import check_burst, fpa_value
-from thermocal.calibration.dataset import lagged_rate, recording_fpa_rates
+from thermocal.calibration.dataset import lagged_rate, recording_fpa_rates, still_time
+from thermocal.calibration.report import PACE_LAG_S
 from thermocal.calibration.uncertainty import CalibrationSigma
 from thermocal.errors import InvalidInputError, OutputError, RegistrationError
 from thermocal.estimation.base import Estimator
@@ -201,20 +202,25 @@ def _estimator(options: FlightOptions, frame_shape: tuple[int, int]) -> Estimato
     return estimator
 
 
-def _lagged_rates(series: dict[str, Any], estimator: Estimator) -> np.ndarray | None:
-    """The recording's FPA rate through the lag of the paces ``estimator``'s calibration was
-    judged on (its report's ``lag_s``), °C/min ``(M,)``
-    (:class:`~thermocal.estimation.base.FpaPace`): what a calibration with no memory of the FPA's
-    pace is checked on, group by group; None without such a calibration, without rates or
-    without increasing frame times."""
+def _pace_history(series: dict[str, Any], estimator: Estimator
+                  ) -> dict[str, np.ndarray | None]:
+    """The recording's pace history as ``estimator``'s calibration judges it
+    (:class:`~thermocal.estimation.base.FpaPace`), group by group: ``fpa_lagged_rate_c_per_min``,
+    the FPA rate through the lag of the paces its report holds (``lag_s``), °C/min ``(M,)``,
+    and ``fpa_still_s``, how long the FPA had held still in the band of the report's ``still``
+    (:func:`~thermocal.calibration.dataset.still_time`), s ``(M,)``; each None without such a
+    calibration (one with no memory of the FPA's pace; a session that had not settled),
+    without rates or without increasing frame times."""
     model = getattr(estimator, "sigma_model", None)  # a calibration's σ (calibrated, selfcal)
-    lag_s = ((model.report.paces or {}).get("lag_s") if isinstance(model, CalibrationSigma)
-             else None)
+    paces = (model.report.paces or {}) if isinstance(model, CalibrationSigma) else {}
     rates, times = series["fpa_rate_c_per_min"], series["time_s"]
-    if (lag_s is None or rates is None or times is None
+    if (not paces or rates is None or times is None
             or np.any(np.diff(np.asarray(times, np.float64)) <= 0)):
-        return None
-    return lagged_rate(rates, times, float(lag_s))
+        return {"fpa_lagged_rate_c_per_min": None, "fpa_still_s": None}
+    still = paces.get("still")
+    return {"fpa_lagged_rate_c_per_min": lagged_rate(rates, times, float(paces["lag_s"])),
+            "fpa_still_s": None if not still else still_time(
+                series["fpa_c"], times, band_c=still["band_c"], max_gap_s=PACE_LAG_S)}
 
 
 def _register(estimator: Estimator, frames: np.ndarray, workers: int | None
@@ -285,7 +291,7 @@ def process_flight(
         estimator = _estimator(options, header.frame_shape)
     series = header.series | {"fpa_rate_c_per_min": recording_fpa_rates(
         header.series["fpa_c"], header.series["time_s"])}
-    series["fpa_lagged_rate_c_per_min"] = _lagged_rates(series, estimator)
+    series |= _pace_history(series, estimator)
     geo = _pivot_tags(header.series.get("frame_metadata"), pivots, options, header.frame_shape)
     batches = _batches(pivots, stride)
     flight_level = ESTIMATORS[options.method].needs == "pass"
@@ -708,6 +714,7 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
     t = time.perf_counter()
     group = run.frames[first - run.start : first - run.start + n]
     rates, lagged = series["fpa_rate_c_per_min"], series["fpa_lagged_rate_c_per_min"]
+    still = series["fpa_still_s"]
     try:
         _check_decoded(_undecodable_in(run, first, n), first, n)
         _check_group(group, first, bit_depth)
@@ -733,6 +740,7 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
                 pivot=n // 2, homographies=homographies, force=options.force,
                 fpa_rate_c_per_min=None if rates is None else float(rates[pivot]),
                 fpa_lagged_rate_c_per_min=None if lagged is None else float(lagged[pivot]),
+                fpa_still_s=None if still is None else float(still[pivot]),
                 time_since_start_s=None if time_s is None else float(time_s[pivot] - time_s[0]),
                 bit_depth=bit_depth)
             temp, sigma = result.temperature_c, result.sigma_c

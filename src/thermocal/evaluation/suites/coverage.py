@@ -113,7 +113,7 @@ def _run_calibration(cal, model: CalibrationSigma, run: physics.Run, rng) -> dic
         temps = est[sel].reshape(sel.size, -1)[:, pick]
         sigmas = model.sigma(temps[:, None, :], s.fpa_c[sel], rate_c_per_min=rate,
                              time_since_start_s=since)[:, 0, :]
-        unseen = model.unseen_paces(rate, since)  # the recording's pace history
+        unseen = model.unseen_paces(rate, since, fpa_c=s.fpa_c[sel])  # its pace history
         for j, i in enumerate(sel):
             err = temps[j] - run.truth_c[i]
             outside = bool(model.outside(temps[j], [s.fpa_c[i]], rate_c_per_min=[rate[j]])
