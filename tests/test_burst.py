@@ -149,3 +149,44 @@ def test_stuck_pixels_give_what_the_rule_gives_with_every_median(seed):
         k = float(rng.choice([0.0, 3.0, 10.0]))
         want = _stuck_by_the_rule(frames, hs, min_counts, k)
         assert np.array_equal(stuck_pixels(frames, hs, min_counts=min_counts, k=k), want)
+
+
+def test_the_median_of_count_differences_is_numpys():
+    """The histogram's median of whole numbers (odd and even counts, ties, one value) is
+    np.median's, bit for bit."""
+    from thermocal.burst import _count_median
+
+    rng = np.random.default_rng(0)
+    for size in (1, 2, 7, 8, 1000, 1001):
+        for spread in (0, 3, 500, 16383):
+            d = rng.integers(0, spread + 1, size).astype(np.float32)
+            assert _count_median(d) == float(np.median(d))
+
+
+def test_bad_pixels_take_the_median_of_their_good_neighbours():
+    """fill_bad_pixels against its rule pixel by pixel (the median of the good ones of the 3×3
+    neighbours, the edge's repeated at the border; the frame's median where none is good), in
+    place, float32 bit for bit."""
+    import warnings
+
+    from thermocal.calibration.base import fill_bad_pixels
+
+    rng = np.random.default_rng(1)
+    for trial in range(6):
+        temps = (rng.normal(30.0, 5.0, (3, 20, 24))).astype(np.float32)
+        bad = rng.random((20, 24)) < (0.05, 0.3, 0.6)[trial % 3]
+        bad[:4, :4] = True  # a corner with pixels no good neighbour touches
+        want = temps.copy()
+        # the border's neighbours: its edge pixels again (nine values, as in the frame)
+        padded = np.pad(temps, ((0, 0), (1, 1), (1, 1)), mode="edge")
+        padded_bad = np.pad(bad, 1, mode="edge")
+        for k in range(3):
+            for r, c in zip(*np.nonzero(bad), strict=True):
+                block = padded[k, r:r + 3, c:c + 3]
+                good = block[~padded_bad[r:r + 3, c:c + 3]]
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore", RuntimeWarning)
+                    want[k, r, c] = (np.median(good) if good.size
+                                     else np.median(temps[k][~bad]))
+        got = fill_bad_pixels(temps, bad)
+        assert got is temps and np.array_equal(got, want)

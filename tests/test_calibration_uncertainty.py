@@ -87,6 +87,32 @@ def test_outside_names_the_fpa_and_the_scene():
     assert "FPA changes at up to 0.90 °C/min, faster than the 0.50 °C/min" in why
 
 
+def test_sparse_start_up_bins_are_pooled_with_the_bins_after_them():
+    """The report's sample holds few frames of a recording's first minutes: a time bin of fewer
+    than MIN_BIN_FRAMES frames is pooled with the next (the last with the one before), so that
+    σ covers an online method's start-up instead of skipping it; rate bins stay as they are."""
+    from thermocal.calibration.report import MIN_BIN_FRAMES, TIME_EDGES, _binned
+
+    since = np.concatenate([[30.0], np.full(9, 200.0), np.full(24, 600.0), np.full(3, 2000.0)])
+    errors = np.concatenate([np.full((10, 4), 5.0), np.full((24, 4), 1.0), np.full((3, 4), 2.0)])
+    bins = _binned(errors, since, TIME_EDGES, "time_s", min_frames=MIN_BIN_FRAMES)
+    assert [(b["time_s"], b["frames"]) for b in bins] == [([0.0, 300.0], 10),
+                                                          ([300.0, None], 27)]
+    assert bins[0]["mae_c"] == 5.0 and bins[1]["mae_c"] == pytest.approx(30.0 / 27)
+    # one per edge, empty bins left out, without pooling
+    plain = _binned(errors, since, TIME_EDGES, "time_s")
+    assert [b["time_s"] for b in plain] == [[0.0, 60.0], [60.0, 300.0], [300.0, 900.0],
+                                            [1800.0, None]]
+    # σ in the pooled start-up; a report's bins of too few frames (made before) are skipped
+    model = CalibrationSigma(_report(by_time=bins))
+    np.testing.assert_allclose(model.start_sigma([30.0, 250.0, 5000.0]),
+                               [bins[0]["sigma_c"]] * 2 + [bins[1]["sigma_c"]])
+    assert model.start_sigma([30.0])[0] >= 5.0
+    assert CalibrationSigma(_report(by_time=plain)).start_sigma([30.0])[0] == 0.0
+    (few,) = _binned(errors[:5], since[:5], TIME_EDGES, "time_s", min_frames=MIN_BIN_FRAMES)
+    assert few["time_s"] == [0.0, None] and few["frames"] == 5
+
+
 def test_report_survives_json_with_its_rate_bins():
     r = _report()
     again = CalibrationReport.from_dict(r.to_dict())

@@ -166,8 +166,9 @@ def fill_bad_pixels(temps: np.ndarray, bad: np.ndarray) -> np.ndarray:
     """Replace ``bad`` pixels of each frame by the median of their good 3×3 neighbours (in place).
 
     ``temps`` is ``(N, H, W)`` float32, ``bad`` ``(H, W)`` bool. Only the bad pixels'
-    neighbourhoods are gathered (a few pixels: far cheaper than a full median filter); a bad
-    pixel with no good neighbour gets the frame's median. Returns ``temps``.
+    neighbourhoods are gathered (a few pixels: far cheaper than a full median filter), every
+    frame's at once; a bad pixel with no good neighbour gets the frame's median. Returns
+    ``temps``.
     """
     if not bad.any():
         return temps
@@ -177,14 +178,20 @@ def fill_bad_pixels(temps: np.ndarray, bad: np.ndarray) -> np.ndarray:
     nr = np.clip(rows[:, None] + dr.ravel()[None], 0, h - 1)  # (B, 9)
     nc = np.clip(cols[:, None] + dc.ravel()[None], 0, w - 1)
     usable = ~bad[nr, nc]
+    # the median of each neighbourhood's good values, as np.nanmedian gives it (the mean of
+    # the middle two of an even count), from one sort of every frame's (NaN last): nanmedian
+    # takes a masked array's path per frame for so few values, 4× slower
+    values = np.where(usable[None], temps[:, nr, nc], np.float32(np.nan))  # (N, B, 9)
+    values.sort(axis=2)
+    good = usable.sum(axis=1)
+    each = np.arange(rows.size)
+    filled = (values[:, each, np.maximum((good - 1) // 2, 0)]
+              + values[:, each, good // 2]) / values.dtype.type(2)
     for k in range(temps.shape[0]):
-        values = np.where(usable, temps[k][nr, nc], np.nan)
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN rows handled below
-            filled = np.nanmedian(values, axis=1)
-        if not np.all(np.isfinite(filled)):
-            filled = np.where(np.isfinite(filled), filled, np.median(temps[k][~bad]))
-        temps[k][rows, cols] = filled
+        f = filled[k]
+        if not np.all(np.isfinite(f)):
+            f = np.where(np.isfinite(f), f, np.median(temps[k][~bad]))
+        temps[k][rows, cols] = f
     return temps
 
 

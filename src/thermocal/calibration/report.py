@@ -610,7 +610,8 @@ def cross_validate(
     by_rate = (_by_rate(np.concatenate(errors), np.concatenate(rates)) if errors else [])
     from thermocal.calibration.registry import CALIBRATION_METHODS
 
-    by_time = (_binned(np.concatenate(errors), np.concatenate(since), TIME_EDGES, "time_s")
+    by_time = (_binned(np.concatenate(errors), np.concatenate(since), TIME_EDGES, "time_s",
+                       min_frames=MIN_BIN_FRAMES)
                if errors and CALIBRATION_METHODS[method].learns_online else [])
     if expected is None:
         notes.append("no interior set point or FPA segment could be left out and refitted")
@@ -741,21 +742,37 @@ def _by_rate(errors: np.ndarray, rates: np.ndarray) -> list[dict[str, Any]]:
 
 #: Edges of the bins of time since a recording began, s (:attr:`CalibrationReport.by_time`).
 TIME_EDGES = (0.0, 60.0, 300.0, 900.0, 1800.0, math.inf)
+#: Frames a bin of :attr:`CalibrationReport.by_time` holds at least: a bin with fewer is pooled
+#: with the bins after it (the last with the one before). The report's sample holds few frames
+#: of a recording's first minutes (1 and 9 of the physics suite's, in the first two bins),
+#: and those are where an online method errs most.
+MIN_BIN_FRAMES = 10
 
 
-def _binned(errors: np.ndarray, values: np.ndarray, edges: tuple[float, ...], key: str
-            ) -> list[dict[str, Any]]:
+def _binned(errors: np.ndarray, values: np.ndarray, edges: tuple[float, ...], key: str, *,
+            min_frames: int = 1) -> list[dict[str, Any]]:
     """MAE and :func:`coverage_sigma` of ``errors`` ``(M, P)`` by bin of ``values`` ``(M,)``
-    (``edges``), bins with frames only: ``key`` (``[low, high]``, high None for the last),
-    ``frames``, ``mae_c``, ``sigma_c``."""
-    out = []
+    (``edges``), bins with frames only, a bin of fewer than ``min_frames`` pooled with the bins
+    after it (the last with the one before): ``key`` (``[low, high]``, high None for the
+    last), ``frames``, ``mae_c``, ``sigma_c``."""
+    spans: list[tuple[float, float, np.ndarray]] = []  # (low, high, frames)
+    low, pooled = edges[0], np.zeros(values.shape, dtype=bool)
     for lo, hi in zip(edges[:-1], edges[1:], strict=True):
-        sel = (values >= lo) & (values < hi)
-        if sel.any():
-            out.append({key: [lo, hi if math.isfinite(hi) else None],
-                        "frames": int(sel.sum()), "mae_c": float(np.mean(errors[sel])),
-                        "sigma_c": coverage_sigma(errors[sel])})
-    return out
+        pooled = pooled | ((values >= lo) & (values < hi))
+        if not pooled.any():
+            low = hi  # an empty bin: the next starts at its own edge
+        elif pooled.sum() >= min_frames:
+            spans.append((low, hi, pooled))
+            low, pooled = hi, np.zeros(values.shape, dtype=bool)
+    if pooled.any():  # too few at the end
+        if spans:
+            first, _, sel = spans.pop()
+            spans.append((first, edges[-1], sel | pooled))
+        else:
+            spans.append((low, edges[-1], pooled))
+    return [{key: [lo, hi if math.isfinite(hi) else None], "frames": int(sel.sum()),
+             "mae_c": float(np.mean(errors[sel])), "sigma_c": coverage_sigma(errors[sel])}
+            for lo, hi, sel in spans]
 
 
 def _json_options(options: dict[str, Any]) -> dict[str, Any]:

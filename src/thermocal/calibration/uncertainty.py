@@ -62,7 +62,12 @@ import numpy as np
 
 from thermocal.calibration.base import Calibration
 from thermocal.calibration.dataset import lagged_rate, still_time
-from thermocal.calibration.report import PACE_LAG_S, CalibrationReport, report_of
+from thermocal.calibration.report import (
+    MIN_BIN_FRAMES,
+    PACE_LAG_S,
+    CalibrationReport,
+    report_of,
+)
 
 __all__ = ["FPA_MARGIN_C", "MIN_GROWTH_PER_C", "RATE_MARGIN", "REMEDY", "CalibrationSigma"]
 
@@ -72,8 +77,6 @@ MIN_GROWTH_PER_C = 0.02
 FPA_MARGIN_C = 0.5
 #: FPA rates up to this many times the session's fastest are inside (the rate estimate's noise).
 RATE_MARGIN = 1.25
-#: Frames a bin of the report's error by time since the start needs to be used.
-_MIN_BIN_FRAMES = 10
 #: What to do about frames outside a calibration's ranges.
 REMEDY = ("calibrate over these conditions (a chamber session that covers them: `thermocal "
           "calibrate`); --force gives the temperatures with their uncertainty grown")
@@ -154,11 +157,12 @@ class CalibrationSigma:
     def start_sigma(self, time_since_start_s: Any) -> np.ndarray:
         """σ of each frame's time since its recording began (s; ``(N,)``), °C: its bin of the
         report's ``mae_by_time_since_start_c`` where that bin holds at least
-        :data:`_MIN_BIN_FRAMES` frames, 0 elsewhere (no start-up seen)."""
+        :data:`~thermocal.calibration.report.MIN_BIN_FRAMES` frames (a report made before
+        sparse bins were pooled), 0 elsewhere (no start-up seen)."""
         t = np.asarray(time_since_start_s, dtype=np.float64).reshape(-1)
         out = np.zeros(t.shape)
         for b in self.report.by_time:
-            if b["frames"] < _MIN_BIN_FRAMES or b.get("sigma_c") is None:
+            if b["frames"] < MIN_BIN_FRAMES or b.get("sigma_c") is None:
                 continue
             lo, hi = b["time_s"]
             out[(t >= lo) & (t < (math.inf if hi is None else hi))] = b["sigma_c"]
