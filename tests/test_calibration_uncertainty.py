@@ -475,5 +475,7 @@ def test_a_flight_lags_the_rate_by_its_calibrations_own_pace_lag(fitted):
     still = history["fpa_still_s"]
     assert still[30] == 300.0 and still[-1] == 10.0  # rising 0.083 °C a frame
     none = {"fpa_lagged_rate_c_per_min": None, "fpa_still_s": None}
-    assert _pace_history(series, object()) == none
+    from types import SimpleNamespace
+
+    assert _pace_history(series, SimpleNamespace(fpa_paces={})) == none  # a network
     assert _pace_history(series | {"time_s": t[::-1]}, estimator) == none

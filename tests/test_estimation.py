@@ -41,6 +41,7 @@ class Recorder:
     needs_fpa = True
     accepts_registered = False
     remedy = "record it again"
+    fpa_paces: dict = {}
 
     def __init__(self, *, per_frame: bool = False, outside: tuple[str, ...] = ()) -> None:
         self.reasons = outside

@@ -149,6 +149,12 @@ class Estimator(Protocol):
         Whether it may be given frames already registered onto the pivot.
     remedy : str
         What to do about a burst outside its domain (:meth:`outside`).
+    fpa_paces : dict
+        The FPA paces its calibration was judged on (its report's
+        :attr:`~thermocal.calibration.report.CalibrationReport.paces`: ``lag_s``, the cells
+        held, and ``still`` where the session had not settled), for a calibration with no
+        memory of how the FPA changed; ``{}`` for the others. A caller with the whole
+        recording (``thermocal flight``) gives each burst its :class:`FpaPace` from it.
     """
 
     name: str
@@ -157,6 +163,7 @@ class Estimator(Protocol):
     per_frame: bool
     accepts_registered: bool
     remedy: str
+    fpa_paces: dict[str, Any]
 
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
         """Refuse a burst ``(N, H, W)`` it cannot take (size, length), before any work."""

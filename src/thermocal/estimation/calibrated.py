@@ -28,6 +28,11 @@ class _ThroughCalibration:
         self.calibration = calibration
         self.sigma_model = CalibrationSigma.of(calibration)
 
+    @property
+    def fpa_paces(self) -> dict[str, Any]:
+        """The paces of the calibration's report (``{}`` without a report)."""
+        return {} if self.sigma_model is None else self.sigma_model.report.paces
+
     def outside(self, calibrated: np.ndarray, fpa_c: float | None, *,
                 pace: FpaPace | None = None) -> tuple[str, ...]:
         """The FPA and scene ranges of the calibration's chamber session, and where ``pace`` is

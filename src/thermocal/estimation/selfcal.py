@@ -183,6 +183,13 @@ class SelfCalibration:
 
         return None if self.calibration is None else CalibrationSigma.of(self.calibration)
 
+    @property
+    def fpa_paces(self) -> dict[str, Any]:
+        """The paces of the start calibration's report (``{}`` from the family's average
+        unit or without a report)."""
+        model = self.sigma_model
+        return {} if model is None else model.report.paces
+
     # -- the start model -------------------------------------------------------------------
 
     def start_temperature(self, frames: np.ndarray, fpa_c: Any, time_s: Any = None

@@ -54,6 +54,7 @@ class VendorCalibration:
     accepts_registered = True
     remedy = ("the file's own calibration does not cover these counts: calibrate the camera "
               "(`thermocal calibrate`)")
+    fpa_paces: dict = {}  # the file's constants: no chamber session's paces
 
     def __init__(self, plancks: list[FlirPlanck], accuracy: list[tuple[float, float]]) -> None:
         self.plancks = plancks

@@ -215,6 +215,7 @@ class NetworkEstimator:
     needs_fpa = True
     per_frame = False
     remedy = REMEDY
+    fpa_paces: dict = {}  # the network is no calibration: its domain has no paces
 
     def __init__(self, model: KPN, norm: Normalisation, domain: Domain | None = None,
                  sigma_model: SigmaModel | None = None, *, backend: str = "torch",

@@ -79,7 +79,6 @@ from thermocal._validate import check_output_dir
 from thermocal.burst import check_burst, fpa_value
 from thermocal.calibration.dataset import lagged_rate, recording_fpa_rates, still_time
 from thermocal.calibration.report import PACE_LAG_S
-from thermocal.calibration.uncertainty import CalibrationSigma
 from thermocal.errors import InvalidInputError, OutputError, RegistrationError
 from thermocal.estimation.base import Estimator
 from thermocal.estimation.pipeline import estimate
@@ -211,8 +210,7 @@ def _pace_history(series: dict[str, Any], estimator: Estimator
     (:func:`~thermocal.calibration.dataset.still_time`), s ``(M,)``; each None without such a
     calibration (one with no memory of the FPA's pace; a session that had not settled),
     without rates or without increasing frame times."""
-    model = getattr(estimator, "sigma_model", None)  # a calibration's σ (calibrated, selfcal)
-    paces = (model.report.paces or {}) if isinstance(model, CalibrationSigma) else {}
+    paces = estimator.fpa_paces
     rates, times = series["fpa_rate_c_per_min"], series["time_s"]
     if (not paces or rates is None or times is None
             or np.any(np.diff(np.asarray(times, np.float64)) <= 0)):
