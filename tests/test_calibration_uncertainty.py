@@ -225,10 +225,10 @@ def test_a_bursts_pace_sigma_grows_only_at_paces_never_held():
 
 
 def _stilled() -> CalibrationSigma:
-    """:func:`_paced`, from a session that had not settled and held the FPA still for at most
-    10 minutes at 25–30 °C, 5 minutes at 30–35 °C."""
+    """:func:`_paced`, from a session that had not settled, whose plateaus held the FPA still
+    for 10 minutes (median of 4)."""
     model = _paced()
-    still = {"band_c": 0.15, "bin_c": 5.0, "longest_s": [[5, 600.0], [6, 300.0]]}
+    still = {"band_c": 0.15, "held_s": 600.0, "plateaus": 4}
     from dataclasses import replace
 
     return CalibrationSigma(replace(model.report, paces=model.report.paces | {"still": still}))
@@ -260,9 +260,9 @@ def test_still_time_is_the_run_behind_each_frame_within_its_band():
 
 
 def test_a_camera_held_still_longer_than_an_unsettled_session_is_outside():
-    """Held at 27 °C for 20 minutes: inside for the session's 10 minutes there, then outside,
-    named with the remedy, σ grown with the excess; at 32 °C outside after 5 minutes; a
-    report that lists no stillness (a session that settled) judges none."""
+    """Held at 27 °C for 20 minutes: inside for the 10 minutes the session's plateaus held,
+    then outside, named with the remedy, σ grown with the excess; a report that lists no
+    stillness (a session that settled) judges none."""
     from thermocal.estimation.base import FpaPace
 
     model = _stilled()
@@ -270,10 +270,12 @@ def test_a_camera_held_still_longer_than_an_unsettled_session_is_outside():
     rate, temps = np.zeros(t.size), np.full((t.size, 1, 1), 25.0)
     unseen = model.unseen_paces(rate, t, fpa_c=np.full(t.size, 27.0))
     assert not unseen[t <= 600.0].any() and unseen[t > 600.0].all()
-    assert model.unseen_paces(rate, t, fpa_c=np.full(t.size, 32.0))[t > 300.0].all()
     assert not model.unseen_paces(rate, t).any()  # without the FPA: its pace only
+    creeping = 27.0 + t / 600.0  # 0.1 °C/min: never 0.15 °C still for 10 minutes
+    assert not model.unseen_paces(np.full(t.size, 0.1), t, fpa_c=creeping).any()
     (why,) = model.outside(temps, np.full(t.size, 27.0), rate_c_per_min=rate, time_s=t)
     assert "held its FPA still (59 of 120 frames; first at 27.0 °C for 10 min)" in why
+    assert "longer than the plateaus of its chamber session" in why
     assert "record plateaus long enough" in why and "lin-lag" in why
     sigma = model.sigma(temps, np.full(t.size, 27.0), rate_c_per_min=rate,
                         time_since_start_s=t)[:, 0, 0]
@@ -286,19 +288,18 @@ def test_a_camera_held_still_longer_than_an_unsettled_session_is_outside():
     one = model.outside_burst(np.full((3, 1, 1), 25.0), 27.0, FpaPace(0.0, 0.0, 900.0))
     assert len(one) == 1 and "for 15 min), 1.5× longer" in one[0]
     assert model.outside_burst(np.full((3, 1, 1), 25.0), 27.0, FpaPace(0.0, 0.0, 500.0)) == ()
-    assert model.burst_pace_sigma(FpaPace(0.0, 0.0, 900.0), 27.0) == pytest.approx(worst * 1.5)
-    assert model.burst_pace_sigma(FpaPace(0.0, 0.0, 900.0)) == 0.0  # no FPA: not judged
-    assert model.burst_pace_sigma(FpaPace(0.0, 0.0, 500.0), 27.0) == 0.0
-    # an FPA bin the session never held takes the nearest bin's stretch
-    assert model.still_excess([48.0], [600.0])[0] == pytest.approx(2.0)
+    assert model.burst_pace_sigma(FpaPace(0.0, 0.0, 900.0)) == pytest.approx(worst * 1.5)
+    assert model.burst_pace_sigma(FpaPace(0.0, 0.0, 500.0)) == 0.0
+    np.testing.assert_allclose(model.still_excess([300.0, 1200.0]), [0.5, 2.0])
+    np.testing.assert_array_equal(settled.still_excess([1200.0]), [0.0])
 
 
 def test_stillness_survives_json_and_is_checked():
     model = _stilled()
     again = CalibrationReport.from_dict(json.loads(json.dumps(model.report.to_dict())))
     assert again.paces == model.report.paces
-    for bad in ({"band_c": 0.0}, {"longest_s": [[5, -1.0]]}, {"longest_s": [[5.5, 60.0]]},
-                {"longest_s": []}, {"bin_c": math.inf}):
+    for bad in ({"band_c": 0.0}, {"held_s": -1.0}, {"held_s": math.inf}, {"plateaus": 0},
+                {"plateaus": 1.5}, {"plateaus": True}):
         paces = model.report.to_dict()["fpa_paces"]
         paces = paces | {"still": paces["still"] | bad}
         with pytest.raises(InvalidInputError, match="not a calibration report"):
@@ -434,8 +435,7 @@ def test_the_pipeline_judges_a_bursts_stillness_from_its_recording(fitted):
     fpa = 0.5 * sum(report.fpa_range_c)
     burst = simulate_flight(scene, camera, n_frames=5, motion="walk", fpa_c=fpa, seed=1)
     estimator = PivotCalibration(cal)
-    bins = range(int(report.fpa_range_c[0] // 5), int(report.fpa_range_c[1] // 5) + 1)
-    still = {"band_c": 0.15, "bin_c": 5.0, "longest_s": [[b, 600.0] for b in bins]}
+    still = {"band_c": 0.15, "held_s": 600.0, "plateaus": 3}
     estimator.sigma_model = CalibrationSigma(replace(report, paces=report.paces | {
         "still": still}))
     args = {"fpa_c": burst.fpa_c, "fpa_rate_c_per_min": 0.0, "fpa_lagged_rate_c_per_min": 0.0}
@@ -468,7 +468,7 @@ def test_a_flight_lags_the_rate_by_its_calibrations_own_pace_lag(fitted):
         lagged_rate(series["fpa_rate_c_per_min"], t, report.paces["lag_s"]))
     assert history["fpa_still_s"] is None and "still" not in report.paces
     estimator.sigma_model = CalibrationSigma(replace(report, paces=report.paces | {
-        "lag_s": 60.0, "still": {"band_c": 0.15, "bin_c": 5.0, "longest_s": [[6, 120.0]]}}))
+        "lag_s": 60.0, "still": {"band_c": 0.15, "held_s": 120.0, "plateaus": 2}}))
     history = _pace_history(series, estimator)
     np.testing.assert_array_equal(history["fpa_lagged_rate_c_per_min"],
                                   lagged_rate(series["fpa_rate_c_per_min"], t, 60.0))

@@ -30,9 +30,9 @@ calibration file (``info["report"]``, JSON) and read back by :func:`report_of`.
 A method with no memory of how the FPA changed also gets a warning when the session's ambient
 plateaus ended before the camera settled (:func:`settling_warning`): its error, on the fit's own
 frames, was still changing at their ends, so a camera held still for longer than they lasted
-(its optics settling on) may be off by more than the report measured. Its report then lists how
-long the session held the FPA still at each FPA temperature (:func:`stillness_of`), and frames
-held still for longer are outside what it vouches for
+(its optics settling on) may be off by more than the report measured. Its report then states how
+long the session's plateaus held the FPA still (:func:`stillness_of`), and frames held still for
+longer are outside what it vouches for
 (:class:`~thermocal.calibration.uncertainty.CalibrationSigma`).
 
 :func:`fit_with_report` checks the protocol
@@ -132,9 +132,8 @@ class CalibrationReport:
         (:data:`PACE_CELL_C_PER_MIN`) and ``cells``, the visited cells ``[i, j]`` of the plane
         (FPA rate, the same through a lag of ``lag_s``) / ``cell_c_per_min`` (:func:`paces_of`);
         and, where the session's plateaus ended before the camera settled
-        (:func:`settling_warning`), ``still``: how long it held the FPA still at each FPA
-        temperature (:func:`stillness_of`). Empty for the others and in a report made before
-        it.
+        (:func:`settling_warning`), ``still``: how long its plateaus held the FPA still
+        (:func:`stillness_of`). Empty for the others and in a report made before it.
     by_time : list of dict
         For a method that learns as frames stream by (``wolf2016``'s LMS: it errs most at
         first; :attr:`~thermocal.calibration.registry.CalibrationInfo.learns_online`), the same
@@ -256,9 +255,10 @@ class CalibrationReport:
                          "has no memory of how the FPA changed, so frames at paces the session "
                          "never held are refused (lin-lag follows the pace's history)")
         if self.paces.get("still"):
-            held = [s for _, s in self.paces["still"]["longest_s"]]
-            lines.append(f"  held the FPA still for {min(held) / 60:.0f}…{max(held) / 60:.0f} "
-                         "min at a time, before the camera settled: frames held still for "
+            still = self.paces["still"]
+            lines.append(f"  its {still['plateaus']} plateau(s) held the FPA still for "
+                         f"{still['held_s'] / 60:.0f} min (median), before the camera "
+                         "settled: frames held still for "
                          "longer are refused")
         return lines
 
@@ -624,7 +624,7 @@ def cross_validate(
         except ThermocalError:
             settling = None  # no fit on the sample: the folds' notes say why
         found += [settling] if settling else []
-        paces = paces | ({"still": stillness_of(data)} if settling else {})
+        paces = paces | ({"still": stillness_of(small, ends)} if settling else {})
     usable = data.usable
     scene = data.scene_c[usable]
     rate = data.fpa_rate_c_per_min[usable]
@@ -674,21 +674,21 @@ def paces_of(data: ChamberData) -> dict[str, Any]:
 #: The FPA held still: within this of its present temperature, °C (a plateau's creep and the
 #: sensor's noise).
 STILL_BAND_C = 0.15
-#: The FPA bins of :func:`stillness_of`, °C.
-STILL_BIN_C = 5.0
 
 
-def stillness_of(data: ChamberData) -> dict[str, Any]:
-    """How long a session held the FPA still (:attr:`CalibrationReport.paces`' ``still``):
-    ``band_c`` (:data:`STILL_BAND_C`), ``bin_c`` (:data:`STILL_BIN_C`) and ``longest_s``, for
-    each FPA bin ``[i, s]`` (FPA ``i·bin_c … (i + 1)·bin_c`` °C) the longest that a usable
-    frame's FPA had stayed within the band (:func:`~thermocal.calibration.dataset.still_time`,
-    a gap of :data:`PACE_LAG_S` between frames ending a stretch), s."""
+def stillness_of(data: ChamberData, ends: list[np.ndarray]) -> dict[str, Any]:
+    """How long a session's plateaus held the FPA still (:attr:`CalibrationReport.paces`'
+    ``still``): ``band_c`` (:data:`STILL_BAND_C`); ``held_s``, over the plateaus whose ends are
+    ``ends`` (:func:`plateau_ends` of ``data``), the median of how long each had held the FPA
+    within the band by its end (:func:`~thermocal.calibration.dataset.still_time`, a gap of
+    :data:`PACE_LAG_S` between frames ending a stretch), s; ``plateaus``: how many.
+
+    The median: a session's first hold (before its first step) is often much longer than the
+    plateaus between its steps, which are what a camera held still is judged against, whatever
+    its FPA temperature (a session need not hold a plateau at every temperature it spans)."""
     still = still_time(data.fpa_c, data.time_s, band_c=STILL_BAND_C, max_gap_s=PACE_LAG_S)
-    use = data.usable
-    bins = np.floor(data.fpa_c[use] / STILL_BIN_C).astype(np.int64)
-    longest = [[int(b), float(still[use][bins == b].max())] for b in np.unique(bins)]
-    return {"band_c": STILL_BAND_C, "bin_c": STILL_BIN_C, "longest_s": longest}
+    held = [float(still[end].max()) for end in ends]
+    return {"band_c": STILL_BAND_C, "held_s": float(np.median(held)), "plateaus": len(held)}
 
 
 def _steady_paces(paces: dict[str, Any]) -> str:
@@ -717,15 +717,12 @@ def _paces_from(d: dict[str, Any]) -> dict[str, Any]:
     out = {"lag_s": lag, "cell_c_per_min": cell, "cells": cells.tolist()}
     if d.get("still") is not None:
         still = d["still"]
-        band, width = float(still["band_c"]), float(still["bin_c"])
-        longest = np.asarray(still["longest_s"], dtype=np.float64).reshape(-1, 2)
-        if not (0 < band < math.inf and 0 < width < math.inf and longest.size
-                and np.all(np.isfinite(longest)) and np.all(longest[:, 1] >= 0)
-                and np.all(longest[:, 0] == np.round(longest[:, 0]))):
-            raise ValueError("fpa_paces: still needs band and bin > 0 and finite longest "
-                             "stretches >= 0 by whole bins")
-        out["still"] = {"band_c": band, "bin_c": width,
-                        "longest_s": [[int(i), float(v)] for i, v in longest]}
+        band, held, plateaus = float(still["band_c"]), float(still["held_s"]), still["plateaus"]
+        if not (0 < band < math.inf and 0 < held < math.inf and isinstance(plateaus, int)
+                and not isinstance(plateaus, bool) and plateaus >= 1):
+            raise ValueError("fpa_paces: still needs a band and a held time > 0, finite, and "
+                             "at least one plateau")
+        out["still"] = {"band_c": band, "held_s": held, "plateaus": plateaus}
     return out
 
 

@@ -43,8 +43,8 @@ its error is no session measured.
 settled (:func:`~thermocal.calibration.report.settling_warning`: a memoryless method's error was
 still changing at their ends), a camera held still for longer than they lasted is in a state
 the session never showed: on the ``boson`` preset, the 30-minute hold at the top of a held-out
-ramp drifts on to +1.0…+1.25 °C for ``polynomial`` where σ said 0.5. The report then lists the
-longest the session held the FPA still at each FPA temperature (its ``paces["still"]``,
+ramp drifts on to +1.0…+1.25 °C for ``polynomial`` where σ said 0.5. The report then states
+how long the session's plateaus held the FPA still (its ``paces["still"]``,
 :func:`~thermocal.calibration.report.stillness_of`); a frame held still for longer
 (:meth:`CalibrationSigma.still_excess` > 1) is outside, and forced, its ``s`` becomes at least
 the report's largest rate-bin σ times that excess. A session that settled lists none: its
@@ -215,29 +215,21 @@ class CalibrationSigma:
                      ) -> np.ndarray:
         """Which frames ``(N,)`` bool of one recording changed at a pace the session never
         held: more than one cell from every held one (:meth:`pace_distance`), or, given their
-        FPA temperatures ``fpa_c`` (°C ``(N,)``), held it still longer than the session did
-        (:meth:`still_excess`)."""
+        FPA temperatures ``fpa_c`` (°C ``(N,)``), held it still longer than the session's
+        plateaus did (:meth:`still_excess`)."""
         unseen = self.pace_distance(rate_c_per_min, time_s) > self._pace_cell
         if fpa_c is not None:
             unseen |= self._still(fpa_c, time_s)[1] > 1.0
         return unseen
 
-    def still_excess(self, fpa_c: Any, still_s: Any) -> np.ndarray:
-        """How many times longer each frame had held its FPA still than the session ever did
-        ``(N,)``: ``still_s`` (s; :func:`~thermocal.calibration.dataset.still_time` of its
-        recording) over the session's longest at its FPA temperature ``fpa_c`` (°C; the FPA bin
-        of the report's ``paces["still"]``, else the nearest bin it lists). Zeros where the
-        report lists no stillness (a session that settled, a method with memory, an older
-        report)."""
-        f = np.asarray(fpa_c, dtype=np.float64).reshape(-1)
-        s = np.broadcast_to(np.asarray(still_s, dtype=np.float64).reshape(-1), f.shape)
+    def still_excess(self, still_s: Any) -> np.ndarray:
+        """How many times longer each frame had held its FPA still than the session's plateaus
+        did ``(N,)``: ``still_s`` (s; :func:`~thermocal.calibration.dataset.still_time` of its
+        recording) over the report's ``paces["still"]["held_s"]``. Zeros where the report
+        lists no stillness (a session that settled, a method with memory, an older report)."""
+        s = np.asarray(still_s, dtype=np.float64).reshape(-1)
         still = (self.report.paces or {}).get("still")
-        if not still or f.size == 0:
-            return np.zeros(f.shape)
-        table = np.asarray(still["longest_s"], dtype=np.float64).reshape(-1, 2)
-        bins = np.floor(f / still["bin_c"])
-        nearest = np.abs(bins[:, None] - table[None, :, 0]).argmin(axis=1)
-        return s / np.maximum(table[nearest, 1], 1.0)
+        return s / still["held_s"] if still else np.zeros(s.shape)
 
     def _still(self, fpa_c: Any, time_s: Any, still_s: Any = None
                ) -> tuple[np.ndarray, np.ndarray]:
@@ -256,7 +248,7 @@ class CalibrationSigma:
                 return zeros, zeros
             still_s = still_time(f, t, band_c=still["band_c"], max_gap_s=PACE_LAG_S)
         held = np.broadcast_to(np.asarray(still_s, dtype=np.float64).reshape(-1), f.shape)
-        return held, self.still_excess(f, held)
+        return held, self.still_excess(held)
 
     def _worst_sigma(self) -> float:
         """The largest σ of the report's rate bins (or its overall σ), °C: the level of frames
@@ -265,10 +257,10 @@ class CalibrationSigma:
 
     def _still_reason(self, fpa: float, still: float, excess: float, count: str = "") -> str:
         """The stillness refusal's text for a frame at ``fpa`` °C held still ``still`` s, that
-        is ``excess`` times the session's longest."""
+        is ``excess`` times as long as the session's plateaus held it."""
         return (f"the camera held its FPA still ({count}{'first ' if count else ''}at "
-                f"{fpa:.1f} °C for {still / 60:.0f} min), {excess:.1f}× longer than its chamber "
-                f"session did there, whose plateaus ended before the camera settled: the "
+                f"{fpa:.1f} °C for {still / 60:.0f} min), {excess:.1f}× longer than the plateaus "
+                f"of its chamber session, which ended before the camera settled: the "
                 f"{self.report.method} calibration, with no memory of how the FPA changed, "
                 "cannot vouch for the state it settles into (record plateaus long enough for "
                 "its error to stop changing, or use lin-lag, which follows the settling)")
@@ -344,10 +336,10 @@ class CalibrationSigma:
         cell = self._pace_cell
         return np.where(distance > cell, self._worst_sigma() * distance / cell, 0.0)
 
-    def burst_pace_sigma(self, pace: Any, fpa_c: float | None = None) -> float:
-        """The σ level a burst at FPA temperature ``fpa_c`` (°C; None: not known) changing at
-        ``pace`` (an :class:`~thermocal.estimation.base.FpaPace`, or None) takes at a pace the
-        session never held (:meth:`_pace_sigma`) or held still longer than the session did
+    def burst_pace_sigma(self, pace: Any) -> float:
+        """The σ level a burst changing at ``pace`` (an
+        :class:`~thermocal.estimation.base.FpaPace`, or None) takes at a pace the session never
+        held (:meth:`_pace_sigma`) or held still longer than the session's plateaus did
         (:meth:`sigma`), °C; 0 at a held pace, or without the pace's history."""
         if pace is None:
             return 0.0
@@ -355,8 +347,8 @@ class CalibrationSigma:
         if pace.lagged_c_per_min is not None:
             level = float(self._pace_sigma(self._distance(
                 np.array([pace.rate_c_per_min]), np.array([pace.lagged_c_per_min])))[0])
-        if pace.still_s is not None and fpa_c is not None:
-            excess = float(self.still_excess([fpa_c], [pace.still_s])[0])
+        if pace.still_s is not None:
+            excess = float(self.still_excess([pace.still_s])[0])
             level = max(level, self._worst_sigma() * excess if excess > 1.0 else 0.0)
         return level
 
@@ -383,8 +375,8 @@ class CalibrationSigma:
         ``time_s``, s, one recording's: a memoryless method's paces the session never held,
         :meth:`unseen_paces`; or, given each frame's ``lagged_rate_c_per_min``, °C/min, taken
         from its recording, by its rate and lagged rate), their stillness (where the session's
-        plateaus ended before the camera settled: the FPA held still longer than the session
-        did there, :meth:`still_excess`, from ``time_s`` or each frame's ``still_s``, s), or
+        plateaus ended before the camera settled: the FPA held still longer than they held it,
+        :meth:`still_excess`, from ``time_s`` or each frame's ``still_s``, s), or
         their scene (its 1st–99th percentile beyond the blackbody's range); ``()`` inside."""
         reasons = []
         if rate_c_per_min is not None and self.report.paces and (

@@ -119,7 +119,7 @@ def estimate(
         How long the FPA had held still at the burst, s
         (:class:`~thermocal.estimation.base.FpaPace`, from the whole recording): such a
         calibration whose session had not settled refuses a camera held still longer than its
-        session did (unless ``force``: σ grown).
+        session's plateaus held it (unless ``force``: σ grown).
     bit_depth : int
         The counts' bit depth (14 for a Tau2 core; 16 for FLIR files): saturation is at
         ``2**bit_depth − 1``.

@@ -286,7 +286,7 @@ class SelfCalibration:
         model = self.sigma_model
         if model is not None and fpa_c is not None:
             return np.maximum(np.asarray(model.sigma(temperature_c, fpa_c), np.float32),
-                              np.float32(model.burst_pace_sigma(pace, fpa_c)))
+                              np.float32(model.burst_pace_sigma(pace)))
         return np.full(temperature_c.shape, FAMILY_LEVEL_SIGMA_C, np.float32)
 
     def unseen_sigma(self, temperature_c: np.ndarray, fpa_c: float | None) -> float:
