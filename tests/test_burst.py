@@ -158,9 +158,11 @@ def test_the_median_of_count_differences_is_numpys():
 
     rng = np.random.default_rng(0)
     for size in (1, 2, 7, 8, 1000, 1001):
-        for spread in (0, 3, 500, 16383):
+        for spread in (0, 3, 500, 16383, 65535, 2**24):
             d = rng.integers(0, spread + 1, size).astype(np.float32)
             assert _count_median(d) == float(np.median(d))
+    big = np.array([8388609.0, 8388610.0], np.float32)  # float32's inexact mean: np.median's
+    assert _count_median(big) == float(np.median(big))
 
 
 def test_bad_pixels_take_the_median_of_their_good_neighbours():
@@ -176,6 +178,7 @@ def test_bad_pixels_take_the_median_of_their_good_neighbours():
         temps = (rng.normal(30.0, 5.0, (3, 20, 24))).astype(np.float32)
         bad = rng.random((20, 24)) < (0.05, 0.3, 0.6)[trial % 3]
         bad[:4, :4] = True  # a corner with pixels no good neighbour touches
+        temps[trial % 3, 10, 10:13] = np.nan  # good neighbours that are NaN are left out
         want = temps.copy()
         # the border's neighbours: its edge pixels again (nine values, as in the frame)
         padded = np.pad(temps, ((0, 0), (1, 1), (1, 1)), mode="edge")
@@ -184,9 +187,20 @@ def test_bad_pixels_take_the_median_of_their_good_neighbours():
             for r, c in zip(*np.nonzero(bad), strict=True):
                 block = padded[k, r:r + 3, c:c + 3]
                 good = block[~padded_bad[r:r + 3, c:c + 3]]
+                good = good[~np.isnan(good)]
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore", RuntimeWarning)
                     want[k, r, c] = (np.median(good) if good.size
                                      else np.median(temps[k][~bad]))
+        got = fill_bad_pixels(temps.copy(), bad)
+        for k in range(3):  # where a frame's own median is NaN too, NaN it is
+            assert np.array_equal(got[k], want[k], equal_nan=True)
+        temps[np.isnan(temps)] = 30.0
+        want = temps.copy()
+        for k in range(3):
+            for r, c in zip(*np.nonzero(bad), strict=True):
+                block = np.pad(temps, ((0, 0), (1, 1), (1, 1)), mode="edge")[k, r:r + 3, c:c + 3]
+                good = block[~np.pad(bad, 1, mode="edge")[r:r + 3, c:c + 3]]
+                want[k, r, c] = np.median(good) if good.size else np.median(temps[k][~bad])
         got = fill_bad_pixels(temps, bad)
         assert got is temps and np.array_equal(got, want)

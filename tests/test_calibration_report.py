@@ -400,7 +400,7 @@ def test_plateaus_that_end_before_the_camera_settles_are_warned_of(family, warne
     assert ("still" in report.paces) is warned
     if warned:
         assert "record plateaus long enough" in said[0] and "lin-lag" in said[0]
-        assert "such frames are refused" in said[0]
+        assert "are refused; --force gives them with σ grown" in said[0]
         still = report.paces["still"]
         assert still["band_c"] == 0.15 and still["plateaus"] >= 4
         assert 120.0 < still["held_s"] < 1200.0  # within a plateau's 20 minutes
@@ -441,3 +441,31 @@ def test_plateaus_are_found_in_a_logged_ambient_with_its_noise():
         assert t[end[-1]] < stop and t[end[0]] >= t[end[-1]] - SETTLE_WINDOW_S
     assert plateau_ends(prepare_chamber(replace(session, ambient_c=None)),
                         np.ones(t.size, bool)) == []
+
+
+def test_stillness_of_plateaus_that_never_held_the_fpa_still_is_nothing():
+    """An FPA that never stays within the band from one frame to the next (2 °C/min through
+    the ambient's plateaus): no frame is ever still, so there is no held time to judge by (and
+    none of 0 s, which no calibration file could hold); no plateaus, none; an FPA given as one
+    value (not measured), none."""
+    from dataclasses import replace
+
+    from thermocal.calibration.dataset import prepare_chamber
+    from thermocal.calibration.report import plateau_ends, stillness_of
+
+    t = np.arange(0.0, 1800.0, 10.0)
+    steps = np.where(t < 900, 10.0, 20.0)
+    session = ChamberSession(np.full((t.size, 4, 4), 8000, np.uint16),
+                             blackbody_c=np.full(t.size, 30.0), fpa_c=t / 30.0 - 20.0,
+                             time_s=t, ambient_c=steps)
+    data = prepare_chamber(session)
+    ends = plateau_ends(data, np.ones(t.size, bool))
+    assert len(ends) == 2 and stillness_of(data, ends) == {} and stillness_of(data, []) == {}
+    flicker = 0.01 * (np.arange(t.size) % 2)  # a quantised sensor's last digit
+    quiet = prepare_chamber(replace(session, fpa_c=steps + 5.0 + flicker))
+    still = stillness_of(quiet, ends)
+    # each plateau still for its 15 minutes but the half minute its smoothing shares with
+    # the step
+    assert still["plateaus"] == 2 and still["held_s"] == pytest.approx(860.0)
+    assert stillness_of(prepare_chamber(replace(session, fpa_c=np.full(t.size, 20.0))),
+                        ends) == {}

@@ -111,6 +111,9 @@ def test_sparse_start_up_bins_are_pooled_with_the_bins_after_them():
     assert CalibrationSigma(_report(by_time=plain)).start_sigma([30.0])[0] == 0.0
     (few,) = _binned(errors[:5], since[:5], TIME_EDGES, "time_s", min_frames=MIN_BIN_FRAMES)
     assert few["time_s"] == [0.0, None] and few["frames"] == 5
+    # pooled, no gap: frames only after the first minute still cover it
+    late = _binned(errors[1:], since[1:], TIME_EDGES, "time_s", min_frames=MIN_BIN_FRAMES)
+    assert late[0]["time_s"][0] == 0.0 and sum(b["frames"] for b in late) == 36
 
 
 def test_report_survives_json_with_its_rate_bins():
@@ -260,33 +263,42 @@ def test_still_time_is_the_run_behind_each_frame_within_its_band():
 
 
 def test_a_camera_held_still_longer_than_an_unsettled_session_is_outside():
-    """Held at 27 °C for 20 minutes: inside for the 10 minutes the session's plateaus held,
-    then outside, named with the remedy, σ grown with the excess; a report that lists no
-    stillness (a session that settled) judges none."""
+    """Held at 27 °C for 20 minutes (a quantised sensor flickering by 0.01 °C): inside for the
+    10 minutes the session's plateaus held, then outside, named with the remedy, σ grown with
+    the excess; an FPA given as one value (not measured) is not judged, nor is anything by a
+    report that lists no stillness (a session that settled)."""
     from thermocal.estimation.base import FpaPace
 
     model = _stilled()
     t = np.arange(0.0, 1200.0, 10.0)
     rate, temps = np.zeros(t.size), np.full((t.size, 1, 1), 25.0)
-    unseen = model.unseen_paces(rate, t, fpa_c=np.full(t.size, 27.0))
+    fpa = 27.0 + 0.01 * (np.arange(t.size) % 2)
+    unseen = model.unseen_paces(rate, t, fpa_c=fpa)
     assert not unseen[t <= 600.0].any() and unseen[t > 600.0].all()
     assert not model.unseen_paces(rate, t).any()  # without the FPA: its pace only
     creeping = 27.0 + t / 600.0  # 0.1 °C/min: never 0.15 °C still for 10 minutes
     assert not model.unseen_paces(np.full(t.size, 0.1), t, fpa_c=creeping).any()
-    (why,) = model.outside(temps, np.full(t.size, 27.0), rate_c_per_min=rate, time_s=t)
-    assert "held its FPA still (59 of 120 frames; first at 27.0 °C for 10 min)" in why
-    assert "longer than the plateaus of its chamber session" in why
+    (why,) = model.outside(temps, fpa, rate_c_per_min=rate, time_s=t)
+    assert "held its FPA still (59 of 120 frames; first at 27.0 °C for 10.2 min)" in why
+    assert "1.02× longer than the plateaus of its chamber session" in why
     assert "record plateaus long enough" in why and "lin-lag" in why
-    sigma = model.sigma(temps, np.full(t.size, 27.0), rate_c_per_min=rate,
-                        time_since_start_s=t)[:, 0, 0]
+    sigma = model.sigma(temps, fpa, rate_c_per_min=rate, time_since_start_s=t)[:, 0, 0]
     worst = G * 0.6
     assert sigma[-1] == pytest.approx(worst * 1190.0 / 600.0, rel=1e-3)
     assert sigma[0] == pytest.approx(sigma[t <= 600.0][-1]) and sigma[0] < worst
+    # one value for the whole recording (--fpa-c), per frame or once: not measured, not judged
+    for given in (np.full(t.size, 27.0), 27.0):
+        assert model.outside(temps, given, rate_c_per_min=rate, time_s=t) == ()
+        assert not model.unseen_paces(rate, t, fpa_c=given).any()
+        assert model.sigma(temps, given, rate_c_per_min=rate,
+                           time_since_start_s=t)[-1, 0, 0] == pytest.approx(sigma[0])
     settled = _paced()
-    assert settled.outside(temps, np.full(t.size, 27.0), rate_c_per_min=rate, time_s=t) == ()
-    # a burst: its stillness from its recording (FpaPace.still_s)
+    assert settled.outside(temps, fpa, rate_c_per_min=rate, time_s=t) == ()
+    # a burst: its stillness from its recording (FpaPace.still_s), with or without its FPA
     one = model.outside_burst(np.full((3, 1, 1), 25.0), 27.0, FpaPace(0.0, 0.0, 900.0))
-    assert len(one) == 1 and "for 15 min), 1.5× longer" in one[0]
+    assert len(one) == 1 and "at 27.0 °C for 15.0 min), 1.50× longer" in one[0]
+    (bare,) = model.outside_burst(np.full((3, 1, 1), 25.0), None, FpaPace(0.0, 0.0, 900.0))
+    assert "(for 15.0 min), 1.50× longer" in bare
     assert model.outside_burst(np.full((3, 1, 1), 25.0), 27.0, FpaPace(0.0, 0.0, 500.0)) == ()
     assert model.burst_pace_sigma(FpaPace(0.0, 0.0, 900.0)) == pytest.approx(worst * 1.5)
     assert model.burst_pace_sigma(FpaPace(0.0, 0.0, 500.0)) == 0.0
@@ -439,13 +451,17 @@ def test_the_pipeline_judges_a_bursts_stillness_from_its_recording(fitted):
     estimator.sigma_model = CalibrationSigma(replace(report, paces=report.paces | {
         "still": still}))
     args = {"fpa_c": burst.fpa_c, "fpa_rate_c_per_min": 0.0, "fpa_lagged_rate_c_per_min": 0.0}
-    with pytest.raises(OutsideDomainError, match="held its FPA still .* 3.0× longer"):
+    with pytest.raises(OutsideDomainError, match="held its FPA still .* 3.00× longer"):
         estimate(burst.frames, estimator, fpa_still_s=1800.0, **args)
     forced = estimate(burst.frames, estimator, fpa_still_s=1800.0, force=True, **args)
     held = estimate(burst.frames, estimator, fpa_still_s=300.0, **args)
     assert held.outside == () and len(forced.outside) == 1
     assert np.median(forced.sigma_c) > 2.0 * np.median(held.sigma_c)
     np.testing.assert_array_equal(forced.temperature_c, held.temperature_c)
+    # without its rate a burst has no pace: its stillness is neither refused nor in σ
+    bare = estimate(burst.frames, estimator, fpa_c=burst.fpa_c, fpa_still_s=1800.0)
+    plain = estimate(burst.frames, estimator, fpa_c=burst.fpa_c)
+    assert bare.outside == () and np.array_equal(bare.sigma_c, plain.sigma_c)
 
 
 def test_a_flight_lags_the_rate_by_its_calibrations_own_pace_lag(fitted):
@@ -473,7 +489,7 @@ def test_a_flight_lags_the_rate_by_its_calibrations_own_pace_lag(fitted):
     np.testing.assert_array_equal(history["fpa_lagged_rate_c_per_min"],
                                   lagged_rate(series["fpa_rate_c_per_min"], t, 60.0))
     still = history["fpa_still_s"]
-    assert still[30] == 300.0 and still[-1] == 10.0  # rising 0.083 °C a frame
+    assert still[30] == 300.0 and still[-10] == 10.0  # rising 0.083 °C a frame
     none = {"fpa_lagged_rate_c_per_min": None, "fpa_still_s": None}
     from types import SimpleNamespace
 

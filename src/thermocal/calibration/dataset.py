@@ -138,6 +138,8 @@ def still_time(fpa_c: Any, time_s: Any, *, band_c: float, max_gap_s: float) -> n
     t = np.asarray(time_s, dtype=np.float64)
     if f.shape != t.shape or f.ndim != 1:
         raise InvalidInputError(f"fpa_c {f.shape} and time_s {t.shape} must be equal (M,)")
+    if np.any(np.diff(t) < 0):
+        raise InvalidInputError("time_s must not decrease from frame to frame")
     n = f.size
     if n == 0:
         return np.zeros(0)
@@ -272,6 +274,29 @@ class ChamberData:
 #: Window of the local line that gives a chamber session's FPA rate, s (a quantised, noisy
 #: sensor makes raw differences noisy).
 RATE_SMOOTH_S = 60.0
+
+
+def recording_still_time(fpa_c: Any, time_s: Any, *, band_c: float, max_gap_s: float
+                         ) -> np.ndarray | None:
+    """How long a recording's FPA had held within ``band_c`` (°C) of its present temperature at
+    each frame, s ``(M,)``: :func:`still_time` of the FPA averaged over the frames within
+    ``± RATE_SMOOTH_S / 2`` (as its rate is smoothed: one excursion of a quantised, noisy sensor
+    would end a stretch, so that the figure would depend on the frame rate), a gap longer than
+    ``max_gap_s`` (s) between frames ending a stretch. None without FPA temperatures and frame
+    times that increase, or for a constant FPA series: one value given for the whole recording
+    (``--fpa-c``), not measured, says nothing of how still the FPA was."""
+    if fpa_c is None or time_s is None or len(fpa_c) < 2:
+        return None
+    f = np.asarray(fpa_c, dtype=np.float64)
+    t = np.asarray(time_s, dtype=np.float64)
+    if f.shape != t.shape or f.ndim != 1 or np.any(np.diff(t) <= 0) or np.ptp(f) == 0:
+        return None
+    # the mean over each frame's window, from cumulative sums (as fpa_rate_c_per_min's slope)
+    lo = np.searchsorted(t, t - RATE_SMOOTH_S / 2, side="left")
+    hi = np.searchsorted(t, t + RATE_SMOOTH_S / 2, side="right")
+    sums = np.concatenate([[0.0], np.cumsum(f - f[0])])
+    mean = f[0] + (sums[hi] - sums[lo]) / (hi - lo)
+    return still_time(mean, t, band_c=band_c, max_gap_s=max_gap_s)
 
 
 def recording_fpa_rates(fpa_c: Any, time_s: Any) -> np.ndarray | None:

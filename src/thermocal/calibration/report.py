@@ -58,7 +58,7 @@ from thermocal.calibration.dataset import (
     iter_frames,
     lagged_rate,
     prepare_chamber,
-    still_time,
+    recording_still_time,
 )
 from thermocal.errors import InvalidInputError, ThermocalError
 from thermocal.io.chamber import ChamberSession
@@ -462,9 +462,8 @@ def settling_warning(calibration: Calibration, data: ChamberData, ends: list[np.
             f"still changing by {slope:+.2f} °C/min over their last {SETTLE_WINDOW_S / 60:.0f} "
             f"min (median of {len(slopes)} plateaus); with no memory of how the FPA changed, it "
             "may be off by more than its σ once a camera has held still longer than they "
-            "lasted (such frames are refused; --force gives them with σ grown): record plateaus "
-            "long enough for this error to stop changing, or use lin-lag, which follows the "
-            "settling")
+            "lasted: record plateaus long enough for this error to stop changing, or use "
+            "lin-lag, which follows the settling")
 
 
 def _signed_errors(calibration: Calibration, data: ChamberData, idx: np.ndarray) -> np.ndarray:
@@ -623,8 +622,14 @@ def cross_validate(
             settling = settling_warning(_fit(small, method, refit_options), small, ends, method)
         except ThermocalError:
             settling = None  # no fit on the sample: the folds' notes say why
+        # how long the plateaus held the FPA still, from the whole session's FPA series (the
+        # sample keeps every k-th frame: a stillness at another frame rate than a recording's)
+        still = stillness_of(data, [index[end] for end in ends]) if settling else {}
+        if still:
+            settling += (f" (frames held still longer than {still['held_s'] / 60:.1f} min, the "
+                         "median of the plateaus, are refused; --force gives them with σ grown)")
+            paces = paces | {"still": still}
         found += [settling] if settling else []
-        paces = paces | ({"still": stillness_of(small, ends)} if settling else {})
     usable = data.usable
     scene = data.scene_c[usable]
     rate = data.fpa_rate_c_per_min[usable]
@@ -680,15 +685,20 @@ def stillness_of(data: ChamberData, ends: list[np.ndarray]) -> dict[str, Any]:
     """How long a session's plateaus held the FPA still (:attr:`CalibrationReport.paces`'
     ``still``): ``band_c`` (:data:`STILL_BAND_C`); ``held_s``, over the plateaus whose ends are
     ``ends`` (:func:`plateau_ends` of ``data``), the median of how long each had held the FPA
-    within the band by its end (:func:`~thermocal.calibration.dataset.still_time`, a gap of
-    :data:`PACE_LAG_S` between frames ending a stretch), s; ``plateaus``: how many.
+    within the band by its end (:func:`~thermocal.calibration.dataset.recording_still_time`, a
+    gap of :data:`PACE_LAG_S` between frames ending a stretch), s; ``plateaus``: how many. ``{}``
+    without plateaus, without a measured FPA series, or when the plateaus never held the FPA
+    within the band (nothing to judge by).
 
     The median: a session's first hold (before its first step) is often much longer than the
     plateaus between its steps, which are what a camera held still is judged against, whatever
     its FPA temperature (a session need not hold a plateau at every temperature it spans)."""
-    still = still_time(data.fpa_c, data.time_s, band_c=STILL_BAND_C, max_gap_s=PACE_LAG_S)
-    held = [float(still[end].max()) for end in ends]
-    return {"band_c": STILL_BAND_C, "held_s": float(np.median(held)), "plateaus": len(held)}
+    still = recording_still_time(data.fpa_c, data.time_s, band_c=STILL_BAND_C,
+                                 max_gap_s=PACE_LAG_S)
+    held = (float(np.median([still[end].max() for end in ends]))
+            if ends and still is not None else 0.0)
+    return ({"band_c": STILL_BAND_C, "held_s": held, "plateaus": len(ends)} if held > 0
+            else {})
 
 
 def _steady_paces(paces: dict[str, Any]) -> str:
@@ -749,15 +759,17 @@ MIN_BIN_FRAMES = 10
 def _binned(errors: np.ndarray, values: np.ndarray, edges: tuple[float, ...], key: str, *,
             min_frames: int = 1) -> list[dict[str, Any]]:
     """MAE and :func:`coverage_sigma` of ``errors`` ``(M, P)`` by bin of ``values`` ``(M,)``
-    (``edges``), bins with frames only, a bin of fewer than ``min_frames`` pooled with the bins
-    after it (the last with the one before): ``key`` (``[low, high]``, high None for the
-    last), ``frames``, ``mae_c``, ``sigma_c``."""
+    (``edges``), bins with frames only; with ``min_frames`` > 1, a bin of fewer frames pooled
+    with the bins after it (the last with the one before), the spans covering the edges
+    without a gap: ``key`` (``[low, high]``, high None for the last), ``frames``, ``mae_c``,
+    ``sigma_c``."""
     spans: list[tuple[float, float, np.ndarray]] = []  # (low, high, frames)
     low, pooled = edges[0], np.zeros(values.shape, dtype=bool)
     for lo, hi in zip(edges[:-1], edges[1:], strict=True):
         pooled = pooled | ((values >= lo) & (values < hi))
-        if not pooled.any():
-            low = hi  # an empty bin: the next starts at its own edge
+        if not pooled.any() and min_frames <= 1:
+            low = hi  # an empty bin left out: the next starts at its own edge (pooled, the
+            # spans cover the edges without a gap: the start-up bins are where σ matters)
         elif pooled.sum() >= min_frames:
             spans.append((low, hi, pooled))
             low, pooled = hi, np.zeros(values.shape, dtype=bool)

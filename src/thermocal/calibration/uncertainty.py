@@ -61,7 +61,7 @@ from typing import Any
 import numpy as np
 
 from thermocal.calibration.base import Calibration
-from thermocal.calibration.dataset import lagged_rate, still_time
+from thermocal.calibration.dataset import lagged_rate, recording_still_time
 from thermocal.calibration.report import (
     MIN_BIN_FRAMES,
     PACE_LAG_S,
@@ -224,8 +224,8 @@ class CalibrationSigma:
 
     def still_excess(self, still_s: Any) -> np.ndarray:
         """How many times longer each frame had held its FPA still than the session's plateaus
-        did ``(N,)``: ``still_s`` (s; :func:`~thermocal.calibration.dataset.still_time` of its
-        recording) over the report's ``paces["still"]["held_s"]``. Zeros where the report
+        did ``(N,)``: ``still_s`` (s; :func:`~thermocal.calibration.dataset.recording_still_time`
+        of its recording) over the report's ``paces["still"]["held_s"]``. Zeros where the report
         lists no stillness (a session that settled, a method with memory, an older report)."""
         s = np.asarray(still_s, dtype=np.float64).reshape(-1)
         still = (self.report.paces or {}).get("still")
@@ -235,19 +235,21 @@ class CalibrationSigma:
                ) -> tuple[np.ndarray, np.ndarray]:
         """How long frames had held their FPA still, s, and its :meth:`still_excess` (both
         ``(N,)``): the stillness given (``still_s``, one or one per frame, taken from their
-        recording), or that of the frames of one recording at ``time_s`` (s, in time order);
-        zeros where neither is known or the report lists no stillness."""
-        f = np.asarray(fpa_c, dtype=np.float64).reshape(-1)
+        recording; NaN: not known), or that of the frames of one recording at FPA temperatures
+        ``fpa_c`` (°C, one per frame) and times ``time_s`` (s, in time order;
+        :func:`~thermocal.calibration.dataset.recording_still_time`: none for an FPA given as
+        one value); zeros where neither is known or the report lists no stillness."""
         still = (self.report.paces or {}).get("still")
-        zeros = np.zeros(f.shape)
-        if not still:
-            return zeros, zeros
-        if still_s is None:
+        if still_s is not None:
+            held = np.nan_to_num(np.asarray(still_s, dtype=np.float64).reshape(-1), nan=0.0)
+        else:
+            f = np.asarray(fpa_c, dtype=np.float64).reshape(-1)
             t = None if time_s is None else np.asarray(time_s, dtype=np.float64).reshape(-1)
-            if t is None or t.shape != f.shape or f.size < 2 or np.any(np.diff(t) <= 0):
-                return zeros, zeros
-            still_s = still_time(f, t, band_c=still["band_c"], max_gap_s=PACE_LAG_S)
-        held = np.broadcast_to(np.asarray(still_s, dtype=np.float64).reshape(-1), f.shape)
+            if t is not None and f.size == 1:
+                f = np.broadcast_to(f, t.shape)  # one value for all: not measured, not judged
+            found = (recording_still_time(f, t, band_c=still["band_c"], max_gap_s=PACE_LAG_S)
+                     if still and t is not None and f.shape == t.shape else None)
+            held = np.zeros(f.shape) if found is None else found
         return held, self.still_excess(held)
 
     def _worst_sigma(self) -> float:
@@ -255,11 +257,13 @@ class CalibrationSigma:
         in a state no session measured, per unit of how far beyond it they lie."""
         return max([self._overall_sigma()] + [self._bin_sigma(b) for b in self.report.by_rate])
 
-    def _still_reason(self, fpa: float, still: float, excess: float, count: str = "") -> str:
-        """The stillness refusal's text for a frame at ``fpa`` °C held still ``still`` s, that
-        is ``excess`` times as long as the session's plateaus held it."""
-        return (f"the camera held its FPA still ({count}{'first ' if count else ''}at "
-                f"{fpa:.1f} °C for {still / 60:.0f} min), {excess:.1f}× longer than the plateaus "
+    def _still_reason(self, fpa: float | None, still: float, excess: float, count: str = ""
+                      ) -> str:
+        """The stillness refusal's text for a frame at ``fpa`` °C (None: not known) held still
+        ``still`` s, that is ``excess`` times as long as the session's plateaus held it."""
+        where = "" if fpa is None else f"at {fpa:.1f} °C "
+        return (f"the camera held its FPA still ({count}{'first ' if count else ''}{where}"
+                f"for {still / 60:.1f} min), {excess:.2f}× longer than the plateaus "
                 f"of its chamber session, which ended before the camera settled: the "
                 f"{self.report.method} calibration, with no memory of how the FPA changed, "
                 "cannot vouch for the state it settles into (record plateaus long enough for "
@@ -396,13 +400,14 @@ class CalibrationSigma:
                                f"{self.max_rate_c_per_min:.2f} °C/min of the "
                                f"{self.report.method} calibration's chamber session")
         fpa = np.asarray(fpa_c, dtype=np.float64).reshape(-1)
-        if fpa.size and (still_s is not None or time_s is not None):
+        if still_s is not None or (time_s is not None and fpa.size):
             held, excess = self._still(fpa, time_s, still_s)
             if np.any(excess > 1.0):
                 k = int(np.argmax(excess > 1.0))
                 count = (f"{int(np.sum(excess > 1.0))} of {excess.size} frames; "
                          if excess.size > 1 else "")
-                reasons.append(self._still_reason(fpa[k], held[k], excess[k], count=count))
+                at = float(fpa[min(k, fpa.size - 1)]) if fpa.size else None
+                reasons.append(self._still_reason(at, held[k], excess[k], count=count))
         flo, fhi = self.report.fpa_range_c
         if fpa.size and (fpa.min() < flo - FPA_MARGIN_C or fpa.max() > fhi + FPA_MARGIN_C):
             reasons.append(f"the FPA temperature {fpa.min():.1f}…{fpa.max():.1f} °C is outside "

@@ -56,7 +56,8 @@ class _ThroughCalibration:
         since = None if burst.time_since_start_s is None else [burst.time_since_start_s]
         lagged = (None if rate is None or burst.fpa_lagged_rate_c_per_min is None
                   else [burst.fpa_lagged_rate_c_per_min])
-        still = None if burst.fpa_still_s is None else [burst.fpa_still_s]
+        still = (None if rate is None or burst.fpa_still_s is None
+                 else [burst.fpa_still_s])  # judged with its pace, as the domain check does
         return self.sigma_model.sigma(temperature_c, burst.fpa_c, rate_c_per_min=rate,
                                       time_since_start_s=since, lagged_rate_c_per_min=lagged,
                                       still_s=still)

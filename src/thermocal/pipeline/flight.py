@@ -77,7 +77,11 @@ import numpy as np
 
 from thermocal._validate import check_output_dir
 from thermocal.burst import check_burst, fpa_value
-from thermocal.calibration.dataset import lagged_rate, recording_fpa_rates, still_time
+from thermocal.calibration.dataset import (
+    lagged_rate,
+    recording_fpa_rates,
+    recording_still_time,
+)
 from thermocal.calibration.report import PACE_LAG_S
 from thermocal.errors import InvalidInputError, OutputError, RegistrationError
 from thermocal.estimation.base import Estimator
@@ -207,9 +211,10 @@ def _pace_history(series: dict[str, Any], estimator: Estimator
     (:class:`~thermocal.estimation.base.FpaPace`), group by group: ``fpa_lagged_rate_c_per_min``,
     the FPA rate through the lag of the paces its report holds (``lag_s``), °C/min ``(M,)``,
     and ``fpa_still_s``, how long the FPA had held still in the band of the report's ``still``
-    (:func:`~thermocal.calibration.dataset.still_time`), s ``(M,)``; each None without such a
-    calibration (one with no memory of the FPA's pace; a session that had not settled),
-    without rates or without increasing frame times."""
+    (:func:`~thermocal.calibration.dataset.recording_still_time`), s ``(M,)``; each None
+    without such a calibration (one with no memory of the FPA's pace; a session that had not
+    settled), without rates or without increasing frame times; the stillness None too for an
+    FPA given as one value (``--fpa-c``: not measured)."""
     paces = estimator.fpa_paces
     rates, times = series["fpa_rate_c_per_min"], series["time_s"]
     if (not paces or rates is None or times is None
@@ -217,7 +222,7 @@ def _pace_history(series: dict[str, Any], estimator: Estimator
         return {"fpa_lagged_rate_c_per_min": None, "fpa_still_s": None}
     still = paces.get("still")
     return {"fpa_lagged_rate_c_per_min": lagged_rate(rates, times, float(paces["lag_s"])),
-            "fpa_still_s": None if not still else still_time(
+            "fpa_still_s": None if not still else recording_still_time(
                 series["fpa_c"], times, band_c=still["band_c"], max_gap_s=PACE_LAG_S)}
 
 
