@@ -469,3 +469,29 @@ def test_stillness_of_plateaus_that_never_held_the_fpa_still_is_nothing():
     assert still["plateaus"] == 2 and still["held_s"] == pytest.approx(860.0)
     assert stillness_of(prepare_chamber(replace(session, fpa_c=np.full(t.size, 20.0))),
                         ends) == {}
+
+
+def test_end_folds_that_leave_a_reference_fit_unchanged_measure_its_own_error():
+    """A two-point fit uses the reference FPA's frames alone: leaving an end FPA segment out
+    refits the same calibration, so that fold measured the fit's own error there (largest far
+    from the reference), and σ's FPA curve takes it; a polynomial's end folds extrapolate."""
+    from thermocal.calibration.report import fit_with_report
+    from thermocal.calibration.uncertainty import CalibrationSigma
+    from thermocal.evaluation.suites.physics import (
+        SESSION_SEED,
+        calibration_session,
+        plateau_fpa_c,
+    )
+
+    run = calibration_session(make_camera("tau2", unit=101, size=(32, 24)), SESSION_SEED, False)
+    ref = plateau_fpa_c(run.session)
+    _, two = fit_with_report(run.session, "two-point", fpa_ref_c=ref)
+    ends = [f for f in two.by_fpa() if f["extrapolation"]]
+    assert len(ends) == 2 and all(f.get("fit_unchanged") for f in ends)
+    assert not any(f.get("fit_unchanged") for f in two.folds if not f["extrapolation"])
+    again = CalibrationReport.from_dict(json.loads(json.dumps(two.to_dict())))
+    (fx, fm) = CalibrationSigma(again)._curves[1]
+    inner = [f["mae_c"] for f in two.by_fpa() if not f["extrapolation"] and f.get("mae_c")]
+    assert fx.size == len(inner) + 2 and fm[0] > 2.0 * min(inner)  # the far end errs most
+    _, poly = fit_with_report(run.session, "polynomial")
+    assert not any(f.get("fit_unchanged") for f in poly.folds)

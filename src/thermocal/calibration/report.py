@@ -100,7 +100,10 @@ class CalibrationReport:
     folds : list of dict
         One per fold: ``kind`` (``"setpoint"`` or ``"fpa"``), ``held_out`` (the set point, °C,
         or the FPA segment ``[low, high]``, °C), ``extrapolation`` (an end fold), ``frames``
-        (frames scored) and ``mae_c``, or ``error`` (why it could not be refitted).
+        (frames scored) and ``mae_c``, or ``error`` (why it could not be refitted); an end fold
+        of a method fitted on the reference FPA's frames alone whose refit is the fit itself on
+        its frames (within 1e-4 °C: the left-out frames were not the fit's) has
+        ``fit_unchanged``: it measured the fit's own error at that end, not an extrapolation's.
     fpa_range_c, scene_range_c : (float, float)
         FPA temperatures and scene (radiance-equivalent) temperatures the session covers, °C.
     fpa_rate_c_per_min : (float, float)
@@ -580,7 +583,13 @@ def cross_validate(
     errors: list[np.ndarray] = []  # per-frame errors of the interior folds
     rates: list[np.ndarray] = []  # and their frames' FPA rates, °C/min
     since: list[np.ndarray] = []  # and their time since the session began, s
+    from thermocal.calibration.registry import CALIBRATION_METHODS
+
     folds = []
+    # a method fitted on the reference FPA's frames alone keeps its fit when an end FPA segment
+    # without them is left out: that fold then measures the fit's own error there (see below)
+    at_reference = CALIBRATION_METHODS[method].needs.frames == "reference"
+    own: list[np.ndarray] = []  # the sample fit's pixel errors, made once when first needed
     for desc, held in setpoint_folds(small) + fpa_folds(small, fpa_segments):
         held = held & scorable
         if not held.any():
@@ -595,6 +604,11 @@ def cross_validate(
             folds.append(desc | {"frames": int(held.sum()), "mae_c": None,
                                  "error": " ".join(str(exc).split())[:200]})
             continue
+        if desc["extrapolation"] and at_reference:
+            if not own:
+                own.append(frame_errors(_fit(small, method, refit_options), small, scorable)[0])
+            if np.allclose(pix, own[0][held], rtol=0.0, atol=1e-4, equal_nan=True):
+                desc = desc | {"fit_unchanged": True}
         folds.append(desc | {"frames": int(held.sum()), "mae_c": float(np.mean(err))})
         if not desc["extrapolation"]:
             errors.append(pix)
@@ -607,8 +621,6 @@ def cross_validate(
     expected = float(np.mean(np.concatenate(errors))) if errors else None
     sigma = coverage_sigma(np.concatenate(errors)) if errors else None
     by_rate = (_by_rate(np.concatenate(errors), np.concatenate(rates)) if errors else [])
-    from thermocal.calibration.registry import CALIBRATION_METHODS
-
     by_time = (_binned(np.concatenate(errors), np.concatenate(since), TIME_EDGES, "time_s",
                        min_frames=MIN_BIN_FRAMES)
                if errors and CALIBRATION_METHODS[method].learns_online else [])

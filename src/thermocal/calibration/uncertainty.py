@@ -6,7 +6,9 @@ For a temperature ``T`` (°C) measured at FPA temperature ``t`` (°C)::
                                                                 + k_fpa · d_fpa(t)]
 
 - ``m_scene``, ``m_fpa``: the cross-validated MAE of the report's interior folds (set points left
-  out; FPA segments left out), interpolated at ``T`` and ``t`` (:class:`CalibrationReport`). The
+  out; FPA segments left out), interpolated at ``T`` and ``t`` (:class:`CalibrationReport`), and
+  of its end folds whose refit was the fit itself (a two-point's FPA ends: fitted on the
+  reference FPA's frames alone, it errs most far from them, which those folds measured). The
   folds score single frames, so the noise (NETD) and the unmodelled drift are in them;
 - ``m``: the report's expected MAE (all interior folds); ``s(r)``: the σ that covers the interior
   folds' pixel errors at the FPA rate ``r`` (°C/min; its bin of ``mae_by_fpa_rate_c``) as a
@@ -85,9 +87,12 @@ _GAUSS = math.sqrt(math.pi / 2)
 
 
 def _interior_curve(folds: list[dict[str, Any]], where: Any) -> tuple[np.ndarray, np.ndarray]:
-    """``(x, mae)`` of the interior folds that were refitted, sorted by ``x = where(fold)``."""
+    """``(x, mae)`` of the interior folds that were refitted, and of the end folds whose
+    refit was the fit itself (``fit_unchanged``: the fit's own error at that end), sorted by
+    ``x = where(fold)``."""
     pts = sorted((where(f), f["mae_c"]) for f in folds
-                 if not f["extrapolation"] and f.get("mae_c") is not None)
+                 if (not f["extrapolation"] or f.get("fit_unchanged"))
+                 and f.get("mae_c") is not None)
     return np.array([p[0] for p in pts]), np.array([p[1] for p in pts])
 
 
