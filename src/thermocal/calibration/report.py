@@ -47,6 +47,7 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field, replace
+from functools import cache
 from typing import Any
 
 import numpy as np
@@ -589,7 +590,10 @@ def cross_validate(
     # a method fitted on the reference FPA's frames alone keeps its fit when an end FPA segment
     # without them is left out: that fold then measures the fit's own error there (see below)
     at_reference = CALIBRATION_METHODS[method].needs.frames == "reference"
-    own: list[np.ndarray] = []  # the sample fit's pixel errors, made once when first needed
+    # the fit on the sample, all its frames, and its pixel errors: made once, when first needed
+    # (by the end folds' check and the settling check)
+    sample_fit = cache(lambda: _fit(small, method, refit_options))
+    own_errors = cache(lambda: frame_errors(sample_fit(), small, scorable)[0])
     for desc, held in setpoint_folds(small) + fpa_folds(small, fpa_segments):
         held = held & scorable
         if not held.any():
@@ -605,9 +609,7 @@ def cross_validate(
                                  "error": " ".join(str(exc).split())[:200]})
             continue
         if desc["extrapolation"] and at_reference:
-            if not own:
-                own.append(frame_errors(_fit(small, method, refit_options), small, scorable)[0])
-            if np.allclose(pix, own[0][held], rtol=0.0, atol=1e-4, equal_nan=True):
+            if np.allclose(pix, own_errors()[held], rtol=0.0, atol=1e-4, equal_nan=True):
                 desc = desc | {"fit_unchanged": True}
         folds.append(desc | {"frames": int(held.sum()), "mae_c": float(np.mean(err))})
         if not desc["extrapolation"]:
@@ -630,8 +632,8 @@ def cross_validate(
     found = list(protocol_warnings or [])
     ends = plateau_ends(small, scorable) if CALIBRATION_METHODS[method].memoryless else []
     if ends:
-        try:  # the fit on the sample, all its frames
-            settling = settling_warning(_fit(small, method, refit_options), small, ends, method)
+        try:
+            settling = settling_warning(sample_fit(), small, ends, method)
         except ThermocalError:
             settling = None  # no fit on the sample: the folds' notes say why
         # how long the plateaus held the FPA still, from the whole session's FPA series (the

@@ -308,7 +308,7 @@ class CalibrationSigma:
                 None if recording else lagged_rate_c_per_min)[2]
             level = np.maximum(level, self._pace_sigma(d))
         excess = self._still(fpa, time_since_start_s if recording else None, still_s)[1]
-        level = np.maximum(level, np.where(excess > 1.0, self._worst_sigma() * excess, 0.0))
+        level = np.maximum(level, self._still_sigma(excess))
         if time_since_start_s is not None:
             level = np.maximum(level, np.broadcast_to(self.start_sigma(time_since_start_s),
                                                       frames.shape[:1]))
@@ -345,6 +345,12 @@ class CalibrationSigma:
         cell = self._pace_cell
         return np.where(distance > cell, self._worst_sigma() * distance / cell, 0.0)
 
+    def _still_sigma(self, excess: np.ndarray) -> np.ndarray:
+        """``s`` of frames held still longer than the session's plateaus held it, from their
+        :meth:`still_excess`: the largest σ of the report's rate bins times the excess (0 for
+        the others)."""
+        return np.where(excess > 1.0, self._worst_sigma() * excess, 0.0)
+
     def burst_pace_sigma(self, pace: Any) -> float:
         """The σ level a burst changing at ``pace`` (an
         :class:`~thermocal.estimation.base.FpaPace`, or None) takes at a pace the session never
@@ -357,8 +363,7 @@ class CalibrationSigma:
             level = float(self._pace_sigma(self._distance(
                 np.array([pace.rate_c_per_min]), np.array([pace.lagged_c_per_min])))[0])
         if pace.still_s is not None:
-            excess = float(self.still_excess([pace.still_s])[0])
-            level = max(level, self._worst_sigma() * excess if excess > 1.0 else 0.0)
+            level = max(level, float(self._still_sigma(self.still_excess([pace.still_s]))[0]))
         return level
 
     def outside_burst(self, temps_c: np.ndarray, fpa_c: float | None, pace: Any
