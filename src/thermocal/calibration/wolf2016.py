@@ -11,7 +11,10 @@ Per pixel p and frame k (Wolf et al. eq. 6), in band radiance ``X`` (W·m⁻²·
   (input nonlinearity), a first-order linear dynamic block with one extra input lag, and the
   identity as output map (the linear model of eq. 5). It is identified offline from the chamber
   session with Bai's (1998) two-stage algorithm: over-parameterised least squares, then a rank-1
-  SVD that separates the linear block from the nonlinearity;
+  SVD that separates the linear block from the nonlinearity; then refined on the error of its
+  output run open loop, as it runs at apply time (Bai's equation-error fit leaves the static
+  gain poorly determined: ±10 °C at the FPA ends of a ``boson`` session; see
+  :func:`identify_hammerstein_wiener`);
 - ``ΔT̂[k]``: the online LMS estimate of the FPA change from the scene statistics (eq. 10–11),
   a gradient step that makes ``X̂`` locally flat over a ``(2W+1)²`` window. Here the step is
   normalised by the gradient's response to ΔT̂ so that ``eta`` does not depend on the units or
@@ -42,6 +45,8 @@ from typing import Any
 
 import numpy as np
 from scipy.ndimage import uniform_filter
+from scipy.optimize import minimize_scalar
+from scipy.signal import lfilter
 
 from thermocal._validate import SATURATED_FRACTION, saturated_fraction
 from thermocal.calibration.base import (
@@ -77,6 +82,10 @@ from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import FileFormatError, FitError, InvalidInputError
 
 METHOD = "wolf2016"
+#: The longest time constant the HW linear block is searched over, s.
+HW_MAX_TAU_S = 3600.0
+#: The largest pole of the HW linear block (its time constant finite).
+HW_MAX_POLE = 0.999
 
 
 @dataclass(frozen=True)
@@ -119,13 +128,12 @@ class HammersteinWiener:
         """
         u = np.asarray(delta_t_c, dtype=np.float64)
         v = self.nonlinearity(u)
-        z = np.empty_like(v)
-        prev_z, prev_v = self.initial_state(float(u[0]), rate_c_per_s)
-        z[0] = prev_z
-        for k in range(1, v.size):  # a scalar recursion over time, not over pixels
-            prev_z = self.a * prev_z + self.b[0] * v[k] + self.b[1] * prev_v
-            prev_v = v[k]
-            z[k] = prev_z
+        if v.size == 0:
+            return v + self.bias
+        z0, _ = self.initial_state(float(u[0]), rate_c_per_s)
+        # z[0] = z0, then z[k] = a·z[k−1] + b0·v[k] + b1·v[k−1]: the filter's state after the
+        # first sample is what makes its first output z0
+        z = lfilter(self.b, (1.0, -self.a), v, zi=[z0 - self.b[0] * v[0]])[0]
         return z + self.bias
 
     def to_list(self) -> list[float]:
@@ -148,7 +156,9 @@ def identify_hammerstein_wiener(
     of different segments (e.g. two chamber runs in one file).
 
     Stage 1 fits the over-parameterised ARX model ``Ω[k] = a·Ω[k−1] + Σ_j Σ_i θ_ji u[k−j]^i +
-    β`` by least squares; stage 2 factors ``θ ≈ b·cᵀ`` with the leading singular pair.
+    β`` by least squares; stage 2 factors ``θ ≈ b·cᵀ`` with the leading singular pair. A third
+    stage refines that on the open-loop error (:func:`_output_error_refit`); the model of the
+    two with the smaller open-loop error is kept.
     """
     u_all = np.asarray(delta_t_c, dtype=np.float64)
     y_all = np.asarray(omega, dtype=np.float64)
@@ -165,7 +175,7 @@ def identify_hammerstein_wiener(
         [y_all[:-1, None], powers[1:], powers[:-1], np.ones((y_all.size - 1, 1))], axis=1
     )[same]
     theta, *_ = np.linalg.lstsq(reg, y_all[1:][same], rcond=None)
-    a = float(np.clip(theta[0], 0.0, 0.999))
+    a = float(np.clip(theta[0], 0.0, HW_MAX_POLE))
     big = np.stack([theta[1 : 1 + order], theta[1 + order : 1 + 2 * order]])  # (2, n)
     uu, ss, vt = np.linalg.svd(big)
     b = uu[:, 0] * ss[0]
@@ -174,14 +184,78 @@ def identify_hammerstein_wiener(
         sign = np.sign(c[0]) if c[0] != 0 else 1.0
         b, c = b * sign, c * sign
     beta = float(theta[-1])
-    model = HammersteinWiener(tuple(float(x) for x in c), a, (float(b[0]), float(b[1])), 0.0,
-                              u_scale, float(period_s))
+    bai = HammersteinWiener(tuple(float(x) for x in c), a, (float(b[0]), float(b[1])), 0.0,
+                            u_scale, float(period_s))
     # The constant term of the ARX model becomes the output bias, refitted on the simulated
     # output (the recursion is run open loop at apply time), segment by segment.
-    sim = np.concatenate([model.simulate(u_all[seg == s]) for s in np.unique(seg)])
+    sim = np.concatenate([bai.simulate(u_all[seg == s]) for s in np.unique(seg)])
     y_sorted = np.concatenate([y_all[seg == s] for s in np.unique(seg)])
     bias = float(np.mean(y_sorted - sim)) if np.isfinite(beta) else 0.0
-    return HammersteinWiener(model.c, a, model.b, bias, u_scale, float(period_s))
+    bai = HammersteinWiener(bai.c, a, bai.b, bias, u_scale, float(period_s))
+    refined = _output_error_refit(bai, u_all, y_all, seg)
+    return min((bai, refined), key=lambda m: _open_loop_mse(m, u_all, y_sorted, seg))
+
+
+def _open_loop_mse(model: HammersteinWiener, u: np.ndarray, y_sorted: np.ndarray,
+                   seg: np.ndarray) -> float:
+    """Mean squared error of ``model`` run open loop over each segment of ``u`` against
+    ``y_sorted`` (the output, segment by segment)."""
+    sim = np.concatenate([model.simulate(u[seg == s]) for s in np.unique(seg)])
+    return float(np.mean((sim - y_sorted) ** 2))
+
+
+def _output_error_refit(start: HammersteinWiener, u: np.ndarray, y: np.ndarray,
+                        seg: np.ndarray) -> HammersteinWiener:
+    """The HW model of least open-loop error, from Bai's estimate ``start``.
+
+    Bai's stage 1 is an equation-error fit: it weights the one-step prediction, which on a
+    slowly varying Ω puts the pole near 1 and leaves the static gain, the small difference of
+    two nearly equal lead coefficients, poorly determined: identified on the ``boson`` preset's
+    chamber session it erred by ±10 °C at the session's FPA ends (the output runs open loop at
+    apply time). For a given pole ``a`` the open-loop output is linear in ``b·cᵀ`` and the bias,
+    so they are solved by least squares; ``a`` is searched (time constants from one sample to
+    :data:`HW_MAX_TAU_S`, Bai's among them, then refined), and ``b·cᵀ`` factored by its
+    leading singular pair as in Bai's stage 2; ``c`` and the bias are then refitted for that
+    ``b``. Hand-written: the structure (a rank-1 bilinear term inside a linear filter) is not a
+    problem a general optimiser exploits.
+    """
+    order = len(start.c)
+    parts = [np.flatnonzero(seg == s) for s in np.unique(seg)]
+    y_sorted = np.concatenate([y[i] for i in parts])
+
+    def columns(a: float, b: tuple[float, float] | None) -> np.ndarray:
+        cols = []
+        for bb in ([(1.0, 0.0), (0.0, 1.0)] if b is None else [b]):
+            for i in range(order):
+                unit = HammersteinWiener(tuple(float(k == i) for k in range(order)), a, bb, 0.0,
+                                         start.u_scale, start.period_s)
+                cols.append(np.concatenate([unit.simulate(u[i_]) for i_ in parts]))
+        return np.column_stack([*cols, np.ones(y_sorted.size)])
+
+    def solve(a: float, b: tuple[float, float] | None = None) -> tuple[np.ndarray, float]:
+        design = columns(a, b)
+        sol, *_ = np.linalg.lstsq(design, y_sorted, rcond=None)
+        return sol, float(np.mean((design @ sol - y_sorted) ** 2))
+
+    taus = np.geomspace(start.period_s, max(HW_MAX_TAU_S, 2.0 * start.period_s), 25)
+    grid = np.unique(np.r_[np.exp(-start.period_s / taus), start.a].clip(0.0, HW_MAX_POLE))
+    costs = [solve(float(a))[1] for a in grid]
+    best = int(np.argmin(costs))
+    lo, hi = grid[max(best - 1, 0)], grid[min(best + 1, grid.size - 1)]
+    a = float(grid[best])
+    if hi > lo:
+        found = minimize_scalar(lambda x: solve(float(x))[1], bounds=(lo, hi), method="bounded",
+                                options={"xatol": 1e-5})
+        a = float(found.x) if found.fun < costs[best] else a
+    sol, _ = solve(a)
+    uu, ss, _ = np.linalg.svd(sol[: 2 * order].reshape(2, order))
+    b = uu[:, 0] * ss[0]
+    if not np.all(np.isfinite(b)):
+        return start
+    b_pair = (float(b[0]), float(b[1]))
+    sol, _ = solve(a, b_pair)  # c and the bias for the factored b
+    return HammersteinWiener(tuple(float(x) for x in sol[:order]), a, b_pair, float(sol[-1]),
+                             start.u_scale, start.period_s)
 
 
 @dataclass(frozen=True, eq=False)
