@@ -44,10 +44,17 @@ def _report(**kw) -> CalibrationReport:
 
 
 def test_sigma_inside_follows_the_cross_validation():
-    """Inside both ranges: √(π/2) × the mean of the interpolated scene and FPA MAEs."""
+    """Inside both ranges: √(π/2) × (the interpolated scene MAE + the FPA MAE − their mean),
+    never below the least MAE a fold measured."""
     model = CalibrationSigma(_report())
     s = model.sigma(np.array([[20.0, 25.0, 30.0]]), 27.5)
-    np.testing.assert_allclose(s[0], G * 0.5 * (np.array([0.2, 0.3, 0.4]) + 0.3), rtol=1e-6)
+    np.testing.assert_allclose(s[0], G * np.array([0.2, 0.3, 0.4]), rtol=1e-6)
+    # a better FPA segment lowers every scene level's σ by its margin, down to the least MAE
+    better = CalibrationSigma(_report(folds=[
+        f | {"mae_c": 0.15} if f["kind"] == "fpa" and not f["extrapolation"] else f
+        for f in _report().folds]))
+    s = better.sigma(np.array([[20.0, 25.0, 30.0]]), 27.5)
+    np.testing.assert_allclose(s[0], G * np.array([0.15, 0.15, 0.25]), rtol=1e-6)
     # the rate: settled frames are better, fast ones worse; unknown rates average
     slow, fast, faster = (model.sigma(np.array([[25.0]]), 27.5, rate_c_per_min=[r])[0, 0]
                           for r in (0.01, -0.5, 1.0))
@@ -65,11 +72,11 @@ def test_sigma_grows_outside_without_bound():
     for d in (1.0, 10.0, 100.0):
         out = model.sigma(np.array([[25.0]]), 20.0 - d)[0, 0]
         m_fpa = 0.3  # interpolated MAE clamps at the end of the interior curve
-        expected = G * (0.5 * (0.3 + m_fpa) + fpa_rate * d)
+        expected = G * (0.3 + m_fpa - 0.3 + fpa_rate * d)
         assert out == pytest.approx(expected, rel=1e-5) and out > inside
     hot = model.sigma(np.array([[140.0]]), 27.5)[0, 0]
     scene_rate = (0.6 - 0.3) / 10.0
-    assert hot == pytest.approx(G * (0.5 * (0.4 + 0.3) + scene_rate * 100.0), rel=1e-5)
+    assert hot == pytest.approx(G * (0.4 + 0.3 - 0.3 + scene_rate * 100.0), rel=1e-5)
     flat = CalibrationSigma(_report(folds=[f | {"mae_c": 0.1} for f in _report().folds]))
     assert flat.sigma(np.array([[25.0]]), 45.0)[0, 0] == pytest.approx(
         G * (0.1 + MIN_GROWTH_PER_C * 10.0), rel=1e-5)
@@ -225,6 +232,54 @@ def test_a_bursts_pace_sigma_grows_only_at_paces_never_held():
     assert model.burst_pace_sigma(FpaPace(1.0, 1.0)) > 0.0
     assert model.burst_pace_sigma(FpaPace(0.0, 0.0)) == 0.0  # held still
     assert model.burst_pace_sigma(FpaPace(1.0)) == model.burst_pace_sigma(None) == 0.0
+
+
+def test_fpa_pace_keeps_a_change_after_the_rate_stops():
+    from thermocal.calibration.dataset import fpa_pace
+
+    t = np.arange(0.0, 3600.0, 10.0)
+    rate = np.where(t < 1800.0, 1.5, 0.0)  # a 1.5 °C/min ramp, then held
+    pace = fpa_pace(rate, t, 480.0)
+    assert pace[0] == 1.5 and pace[179] == pytest.approx(1.5, rel=1e-3)
+    # 2 min after the stop the rate is 0 but the pace is the lag's 1.5·e^(−120/480)
+    assert pace[192] == pytest.approx(1.5 * np.exp(-130.0 / 480.0), rel=1e-6)
+    assert pace[-1] < 0.05 and np.all(np.diff(pace[180:]) < 0)
+    # a second recording (time starts again) starts from its own first rate
+    both = fpa_pace(np.r_[rate, np.zeros(t.size)], np.r_[t, t], 480.0)
+    np.testing.assert_array_equal(both[: t.size], pace)
+    assert not both[t.size:].any()
+
+
+def test_a_memoryless_sigma_is_binned_by_pace():
+    """Bins of the pace: the minutes after a ramp stops take the σ of the pace they follow,
+    not of a settled camera; a rate with no history, the largest σ at or above it."""
+    cells = [[i, j] for i in range(17) for j in range(17)]  # every pace held: none refused
+    bins = [{"pace_c_per_min": [0.0, 0.05], "frames": 5, "mae_c": 0.15},
+            {"pace_c_per_min": [0.5, 1.0], "frames": 5, "mae_c": 0.6},
+            {"pace_c_per_min": [1.0, 2.0], "frames": 5, "mae_c": 0.9}]
+    model = CalibrationSigma(_report(
+        by_rate=bins, fpa_rate_c_per_min=(-0.1, 1.55),
+        paces={"lag_s": 480.0, "cell_c_per_min": 0.1, "cells": cells}))
+    assert model.by_pace and not CalibrationSigma(_report()).by_pace
+    t = np.arange(0.0, 3600.0, 10.0)
+    rate = np.where(t < 1800.0, 1.5, 0.0)
+    sigma = model.sigma(np.full((t.size, 1, 1), 25.0), 27.5, rate_c_per_min=rate,
+                        time_since_start_s=t)[:, 0, 0]
+    assert sigma[100] == pytest.approx(G * 0.9, rel=1e-5)  # on the ramp
+    assert sigma[192] == pytest.approx(G * 0.9, rel=1e-5)  # stopped 2 min: still 1.14 °C/min
+    assert sigma[-1] == pytest.approx(G * 0.15, rel=1e-5)  # 30 min on: settled
+    # one frame: the lagged rate given, or not known (the pace is at least the rate)
+    one = model.sigma(np.full((1, 1), 25.0), 27.5, rate_c_per_min=[0.0],
+                      lagged_rate_c_per_min=[0.7])[0, 0]
+    bare = model.sigma(np.full((1, 1), 25.0), 27.5, rate_c_per_min=[0.7])[0, 0]
+    assert one == pytest.approx(G * 0.6, rel=1e-5) and bare == pytest.approx(G * 0.9, rel=1e-5)
+
+
+def test_a_memoryless_report_bins_its_errors_by_pace(fitted):
+    _, _, report = fitted
+    assert report.by_rate and all("pace_c_per_min" in b for b in report.by_rate)
+    again = CalibrationReport.from_dict(json.loads(json.dumps(report.to_dict())))
+    assert CalibrationSigma(again).by_pace
 
 
 def _stilled() -> CalibrationSigma:

@@ -123,6 +123,24 @@ def lagged_rate(rate_c_per_min: Any, time_s: Any, tau_s: float) -> np.ndarray:
     return out
 
 
+def fpa_pace(rate_c_per_min: Any, time_s: Any, lag_s: float) -> np.ndarray:
+    """How fast the FPA has been changing, °C/min ``(M,)``: the larger of its present rate's
+    magnitude and that of the rate seen through a lag of ``lag_s`` s (:func:`lagged_rate`),
+    each recording on its own (a time that does not increase starts one). A frame just after
+    a change is not settled though its rate is 0: what lags the FPA is still catching up.
+    """
+    r = np.asarray(rate_c_per_min, dtype=np.float64)
+    t = np.asarray(time_s, dtype=np.float64)
+    if r.shape != t.shape or r.ndim != 1:
+        raise InvalidInputError(f"rate {r.shape} and time_s {t.shape} must be equal (M,)")
+    out = np.abs(r)
+    starts = np.r_[0, np.flatnonzero(np.diff(t) <= 0) + 1, r.size]
+    for a, b in zip(starts[:-1], starts[1:], strict=True):
+        if b > a:
+            out[a:b] = np.maximum(out[a:b], np.abs(lagged_rate(r[a:b], t[a:b], lag_s)))
+    return out
+
+
 def still_time(fpa_c: Any, time_s: Any, *, band_c: float, max_gap_s: float) -> np.ndarray:
     """How long each frame's FPA had stayed within ``band_c`` (°C) of its present temperature,
     s ``(M,)``: ``t[i] − t[j]`` for the earliest frame ``j`` from which every frame up to ``i``

@@ -56,6 +56,7 @@ from thermocal._validate import SATURATED_FRACTION, saturated_fraction
 from thermocal.calibration.base import Calibration, ThermocalWarning
 from thermocal.calibration.dataset import (
     ChamberData,
+    fpa_pace,
     iter_frames,
     lagged_rate,
     prepare_chamber,
@@ -124,8 +125,10 @@ class CalibrationReport:
         ``refused`` (why it could not be fitted); empty otherwise.
     by_rate : list of dict
         The interior folds' MAE and σ by bin of the absolute FPA rate: ``rate_c_per_min`` (``[low,
-        high]``, high None for the last), ``frames``, ``mae_c``, ``sigma_c``; empty in a report
-        made before it.
+        high]``, high None for the last), ``frames``, ``mae_c``, ``sigma_c``; for a memoryless
+        method, by bin of the FPA's pace instead (``pace_c_per_min``:
+        :func:`~thermocal.calibration.dataset.fpa_pace` through :data:`PACE_LAG_S`, so that its
+        settled bin holds settled frames only); empty in a report made before it.
     sigma_c : float or None
         The σ that covers the interior folds' pixel errors as a Gaussian's would
         (:func:`coverage_sigma`), °C; None in a report made before it.
@@ -582,7 +585,7 @@ def cross_validate(
         calibration = _fit(small, method, options)
     refit_options = options | fixed_reference(calibration, method)
     errors: list[np.ndarray] = []  # per-frame errors of the interior folds
-    rates: list[np.ndarray] = []  # and their frames' FPA rates, °C/min
+    rates: list[np.ndarray] = []  # and their frames' FPA rates (or paces), °C/min
     since: list[np.ndarray] = []  # and their time since the session began, s
     from thermocal.calibration.registry import CALIBRATION_METHODS
 
@@ -590,6 +593,12 @@ def cross_validate(
     # a method fitted on the reference FPA's frames alone keeps its fit when an end FPA segment
     # without them is left out: that fold then measures the fit's own error there (see below)
     at_reference = CALIBRATION_METHODS[method].needs.frames == "reference"
+    # a memoryless method's error follows how fast the FPA has been changing, not its present
+    # rate alone (what lags the FPA catches up after the rate is 0): its bins are by pace
+    memoryless = CALIBRATION_METHODS[method].memoryless
+    rate_key = "pace_c_per_min" if memoryless else "rate_c_per_min"
+    binned_rate = (fpa_pace(small.fpa_rate_c_per_min, small.time_s, PACE_LAG_S) if memoryless
+                   else small.fpa_rate_c_per_min)
     # the fit on the sample, all its frames, and its pixel errors: made once, when first needed
     # (by the end folds' check and the settling check)
     sample_fit = cache(lambda: _fit(small, method, refit_options))
@@ -614,7 +623,7 @@ def cross_validate(
         folds.append(desc | {"frames": int(held.sum()), "mae_c": float(np.mean(err))})
         if not desc["extrapolation"]:
             errors.append(pix)
-            rates.append(small.fpa_rate_c_per_min[held])
+            rates.append(binned_rate[held])
             since.append(small.time_s[held] - small.time_s[0])
     failed = [f for f in folds if f.get("mae_c") is None and not f["extrapolation"]]
     if failed:
@@ -622,15 +631,16 @@ def cross_validate(
                      f"frames ({failed[0]['error']})")
     expected = float(np.mean(np.concatenate(errors))) if errors else None
     sigma = coverage_sigma(np.concatenate(errors)) if errors else None
-    by_rate = (_by_rate(np.concatenate(errors), np.concatenate(rates)) if errors else [])
+    by_rate = (_by_rate(np.concatenate(errors), np.concatenate(rates), rate_key) if errors
+               else [])
     by_time = (_binned(np.concatenate(errors), np.concatenate(since), TIME_EDGES, "time_s",
                        min_frames=MIN_BIN_FRAMES)
                if errors and CALIBRATION_METHODS[method].learns_online else [])
     if expected is None:
         notes.append("no interior set point or FPA segment could be left out and refitted")
-    paces = paces_of(data) if CALIBRATION_METHODS[method].memoryless else {}
+    paces = paces_of(data) if memoryless else {}
     found = list(protocol_warnings or [])
-    ends = plateau_ends(small, scorable) if CALIBRATION_METHODS[method].memoryless else []
+    ends = plateau_ends(small, scorable) if memoryless else []
     if ends:
         try:
             settling = settling_warning(sample_fit(), small, ends, method)
@@ -754,11 +764,12 @@ def _paces_from(d: dict[str, Any]) -> dict[str, Any]:
 RATE_EDGES = (0.0, 0.05, 0.2, 0.5, 1.0, 2.0, math.inf)
 
 
-def _by_rate(errors: np.ndarray, rates: np.ndarray) -> list[dict[str, Any]]:
-    """The interior folds' MAE and :func:`coverage_sigma` by bin of the absolute FPA rate
-    (:data:`RATE_EDGES`), bins with frames only; ``errors`` ``(M, P)`` per pixel, ``rates``
-    ``(M,)``."""
-    return _binned(errors, np.abs(rates), RATE_EDGES, "rate_c_per_min")
+def _by_rate(errors: np.ndarray, rates: np.ndarray, key: str = "rate_c_per_min"
+             ) -> list[dict[str, Any]]:
+    """The interior folds' MAE and :func:`coverage_sigma` by bin of the absolute FPA rate or
+    pace (:data:`RATE_EDGES`; ``key`` names which), bins with frames only; ``errors`` ``(M, P)``
+    per pixel, ``rates`` ``(M,)``."""
+    return _binned(errors, np.abs(rates), RATE_EDGES, key)
 
 
 #: Edges of the bins of time since a recording began, s (:attr:`CalibrationReport.by_time`).

@@ -2,20 +2,31 @@
 
 For a temperature ``T`` (°C) measured at FPA temperature ``t`` (°C)::
 
-    σ(T, t, r) = s(r) · (m_scene(T) + m_fpa(t)) / (2·m)  +  √(π/2) · [k_scene · d_scene(T)
-                                                                + k_fpa · d_fpa(t)]
+    σ(T, t, r) = s(r) · max(m_scene(T) + m_fpa(t) − m, m_least) / m
+                 + √(π/2) · [k_scene · d_scene(T) + k_fpa · d_fpa(t)]
 
 - ``m_scene``, ``m_fpa``: the cross-validated MAE of the report's interior folds (set points left
   out; FPA segments left out), interpolated at ``T`` and ``t`` (:class:`CalibrationReport`), and
   of its end folds whose refit was the fit itself (a two-point's FPA ends: fitted on the
   reference FPA's frames alone, it errs most far from them, which those folds measured). The
   folds score single frames, so the noise (NETD) and the unmodelled drift are in them;
-- ``m``: the report's expected MAE (all interior folds); ``s(r)``: the σ that covers the interior
+- ``m``: the report's expected MAE (all interior folds). Each curve averages over the other's
+  variable, so ``m_scene + m_fpa − m`` is the MAE at ``(T, t)`` of an error whose scene and FPA
+  parts add (a cold scene at an FPA end errs by both; taking half of each, as before, missed
+  `lin`'s cold scenes at the FPA ends of `tau2`'s held-out runs by over 2σ); it is never taken
+  below ``m_least``, the smallest MAE a fold of either curve measured;
+- ``s(r)``: the σ that covers the interior
   folds' pixel errors at the FPA rate ``r`` (°C/min; its bin of ``mae_by_fpa_rate_c``) as a
   Gaussian's would (:func:`~thermocal.calibration.report.coverage_sigma`): a method without a
-  rate term errs most while the FPA changes. Where the rate is not known (a burst of a fraction
-  of a second) ``s`` is that of all the interior folds' errors (``expected_sigma_c``). A report
-  made before it stored σ: ``s = √(π/2)·MAE``;
+  rate term errs most while the FPA changes. For a memoryless method ``r`` is the FPA's *pace*
+  (:func:`~thermocal.calibration.dataset.fpa_pace`: the larger of the rate and the rate through
+  the report's 8-min lag), in the report's bins and here alike: the minutes after a change,
+  rate 0 but optics still catching up, are not taken for settled ones (binned by the present
+  rate, `polynomial`'s σ on `tau2`'s held-out runs covered 91 % of errors at 1σ, 71–76 % by
+  pace). A rate whose history is not known takes the largest σ of the bins at or above it.
+  Where the rate is not known (a burst of a fraction of a second) ``s`` is that of all the
+  interior folds' errors (``expected_sigma_c``). A report made before it stored σ:
+  ``s = √(π/2)·MAE``;
 - ``d_scene``, ``d_fpa``: how far ``T`` and ``t`` lie outside the ranges the session covers, °C
   (0 inside);
 - ``k_scene``, ``k_fpa``: how fast the error grew on the report's extrapolation folds (its end
@@ -142,17 +153,29 @@ class CalibrationSigma:
         """A rate bin's σ (``√(π/2)·MAE`` in a report made before bins had σ)."""
         return b["sigma_c"] if b.get("sigma_c") is not None else _GAUSS * b["mae_c"]
 
-    def rate_sigma(self, rate_c_per_min: Any) -> np.ndarray:
-        """``s(r)`` of each rate (°C/min; ``(N,)``), °C: its bin's σ (the overall σ for a rate
-        the session never had; ``√(π/2)·MAE`` of its bin in a report without bin σ)."""
+    @property
+    def by_pace(self) -> bool:
+        """Whether the report's rate bins are of the FPA's pace (a memoryless method's:
+        :func:`~thermocal.calibration.dataset.fpa_pace`), not of its present rate."""
+        return any("pace_c_per_min" in b for b in self.report.by_rate)
+
+    def rate_sigma(self, rate_c_per_min: Any, *, at_least: bool = False) -> np.ndarray:
+        """``s(r)`` of each rate (°C/min; ``(N,)``; the pace for a report binned by pace), °C:
+        its bin's σ (the overall σ for a rate the session never had; ``√(π/2)·MAE`` of its bin
+        in a report without bin σ). ``at_least``: the rates are lower bounds (a pace whose
+        history is not known is at least the present rate): the largest σ of the bins at or
+        above each."""
         rate = np.abs(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1))
         top = self.max_rate_c_per_min
         out = np.full(rate.shape, self._overall_sigma())
-        for b in self.report.by_rate:
-            lo, hi = b["rate_c_per_min"]
+        bins = sorted(self.report.by_rate,
+                      key=lambda b: (b.get("rate_c_per_min") or b["pace_c_per_min"])[0])
+        for i, b in enumerate(bins):
+            lo, hi = b.get("rate_c_per_min") or b["pace_c_per_min"]
             sel = (np.minimum(rate, top) >= lo) & (np.minimum(rate, top) < (
                 math.inf if hi is None else hi))
-            out[sel] = self._bin_sigma(b)
+            out[sel] = (max(self._bin_sigma(c) for c in bins[i:]) if at_least
+                        else self._bin_sigma(b))
         # faster than the session ever changed: the error of a rate term left out grows with
         # the rate, so σ grows in proportion beyond the fastest rate it covered
         faster = rate > top
@@ -295,17 +318,21 @@ class CalibrationSigma:
         temps = np.asarray(temps_c, dtype=np.float64)
         frames = temps if temps.ndim == 3 else temps[None]
         fpa = np.broadcast_to(np.asarray(fpa_c, dtype=np.float64).reshape(-1), frames.shape[:1])
-        level = (np.full(frames.shape[0], self._overall_sigma()) if rate_c_per_min is None
-                 else np.broadcast_to(self.rate_sigma(rate_c_per_min), frames.shape[:1]))
         n = frames.shape[0]
         recording = bool(time_since_start_s is not None and n > 1 and self.report.paces)
-        if rate_c_per_min is not None and (recording or lagged_rate_c_per_min is not None):
+        history = rate_c_per_min is not None and (recording or lagged_rate_c_per_min is not None)
+        level = (np.full(n, self._overall_sigma()) if rate_c_per_min is None
+                 else np.broadcast_to(self.rate_sigma(
+                     rate_c_per_min, at_least=self.by_pace and not history), (n,)))
+        if history:
             # a recording: its own paces; else the lagged rates given
-            d = self._pace(
+            rate, lagged, d = self._pace(
                 np.broadcast_to(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1), (n,)),
                 np.broadcast_to(np.asarray(time_since_start_s, dtype=np.float64).reshape(-1),
                                 (n,)) if recording else None,
-                None if recording else lagged_rate_c_per_min)[2]
+                None if recording else lagged_rate_c_per_min)
+            if self.by_pace:  # the bins are of the pace: the larger of the two rates
+                level = self.rate_sigma(np.maximum(np.abs(rate), np.abs(lagged)))
             level = np.maximum(level, self._pace_sigma(d))
         excess = self._still(fpa, time_since_start_s if recording else None, still_s)[1]
         level = np.maximum(level, self._still_sigma(excess))
@@ -320,7 +347,8 @@ class CalibrationSigma:
         d_scene = np.maximum(lo - frames, 0.0) + np.maximum(frames - hi, 0.0)
         flo, fhi = self.report.fpa_range_c
         d_fpa = np.maximum(flo - fpa, 0.0) + np.maximum(fpa - fhi, 0.0)
-        shape = 0.5 * (m_scene + m_fpa[:, None, None]) / mean
+        least = min([mean, *sm, *fm])
+        shape = np.maximum(m_scene + m_fpa[:, None, None] - mean, least) / mean
         growth = k_scene * d_scene + (k_fpa * d_fpa)[:, None, None]
         out = (level[:, None, None] * shape + _GAUSS * growth).astype(np.float32)
         return out if temps.ndim == 3 else out[0]
