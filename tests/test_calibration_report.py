@@ -475,6 +475,8 @@ def test_end_folds_that_leave_a_reference_fit_unchanged_measure_its_own_error():
     """A two-point fit uses the reference FPA's frames alone: leaving an end FPA segment out
     refits the same calibration, so that fold measured the fit's own error there (largest far
     from the reference), and σ's FPA curve takes it; a polynomial's end folds extrapolate."""
+    from dataclasses import replace
+
     from thermocal.calibration.report import fit_with_report
     from thermocal.calibration.uncertainty import CalibrationSigma
     from thermocal.evaluation.suites.physics import (
@@ -495,3 +497,14 @@ def test_end_folds_that_leave_a_reference_fit_unchanged_measure_its_own_error():
     assert fx.size == len(inner) + 2 and fm[0] > 2.0 * min(inner)  # the far end errs most
     _, poly = fit_with_report(run.session, "polynomial")
     assert not any(f.get("fit_unchanged") for f in poly.folds)
+    # every end fold also scores the fit itself there; σ's curves take that, not the
+    # extrapolation's (larger) error, where it exceeds the nearest interior fold's
+    ends = [f for f in poly.folds if f["extrapolation"]]
+    assert len(ends) == 4 and all(0 < f["own_mae_c"] < f["mae_c"] for f in ends)
+    (sx, sm), (fx, fm), *_ = CalibrationSigma(poly)._curves
+    assert sx.size == len(poly.by_scene()) and fx.size == len(poly.by_fpa())
+    low = min((f for f in ends if f["kind"] == "fpa"), key=lambda f: f["held_out"][0])
+    assert fm[0] == max(low["own_mae_c"], fm[1])
+    raised = CalibrationSigma(replace(poly, folds=[
+        f | {"own_mae_c": 10.0} if f is low else f for f in poly.folds]))
+    assert raised._curves[1][1][0] == 10.0

@@ -103,9 +103,10 @@ class CalibrationReport:
         One per fold: ``kind`` (``"setpoint"`` or ``"fpa"``), ``held_out`` (the set point, °C,
         or the FPA segment ``[low, high]``, °C), ``extrapolation`` (an end fold), ``frames``
         (frames scored) and ``mae_c``, or ``error`` (why it could not be refitted); an end fold
-        of a method fitted on the reference FPA's frames alone whose refit is the fit itself on
-        its frames (within 1e-4 °C: the left-out frames were not the fit's) has
-        ``fit_unchanged``: it measured the fit's own error at that end, not an extrapolation's.
+        also has ``own_mae_c``, the MAE on its frames of the fit on the whole sample (its own
+        error at that end: what σ takes there); one of a method fitted on the reference FPA's
+        frames alone whose refit is the fit itself on its frames (within 1e-4 °C: the left-out
+        frames were not the fit's) has ``fit_unchanged``.
     fpa_range_c, scene_range_c : (float, float)
         FPA temperatures and scene (radiance-equivalent) temperatures the session covers, °C.
     fpa_rate_c_per_min : (float, float)
@@ -590,8 +591,10 @@ def cross_validate(
     from thermocal.calibration.registry import CALIBRATION_METHODS
 
     folds = []
-    # a method fitted on the reference FPA's frames alone keeps its fit when an end FPA segment
-    # without them is left out: that fold then measures the fit's own error there (see below)
+    # an end fold also scores the fit on all the sample's frames there (its own error at that
+    # end, where a refit without them extrapolates); a method fitted on the reference FPA's
+    # frames alone keeps its fit when an end FPA segment without them is left out: that fold
+    # then measures the fit's own error there (see below)
     at_reference = CALIBRATION_METHODS[method].needs.frames == "reference"
     # a memoryless method's error follows how fast the FPA has been changing, not its present
     # rate alone (what lags the FPA catches up after the rate is 0): its bins are by pace
@@ -617,9 +620,16 @@ def cross_validate(
             folds.append(desc | {"frames": int(held.sum()), "mae_c": None,
                                  "error": " ".join(str(exc).split())[:200]})
             continue
-        if desc["extrapolation"] and at_reference:
-            if np.allclose(pix, own_errors()[held], rtol=0.0, atol=1e-4, equal_nan=True):
-                desc = desc | {"fit_unchanged": True}
+        if desc["extrapolation"]:  # the fit's own error there (on the sample, all frames)
+            try:
+                own = own_errors()[held]
+            except ThermocalError:
+                own = None  # no fit on the sample: the folds' notes say why
+            if own is not None:
+                desc = desc | {"own_mae_c": float(np.mean(own))}
+                if at_reference and np.allclose(pix, own, rtol=0.0, atol=1e-4,
+                                                equal_nan=True):
+                    desc = desc | {"fit_unchanged": True}
         folds.append(desc | {"frames": int(held.sum()), "mae_c": float(np.mean(err))})
         if not desc["extrapolation"]:
             errors.append(pix)

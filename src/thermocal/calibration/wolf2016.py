@@ -23,14 +23,14 @@ Per pixel p and frame k (Wolf et al. eq. 6), in band radiance ``X`` (W·m⁻²·
   It runs every frame for ``warmup_frames`` frames, then every ``update_interval_s`` of
   recording time (the paper: 100 frames, then every 500 ms).
 
-The paper does not say how the HW linear block starts. Identified on chamber data, the block is
-mostly a lead (``b0 ≈ −b1``: Ω follows the FPA *rate*, through the housing's lead and the
-transient term), so a block started settled at the first FPA sample is wrong by the rate term
-whenever a stream starts while the FPA temperature is changing, and takes its time constant
-(minutes) to catch up. A stream
-therefore starts on the steady response to a ramp at the FPA rate fitted to its first samples
+The paper does not say how the HW linear block starts. A block with a lead (``b0 ≈ −b1``: Ω
+follows the FPA *rate*, as Bai's stages alone identified it on chamber data) started settled at
+the first FPA sample is wrong by the rate term whenever a stream starts while the FPA
+temperature is changing, and takes its time constant (minutes) to catch up. A stream therefore
+starts on the steady response to a ramp at the FPA rate fitted to its first samples
 (``hw_start="ramp"``, as ``lfilter_zi`` starts a filter on a constant); ``hw_start="steady"`` keeps
-the settled start.
+the settled start. (Refined on the open-loop error, the block identified on the ``tau2``
+preset's sessions settles alike from either start on a Wolf Fig. 6 ramp.)
 
 :class:`Wolf2016Stream` does this frame by frame (a
 :class:`~thermocal.calibration.base.StreamingCorrector`); :meth:`Wolf2016Calibration.apply` runs
