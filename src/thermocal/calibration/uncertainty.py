@@ -109,9 +109,8 @@ def _curve(folds: list[dict[str, Any]], where: Any) -> tuple[np.ndarray, np.ndar
     inner = sorted((where(f), f["mae_c"]) for f in folds
                    if not f["extrapolation"] and f.get("mae_c") is not None)
     pts = list(inner)
-    for f in folds:
-        own = (f.get("mae_c") if f.get("fit_unchanged") else f.get("own_mae_c")
-               ) if f["extrapolation"] else None
+    for f in (f for f in folds if f["extrapolation"]):
+        own = f.get("mae_c") if f.get("fit_unchanged") else f.get("own_mae_c")
         if own is None:
             continue
         x = where(f)
@@ -119,6 +118,12 @@ def _curve(folds: list[dict[str, Any]], where: Any) -> tuple[np.ndarray, np.ndar
         pts.append((x, max(own, near)))
     pts.sort()
     return np.array([p[0] for p in pts]), np.array([p[1] for p in pts])
+
+
+def _bin_range(b: dict[str, Any]) -> list:
+    """A rate bin's ``[low, high]``, °C/min: of the rate, or of the pace (a memoryless method's
+    bins)."""
+    return b.get("rate_c_per_min") or b["pace_c_per_min"]
 
 
 def _growth(folds: list[dict[str, Any]], interior: float, distance: Any) -> float:
@@ -182,10 +187,9 @@ class CalibrationSigma:
         rate = np.abs(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1))
         top = self.max_rate_c_per_min
         out = np.full(rate.shape, self._overall_sigma())
-        bins = sorted(self.report.by_rate,
-                      key=lambda b: (b.get("rate_c_per_min") or b["pace_c_per_min"])[0])
+        bins = sorted(self.report.by_rate, key=lambda b: _bin_range(b)[0])
         for i, b in enumerate(bins):
-            lo, hi = b.get("rate_c_per_min") or b["pace_c_per_min"]
+            lo, hi = _bin_range(b)
             sel = (np.minimum(rate, top) >= lo) & (np.minimum(rate, top) < (
                 math.inf if hi is None else hi))
             out[sel] = (max(self._bin_sigma(c) for c in bins[i:]) if at_least
@@ -335,19 +339,20 @@ class CalibrationSigma:
         n = frames.shape[0]
         recording = bool(time_since_start_s is not None and n > 1 and self.report.paces)
         history = rate_c_per_min is not None and (recording or lagged_rate_c_per_min is not None)
-        level = (np.full(n, self._overall_sigma()) if rate_c_per_min is None
-                 else np.broadcast_to(self.rate_sigma(
-                     rate_c_per_min, at_least=self.by_pace and not history), (n,)))
-        if history:
-            # a recording: its own paces; else the lagged rates given
-            rate, lagged, d = self._pace(
-                np.broadcast_to(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1), (n,)),
-                np.broadcast_to(np.asarray(time_since_start_s, dtype=np.float64).reshape(-1),
-                                (n,)) if recording else None,
-                None if recording else lagged_rate_c_per_min)
-            if self.by_pace:  # the bins are of the pace: the larger of the two rates
-                level = self.rate_sigma(np.maximum(np.abs(rate), np.abs(lagged)))
-            level = np.maximum(level, self._pace_sigma(d))
+        level = np.full(n, self._overall_sigma())
+        if rate_c_per_min is not None:
+            rate = np.broadcast_to(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1), (n,))
+            if history:  # a recording: its own paces; else the lagged rates given
+                rate, lagged, d = self._pace(
+                    rate,
+                    np.broadcast_to(np.asarray(time_since_start_s, dtype=np.float64).reshape(-1),
+                                    (n,)) if recording else None,
+                    None if recording else lagged_rate_c_per_min)
+                if self.by_pace:  # the bins are of the pace: the larger of the two rates
+                    rate = np.maximum(np.abs(rate), np.abs(lagged))
+            level = self.rate_sigma(rate, at_least=self.by_pace and not history)
+            if history:
+                level = np.maximum(level, self._pace_sigma(d))
         excess = self._still(fpa, time_since_start_s if recording else None, still_s)[1]
         level = np.maximum(level, self._still_sigma(excess))
         if time_since_start_s is not None:

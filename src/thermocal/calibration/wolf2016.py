@@ -188,23 +188,22 @@ def identify_hammerstein_wiener(
                             u_scale, float(period_s))
     # The constant term of the ARX model becomes the output bias, refitted on the simulated
     # output (the recursion is run open loop at apply time), segment by segment.
-    sim = np.concatenate([bai.simulate(u_all[seg == s]) for s in np.unique(seg)])
     y_sorted = np.concatenate([y_all[seg == s] for s in np.unique(seg)])
-    bias = float(np.mean(y_sorted - sim)) if np.isfinite(beta) else 0.0
+    bias = (float(np.mean(y_sorted - _simulate_segments(bai, u_all, seg))) if np.isfinite(beta)
+            else 0.0)
     bai = HammersteinWiener(bai.c, a, bai.b, bias, u_scale, float(period_s))
-    refined = _output_error_refit(bai, u_all, y_all, seg)
-    return min((bai, refined), key=lambda m: _open_loop_mse(m, u_all, y_sorted, seg))
+    refined = _output_error_refit(bai, u_all, y_sorted, seg)
+    return min((bai, refined),
+               key=lambda m: float(np.mean((_simulate_segments(m, u_all, seg) - y_sorted) ** 2)))
 
 
-def _open_loop_mse(model: HammersteinWiener, u: np.ndarray, y_sorted: np.ndarray,
-                   seg: np.ndarray) -> float:
-    """Mean squared error of ``model`` run open loop over each segment of ``u`` against
-    ``y_sorted`` (the output, segment by segment)."""
-    sim = np.concatenate([model.simulate(u[seg == s]) for s in np.unique(seg)])
-    return float(np.mean((sim - y_sorted) ** 2))
+def _simulate_segments(model: HammersteinWiener, u: np.ndarray, seg: np.ndarray) -> np.ndarray:
+    """``model`` run open loop over each segment of ``u`` on its own (settled at its first
+    sample), concatenated segment by segment (``seg``: int per sample)."""
+    return np.concatenate([model.simulate(u[seg == s]) for s in np.unique(seg)])
 
 
-def _output_error_refit(start: HammersteinWiener, u: np.ndarray, y: np.ndarray,
+def _output_error_refit(start: HammersteinWiener, u: np.ndarray, y_sorted: np.ndarray,
                         seg: np.ndarray) -> HammersteinWiener:
     """The HW model of least open-loop error, from Bai's estimate ``start``.
 
@@ -217,11 +216,9 @@ def _output_error_refit(start: HammersteinWiener, u: np.ndarray, y: np.ndarray,
     :data:`HW_MAX_TAU_S`, Bai's among them, then refined), and ``b·cᵀ`` factored by its
     leading singular pair as in Bai's stage 2; ``c`` and the bias are then refitted for that
     ``b``. Hand-written: the structure (a rank-1 bilinear term inside a linear filter) is not a
-    problem a general optimiser exploits.
+    problem a general optimiser exploits. ``y_sorted``: the output, segment by segment.
     """
     order = len(start.c)
-    parts = [np.flatnonzero(seg == s) for s in np.unique(seg)]
-    y_sorted = np.concatenate([y[i] for i in parts])
 
     def columns(a: float, b: tuple[float, float] | None) -> np.ndarray:
         cols = []
@@ -229,7 +226,7 @@ def _output_error_refit(start: HammersteinWiener, u: np.ndarray, y: np.ndarray,
             for i in range(order):
                 unit = HammersteinWiener(tuple(float(k == i) for k in range(order)), a, bb, 0.0,
                                          start.u_scale, start.period_s)
-                cols.append(np.concatenate([unit.simulate(u[i_]) for i_ in parts]))
+                cols.append(_simulate_segments(unit, u, seg))
         return np.column_stack([*cols, np.ones(y_sorted.size)])
 
     def solve(a: float, b: tuple[float, float] | None = None) -> tuple[np.ndarray, float]:
@@ -698,7 +695,7 @@ def wolf2016(
         raise FitError("wolf2016: no run of consecutive frames to identify the HW estimator")
     omega, dgrid, seg = np.concatenate(omegas), np.concatenate(dgrids), np.concatenate(segs)
     hw = identify_hammerstein_wiener(dgrid, omega, period_s=period, order=hw_order, segments=seg)
-    sim = np.concatenate([hw.simulate(dgrid[seg == s]) for s in np.unique(seg)])
+    sim = _simulate_segments(hw, dgrid, seg)
     used = data.fpa_c[valid]
     info = calibration_info(data.session) | scan.report() | {
         "excluded_frames": int(excluded.sum()),
