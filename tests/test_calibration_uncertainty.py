@@ -127,6 +127,16 @@ def test_report_survives_json_with_its_rate_bins():
     r = _report()
     again = CalibrationReport.from_dict(r.to_dict())
     assert again.by_rate == r.by_rate and again.folds == r.folds
+    # damaged bins are refused when read, not met later as a KeyError
+    good = r.to_dict()
+    for bins in ([{"frames": 5, "mae_c": 0.1}],
+                 [{"rate_c_per_min": [0.0, 0.05], "pace_c_per_min": [0.0, 0.05], "mae_c": 0.1}],
+                 [{"rate_c_per_min": [0.0, 0.05], "mae_c": 0.1},
+                  {"pace_c_per_min": [0.05, 0.2], "mae_c": 0.1}],
+                 [{"rate_c_per_min": [0.2, 0.05], "mae_c": 0.1}],
+                 [{"pace_c_per_min": [0.0, None], "mae_c": float("nan")}]):
+        with pytest.raises(InvalidInputError, match="not a calibration report"):
+            CalibrationReport.from_dict(good | {"mae_by_fpa_rate_c": bins})
 
 
 @pytest.fixture(scope="module")

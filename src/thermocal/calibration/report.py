@@ -224,7 +224,7 @@ class CalibrationReport:
                 notes=[str(n) for n in d.get("notes", [])],
                 options=dict(d.get("options", {})),
                 ranking=[dict(r) for r in d.get("auto_ranking", [])],
-                by_rate=[dict(r) for r in d.get("mae_by_fpa_rate_c", [])],
+                by_rate=_rate_bins_from(d.get("mae_by_fpa_rate_c") or []),
                 sigma_c=None if d.get("expected_sigma_c") is None else float(
                     d["expected_sigma_c"]),
                 by_time=[dict(r) for r in d.get("mae_by_time_since_start_c", [])],
@@ -767,6 +767,28 @@ def _paces_from(d: dict[str, Any]) -> dict[str, Any]:
             raise ValueError("fpa_paces: still needs a band and a held time > 0, finite, and "
                              "at least one plateau")
         out["still"] = {"band_c": band, "held_s": held, "plateaus": plateaus}
+    return out
+
+
+def rate_bin_range(b: dict[str, Any]) -> list:
+    """A bin of :attr:`CalibrationReport.by_rate`'s ``[low, high]``, °C/min: of the rate, or of
+    the pace (a memoryless method's bins)."""
+    return b.get("rate_c_per_min") or b["pace_c_per_min"]
+
+
+def _rate_bins_from(rows: list[Any]) -> list[dict[str, Any]]:
+    """A report's ``mae_by_fpa_rate_c`` read back, checked: every bin of one kind (the rate's
+    or the pace's range, ``[low, high]`` °C/min, high None for the last) with a finite MAE."""
+    out = [dict(r) for r in rows]
+    kinds = {("pace_c_per_min" if "pace_c_per_min" in b else "rate_c_per_min") for b in out}
+    if len(kinds) > 1 or any(("pace_c_per_min" in b) == ("rate_c_per_min" in b) for b in out):
+        raise ValueError("mae_by_fpa_rate_c: every bin needs one range, all of rate or of pace")
+    for b in out:
+        lo, hi = rate_bin_range(b)
+        mae = float(b["mae_c"])
+        if not (0 <= float(lo) < math.inf and (hi is None or float(hi) > float(lo))
+                and 0 <= mae < math.inf):
+            raise ValueError(f"mae_by_fpa_rate_c: a bin [{lo}, {hi}] °C/min of MAE {mae} °C")
     return out
 
 

@@ -81,6 +81,7 @@ from thermocal.calibration.report import (
     MIN_BIN_FRAMES,
     PACE_LAG_S,
     CalibrationReport,
+    rate_bin_range,
     report_of,
 )
 
@@ -118,12 +119,6 @@ def _curve(folds: list[dict[str, Any]], where: Any) -> tuple[np.ndarray, np.ndar
         pts.append((x, max(own, near)))
     pts.sort()
     return np.array([p[0] for p in pts]), np.array([p[1] for p in pts])
-
-
-def _bin_range(b: dict[str, Any]) -> list:
-    """A rate bin's ``[low, high]``, °C/min: of the rate, or of the pace (a memoryless method's
-    bins)."""
-    return b.get("rate_c_per_min") or b["pace_c_per_min"]
 
 
 def _growth(folds: list[dict[str, Any]], interior: float, distance: Any) -> float:
@@ -187,9 +182,9 @@ class CalibrationSigma:
         rate = np.abs(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1))
         top = self.max_rate_c_per_min
         out = np.full(rate.shape, self._overall_sigma())
-        bins = sorted(self.report.by_rate, key=lambda b: _bin_range(b)[0])
+        bins = sorted(self.report.by_rate, key=lambda b: rate_bin_range(b)[0])
         for i, b in enumerate(bins):
-            lo, hi = _bin_range(b)
+            lo, hi = rate_bin_range(b)
             sel = (np.minimum(rate, top) >= lo) & (np.minimum(rate, top) < (
                 math.inf if hi is None else hi))
             out[sel] = (max(self._bin_sigma(c) for c in bins[i:]) if at_least
