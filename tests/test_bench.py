@@ -67,3 +67,22 @@ def test_coverage_tables_say_whether_any_level_of_sigma_meets_the_bands():
     assert "no k in band" in lines["two-point"]
     spread = unit_spread(rows)
     assert "(2 of 2)" in spread and "(0 of 2)" in spread
+
+
+def test_coverage_says_what_sharpening_sigma_would_silence():
+    from thermocal.evaluation.suites.coverage import _rescaled
+
+    rng = np.random.default_rng(1)
+    # 200 frames of small Gaussian errors under a σ twice too large, and one frame off by 3 °C
+    # whose σ of 2 °C covers it at 1σ × 2: silent once σ is scaled below 3 / (2·2) = 0.75
+    pairs = [(rng.normal(0.0, 0.3, 50), np.full(50, 0.6)) for _ in range(200)]
+    pairs.append((np.full(50, 3.0), np.full(50, 2.0)))
+    res = _rescaled(pairs)
+    assert 0.4 < res["factor"] < 0.6  # the level the small errors want
+    assert res["silent_at_factor"] == 1
+    assert res["safe_factor"] == pytest.approx(0.75)
+    assert res["safe_within_1sigma"] > 0.68
+    # nothing to silence: the safe factor is the best one
+    calm = _rescaled(pairs[:-1])
+    assert calm["silent_at_factor"] == 0 and calm["safe_factor"] == calm["factor"]
+    assert _rescaled([]) is None

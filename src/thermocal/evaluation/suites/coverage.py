@@ -84,11 +84,31 @@ def _run(network: NetworkEstimator, bursts: list[dict]) -> dict:
 
 
 def _rescaled(pairs: list[tuple[np.ndarray, np.ndarray]]) -> dict | None:
-    """:func:`~thermocal.metrics.rescaled_coverage` of ``(errors, σ)`` pairs (None without)."""
+    """:func:`~thermocal.metrics.rescaled_coverage` of ``(errors, σ)`` pairs, one per frame or
+    burst (None without), with what the factor costs in silent frames: ``silent_at_factor``,
+    the frames silent with σ × that factor; ``safe_factor``, the factor nearest it that
+    silences no frame more than σ itself does (the best factor where that one does), and its
+    coverage (``safe_within_1sigma``, ``safe_within_2sigma``): how sharp this σ's shape can be
+    made without a silent error."""
     if not pairs:
         return None
-    return rescaled_coverage(np.concatenate([e for e, _ in pairs]),
-                             np.concatenate([s for _, s in pairs]))
+    errors = np.concatenate([e for e, _ in pairs])
+    sigmas = np.concatenate([s for _, s in pairs])
+    out = rescaled_coverage(errors, sigmas)
+    # a frame is silent at factor k when its MAE exceeds 1 °C and 2·k·median σ: below
+    # k_f = MAE / (2·median σ); the frames not silent at k = 1 bound the safe factor
+    mae = np.array([float(np.mean(np.abs(e))) for e, _ in pairs])
+    half = np.array([2.0 * float(np.median(s)) for _, s in pairs])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        k_f = np.where(mae > 1.0, mae / half, 0.0)
+    out["silent_at_factor"] = int(np.sum(k_f > out["factor"]))
+    best = out["factor"]
+    safe = best if best >= 1.0 else max(best, float(np.max(k_f[k_f <= 1.0], initial=0.0)))
+    out["safe_factor"] = safe
+    cov = sigma_coverage(errors, max(safe, 1e-9) * sigmas)
+    out["safe_within_1sigma"], out["safe_within_2sigma"] = (cov["within_1sigma"],
+                                                            cov["within_2sigma"])
+    return out
 
 
 def _silent(mae: float, sigma: np.ndarray) -> bool:
@@ -190,14 +210,24 @@ def _rescaled_cell(res: dict | None) -> str:
     if res is None:
         return "–"
     return (f"×{res['factor']:.2f}: {100 * res['within_1sigma']:.0f} / "
-            f"{100 * res['within_2sigma']:.0f} %" + ("" if res["in_band"] else " (no k in band)"))
+            f"{100 * res['within_2sigma']:.0f} %" + ("" if res["in_band"] else " (no k in band)")
+            + ("" if res.get("silent_at_factor") is None
+               else f", {res['silent_at_factor']} silent"))
+
+
+def _safe_cell(res: dict | None) -> str:
+    if res is None or res.get("safe_factor") is None:
+        return "–"
+    return (f"×{res['safe_factor']:.2f}: {100 * res['safe_within_1sigma']:.0f} / "
+            f"{100 * res['safe_within_2sigma']:.0f} %")
 
 
 def report(rows: list[dict], info: dict) -> str:
     header = ("method", "data", "bursts / frames", "refused", "MAE °C (accepted / refused)",
               "accepted: within 1σ",
               "within 2σ", "median σ °C", "refused, if forced: within 1σ", "within 2σ",
-              "median σ °C", "silent", "accepted, best σ × k: within 1σ / 2σ")
+              "median σ °C", "silent", "accepted, best σ × k: within 1σ / 2σ, silent",
+              "sharpest σ × k with no more silent: within 1σ / 2σ")
     cells = []
     for r in rows:
         if "refused_fit" in r:
@@ -210,7 +240,8 @@ def report(rows: list[dict], info: dict) -> str:
         cells.append((r["method"], r["data"], r.get("bursts", r.get("frames")), r["refused"],
                       f"{r['mae_c']:.2f}{split}", *_cells(r["accepted"]),
                       *_cells(r["forced"]), r["silent_over_1c"],
-                      _rescaled_cell(r.get("accepted_rescaled"))))
+                      _rescaled_cell(r.get("accepted_rescaled")),
+                      _safe_cell(r.get("accepted_rescaled"))))
     table = markdown_table(header, cells)
     return (f"## Coverage of the stated uncertainty\n\nmachine: {info['machine']}; "
             f"{info['wall_s']:.0f} s\n\ndata: bursts of N = 7 frames, 336×256, over the held-out "
@@ -224,7 +255,9 @@ def report(rows: list[dict], info: dict) -> str:
             "2σ. Best σ × k: the one factor on every accepted σ that comes closest to those "
             "shares (chosen on the errors it scores: a diagnostic, not a correction); \"no k in "
             "band\": no overall level of this σ meets both bands, its errors over σ are not "
-            f"spread as a Gaussian's.\n\n{table}\n")
+            "spread as a Gaussian's; silent: the frames (bursts) that factor leaves silent. "
+            "Sharpest σ × k: the factor nearest the best that silences no frame more than σ "
+            f"does, and its coverage: how far this σ's shape can be sharpened safely.\n\n{table}\n")
 
 
 def unit_spread(rows: list[dict]) -> str:
@@ -239,18 +272,20 @@ def unit_spread(rows: list[dict]) -> str:
         return ""
 
     def span(values: list[float], fmt: str) -> str:
-        lo, hi = min(values), max(values)
-        return format(lo, fmt) if lo == hi else f"{format(lo, fmt)}–{format(hi, fmt)}"
+        lo, hi = format(min(values), fmt), format(max(values), fmt)
+        return lo if lo == hi else f"{lo}–{hi}"
 
     cells = [(method, family, ", ".join(str(r["unit"]) for r in g),
               span([100 * r["accepted"]["within_1sigma"] for r in g], ".1f") + " %",
               span([100 * r["accepted"]["within_2sigma"] for r in g], ".1f") + " %",
               span([r["accepted"]["median_sigma_c"] for r in g], ".2f"),
               span([r["silent_over_1c"] for r in g], "d"),
-              _rescaled_span([r.get("accepted_rescaled") for r in g], span))
+              _rescaled_span([r.get("accepted_rescaled") for r in g], span),
+              _safe_span([r.get("accepted_rescaled") for r in g], span))
              for (method, family), g in groups.items()]
     header = ("method", "family", "units", "accepted: within 1σ", "within 2σ", "median σ °C",
-              "silent frames", "best σ × k (units with a k in band)")
+              "silent frames", "best σ × k (units with a k in band): silent there",
+              "sharpest σ × k with no more silent: within 1σ / 2σ")
     return ("\n### The same, unit by unit\n\nEach unit's own session and held-out run (other "
             "seeds): the range over the units.\n\n" + markdown_table(header, cells) + "\n")
 
@@ -261,8 +296,20 @@ def _rescaled_span(results: list[dict | None], span) -> str:
     done = [r for r in results if r is not None]
     if not done:
         return "–"
+    silent = [r["silent_at_factor"] for r in done if r.get("silent_at_factor") is not None]
     return (f"×{span([r['factor'] for r in done], '.2f')} "
-            f"({sum(r['in_band'] for r in done)} of {len(done)})")
+            f"({sum(r['in_band'] for r in done)} of {len(done)})"
+            + (f": {span(silent, 'd')}" if len(silent) == len(done) else ""))
+
+
+def _safe_span(results: list[dict | None], span) -> str:
+    """The range over units of the sharpest safe factor and its coverage at 1σ and 2σ."""
+    done = [r for r in results if r is not None and r.get("safe_factor") is not None]
+    if not done:
+        return "–"
+    return (f"×{span([r['safe_factor'] for r in done], '.2f')}: "
+            f"{span([100 * r['safe_within_1sigma'] for r in done], '.0f')} / "
+            f"{span([100 * r['safe_within_2sigma'] for r in done], '.0f')} %")
 
 
 def _units(text: str) -> tuple[int, ...]:
