@@ -198,3 +198,23 @@ def test_pair_with_known_pattern(uav):
     assert corner_error(reg2.to_previous[1], h_true) < 1.0
     h, _ = register_pair(frames[12], frames[10], fixed_pattern=fp)  # 7.6 px apart
     assert corner_error(h, np.linalg.inv(to_map[10]) @ to_map[12]) < 1.5
+
+
+def test_a_pair_takes_a_good_prediction_alone_and_races_a_bad_one(uav, monkeypatch):
+    import thermocal.registration._dense as dense
+    from thermocal.registration import sequence
+    from thermocal.registration.warp import translation
+
+    frames, to_map, *_ = uav
+    pattern = estimate_fixed_pattern(frames).pattern
+    moving, fixed = (sequence._Prepared(frames[k], pattern) for k in (11, 10))
+    window = dense.hanning(((SIZE[1] + 1) // 2, (SIZE[0] + 1) // 2))
+    truth = np.linalg.inv(to_map[10]) @ to_map[11]
+    calls = []
+    peaks = dense.phase_peaks
+    monkeypatch.setattr(dense, "phase_peaks", lambda *a, **k: calls.append(1) or peaks(*a, **k))
+    h, cc = sequence._pair(moving, fixed, truth, window)  # the motion went on as predicted
+    assert not calls and cc >= sequence.PREDICTION_ACCEPT and corner_error(h, truth) < 0.6
+    # a prediction 24 px off (the camera jumped): the peaks are sought, and the race finds it
+    h, cc = sequence._pair(moving, fixed, translation(24.0, -16.0) @ truth, window)
+    assert calls and corner_error(h, truth) < 0.6
