@@ -45,6 +45,17 @@ def test_one_saturation_rule_for_bursts_calibrations_and_chamber_fits(value):
             check(bad)
 
 
+def test_frame_scan_counts_the_same_with_or_without_clipped_pixels():
+    clean = clipped_frames(0.0)
+    scan = FrameScan((20, 50))
+    assert scan.check(np.arange(2), clean).all() and scan.n_seen == 2
+    assert not scan.clipped_per_pixel.any() and not scan.excluded
+    one = clean.copy()
+    one[0, 3, 4] = 16383  # a pixel at the top: counted where it is
+    assert scan.check(np.arange(2, 4), one).all() and scan.n_seen == 4
+    assert scan.clipped_per_pixel.sum() == 1 and scan.clipped_per_pixel[3, 4] == 1
+
+
 def test_saturation_counts_only_integer_counts_and_covered_pixels():
     bad = clipped_frames(0.2)
     check_not_saturated(bad.astype(np.float32))  # not the ADC's output: not checked

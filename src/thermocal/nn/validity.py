@@ -40,6 +40,9 @@ REMEDY = ("train from a chamber session of this camera: `thermocal train --chamb
 #: bursts at or above 1.28 (measured while choosing it); ``benchmarks/coverage.py`` shows the
 #: outcome: no ``tau2`` burst refused for its pattern, every ``boson`` burst refused.
 LINE_RATIO_MAX = 0.6
+#: The scene's level and spread are read from every ``PERCENTILE_STRIDE``-th row and column.
+PERCENTILE_STRIDE = 2
+
 
 @dataclass(frozen=True)
 class Domain:
@@ -106,8 +109,11 @@ def outside_domain(domain: Domain, frames_c: np.ndarray | None, fpa_c: float
                        "the network was trained on")
     if frames_c is None:
         return tuple(reasons)
-    # the median and the 1st and 99th percentiles in one pass
-    p1, level, p99 = (float(v) for v in np.percentile(frames_c, [1, 50, 99]))
+    # the median and the 1st and 99th percentiles in one pass, over every other row and column
+    # (a quarter of the pixels: 4× faster, 9 of a flight pivot's 150 ms before; the quantiles
+    # of 150,000 values of a 336×256 burst of 7 move by a few hundredths of a °C)
+    sample = frames_c[..., ::PERCENTILE_STRIDE, ::PERCENTILE_STRIDE]
+    p1, level, p99 = (float(v) for v in np.percentile(sample, [1, 50, 99]))
     lo, hi = domain.scene_level_c
     if not lo <= level <= hi:
         reasons.append(f"the scene's median {level:.1f} °C is outside the {lo:g}–{hi:g} °C of "
