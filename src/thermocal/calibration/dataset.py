@@ -29,7 +29,7 @@ from typing import Any
 
 import numpy as np
 
-from thermocal._validate import SATURATED_FRACTION, clipped_mask
+from thermocal._validate import SATURATED_FRACTION, clipped_mask, surely_unclipped
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import FitError, InvalidInputError
 from thermocal.io.chamber import ChamberSession, LazyFrames
@@ -500,9 +500,8 @@ class FrameScan:
         k = len(frames)
         flat = frames.reshape(k, -1)
         size = flat.shape[1]
-        top = 2**self.bit_depth - 1
-        if flat.dtype.kind == "u" and 0 < int(flat.min()) and int(flat.max()) < top:
-            self.n_seen += k  # nothing clipped (two reductions: 3.5× faster than the mask)
+        if surely_unclipped(flat, self.bit_depth):  # nothing to count
+            self.n_seen += k
             return np.ones(k, dtype=bool)
         where = np.flatnonzero(clipped_mask(flat, self.bit_depth))
         # few pixels clip: count where they are rather than sum every pixel of every frame

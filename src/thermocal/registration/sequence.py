@@ -204,17 +204,16 @@ def _pair(
     """Frame → previous frame: ``(h, correlation)``. The prediction's first ECC rounds at
     :data:`PREDICTION_ACCEPT` or above: it goes on alone; else it races the phase-correlation
     peaks (from its start again: those frames are aligned as before the shortcut)."""
-    h, cc = None, -1.0
+    h = None
     if prediction is not None:
-        h, cc = dense.ecc(moving.coarse, fixed.coarse, dense.to_level(prediction, _LEVEL),
-                          iterations=_RACE)
-        if cc >= PREDICTION_ACCEPT:
+        raced, cc = dense.ecc(moving.coarse, fixed.coarse, dense.to_level(prediction, _LEVEL),
+                              iterations=_RACE)
+        if cc >= PREDICTION_ACCEPT:  # it goes on alone
+            h = raced
             more = dense.ecc(moving.coarse, fixed.coarse, h,
                              iterations=_COARSE_ITERATIONS - _RACE)
             if more[1] > -1.0:
                 h, cc = more
-        else:
-            h, cc = None, -1.0
     if h is None:
         cands = [] if prediction is None else [dense.to_level(prediction, _LEVEL)]
         cands += [translation(dx, dy) for dx, dy in

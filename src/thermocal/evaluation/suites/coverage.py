@@ -52,6 +52,9 @@ __all__ = ["calibration_rows", "main", "network_rows"]
 #: Pixels of each held-out frame scored (a fixed sample: the frames are uniform scenes).
 PIXELS_PER_FRAME = 400
 
+#: An accepted estimate erring by more than this (MAE, °C) and twice its median σ is silent.
+SILENT_MAE_C = 1.0
+
 #: More held-out units of the preset than the five of the held-out set.
 MORE_UNITS = tuple(range(300, 320))
 
@@ -95,12 +98,13 @@ def _rescaled(pairs: list[tuple[np.ndarray, np.ndarray]]) -> dict | None:
     errors = np.concatenate([e for e, _ in pairs])
     sigmas = np.concatenate([s for _, s in pairs])
     out = rescaled_coverage(errors, sigmas)
-    # a frame is silent at factor k when its MAE exceeds 1 °C and 2·k·median σ: below
-    # k_f = MAE / (2·median σ); the frames not silent at k = 1 bound the safe factor
+    # a frame is silent at factor k (:func:`_silent` of σ × k) when its MAE exceeds
+    # SILENT_MAE_C and 2·k·median σ: below k_f = MAE / (2·median σ); the frames not silent at
+    # k = 1 bound the safe factor
     mae = np.array([float(np.mean(np.abs(e))) for e, _ in pairs])
-    half = np.array([2.0 * float(np.median(s)) for _, s in pairs])
+    twice = np.array([2.0 * float(np.median(s)) for _, s in pairs])
     with np.errstate(divide="ignore", invalid="ignore"):
-        k_f = np.where(mae > 1.0, mae / half, 0.0)
+        k_f = np.where(mae > SILENT_MAE_C, mae / twice, 0.0)
     out["silent_at_factor"] = int(np.sum(k_f > out["factor"]))
     best = out["factor"]
     safe = best if best >= 1.0 else max(best, float(np.max(k_f[k_f <= 1.0], initial=0.0)))
@@ -112,9 +116,9 @@ def _rescaled(pairs: list[tuple[np.ndarray, np.ndarray]]) -> dict | None:
 
 
 def _silent(mae: float, sigma: np.ndarray) -> bool:
-    """An error no one was told of: an accepted estimate whose MAE exceeds 1 °C and twice its
-    median σ."""
-    return mae > max(1.0, 2.0 * float(np.median(sigma)))
+    """An error no one was told of: an accepted estimate whose MAE exceeds
+    :data:`SILENT_MAE_C` and twice its median σ."""
+    return mae > max(SILENT_MAE_C, 2.0 * float(np.median(sigma)))
 
 
 def _run_calibration(cal, model: CalibrationSigma, run: physics.Run, rng) -> dict:
