@@ -88,6 +88,31 @@ def test_tiles_share_one_graph_and_match_pytorch(backend, shipped):
     assert list(runner.compiled) == [(64, 64)]
 
 
+@pytest.mark.parametrize("backend", ["torch", *GRAPH_BACKENDS])
+def test_a_runner_for_callers_at_once_gives_the_numbers_of_one_caller(backend, shipped):
+    """Three threads calling one runner made for three callers at once (OpenVINO: a stream and
+    a request each; ONNX Runtime: one session; torch: its shared pool) get the numbers one
+    caller gets, bit for bit, and the graph is compiled once."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    model, norm, _ = shipped
+    rng = np.random.default_rng(1)
+    bursts = [(rng.uniform(10.0, 40.0, (7, 64, 64)).astype(np.float32),
+               rng.uniform(size=(7, 64, 64)) > 0.05) for _ in range(6)]
+    # (torch's thread count is the process's: left as it is)
+    one = make_runner(model, backend, threads=None if backend == "torch" else 1)
+    ref = [run_network(model, norm, w, v, 30.0, runner=one) for w, v in bursts]
+    many = make_runner(model, backend, concurrent=3)
+    with ThreadPoolExecutor(3) as pool:
+        got = list(pool.map(lambda b: run_network(model, norm, *b, 30.0, runner=many), bursts))
+    for g, r in zip(got, ref, strict=True):
+        np.testing.assert_array_equal(g, r)
+    if backend != "torch":
+        assert list(many.compiled) == [(64, 64)]
+    with pytest.raises(InvalidInputError, match="concurrent callers must be an integer >= 1"):
+        make_runner(model, backend, concurrent=0)
+
+
 def test_the_exported_graph_must_be_a_multiple_of_the_networks_size(shipped):
     with pytest.raises(InvalidInputError, match="multiples of 8"):
         onnx_graph(shipped[0], 60, 64)

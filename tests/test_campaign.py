@@ -58,6 +58,7 @@ def test_a_campaign_gives_the_bytes_of_sequential_flights_and_resumes(data, tmp_
     share = max(1, available_cores() // 2)
     flight_options = json.loads((out / "pass0" / "summary.json").read_text())["options"]
     assert flight_options["registration_threads"] == share
+    assert flight_options["pivot_workers"] == share  # its pivots at once on its share
     # rerun: every map is kept (resume), none remade
     sorted((out / "pass1" / "temps").glob("frame_??????.tiff"))[0].unlink()
     again = run_campaign(campaign_tasks(recordings, out, _options(data)), out, workers=1)

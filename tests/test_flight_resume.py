@@ -103,16 +103,19 @@ def _interrupt_after(monkeypatch, k: int) -> None:
     monkeypatch.setattr(flight, "_process_pivot", stop)
 
 
-@pytest.mark.parametrize(("method", "k"), [("mean", 1), ("mean", 5), ("mean", 11),
-                                            ("calibration", 6), ("kpn", 3)])
+@pytest.mark.parametrize(("method", "k", "workers"), [
+    ("mean", 1, 1), ("mean", 5, 1), ("mean", 11, 1), ("calibration", 6, 1), ("kpn", 3, 1),
+    ("mean", 5, 3), ("kpn", 3, 2)])
 def test_interrupted_run_resumes_to_the_same_bytes(data, tmp_path, tmp_path_factory,
-                                                    monkeypatch, method, k):
+                                                    monkeypatch, method, k, workers):
     """Interrupted after ``k`` pivots (in the first, second or last batch) and rerun: every map,
-    preview and log line is the uninterrupted run's, byte for byte."""
+    preview and log line is the uninterrupted run's, byte for byte, the pivots estimated one at
+    a time or ``workers`` at once (each run, and the reference, one at a time)."""
     if method == "kpn":
         pytest.importorskip("torch")
-    options = _options(data, method, **({"stride": 7} if method == "kpn" else {}))
-    reference = _reference(data, options, tmp_path_factory)
+    options = _options(data, method, pivot_workers=workers,
+                       **({"stride": 7} if method == "kpn" else {}))
+    reference = _reference(data, dataclasses.replace(options, pivot_workers=1), tmp_path_factory)
     out = tmp_path / "out"
     with monkeypatch.context() as m:
         _interrupt_after(m, k)
@@ -120,11 +123,30 @@ def test_interrupted_run_resumes_to_the_same_bytes(data, tmp_path, tmp_path_fact
             process_flight(data / "flight" / "frames.tiff", out, options)
     maps = [p for p in (out / "temps").iterdir() if not p.stem.endswith("_sigma")]
     sigmas = [p for p in (out / "temps").iterdir() if p.stem.endswith("_sigma")]
-    assert len(maps) == k and len(sigmas) == (k if method == "kpn" else 0)
+    # pivots after the k-th that other workers were estimating finish their maps, not their
+    # log lines: the rerun redoes them
+    assert k <= len(maps) <= k + (0 if workers == 1 else 2 * workers)
+    assert len(sigmas) == (len(maps) if method == "kpn" else 0)
     summary = process_flight(data / "flight" / "frames.tiff", out, options)
     assert summary["skipped_already_done"] == k
     assert summary["processed"] == summary["groups"] - k
     assert _outputs(out) == reference
+
+
+@pytest.mark.parametrize("method", ["mean", "kpn", "calibration"])
+def test_pivots_at_once_give_the_bytes_of_one_at_a_time(data, tmp_path, tmp_path_factory,
+                                                         method):
+    """Every map, σ map, preview and log line of three pivots estimated at once is that of one
+    at a time, and so are the summary's counts."""
+    if method == "kpn":
+        pytest.importorskip("torch")
+    options = _options(data, method, preview_every=1,
+                       **({"stride": 7} if method == "kpn" else {}))
+    reference = _reference(data, dataclasses.replace(options, pivot_workers=1), tmp_path_factory)
+    summary = process_flight(data / "flight" / "frames.tiff", tmp_path / "out",
+                             dataclasses.replace(options, pivot_workers=3))
+    assert summary["failed"] == 0 and summary["processed"] == summary["groups"]
+    assert _outputs(tmp_path / "out") == reference
 
 
 def test_previews_follow_the_pivots_place_not_the_run(data, tmp_path, tmp_path_factory):

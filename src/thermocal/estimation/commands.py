@@ -25,13 +25,14 @@ from thermocal.estimation.registry import (
 __all__ = ["backend_options", "estimate", "estimate_file"]
 
 
-def backend_options(command):
-    """``--backend`` and ``--threads``: how a network runs (:mod:`thermocal.nn.backends`)."""
+def backend_options(command, *, threads_help: str = (
+        "Threads the network runs on (default: this process's CPU cores).")):
+    """``--backend`` and ``--threads``: how a network runs (:mod:`thermocal.nn.backends`);
+    ``threads_help``, what ``--threads`` says of itself."""
     from thermocal.nn.backends import BACKENDS, CHOICES
 
     command = click.option(
-        "--threads", type=click.IntRange(min=1), default=None,
-        help="Threads the network runs on (default: this process's CPU cores).")(command)
+        "--threads", type=click.IntRange(min=1), default=None, help=threads_help)(command)
     return click.option(
         "--backend", type=click.Choice(CHOICES), default="torch", show_default=True,
         help="What runs the network: " + "; ".join(f"{b.name}: {b.summary}"

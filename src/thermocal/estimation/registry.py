@@ -77,6 +77,7 @@ def make_estimator(
     family: str = "tau2",
     backend: str = "torch",
     threads: int | None = None,
+    concurrent: int = 1,
 ) -> Estimator:
     """Build the estimator ``name`` of :data:`ESTIMATORS`.
 
@@ -86,7 +87,9 @@ def make_estimator(
     ``family``'s average unit, and is fitted on a pass by the flight. ``camera`` is made from
     the recording it runs on, once read (:class:`~thermocal.estimation.vendor.VendorCalibration`),
     not here. ``backend`` and ``threads``: what runs a network, on how many threads
-    (:func:`thermocal.nn.backends.make_runner`); refused for the other methods.
+    (:func:`thermocal.nn.runners.make_runner`), refused for the other methods; ``concurrent``:
+    how many threads may run a network at once (every estimator may be called from several
+    threads at once).
 
     Raises
     ------
@@ -119,7 +122,8 @@ def make_estimator(
         return OzMean(cal) if name == "mean" else PivotCalibration(cal)
     from thermocal.nn.infer import NetworkEstimator  # torch: only for a network
 
-    return NetworkEstimator.from_file(name, model, backend=backend, threads=threads)
+    return NetworkEstimator.from_file(name, model, backend=backend, threads=threads,
+                                      concurrent=concurrent)
 
 
 def check_backend_options(name: str, backend: str, threads: int | None) -> None:

@@ -207,9 +207,9 @@ class NetworkEstimator:
     ----------
     model, norm
         From :func:`thermocal.nn.store.load_model`.
-    backend, threads
-        What runs the network and on how many threads
-        (:func:`thermocal.nn.backends.make_runner`).
+    backend, threads, concurrent
+        What runs the network, on how many threads, for how many callers at once
+        (:func:`thermocal.nn.runners.make_runner`).
     """
 
     needs_fpa = True
@@ -219,9 +219,9 @@ class NetworkEstimator:
 
     def __init__(self, model: KPN, norm: Normalisation, domain: Domain | None = None,
                  sigma_model: SigmaModel | None = None, *, backend: str = "torch",
-                 threads: int | None = None) -> None:
+                 threads: int | None = None, concurrent: int = 1) -> None:
         self.model = model
-        self.runner = make_runner(model, backend, threads=threads)
+        self.runner = make_runner(model, backend, threads=threads, concurrent=concurrent)
         self.norm = norm
         self.domain = domain
         self.sigma_model = sigma_model
@@ -232,10 +232,11 @@ class NetworkEstimator:
 
     @classmethod
     def from_file(cls, method: str, path: str | os.PathLike[str] | None = None, *,
-                  backend: str = "torch", threads: int | None = None) -> NetworkEstimator:
+                  backend: str = "torch", threads: int | None = None, concurrent: int = 1
+                  ) -> NetworkEstimator:
         """The network ``method`` from weights file ``path`` (default: the shipped one),
         refused when the file holds another variant; run on ``backend`` with ``threads``
-        threads (:func:`~thermocal.nn.backends.make_runner`)."""
+        threads for ``concurrent`` callers (:func:`~thermocal.nn.runners.make_runner`)."""
         path = Path(path) if path is not None else shipped_model_path(method)
         model, norm, content = load_model(path)
         if model.config.variant != method:
@@ -248,7 +249,7 @@ class NetworkEstimator:
         sigma = (SigmaModel.load(sidecar, weights_sha256=content["sha256"])
                  if sidecar.is_file() else None)
         return cls(model, norm, Domain.of_network(content["data"], nominal), sigma,
-                   backend=backend, threads=threads)
+                   backend=backend, threads=threads, concurrent=concurrent)
 
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
         n_model = self.model.config.n_frames

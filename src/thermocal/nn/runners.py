@@ -15,13 +15,17 @@ the same temperatures within 1e-4 °C, tested).
   second. ``thermocal export`` writes it to a file, for an edge device (a Jetson's TensorRT, an
   NPU's compiler) to run at its sensor's size.
 - **Threads**: each backend runs on ``threads`` threads (default: the CPU cores this process
-  may use, :func:`~thermocal.nn.backends.default_threads`).
+  may use, :func:`~thermocal.nn.backends.default_threads`). A runner made for ``concurrent``
+  callers may be called from that many threads at once, each call on ``threads`` threads (a
+  flight estimates a pivot per core at once: more bursts a second on two cores than one burst
+  at a time on both, the per-burst steps around the network running in parallel too).
 """
 
 from __future__ import annotations
 
 import io
 import os
+import threading
 import warnings
 from collections.abc import Callable
 
@@ -29,7 +33,7 @@ import numpy as np
 import torch
 
 from thermocal.errors import InvalidInputError
-from thermocal.nn.backends import check_threads, resolve_backend
+from thermocal.nn.backends import check_threads, default_threads, resolve_backend
 from thermocal.nn.model import KPN
 
 __all__ = ["INPUT_NAMES", "OPSET", "Runner", "example_inputs", "export_onnx", "make_runner",
@@ -93,13 +97,17 @@ class _Graphs:
         self.model = model
         self.compile_graph = compile_graph
         self.compiled: dict[tuple[int, int], Callable] = {}
+        self._compiling = threading.Lock()  # callers at once compile a size once
 
     def __call__(self, frames: torch.Tensor, fpa: torch.Tensor, valid: torch.Tensor,
                  means: torch.Tensor, r2: torch.Tensor | None = None) -> torch.Tensor:
         size = (int(frames.shape[2]), int(frames.shape[3]))
         run = self.compiled.get(size)
         if run is None:
-            run = self.compiled[size] = self.compile_graph(onnx_graph(self.model, *size))
+            with self._compiling:
+                run = self.compiled.get(size)
+                if run is None:
+                    run = self.compiled[size] = self.compile_graph(onnx_graph(self.model, *size))
         feeds = {"frames": frames, "fpa": fpa, "valid": valid, "means": means, "r2": r2}
         out = np.asarray(run({k: np.ascontiguousarray(v.cpu().numpy())
                               for k, v in feeds.items() if v is not None}))
@@ -117,8 +125,8 @@ def _interp(x: np.ndarray, xg: np.ndarray, yg: np.ndarray) -> np.ndarray:
     return y0 + (x - x0) * ((y1 - y0) / (x1 - x0))
 
 
-def _onnxruntime(threads: int) -> Callable[[bytes], Callable]:
-    import onnxruntime as ort
+def _onnxruntime(threads: int, concurrent: int) -> Callable[[bytes], Callable]:
+    import onnxruntime as ort  # a session's run may be called from several threads at once
 
     def compile_graph(graph: bytes) -> Callable:
         options = ort.SessionOptions()
@@ -130,28 +138,42 @@ def _onnxruntime(threads: int) -> Callable[[bytes], Callable]:
     return compile_graph
 
 
-def _openvino(threads: int) -> Callable[[bytes], Callable]:
+def _openvino(threads: int, concurrent: int) -> Callable[[bytes], Callable]:
     import openvino as ov
 
     core = ov.Core()
+    # one stream per concurrent caller, each on its threads (one stream, the latency hint,
+    # runs one request at a time: two callers would wait for each other); the same numbers
+    streams = ({"PERFORMANCE_HINT": "LATENCY"} if concurrent == 1 else
+               {"NUM_STREAMS": concurrent})
 
     def compile_graph(graph: bytes) -> Callable:
         # f32: the CPU plugin's default on CPUs with bf16 units is bf16 (0.08 off, measured)
         # no pinning: processes beside this one (a campaign's workers) would pin theirs to the
         # same cores
         compiled = core.compile_model(core.read_model(graph), "CPU", {
-            "INFERENCE_PRECISION_HINT": "f32", "INFERENCE_NUM_THREADS": threads,
-            "PERFORMANCE_HINT": "LATENCY", "ENABLE_CPU_PINNING": False})
-        request = compiled.create_infer_request()
-        return lambda feeds: request.infer(feeds)[0]
+            "INFERENCE_PRECISION_HINT": "f32", "INFERENCE_NUM_THREADS": threads * concurrent,
+            "ENABLE_CPU_PINNING": False, **streams})
+        requests = threading.local()  # a request serves one caller at a time
+
+        def run(feeds: dict[str, np.ndarray]) -> np.ndarray:
+            request = getattr(requests, "request", None)
+            if request is None:
+                request = requests.request = compiled.create_infer_request()
+            return request.infer(feeds)[0]
+
+        return run
 
     return compile_graph
 
 
-def make_runner(model: KPN, backend: str = "torch", *, threads: int | None = None) -> Runner:
+def make_runner(model: KPN, backend: str = "torch", *, threads: int | None = None,
+                concurrent: int = 1) -> Runner:
     """What runs ``model`` on a tile, on ``backend`` (a name of :data:`BACKENDS` or ``auto``)
-    with ``threads`` threads (default :func:`default_threads`). For ``torch`` the thread count
-    is the process's: set (``torch.set_num_threads``) only when ``threads`` is given.
+    with ``threads`` threads per call (default: :func:`default_threads` shared out between the
+    callers), callable from ``concurrent`` threads at once. For ``torch`` the thread count is
+    the process's, shared by its callers: set (``torch.set_num_threads``) only when ``threads``
+    is given.
 
     Raises
     ------
@@ -159,7 +181,10 @@ def make_runner(model: KPN, backend: str = "torch", *, threads: int | None = Non
         An unknown or uninstalled backend, or a bad thread count.
     """
     name = resolve_backend(backend)
-    n = check_threads(threads)
+    if isinstance(concurrent, bool) or not isinstance(concurrent, int) or concurrent < 1:
+        raise InvalidInputError(f"concurrent callers must be an integer >= 1, got {concurrent!r}")
+    # by default the cores shared out between the callers (torch's callers share its pool)
+    n = check_threads(threads) if threads is not None else max(1, default_threads() // concurrent)
     if name == "torch":
         if threads is not None:  # else torch's own default (its physical cores)
             torch.set_num_threads(n)
@@ -171,7 +196,8 @@ def make_runner(model: KPN, backend: str = "torch", *, threads: int | None = Non
                          means=means, r2=r2)
 
         return run
-    return _Graphs(model.eval(), _onnxruntime(n) if name == "onnxruntime" else _openvino(n))
+    graphs = _onnxruntime if name == "onnxruntime" else _openvino
+    return _Graphs(model.eval(), graphs(n, concurrent))
 
 
 def export_onnx(weights: str | os.PathLike[str], out: str | os.PathLike[str], *,

@@ -22,8 +22,8 @@ system).
   found while streaming, every group failed, a worker that died twice) is named in
   ``OUT/campaign.json`` with its error; the others go on. The command exits 2 when any failed.
 - **Threads**: with ``W`` workers of a LocalCluster on ``C`` cores, each worker's thread pools
-  (the network's, OpenCV's, the registration's) get ``max(1, C // W)`` threads (``--threads``
-  sets the network's).
+  (OpenCV's, the registration's, the pivots estimated at once, each network call on one
+  thread) get ``max(1, C // W)`` threads (``--threads``: the network's, one pivot at a time).
 
 Everything is checked before a task starts: every input a recording (its header read), the
 options a flight would refuse, the scheduler reachable.
@@ -253,9 +253,13 @@ def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
         futures = {}
         for task in tasks:
             if share is not None:  # this machine's cores, shared out between its workers
-                options = replace(task.options, registration_threads=share)
-                if options.threads is None and _runs_network(task):
-                    options = replace(options, threads=share)
+                # its pivots at once, as a flight does on its cores, each network on one
+                # thread; one at a time on --threads threads when they are given
+                given = task.options.threads
+                options = replace(task.options, registration_threads=share,
+                                  pivot_workers=share if given is None else 1)
+                if given is None and _runs_network(task):
+                    options = replace(options, threads=1)
                 task = replace(task, threads=share, options=options)
             futures[client.submit(_run_task, task, key=_task_key(task), pure=False,
                                   retries=RETRIES)] = task

@@ -36,7 +36,9 @@ def flight_options(command):
                      "camera family) instead of failing them; the log says why each is not "
                      "validated."),
     ]
-    command = backend_options(command)
+    command = backend_options(command, threads_help=(
+        "Threads the network runs on, one group at a time (default: a group per CPU core at "
+        "once, each on one thread: the same maps, sooner)."))
     for option in reversed(options):  # listed in --help in this order
         command = option(command)
     return command
