@@ -33,6 +33,10 @@ and Pix4D read; ``geotiff=True`` adds GeoTIFF tags to the same files where the f
 footprint can be computed (:mod:`thermocal.io.geotag`). A frame without GPS gives the same bytes
 as ever.
 
+The groups of a batch are estimated several at once, one per CPU core by default
+(:func:`pivot_workers`: each network call on its share of the cores), their log lines written
+in the groups' order: the same bytes as one at a time.
+
 A rerun with the same options resumes, and gives the same bytes as an uninterrupted run:
 
 * a pivot is finished once its preview, its σ map, its map and then its log line are written
