@@ -183,7 +183,10 @@ def test_disk_full_keeps_finished_outputs_and_resumes(setup, tmp_path, monkeypat
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "No space left on device" in err
     assert "rerun to resume" in err
-    assert [p.name for p in (out / "temps").iterdir()] == ["frame_000003.tiff"]
+    # the one map written before the disk filled is kept (which one: the pivots run at once)
+    kept = [p.name for p in (out / "temps").iterdir()]
+    assert len(kept) == 1 and kept[0] in ("frame_000003.tiff", "frame_000010.tiff",
+                                          "frame_000017.tiff")
     monkeypatch.setattr(tifffile, "imwrite", real_imwrite)
     main(argv)
     names = sorted(p.name for p in (out / "temps").iterdir())

@@ -11,7 +11,9 @@ it before eq. 11 was folded (:data:`BEFORE`: the head's ``N·K²`` kernels forme
 after a warm-up (the first call, which for ONNX Runtime and OpenVINO exports and compiles the
 graph, apart), its ratio to PyTorch eager on as many threads and to that baseline, the largest
 difference from PyTorch's temperatures (°C), and the multiply-add rate against the peak of this
-CPU.
+CPU. Then each backend with two bursts at once, each on one thread (a runner for two callers,
+as ``thermocal flight`` runs its groups, :func:`~thermocal.pipeline.flight.pivot_workers`):
+the wall time per burst, against the baseline on two threads one burst at a time.
 
 **The peak.** Two figures: the rate of a large float32 matrix product (``torch.mm`` of
 :data:`GEMM_SIDE`², MKL/oneDNN: the practical peak of a dense kernel on these cores), and the
@@ -40,6 +42,8 @@ GEMM_SIDE = 2048
 #: them too).
 FMA_PER_CYCLE = 16
 THREADS = (1, 2)
+#: Bursts at once in the last rows, each on one thread.
+PAIR = 2
 #: The baseline's row name: PyTorch eager with eq. 11's kernels formed (the network until the
 #: kernel step was folded, :meth:`thermocal.nn.model.KernelHead.kernel_sum`;
 #: :func:`~thermocal.nn.model.with_formed_kernels`).
@@ -128,16 +132,10 @@ def run(*, quick: bool) -> dict:
                 t = time.perf_counter()
                 run_network(model, norm, warped, valid, burst.fpa_c, runner=runners[name])
                 times[name].append(time.perf_counter() - t)
-        eager = float(np.median(times["torch"]))
-        baseline = float(np.median(times[BEFORE]))
-        for name in names:
-            med = float(np.median(times[name]))
-            rows.append({"backend": name, "threads": threads, "median_s": med,
-                         "min_s": float(np.min(times[name])), "first_call_s": first[name],
-                         "vs_torch": med / eager, "vs_before": med / baseline,
-                         "max_abs_diff_c": float(np.abs(reference[name]
-                                                        - reference["torch"]).max()),
-                         "gmac_per_s": macs / med / 1e9})
+        rows += _rows(names, threads, 1, times, first, reference, macs)
+    rows += _rows(names, THREADS[-1], PAIR, *_pairs(names, model, before, norm, warped, valid,
+                                                    burst.fpa_c, rounds),
+                  reference, macs, baseline=rows[-1]["median_s"] / rows[-1]["vs_before"])
     clock = _clock_ghz()
     cores = backends.default_threads()
     peak = {"gemm_gmac_per_s": {t: gemm_rate(t) / 1e9 for t in THREADS},
@@ -145,6 +143,57 @@ def run(*, quick: bool) -> dict:
             "clock_ghz": clock, "cores": cores, "fma_per_cycle": FMA_PER_CYCLE}
     return {"macs": macs, "rows": rows, "peak": peak, "rounds": rounds,
             "frame": list(warped.shape)}
+
+
+def _pairs(names: list[str], model, before, norm, warped, valid, fpa_c: float, rounds: int
+           ) -> tuple[dict[str, list[float]], dict[str, float]]:
+    """Seconds per burst with :data:`PAIR` bursts at once, each on one thread, ``rounds``
+    times per backend (interleaved), and each backend's first call (a pair's)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    import torch
+
+    from thermocal.nn.infer import run_network
+    from thermocal.nn.runners import make_runner
+
+    torch.set_num_threads(1)
+    runners = {name: (make_runner(before, "torch", threads=1, concurrent=PAIR) if name == BEFORE
+                      else make_runner(model, name, threads=1, concurrent=PAIR))
+               for name in names}
+    times: dict[str, list[float]] = {name: [] for name in names}
+    first: dict[str, float] = {}
+    with ThreadPoolExecutor(PAIR) as pool:
+        def pair(name: str) -> float:
+            t = time.perf_counter()
+            list(pool.map(lambda _: run_network(model, norm, warped, valid, fpa_c,
+                                                runner=runners[name]), range(PAIR)))
+            return (time.perf_counter() - t) / PAIR
+
+        for name in names:
+            first[name] = pair(name) * PAIR
+        for _ in range(rounds):
+            for name in names:
+                times[name].append(pair(name))
+    return times, first
+
+
+def _rows(names: list[str], threads: int, concurrent: int, times: dict[str, list[float]],
+          first: dict[str, float], reference: dict[str, np.ndarray], macs: int, *,
+          baseline: float | None = None) -> list[dict]:
+    """The table's rows of one thread count (``concurrent`` bursts at once): ratios to torch's
+    and to ``baseline`` (default: :data:`BEFORE` in the same runs)."""
+    eager = float(np.median(times["torch"]))
+    baseline = float(np.median(times[BEFORE])) if baseline is None else baseline
+    rows = []
+    for name in names:
+        med = float(np.median(times[name]))
+        rows.append({"backend": name, "threads": threads, "concurrent": concurrent,
+                     "median_s": med, "min_s": float(np.min(times[name])),
+                     "first_call_s": first[name], "vs_torch": med / eager,
+                     "vs_before": med / baseline,
+                     "max_abs_diff_c": float(np.abs(reference[name] - reference["torch"]).max()),
+                     "gmac_per_s": macs / med / 1e9})
+    return rows
 
 
 def report(res: dict, info: dict) -> str:
@@ -155,15 +204,18 @@ def report(res: dict, info: dict) -> str:
     cells = []
     for r in res["rows"]:
         gemm = peak["gemm_gmac_per_s"][r["threads"]]
-        cells.append((r["backend"], r["threads"], f"{1e3 * r['median_s']:.0f}",
+        pair = r.get("concurrent", 1) > 1
+        cells.append((r["backend"], f"{r['concurrent']} bursts × 1" if pair else r["threads"],
+                      f"{1e3 * r['median_s']:.0f}",
                       f"{1e3 * r['min_s']:.0f}", f"{r['first_call_s']:.2f}",
                       f"{r['vs_torch']:.2f}", f"{r['vs_before']:.2f}",
                       f"{r['max_abs_diff_c']:.1e}",
                       f"{r['gmac_per_s']:.1f}", f"{100 * r['gmac_per_s'] / gemm:.0f} %",
                       "–" if theory is None else
                       f"{100 * r['gmac_per_s'] / (theory * r['threads'] / peak['cores']):.0f} %"))
-    header = ("backend", "threads", "median ms", "best ms", "first call s", "× torch eager",
-              "× eager before (kernels formed)", "max |Δ| °C vs torch", "G multiply-adds/s",
+    header = ("backend", "threads", "median ms (per burst)", "best ms", "first call s",
+              "× torch eager", "× eager before (kernels formed; on 2 threads for 2 bursts × 1)",
+              "max |Δ| °C vs torch", "G multiply-adds/s",
               "of the matrix product's rate",
               "of the theoretical peak")
     gemm = ", ".join(f"{v:.1f} on {t} thread{'s' if t > 1 else ''}"
