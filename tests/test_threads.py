@@ -80,3 +80,45 @@ def test_a_warning_outside_a_catch_is_shown_as_usual():
                 warnings.warn("caught", UserWarning, stacklevel=1)
     assert [str(w.message) for w in outer] == ["shown"]
     assert [str(w.message) for w in caught] == ["caught"]
+
+
+def test_a_nested_catch_keeps_its_own_and_gives_the_outer_back():
+    with routed_warnings():
+        with caught_warnings() as outer:
+            warnings.warn("before", UserWarning, stacklevel=1)
+            with caught_warnings() as inner:
+                warnings.warn("inner", UserWarning, stacklevel=1)
+            warnings.warn("after", UserWarning, stacklevel=1)
+    assert [str(w.message) for w in inner] == ["inner"]
+    assert [str(w.message) for w in outer] == ["before", "after"]
+
+
+def test_a_catch_while_another_thread_catches_does_not_silence_it():
+    """One thread's catch inside the routed block (as the network's export on a flight's first
+    group) leaves another thread's warnings where they belong."""
+    inside, go_on = threading.Event(), threading.Event()
+
+    def exporter() -> list[str]:
+        with caught_warnings() as caught:
+            warnings.warn("tracer", UserWarning, stacklevel=1)
+            inside.set()
+            go_on.wait(5)
+        return [str(w.message) for w in caught]
+
+    def other() -> list[str]:
+        inside.wait(5)
+        with caught_warnings() as caught:
+            warnings.warn("mine", UserWarning, stacklevel=1)
+        go_on.set()
+        return [str(w.message) for w in caught]
+
+    with routed_warnings(), ThreadPoolExecutor(2) as pool:
+        a, b = pool.submit(exporter), pool.submit(other)
+        assert a.result() == ["tracer"] and b.result() == ["mine"]
+
+
+def test_outside_a_routed_block_a_catch_records_as_catch_warnings_does():
+    with caught_warnings() as caught:
+        warnings.warn("plain", UserWarning, stacklevel=1)
+        warnings.warn("plain", UserWarning, stacklevel=1)  # "always": both
+    assert [str(w.message) for w in caught] == ["plain", "plain"]

@@ -26,6 +26,8 @@ T = TypeVar("T")
 R = TypeVar("R")
 
 _sinks = threading.local()
+#: How many :func:`routed_warnings` blocks are open.
+_routed = 0
 
 
 def ordered_map(pool: Executor | None, fn: Callable[[T], R], items: Iterable[T], *,
@@ -59,6 +61,7 @@ def routed_warnings() -> Iterator[None]:
     """Within (entered by one thread, around the work of several): every warning is shown
     (``"always"``), to the list of :func:`caught_warnings` of the thread that raised it, or as
     usual in a thread outside one."""
+    global _routed
     with warnings.catch_warnings():
         warnings.simplefilter("always")
         shown = warnings.showwarning
@@ -73,16 +76,29 @@ def routed_warnings() -> Iterator[None]:
                                                     line))
 
         warnings.showwarning = show
-        yield
+        _routed += 1
+        try:
+            yield
+        finally:
+            _routed -= 1
 
 
 @contextlib.contextmanager
 def caught_warnings() -> Iterator[list[warnings.WarningMessage]]:
     """The warnings this thread raises within, as :class:`warnings.catch_warnings`
-    ``(record=True)`` lists them; inside :func:`routed_warnings` (not nested)."""
+    ``(record=True)`` with the ``"always"`` filter lists them: apart from other threads' inside
+    :func:`routed_warnings` (nested ones too: the inner list takes what is raised within it);
+    elsewhere through :class:`warnings.catch_warnings` itself, which changes the process's state
+    for every thread while it lasts."""
+    if not _routed:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            yield caught
+        return
     caught: list[warnings.WarningMessage] = []
+    outer = getattr(_sinks, "sink", None)
     _sinks.sink = caught
     try:
         yield caught
     finally:
-        _sinks.sink = None
+        _sinks.sink = outer

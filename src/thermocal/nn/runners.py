@@ -26,7 +26,6 @@ from __future__ import annotations
 import io
 import os
 import threading
-import warnings
 from collections.abc import Callable
 
 import numpy as np
@@ -35,6 +34,7 @@ import torch
 from thermocal.errors import InvalidInputError
 from thermocal.nn.backends import check_threads, default_threads, resolve_backend
 from thermocal.nn.model import KPN
+from thermocal.threads import caught_warnings
 
 __all__ = ["INPUT_NAMES", "OPSET", "Runner", "example_inputs", "export_onnx", "make_runner",
            "onnx_graph"]
@@ -82,8 +82,9 @@ def onnx_graph(model: KPN, height: int, width: int) -> bytes:
     wrapped = _Linear(model).eval()
     args = example_inputs(model, height, width)
     buf = io.BytesIO()
-    with warnings.catch_warnings():  # the tracer's warnings on the shape checks: sizes fixed
-        warnings.simplefilter("ignore")
+    # the tracer's warnings on the shape checks (sizes fixed) dropped: kept apart, since a
+    # flight's other groups may be warning from other threads meanwhile
+    with caught_warnings():
         torch.onnx.export(wrapped, args, buf, dynamo=False, opset_version=OPSET,
                           input_names=list(INPUT_NAMES[: len(args)]), output_names=["out"])
     return buf.getvalue()
