@@ -4,6 +4,7 @@ failed runs say so, and bad input leaves nothing behind."""
 from __future__ import annotations
 
 import dataclasses
+import importlib.util
 import json
 import os
 import signal
@@ -89,16 +90,15 @@ def _reference(data: Path, options: FlightOptions, tmp_path_factory) -> dict[str
     return _REFERENCE[key]
 
 
-def _interrupt_after(monkeypatch, k: int) -> None:
-    """The run stops (Ctrl-C) when it starts its ``k+1``-th pivot."""
+def _interrupt_after(monkeypatch, k: int, pivots: list[int]) -> None:
+    """The run stops (Ctrl-C) at its ``k+1``-th pivot of ``pivots`` (whichever worker starts
+    it, whenever: the pivots may run at once)."""
     real = flight._process_pivot
-    calls = {"n": 0}
 
-    def stop(*args, **kwargs):
-        if calls["n"] == k:
+    def stop(run, pivot, *args, **kwargs):
+        if pivot == pivots[k]:
             raise KeyboardInterrupt
-        calls["n"] += 1
-        return real(*args, **kwargs)
+        return real(run, pivot, *args, **kwargs)
 
     monkeypatch.setattr(flight, "_process_pivot", stop)
 
@@ -118,7 +118,7 @@ def test_interrupted_run_resumes_to_the_same_bytes(data, tmp_path, tmp_path_fact
     reference = _reference(data, dataclasses.replace(options, pivot_workers=1), tmp_path_factory)
     out = tmp_path / "out"
     with monkeypatch.context() as m:
-        _interrupt_after(m, k)
+        _interrupt_after(m, k, flight.pivots_of(43, options.frames, options.stride))
         with pytest.raises(KeyboardInterrupt):
             process_flight(data / "flight" / "frames.tiff", out, options)
     maps = [p for p in (out / "temps").iterdir() if not p.stem.endswith("_sigma")]
@@ -133,20 +133,39 @@ def test_interrupted_run_resumes_to_the_same_bytes(data, tmp_path, tmp_path_fact
     assert _outputs(out) == reference
 
 
-@pytest.mark.parametrize("method", ["mean", "kpn", "calibration"])
+@pytest.mark.parametrize(("method", "backend"), [
+    ("mean", "torch"), ("kpn", "torch"), ("calibration", "torch"),
+    pytest.param("kpn", "onnxruntime", marks=pytest.mark.skipif(
+        importlib.util.find_spec("onnxruntime") is None, reason="onnxruntime not installed"))])
 def test_pivots_at_once_give_the_bytes_of_one_at_a_time(data, tmp_path, tmp_path_factory,
-                                                         method):
-    """Every map, σ map, preview and log line of three pivots estimated at once is that of one
-    at a time, and so are the summary's counts."""
+                                                         method, backend):
+    """Every map, σ map, preview and log line of three pivots estimated at once (each network
+    call on its share of the cores) is that of one at a time (on all of them), and so are the
+    summary's counts."""
     if method == "kpn":
         pytest.importorskip("torch")
-    options = _options(data, method, preview_every=1,
+    options = _options(data, method, preview_every=1, backend=backend,
                        **({"stride": 7} if method == "kpn" else {}))
     reference = _reference(data, dataclasses.replace(options, pivot_workers=1), tmp_path_factory)
     summary = process_flight(data / "flight" / "frames.tiff", tmp_path / "out",
                              dataclasses.replace(options, pivot_workers=3))
     assert summary["failed"] == 0 and summary["processed"] == summary["groups"]
     assert _outputs(tmp_path / "out") == reference
+
+
+def test_each_pivot_logs_its_own_warnings_when_pivots_run_at_once(data, tmp_path):
+    """A warning of every group's estimate (the calibration applied above its FPA range,
+    forced) lands in that group's log line, three at once as one at a time."""
+    logs = {}
+    for workers in (1, 3):
+        options = _options(data, "calibration", fpa_c=40.5, force=True, pivot_workers=workers)
+        out = tmp_path / f"out{workers}"
+        summary = process_flight(data / "flight" / "frames.tiff", out, options)
+        assert summary["processed"] == summary["groups"] == 13
+        logs[workers] = (out / "log.jsonl").read_bytes()
+        lines = [json.loads(line) for line in logs[workers].splitlines()]
+        assert all(any("leave the calibrated range" in w for w in e["warnings"]) for e in lines)
+    assert logs[1] == logs[3]
 
 
 def test_previews_follow_the_pivots_place_not_the_run(data, tmp_path, tmp_path_factory):

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import threading
 
 import numpy as np
 import pytest
@@ -166,10 +167,13 @@ def test_disk_full_keeps_finished_outputs_and_resumes(setup, tmp_path, monkeypat
 
     real_imwrite = tifffile.imwrite
     calls = {"n": 0}
+    lock = threading.Lock()  # the pivots write at once
 
     def imwrite_then_full(*args, **kwargs):
-        calls["n"] += 1
-        if calls["n"] > 1:
+        with lock:
+            calls["n"] += 1
+            full = calls["n"] > 1
+        if full:
             raise OSError(errno.ENOSPC, "No space left on device", str(args[0]))
         return real_imwrite(*args, **kwargs)
 

@@ -1,4 +1,4 @@
-"""thermocal.threads: results in order, each thread's warnings kept apart."""
+"""thermocal.threads: each thread's warnings kept apart."""
 
 from __future__ import annotations
 
@@ -7,51 +7,7 @@ import time
 import warnings
 from concurrent.futures import ThreadPoolExecutor
 
-import pytest
-
-from thermocal.threads import caught_warnings, ordered_map, routed_warnings
-
-
-def _slow_square(x: int) -> int:
-    time.sleep(0.002 * (x % 3))  # finish out of order
-    return x * x
-
-
-@pytest.mark.parametrize("workers", [None, 1, 3])
-def test_ordered_map_yields_in_the_items_order(workers):
-    pool = None if workers is None else ThreadPoolExecutor(workers)
-    try:
-        assert list(ordered_map(pool, _slow_square, range(20), ahead=4)) == [
-            x * x for x in range(20)]
-    finally:
-        if pool is not None:
-            pool.shutdown()
-
-
-def test_ordered_map_raises_at_the_failing_items_place_and_cancels_the_rest():
-    started = []
-    lock = threading.Lock()
-
-    def work(x: int) -> int:
-        with lock:
-            started.append(x)
-        if x == 2:
-            raise KeyError(x)
-        time.sleep(0.01)
-        return x
-
-    with ThreadPoolExecutor(2) as pool:
-        got = []
-        with pytest.raises(KeyError):
-            for value in ordered_map(pool, work, range(100), ahead=4):
-                got.append(value)
-    assert got == [0, 1]
-    assert max(started) < 8  # never more than `ahead` past what was yielded
-
-
-def test_ordered_map_refuses_a_bad_ahead():
-    with ThreadPoolExecutor(1) as pool, pytest.raises(ValueError, match="ahead"):
-        list(ordered_map(pool, _slow_square, range(3), ahead=0))
+from thermocal.threads import caught_warnings, routed_warnings
 
 
 def test_each_thread_catches_its_own_warnings():
@@ -122,3 +78,34 @@ def test_outside_a_routed_block_a_catch_records_as_catch_warnings_does():
         warnings.warn("plain", UserWarning, stacklevel=1)
         warnings.warn("plain", UserWarning, stacklevel=1)  # "always": both
     assert [str(w.message) for w in caught] == ["plain", "plain"]
+
+
+def test_routed_blocks_of_two_threads_at_once_keep_their_warnings_and_give_the_state_back():
+    """Two flights in one process (a Dask worker running two tasks): blocks opened and closed
+    out of order; each thread's warnings reach its own list, and the process's filters and
+    showwarning are as before once both have closed."""
+    before = (warnings.filters[:], warnings.showwarning)
+    a_in, b_in, a_out = threading.Event(), threading.Event(), threading.Event()
+
+    def flight_a() -> list[str]:
+        with routed_warnings():
+            a_in.set()
+            b_in.wait(5)
+            with caught_warnings() as caught:
+                warnings.warn("a", UserWarning, stacklevel=1)
+        a_out.set()
+        return [str(w.message) for w in caught]
+
+    def flight_b() -> list[str]:
+        a_in.wait(5)
+        with routed_warnings():
+            b_in.set()
+            a_out.wait(5)  # a's block has closed, b's is open
+            with caught_warnings() as caught:
+                warnings.warn("b", UserWarning, stacklevel=1)
+        return [str(w.message) for w in caught]
+
+    with ThreadPoolExecutor(2) as pool:
+        a, b = pool.submit(flight_a), pool.submit(flight_b)
+        assert a.result() == ["a"] and b.result() == ["b"]
+    assert warnings.filters == before[0] and warnings.showwarning is before[1]

@@ -190,9 +190,17 @@ def make_runner(model: KPN, backend: str = "torch", *, threads: int | None = Non
         if threads is not None:  # else torch's own default (its physical cores)
             torch.set_num_threads(n)
         model.eval()
+        # each calling thread runs its own OpenMP team, of the count set in that thread: callers
+        # at once each set their share when they first call (the process's count, that of the
+        # thread that made the runner, stays as it is)
+        share = n if concurrent > 1 and threads is None else None
+        callers = threading.local()
 
         def run(frames: torch.Tensor, fpa: torch.Tensor, valid: torch.Tensor,
                 means: torch.Tensor, r2: torch.Tensor | None = None) -> torch.Tensor:
+            if share is not None and not getattr(callers, "set", False):
+                torch.set_num_threads(share)
+                callers.set = True
             return model(frames.contiguous(memory_format=torch.channels_last), fpa, valid,
                          means=means, r2=r2)
 

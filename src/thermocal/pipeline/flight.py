@@ -113,7 +113,7 @@ from thermocal.io.recording import (
 from thermocal.pipeline.flight_log import read_log
 from thermocal.plotting import TemperaturePreviews
 from thermocal.registration.sequence import SequenceRegistration, register_sequence
-from thermocal.threads import caught_warnings, ordered_map, routed_warnings
+from thermocal.threads import caught_warnings, routed_warnings
 
 #: Frames registered together as one sequence (a batch of groups). The batches are fixed by the
 #: groups' places in the recording (``BATCH_FRAMES // stride`` consecutive pivots each), never by
@@ -361,6 +361,7 @@ def process_flight(
         tally.times.seconds["self-calibration"] = prefit_s
     started = time.perf_counter() - prefit_s
     workers = pivot_workers(options)
+    shown: dict = {}  # the run's warnings registry: a warning the caller shows once, once
     with (open(log_path, "a", encoding="utf-8") as log, previews,
           contextlib.nullcontext() if workers == 1 else
           ThreadPoolExecutor(workers, thread_name_prefix="pivot") as pool):
@@ -387,20 +388,26 @@ def process_flight(
             def one(item: tuple[int, int], run: _Batch = run,
                     estimator_: Estimator = batch_estimator) -> _Pivot:
                 index, pivot = item
-                return _process_pivot(run, pivot, series, estimator_, options, out,
-                                      preview=previews if _preview_due(options, index)
-                                      else None, bit_depth=header.bit_depth, geo=geo[pivot])
+                with caught_warnings() as raised:  # besides the estimate's: given back below
+                    finished = _process_pivot(
+                        run, pivot, series, estimator_, options, out,
+                        preview=previews if _preview_due(options, index) else None,
+                        bit_depth=header.bit_depth, geo=geo[pivot])
+                return replace(finished, stray=tuple(raised))
 
-            # the pivots on the workers, their log lines here in the pivots' order
+            # the pivots on the workers (Executor.map: in order; the ones not started are
+            # cancelled when this loop stops), their log lines here in the pivots' order
             t = time.perf_counter()
             spent = dict.fromkeys(("estimate", "writing"), 0.0)
+            stray: list[warnings.WarningMessage] = []
             with routed_warnings():
-                for (_, pivot), result in zip(todo, ordered_map(pool, one, todo,
-                                                                ahead=2 * workers), strict=True):
+                results = map(one, todo) if pool is None else pool.map(one, todo)
+                for (_, pivot), result in zip(todo, results, strict=True):
                     bad = _undecodable_in(run, pivot - n // 2, n)
                     undecodable.update((i, (where, why)) for i, where, why in bad)
                     skipped_groups += bool(bad)
                     tally.count(pivot, result)
+                    stray += result.stray
                     for stage, seconds in result.seconds.items():
                         spent[stage] += seconds
                     log.write(json.dumps(result.entry) + "\n")  # last: the pivot is finished
@@ -408,6 +415,9 @@ def process_flight(
                     if progress:
                         progress(stride)
             tally.times.share(t, spent)
+            for w in stray:  # under the caller's filters again, in the pivots' order
+                warnings.warn_explicit(w.message, w.category, w.filename, w.lineno,
+                                       registry=shown)
     if segment is not None:
         return {"segment": list(segment), "groups": sum(len(batches[bi]) for bi in mine),
                 "processed": tally.processed, "skipped_already_done": tally.skipped,
@@ -536,11 +546,13 @@ def _preview_title(options: FlightOptions, pivot: int) -> str:
 
 @dataclass(frozen=True)
 class _Pivot:
-    """A pivot done (:func:`_process_pivot`): its log entry (with ``error`` when it failed)
-    and the seconds its stages took on its worker."""
+    """A pivot done (:func:`_process_pivot`): its log entry (with ``error`` when it failed),
+    the seconds its stages took on its worker, and the warnings it raised outside the estimate
+    (which go into the entry)."""
 
     entry: dict[str, Any]
     seconds: dict[str, float]
+    stray: tuple[warnings.WarningMessage, ...] = ()
 
 
 @dataclass
