@@ -173,8 +173,9 @@ def make_runner(model: KPN, backend: str = "torch", *, threads: int | None = Non
     """What runs ``model`` on a tile, on ``backend`` (a name of :data:`BACKENDS` or ``auto``)
     with ``threads`` threads per call (default: :func:`default_threads` shared out between the
     callers), callable from ``concurrent`` threads at once. For ``torch`` the thread count is
-    the process's, shared by its callers: set (``torch.set_num_threads``) only when ``threads``
-    is given.
+    per calling thread: set (``torch.set_num_threads``) in the thread that makes the runner when
+    ``threads`` is given, and for ``concurrent`` callers in each caller's thread at its first
+    call.
 
     Raises
     ------
@@ -184,22 +185,21 @@ def make_runner(model: KPN, backend: str = "torch", *, threads: int | None = Non
     name = resolve_backend(backend)
     if isinstance(concurrent, bool) or not isinstance(concurrent, int) or concurrent < 1:
         raise InvalidInputError(f"concurrent callers must be an integer >= 1, got {concurrent!r}")
-    # by default the cores shared out between the callers (torch's callers share its pool)
+    # by default the cores shared out between the callers
     n = check_threads(threads) if threads is not None else max(1, default_threads() // concurrent)
     if name == "torch":
         if threads is not None:  # else torch's own default (its physical cores)
             torch.set_num_threads(n)
         model.eval()
         # each calling thread runs its own OpenMP team, of the count set in that thread: callers
-        # at once each set their share when they first call (the process's count, that of the
-        # thread that made the runner, stays as it is)
-        share = n if concurrent > 1 and threads is None else None
+        # at once each set theirs when they first call (the count of the thread that made the
+        # runner stays as it was, or as ``threads`` set it)
         callers = threading.local()
 
         def run(frames: torch.Tensor, fpa: torch.Tensor, valid: torch.Tensor,
                 means: torch.Tensor, r2: torch.Tensor | None = None) -> torch.Tensor:
-            if share is not None and not getattr(callers, "set", False):
-                torch.set_num_threads(share)
+            if concurrent > 1 and not getattr(callers, "set", False):
+                torch.set_num_threads(n)
                 callers.set = True
             return model(frames.contiguous(memory_format=torch.channels_last), fpa, valid,
                          means=means, r2=r2)

@@ -546,9 +546,9 @@ def _preview_title(options: FlightOptions, pivot: int) -> str:
 
 @dataclass(frozen=True)
 class _Pivot:
-    """A pivot done (:func:`_process_pivot`): its log entry (with ``error`` when it failed),
-    the seconds its stages took on its worker, and the warnings it raised outside the estimate
-    (which go into the entry)."""
+    """A pivot done (:func:`_process_pivot`): its log entry (with ``error`` when it failed, and
+    the estimate's warnings), the seconds its stages took on its worker, and the warnings it
+    raised outside the estimate (given back to the caller after its batch)."""
 
     entry: dict[str, Any]
     seconds: dict[str, float]
