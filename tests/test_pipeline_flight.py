@@ -75,20 +75,37 @@ def test_mean_of_registered_group(setup, tmp_path):
         (tmp_path / "o" / "previews").iterdir())
 
 
-def test_registration_runs_on_the_threads_it_is_given(setup, tmp_path, monkeypatch):
+@pytest.fixture
+def registrations(monkeypatch):
+    """The keyword arguments of each call the flight makes to ``register_sequence``."""
     from thermocal.pipeline import flight
 
     asked, register = [], flight.register_sequence
 
     def spy(frames, **kwargs):
-        asked.append(kwargs.get("workers"))
+        asked.append(kwargs)
         return register(frames, **kwargs)
 
     monkeypatch.setattr(flight, "register_sequence", spy)
+    return asked
+
+
+def test_registration_runs_on_the_threads_it_is_given(setup, tmp_path, registrations):
     options = FlightOptions(method="mean", calibration=str(setup / "cal.h5"), preview_every=0,
                             registration_threads=1)
     process_flight(setup / "flight" / "frames.tiff", tmp_path / "o", options)
-    assert asked and set(asked) == {1}
+    assert registrations and {kw.get("workers") for kw in registrations} == {1}
+
+
+def test_registration_aligns_only_the_pairs_inside_groups(setup, tmp_path, registrations):
+    """N = 5 at stride 7 over 23 frames: groups 1–5, 8–12, 15–19; the pairs a group composes
+    through are registered, not those that join groups or frames no group holds."""
+    options = FlightOptions(method="mean", calibration=str(setup / "cal.h5"), preview_every=0,
+                            frames=5, stride=7)
+    summary = process_flight(setup / "flight" / "frames.tiff", tmp_path / "o", options)
+    assert summary["processed"] == 3 and summary["failed"] == 0
+    (call,) = registrations  # frames 1 … 19 of the recording
+    assert np.flatnonzero(call["pairs"]).tolist() == [1, 2, 3, 4, 8, 9, 10, 11, 15, 16, 17, 18]
 
 
 def _outputs(out) -> dict[str, bytes]:

@@ -101,6 +101,36 @@ def test_segments_in_parallel_give_the_same_homographies(uav, monkeypatch):
     assert np.array_equal(one.correlation, two.correlation) and one.ok.all()
 
 
+def test_only_the_pairs_asked_for_are_registered(uav, reg):
+    """Groups of 7 at stride 10: only the pairs inside each group are registered (the others
+    the identity, not ok, correlation NaN), each as close to the truth as in a full run, and
+    a group composes onto its pivot as before; a chain across a skipped pair is refused."""
+    frames, to_map, *_ = uav
+    pairs = np.zeros(N, dtype=bool)
+    for first in range(0, N - 6, 10):
+        pairs[first + 1 : first + 7] = True
+    part = register_sequence(frames, pairs=pairs)
+    assert np.array_equal(part.ok, pairs | (np.arange(N) == 0))
+    assert np.isnan(part.correlation[~part.ok]).all() and part.correlation[pairs].min() > 0.9
+    np.testing.assert_array_equal(part.to_previous[~pairs], np.repeat(np.eye(3)[None],
+                                                                      (~pairs).sum(), axis=0))
+    inv = np.linalg.inv(to_map)
+    for k in np.flatnonzero(pairs):
+        truth = inv[k - 1] @ to_map[k]
+        assert corner_error(part.to_previous[k], truth) < corner_error(
+            reg.to_previous[k], truth) + 0.05, k
+    hs = part.to_pivot(np.arange(10, 17), 13)
+    full = reg.to_pivot(np.arange(10, 17), 13)
+    assert max(corner_error(a, b) for a, b in zip(hs, full, strict=True)) < 0.1
+    with pytest.raises(RegistrationError, match="frame 10 was not registered"):
+        part.to_pivot([9], 13)
+    # every pair asked for: the full run's bytes
+    assert np.array_equal(register_sequence(frames, pairs=np.ones(N, bool)).to_previous,
+                          reg.to_previous)
+    with pytest.raises(InvalidInputError, match="pairs: expected 60 booleans"):
+        register_sequence(frames, pairs=np.ones(N - 1, bool))
+
+
 def test_failed_link_is_refused_by_to_pivot(reg):
     ok = reg.ok.copy()
     ok[33] = False

@@ -44,7 +44,8 @@ A rerun with the same options resumes, and gives the same bytes as an uninterrup
   check out (readable float32 TIFFs of the frame size, finite, with the logged means); anything
   else is redone;
 * groups are registered in batches fixed by their place in the recording (:data:`BATCH_FRAMES`),
-  whatever was done before, so a group's map depends only on the recording and the options;
+  whatever was done before, so a group's map depends only on the recording and the options
+  (a batch aligns only the frame pairs its groups compose through, :func:`_group_pairs`);
 * temporary files an interrupted run left in the output folders (:func:`atomic_path`'s names)
   are removed, and a log line cut short is dropped; unreadable log lines and files that are not
   named like an output are ignored.
@@ -261,14 +262,29 @@ def _pace_history(series: dict[str, Any], estimator: Estimator
                 series["fpa_c"], times, band_c=still["band_c"], max_gap_s=PACE_LAG_S)}
 
 
-def _register(estimator: Estimator, frames: np.ndarray, workers: int | None
-              ) -> SequenceRegistration | None:
-    """Frame-to-previous registration of a run of frames; None for a per-frame estimator.
+def _register(estimator: Estimator, frames: np.ndarray, workers: int | None,
+              pairs: np.ndarray | None = None) -> SequenceRegistration | None:
+    """Frame-to-previous registration of a run of frames (only ``pairs``, when given: see
+    :func:`~thermocal.registration.sequence.register_sequence`); None for a per-frame estimator.
 
     Consecutive frames of a recording overlap most, and the run's many frames give a good
     fixed-pattern estimate: far faster and more accurate than registering each group alone.
     """
-    return None if estimator.per_frame else register_sequence(frames, workers=workers)
+    return (None if estimator.per_frame else
+            register_sequence(frames, workers=workers, pairs=pairs))
+
+
+def _group_pairs(batch: list[int], n: int) -> np.ndarray:
+    """The frame pairs the groups of ``batch`` (pivots) compose through, as the mask of
+    :func:`~thermocal.registration.sequence.register_sequence` over the batch's frames: each
+    group's frames to the one before, not a group's first frame to the frame before the group
+    (a sixth of the pairs at N = 7, stride 7; more at a longer stride)."""
+    a = batch[0] - n // 2
+    mask = np.zeros(batch[-1] - n // 2 + n - a, dtype=bool)
+    for pivot in batch:
+        first = pivot - n // 2 - a
+        mask[first + 1 : first + n] = True
+    return mask
 
 
 def flight_batches(n_frames: int, options: FlightOptions) -> int:
@@ -378,7 +394,8 @@ def process_flight(
             # the whole batch, done pivots included: the same frames as an uninterrupted run
             run = _register_batch(reader, estimator, batch, n, tally.times,
                                   workers=options.registration_threads,
-                                  known=pass_fit.registered.get(bi) if pass_fit else None)
+                                  known=pass_fit.registered.get(bi) if pass_fit else None,
+                                  groups_only=True)
             batch_estimator = estimator
             if pass_fit is not None:
                 t = time.perf_counter()
@@ -758,10 +775,11 @@ def _stand_ins(frames: np.ndarray, bad: list[int]) -> np.ndarray:
 
 def _register_batch(reader: _FrameWindow, estimator: Estimator, batch: list[int], n: int,
                     times: StageTimes, *, workers: int | None = None,
-                    known: _Batch | None = None) -> _Batch:
+                    known: _Batch | None = None, groups_only: bool = False) -> _Batch:
     """Read the frames of the groups of ``batch`` (pivots) and register them as one sequence
-    on ``workers`` threads (None: the registration's default), or take the registration of
-    ``known``, the same batch read before."""
+    on ``workers`` threads (None: the registration's default; ``groups_only``: only the pairs
+    the groups compose through, :func:`_group_pairs`), or take the registration of ``known``,
+    the same batch read before."""
     t = time.perf_counter()
     a, z = batch[0] - n // 2, batch[-1] - n // 2 + n
     frames, undecodable = reader.frames(a, z)
@@ -770,7 +788,7 @@ def _register_batch(reader: _FrameWindow, estimator: Estimator, batch: list[int]
         return _Batch(a, frames, known.sequence, known.error, undecodable)
     try:
         sequence = _register(estimator, _stand_ins(frames, [i - a for i, _, _ in undecodable]),
-                             workers)
+                             workers, _group_pairs(batch, n) if groups_only else None)
         error = None
     except (RegistrationError, InvalidInputError) as exc:
         sequence, error = None, str(exc)
@@ -953,13 +971,19 @@ class _FrameWindow:
         """Frames ``a … z − 1`` (``a`` never decreases between calls), and those of them that
         do not decode (zeros): ``(index in the recording, where, reason)``."""
         self._drop_before(a)
-        while self._start + len(self._buffer) < z:
+        parts, end = [self._buffer], self._start + len(self._buffer)
+        while end < z:  # the chunks joined once (joined one by one, each copied the rest again)
             start, chunk, undecodable = next(self._chunks)
-            if not len(self._buffer):
-                self._start = start
-            self._buffer = np.concatenate([self._buffer, chunk]) if len(self._buffer) else chunk
+            if end == self._start:  # nothing kept: the buffer starts at this chunk
+                parts, self._start = [], start
+            parts.append(chunk)
+            end = start + len(chunk)
             self._undecodable += undecodable
-            self._drop_before(a)
+        if len(parts) > 1:
+            self._buffer = np.concatenate(parts)
+        elif parts[0] is not self._buffer:
+            self._buffer = parts[0]
+        self._drop_before(a)
         return (self._buffer[a - self._start : z - self._start],
                 tuple(e for e in self._undecodable if a <= e[0] < z))
 

@@ -4,7 +4,8 @@ Public API::
 
     register_pair(moving, fixed, *, method="auto", fixed_pattern=None) -> (H (3, 3), inliers)
     register_burst(frames, *, pivot=None, method="auto", fixed_pattern=None) -> BurstRegistration
-    register_sequence(frames, *, fixed_pattern=None, block=512) -> SequenceRegistration
+    register_sequence(frames, *, fixed_pattern=None, block=512, workers=None, progress=None,
+                      pairs=None) -> SequenceRegistration
     estimate_fixed_pattern(frames, *, max_frames=256) -> FixedPattern
     warp_to_pivot(frames, homographies_to_pivot, *, interpolation="linear") -> (warped, valid)
     render_views(map_c, homographies, frame_size) -> views

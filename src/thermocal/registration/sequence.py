@@ -236,8 +236,9 @@ def register_sequence(
     block: int = BLOCK_FRAMES,
     workers: int | None = None,
     progress: Callable[[int], None] | None = None,
+    pairs: Any = None,
 ) -> SequenceRegistration:
-    """Register every frame of a recording to the frame before it.
+    """Register every frame of a recording to the frame before it (or only the pairs asked for).
 
     Parameters
     ----------
@@ -256,6 +257,13 @@ def register_sequence(
         (default: up to 2, the CPU count); the homographies do not depend on it.
     progress : callable, optional
         Called with the number of frames done after each block.
+    pairs : array_like of bool, shape (M,), optional
+        Which pairs to register: ``pairs[k]``, frame ``k`` to frame ``k − 1`` (None: every
+        pair). A pair not asked for is left as the identity, ``ok`` False and correlation NaN
+        (:meth:`SequenceRegistration.to_pivot` refuses to compose through it); a frame no pair
+        asked for is not prepared. The pairs asked for are aligned as in a full run, the
+        previous registered pair's motion predicting each (a camera moves smoothly), so their
+        homographies differ from a full run's only by where ECC starts.
 
     Returns
     -------
@@ -273,6 +281,7 @@ def register_sequence(
         raise InvalidInputError(f"block: expected an integer >= 2, got {block!r}")
     block = int(block)
     n_workers = dense.check_workers(workers)
+    wanted = _pairs_mask(pairs, m)
     starts = list(range(0, m, block))
     if fixed_pattern is not None:
         given = as_fixed_pattern(fixed_pattern, (hh, w))
@@ -289,8 +298,8 @@ def register_sequence(
             patterns.append(estimate_fixed_pattern(_Window(frames, lo, hi)))
 
     to_prev = np.repeat(np.eye(3)[None], m, axis=0)
-    corr = np.ones(m)
-    ok = np.ones(m, dtype=bool)
+    corr = np.where(wanted, 1.0, np.nan)
+    ok = wanted.copy()
     window = dense.hanning(((hh + 1) // 2, (w + 1) // 2))
 
     # segments of at most SEGMENT_FRAMES frames within the blocks: (start, end, block)
@@ -300,10 +309,13 @@ def register_sequence(
     def run_segment(seg: tuple[int, int, int]) -> int:
         s, e, b = seg
         pat = patterns[b].pattern
-        first = max(0, s - 1)
-        prev = _Prepared(frames[first], pat)
-        prediction = None
-        for k in range(first + 1, e):
+        prev, prediction = None, None  # prev: frame k − 1 prepared, when it was
+        for k in range(max(1, s), e):
+            if not wanted[k]:
+                prev = None
+                continue
+            if prev is None:
+                prev = _Prepared(frames[k - 1], pat)
             cur = _Prepared(frames[k], pat)
             h, cc = _pair(cur, prev, prediction, window)
             good = cc >= MIN_CORRELATION
@@ -334,6 +346,17 @@ def register_sequence(
         to_previous=to_prev, correlation=corr, ok=ok, fixed_pattern=patterns[0],
         patterns=tuple(patterns), block=block,
     )
+
+
+def _pairs_mask(pairs: Any, m: int) -> np.ndarray:
+    """``pairs`` (None: all) as a bool mask of the ``m`` frames' pairs to register."""
+    if pairs is None:
+        return np.ones(m, dtype=bool)
+    mask = np.asarray(pairs)
+    if mask.dtype != bool or mask.shape != (m,):
+        raise InvalidInputError(f"pairs: expected {m} booleans (one per frame), got "
+                                f"{mask.dtype} of shape {mask.shape}")
+    return mask
 
 
 class _Window:

@@ -5,7 +5,13 @@ frames each) are processed by :func:`~thermocal.pipeline.campaign.run_campaign` 
 ``--method mean`` (eq. 9 through the unit's polynomial calibration: registration, calibration,
 warping, writing — no network, whose threads would blur the comparison) on a LocalCluster of one
 worker and of two, each into a new folder, wall time including the cluster's start. The maps of
-both runs are compared byte for byte.
+every run are compared byte for byte.
+
+Three runs: one worker on this machine's cores (it estimates its share of groups at once), two
+workers (a core each), and one worker held to one core (the suite's own process, started
+with an affinity of one core: its cluster's processes inherit it). Two workers against the
+first say what a campaign gains on this machine over one process using it fully; against
+the last, how Dask scales a worker's throughput (the same resources per worker).
 
 Run: ``python -m thermocal.evaluation.suites.campaign [--quick] [--json OUT]`` (``--quick``:
 shorter recordings).
@@ -13,9 +19,12 @@ shorter recordings).
 
 from __future__ import annotations
 
+import multiprocessing
+import os
 import tempfile
 import time
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -51,8 +60,34 @@ def recordings_and_calibration(tmp: Path, *, frames: int, count: int = RECORDING
     return recordings, tmp / "cal.h5"
 
 
-def run(*, quick: bool) -> dict:
+#: The runs: (name, workers, whether the process is held to one core).
+RUNS = (("1 worker", 1, False), ("2 workers", 2, False), ("1 worker on 1 core", 1, True))
+
+
+def timed_campaign(recordings: list[Path], target: Path, options: Any, workers: int
+                   ) -> dict[str, Any]:
+    """The recordings through :func:`~thermocal.pipeline.campaign.run_campaign` on a
+    LocalCluster of ``workers`` into ``target``: wall time, the cluster's start, failures, each
+    recording's seconds."""
     from thermocal.pipeline.campaign import campaign_tasks, run_campaign
+
+    t = time.perf_counter()
+    summary = run_campaign(campaign_tasks(recordings, target, options), target, workers=workers)
+    return {"wall_s": time.perf_counter() - t, "failed": summary["failed"],
+            "start_s": summary["cluster_start_s"],
+            "per_recording_s": [r.get("seconds") for r in summary["recordings"]]}
+
+
+def _on_one_core(recordings: list[Path], target: Path, options: Any, workers: int,
+                 results: Any) -> None:
+    """:func:`timed_campaign` in a process of its own held to one core (its first), the
+    result put on ``results``."""
+    os.sched_setaffinity(0, {min(os.sched_getaffinity(0))})  # before any thread starts
+    results.put(timed_campaign(recordings, target, options, workers))
+
+
+def run(*, quick: bool) -> dict:
+    from thermocal.cores import available_cores
     from thermocal.pipeline.flight import FlightOptions
 
     frames = 70 if quick else FRAMES
@@ -60,41 +95,51 @@ def run(*, quick: bool) -> dict:
         recordings, cal = recordings_and_calibration(Path(tmp), frames=frames)
         options = FlightOptions(method="mean", calibration=str(cal))
         out, maps = {}, {}
-        for workers in (1, 2):
-            target = Path(tmp) / f"out{workers}"
-            t = time.perf_counter()
-            summary = run_campaign(campaign_tasks(recordings, target, options), target,
-                                   workers=workers)
-            out[workers] = {"wall_s": time.perf_counter() - t, "failed": summary["failed"],
-                            "start_s": summary["cluster_start_s"],
-                            "per_recording_s": [r.get("seconds") for r in
-                                                summary["recordings"]]}
-            maps[workers] = {str(p.relative_to(target)): p.read_bytes()
-                             for p in sorted(target.rglob("temps/*.tiff"))}
+        for k, (name, workers, one_core) in enumerate(RUNS):
+            target = Path(tmp) / f"out{k}"
+            if one_core:  # a fresh process (spawned: no thread of this one's inherited)
+                ctx = multiprocessing.get_context("spawn")
+                results = ctx.Queue()
+                child = ctx.Process(target=_on_one_core,
+                                    args=(recordings, target, options, workers, results))
+                child.start()
+                out[name] = results.get()
+                child.join()
+            else:
+                out[name] = timed_campaign(recordings, target, options, workers)
+            out[name]["cores"] = 1 if one_core else available_cores()
+            maps[name] = {str(p.relative_to(target)): p.read_bytes()
+                          for p in sorted(target.rglob("temps/*.tiff"))}
     work = {w: r["wall_s"] - r["start_s"] for w, r in out.items()}
+    first, two, single = (name for name, _, _ in RUNS)
     return {"frames": frames, "recordings": RECORDINGS, "size": list(SIZE), "runs": out,
-            "maps": len(maps[1]), "identical": maps[1] == maps[2],
-            "speedup": out[1]["wall_s"] / out[2]["wall_s"],
-            "speedup_after_start": work[1] / work[2]}
+            "maps": len(maps[first]),
+            "identical": all(m == maps[first] for m in maps.values()),
+            "speedup": out[first]["wall_s"] / out[two]["wall_s"],
+            "speedup_after_start": work[first] / work[two],
+            "scaling": out[single]["wall_s"] / out[two]["wall_s"],
+            "scaling_after_start": work[single] / work[two]}
 
 
 def report(res: dict, info: dict) -> str:
     from thermocal.evaluation.tables import markdown_table
 
-    rows = [(w, f"{r['wall_s']:.1f}", f"{r['start_s']:.1f}", r["failed"],
+    rows = [(name, r["cores"], f"{r['wall_s']:.1f}", f"{r['start_s']:.1f}", r["failed"],
              ", ".join(f"{s:.1f}" for s in r["per_recording_s"] if s is not None))
-            for w, r in res["runs"].items()]
+            for name, r in res["runs"].items()]
     return (f"## Campaigns on a Dask LocalCluster\n\nmachine: {info['machine']}; "
             f"{info['wall_s']:.0f} s\n\ndata: {res['recordings']} recordings of "
             f"{res['frames']} frames, {res['size'][0]}×{res['size'][1]} (`tau2` unit 9, UAV "
             "passes over procedural scenes), `--method mean` through the unit's polynomial "
             "calibration, groups of 7 at stride 7; wall time with the cluster's start.\n\n"
-            + markdown_table(("workers", "wall s", "of which the cluster's start s", "failed",
-                              "per recording s"), rows)
-            + f"\n\nThroughput with 2 workers: **{res['speedup']:.2f}×** one worker's "
-            f"({res['speedup_after_start']:.2f}× once the clusters have started); "
+            + markdown_table(("run", "cores", "wall s", "of which the cluster's start s",
+                              "failed", "per recording s"), rows)
+            + f"\n\nThroughput with 2 workers: **{res['speedup']:.2f}×** one worker's on the "
+            f"same cores ({res['speedup_after_start']:.2f}× once the clusters have started); "
+            f"**{res['scaling']:.2f}×** one worker's on one core "
+            f"({res['scaling_after_start']:.2f}× once started); "
             f"{res['maps']} maps, {'byte-identical' if res['identical'] else 'DIFFERENT'} "
-            "between the two runs.\n")
+            "between the runs.\n")
 
 
 def main(argv: list[str] | None = None) -> None:
