@@ -297,3 +297,26 @@ def test_registration_sees_the_frame_before_an_undecodable_one():
     assert seen[:, 0, 0].tolist() == [2, 2, 2, 2, 5]
     assert frames[:, 0, 0].tolist() == [0, 2, 0, 0, 5]
     assert _stand_ins(frames, []) is frames
+
+
+@pytest.mark.parametrize("chunk", [1, 3, 7, 64])
+def test_frame_window_returns_each_batch_as_sliced_from_the_recording(chunk):
+    """The flight's reading window: batches overlapping or with gaps between them, from a
+    stream that starts anywhere, in chunks of any size, give the recording's frames and only
+    the undecodable frames among them."""
+    from thermocal.pipeline.flight import _FrameWindow
+
+    frames = np.arange(40 * 2 * 3, dtype=np.uint16).reshape(40, 2, 3)
+    bad = {(11, "x", "torn"), (30, "x", "torn")}
+    start = 4
+
+    def chunks():
+        for a in range(start, 40, chunk):
+            z = min(a + chunk, 40)
+            yield a, frames[a:z].copy(), tuple(sorted(e for e in bad if a <= e[0] < z))
+
+    window = _FrameWindow(chunks(), (2, 3))
+    for a, z in [(4, 11), (9, 16), (16, 23), (30, 31), (33, 40)]:
+        got, undecodable = window.frames(a, z)
+        np.testing.assert_array_equal(got, frames[a:z])
+        assert set(undecodable) == {e for e in bad if a <= e[0] < z}

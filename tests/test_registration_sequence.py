@@ -122,7 +122,7 @@ def test_only_the_pairs_asked_for_are_registered(uav, reg):
     hs = part.to_pivot(np.arange(10, 17), 13)
     full = reg.to_pivot(np.arange(10, 17), 13)
     assert max(corner_error(a, b) for a, b in zip(hs, full, strict=True)) < 0.1
-    with pytest.raises(RegistrationError, match="frame 10 was not registered"):
+    with pytest.raises(RegistrationError, match="frame 10 was not registered .*not asked for"):
         part.to_pivot([9], 13)
     # every pair asked for: the full run's bytes
     assert np.array_equal(register_sequence(frames, pairs=np.ones(N, bool)).to_previous,

@@ -77,10 +77,11 @@ class SequenceRegistration:
         Pixel ``(x, y)`` of frame ``k`` → pixel of frame ``k − 1``, ``h33 = 1``; the identity for
         ``k = 0``.
     correlation : numpy.ndarray, shape (M,), float64
-        ECC correlation of FPN-corrected frame ``k`` with frame ``k − 1`` (1 for ``k = 0``).
+        ECC correlation of FPN-corrected frame ``k`` with frame ``k − 1`` (1 for ``k = 0``; NaN
+        for a pair not registered, see :func:`register_sequence`'s ``pairs``).
     ok : numpy.ndarray, shape (M,), bool
-        Whether ``to_previous[k]`` is trusted: correlation at least :data:`MIN_CORRELATION` and a
-        plausible homography (True for ``k = 0``).
+        Whether ``to_previous[k]`` is trusted: registered, correlation at least
+        :data:`MIN_CORRELATION` and a plausible homography (True for ``k = 0``).
     fixed_pattern : FixedPattern
         The fixed-pattern estimate removed before aligning (the first block's when it was
         estimated block by block, see ``patterns``).
@@ -160,9 +161,12 @@ class SequenceRegistration:
             bad = [k for k in range(lo + 1, hi + 1) if not self.ok[k]]
             if bad:
                 k = bad[0]
+                cc = self.correlation[k]
+                why = ("that pair was not asked for" if np.isnan(cc) else
+                       f"ECC correlation {cc:.2f}")
                 raise RegistrationError(
                     f"frame {i} cannot be composed onto pivot {p}: frame {k} was not registered "
-                    f"to frame {k - 1} (ECC correlation {self.correlation[k]:.2f})"
+                    f"to frame {k - 1} ({why})"
                 )
             h = np.eye(3)
             for k in range(lo + 1, hi + 1):
