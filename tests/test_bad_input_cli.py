@@ -360,6 +360,14 @@ CASES = [
     ("estimate-calibration-without-calibration",
      ["estimate", "{root}/rec.tiff", "--method", "calibration", "--out", "{tmp}/t.tiff"],
      "--method calibration needs a per-pixel calibration"),
+    # refused outside the calibration's FPA range: the refusal alone, not the calibration's
+    # warning that its temperatures may be off before it
+    ("estimate-calibration-fpa-outside-its-range",
+     ["estimate", "{root}/rec.tiff", "--method", "calibration", "--calibration", "{root}/cal.h5",
+      "--fpa-c", "60", "--out", "{tmp}/t.tiff"], "the polynomial calibration was fitted on"),
+    ("estimate-mean-fpa-outside-its-range",
+     ["estimate", "{root}/rec.tiff", "--method", "mean", "--calibration", "{root}/cal.h5",
+      "--fpa-c", "60", "--out", "{tmp}/t.tiff"], "the polynomial calibration was fitted on"),
     ("estimate-kpn-pivot-out-of-range",
      ["estimate", "{root}/rec.tiff", "--pivot", "7", "--out", "{tmp}/t.tiff"],
      "pivot 7 is outside the burst (frames 0..6)"),
@@ -771,6 +779,19 @@ def test_a_failed_flight_leaves_no_empty_folders(inputs, tmp_path, capsys):
                         bad_cal, "--out", out], capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1, err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["notacal.h5"]
+
+
+def test_a_flight_whose_groups_all_fail_says_so_in_one_line_into_a_pipe(inputs, tmp_path):
+    """stderr a pipe (a log, a scheduler's capture): no progress bar, so nothing before the
+    one line (rich's transient bar left an empty line there)."""
+    proc = subprocess.run(
+        [sys.executable, "-c", "from thermocal.cli import main; main()", "flight",
+         str(inputs["rec"]), "--method", "calibration", "--calibration", str(inputs["cal"]),
+         "--fpa-c", "60", "--out", str(tmp_path / "out")],
+        capture_output=True, text=True, timeout=300, check=False)
+    assert proc.returncode == 2, proc.stderr
+    assert proc.stderr.startswith("thermocal: error: no temperature map made"), proc.stderr
+    assert proc.stderr.count("\n") == 1, proc.stderr
 
 
 def test_new_output_folders_are_removed_when_a_run_fails(tmp_path):

@@ -8,6 +8,7 @@ import math
 import numpy as np
 import pytest
 
+from thermocal.calibration.base import OutsideCalibrationRangeWarning
 from thermocal.calibration.registry import CALIBRATION_METHODS
 from thermocal.calibration.report import CalibrationReport, fit_with_report
 from thermocal.calibration.uncertainty import MIN_GROWTH_PER_C, CalibrationSigma
@@ -168,9 +169,11 @@ def test_estimators_refuse_outside_and_give_sigma(fitted):
     assert np.all(sigmas[1] >= sigmas[0] - 0.02) and np.median(sigmas[1] - sigmas[0]) > 0
     hot = simulate_flight(scene, camera, n_frames=5, motion="walk",
                           fpa_c=report.fpa_range_c[1] + 8.0, seed=1)
-    with pytest.raises(OutsideDomainError, match="FPA temperature .* is outside"):
+    outside = pytest.warns(OutsideCalibrationRangeWarning, match="leave the calibrated range")
+    with outside, pytest.raises(OutsideDomainError, match="FPA temperature .* is outside"):
         estimate(hot.frames, PivotCalibration(cal), fpa_c=hot.fpa_c)
-    forced = estimate(hot.frames, PivotCalibration(cal), fpa_c=hot.fpa_c, force=True)
+    with pytest.warns(OutsideCalibrationRangeWarning, match="leave the calibrated range"):
+        forced = estimate(hot.frames, PivotCalibration(cal), fpa_c=hot.fpa_c, force=True)
     normal = estimate(inside.frames, PivotCalibration(cal), fpa_c=inside.fpa_c)
     assert forced.outside and float(np.median(forced.sigma_c)) > float(np.median(normal.sigma_c))
 

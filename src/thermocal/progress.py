@@ -4,7 +4,9 @@ from __future__ import annotations
 
 
 def progress_bar():
-    """A rich progress bar (count, items per second, time left) on stderr; vanishes when done."""
+    """A rich progress bar (count, items per second, time left) on stderr; vanishes when done.
+    Only on a terminal: into a pipe or a log, rich would leave an empty line behind it, before
+    the command's one line."""
     from rich.console import Console
     from rich.progress import (
         BarColumn,
@@ -21,12 +23,14 @@ def progress_bar():
             speed = task.finished_speed or task.speed
             return Text(f"{speed:.1f}/s" if speed else "")
 
+    console = Console(stderr=True)
     return Progress(
         TextColumn("{task.description}"),
         BarColumn(),
         MofNCompleteColumn(),
         FramesPerSecond(),
         TimeRemainingColumn(),
-        console=Console(stderr=True),
+        console=console,
         transient=True,
+        disable=not console.is_terminal,
     )

@@ -10,13 +10,15 @@ One path for every estimator (:mod:`thermocal.estimation.registry`) and every ca
 3. **fill** its stuck pixels (:func:`thermocal.burst.fill_stuck_pixels`);
 4. **calibrate** each raw frame where it lies on the sensor (the estimator's per-pixel map),
    and check that the burst lies inside the estimator's domain (refused otherwise, unless
-   ``force``);
+   ``force``; the calibration's warnings are given only to a burst not refused: a refusal is
+   one message);
 5. **warp** the calibrated frames onto the pivot and check the overlap;
 6. **estimate** the pivot's temperature and its uncertainty (the estimator) → :class:`Estimate`.
 """
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
@@ -32,8 +34,9 @@ from thermocal.burst import (
 from thermocal.errors import InvalidInputError, OutsideDomainError
 from thermocal.estimation.base import Estimate, Estimator, FpaPace, PreparedBurst, fpa_pace
 from thermocal.registration.warp import warp_to_pivot
+from thermocal.threads import caught_warnings
 
-__all__ = ["domain_stage", "estimate", "register_stage"]
+__all__ = ["calibrate_stage", "domain_stage", "estimate", "register_stage"]
 
 
 def register_stage(
@@ -60,6 +63,20 @@ def domain_stage(estimator: Estimator, calibrated: np.ndarray, fpa_c: float | No
     if reasons and not force:
         raise OutsideDomainError(f"{'; '.join(reasons)}; {estimator.remedy}")
     return reasons
+
+
+def calibrate_stage(estimator: Estimator, frames: np.ndarray, fpa_c: Any, time_s: Any,
+                    fpa: float | None, *, force: bool, pace: FpaPace | None
+                    ) -> tuple[np.ndarray, tuple[str, ...]]:
+    """Stage 4: the frames through ``estimator``'s calibration (``fpa_c`` and ``time_s`` as
+    it takes them) and :func:`domain_stage`'s reasons. The calibration's warnings (e.g. an FPA
+    outside its range) are given only when the burst is not refused: a refusal says it once."""
+    with caught_warnings() as raised:
+        calibrated = estimator.calibrate(frames, fpa_c, time_s)
+    outside = domain_stage(estimator, calibrated, fpa, force=force, pace=pace)
+    for w in raised:
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return calibrated, outside
 
 
 def estimate(
@@ -146,8 +163,8 @@ def estimate(
         valid = np.zeros(arr.shape, dtype=bool)
         valid[p] = True
         hs = np.repeat(np.eye(3)[None], arr.shape[0], axis=0)
-        calibrated = estimator.calibrate(arr, fpa_c, time_s)
-        outside = domain_stage(estimator, calibrated, fpa, force=force, pace=pace)
+        calibrated, outside = calibrate_stage(estimator, arr, fpa_c, time_s, fpa, force=force,
+                                              pace=pace)
         burst = PreparedBurst(arr, calibrated, valid, hs, p, fpa, fpa_rate_c_per_min,
                               time_since_start_s, fpa_lagged_rate_c_per_min, fpa_still_s)
         return _estimate_of(estimator, burst, outside)
@@ -161,8 +178,8 @@ def estimate(
     # 3. fill stuck pixels
     filled = fill_stuck_pixels(arr, hs)[0] if fill_defects and not registered else arr
     # 4. calibrate
-    calibrated = estimator.calibrate(filled, fpa if estimator.needs_fpa else fpa_c, time_s)
-    outside = domain_stage(estimator, calibrated, fpa, force=force, pace=pace)
+    calibrated, outside = calibrate_stage(estimator, filled, fpa if estimator.needs_fpa else fpa_c,
+                                          time_s, fpa, force=force, pace=pace)
     # 5. warp
     if registered and homographies is None:
         warped = np.asarray(calibrated, dtype=np.float32)
