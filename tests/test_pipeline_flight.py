@@ -7,6 +7,7 @@ import threading
 
 import numpy as np
 import pytest
+import tifffile
 
 from thermocal.calibration import fit_calibration
 from thermocal.camera import make_camera
@@ -108,6 +109,53 @@ def test_registration_aligns_only_the_pairs_inside_groups(setup, tmp_path, regis
     assert np.flatnonzero(call["pairs"]).tolist() == [1, 2, 3, 4, 8, 9, 10, 11, 15, 16, 17, 18]
 
 
+def test_a_rerun_with_other_options_is_refused_not_mixed(setup, tmp_path):
+    """A folder resumes only the run that made it: another method, FPA, calibration file or
+    recording is refused, naming what changed, and nothing in the folder changes; threads and
+    previews may change; a folder with maps but no record (an older thermocal) is refused."""
+    import shutil
+
+    rec = setup / "flight" / "frames.tiff"
+    out = tmp_path / "out"
+    cal = str(setup / "cal.h5")
+    options = FlightOptions(method="calibration", calibration=cal, preview_every=0)
+    process_flight(rec, out, options)
+    before = _outputs(out)
+    record = json.loads((out / "run.json").read_text())
+    assert record["options"]["method"] == "calibration" and record["files"]["calibration"]
+    for other, says in ((FlightOptions(method="mean", calibration=cal),
+                         "--method calibration → mean"),
+                        (FlightOptions(method="calibration", calibration=cal, fpa_c=31.0),
+                         "--fpa-c None → 31.0"),
+                        (FlightOptions(method="calibration", calibration=cal, frames=5),
+                         "--frames 7 → 5")):
+        with pytest.raises(InvalidInputError, match=f"holds maps of another run \\({says}"):
+            process_flight(rec, out, other)
+    shutil.copy(setup / "cal.h5", tmp_path / "renamed.h5")  # the same content: the same run
+    again = process_flight(rec, out, FlightOptions(method="calibration",
+                                                   calibration=str(tmp_path / "renamed.h5"),
+                                                   preview_every=3, pivot_workers=1))
+    assert again["skipped_already_done"] == 3 and again["processed"] == 0
+    changed = tmp_path / "changed.h5"
+    shutil.copy(setup / "cal.h5", changed)
+    with open(changed, "ab") as f:
+        f.write(b"\0")
+    with pytest.raises(InvalidInputError, match="another --calibration file"):
+        process_flight(rec, out, FlightOptions(method="calibration", calibration=str(changed)))
+    other_rec = tmp_path / "rec" / "frames.tiff"
+    other_rec.parent.mkdir()
+    frames = tifffile.imread(rec)
+    tifffile.imwrite(other_rec, frames[::-1].copy(), photometric="minisblack")
+    shutil.copy(setup / "flight" / "frames.json", other_rec.with_suffix(".json"))
+    with pytest.raises(InvalidInputError, match="another recording"):
+        process_flight(other_rec, out, options)
+    assert {k: v for k, v in _outputs(out).items() if not k.startswith("previews")} == {
+        k: v for k, v in before.items() if not k.startswith("previews")}
+    (out / "run.json").unlink()
+    with pytest.raises(InvalidInputError, match="whose recording and options were not recorded"):
+        process_flight(rec, out, options)
+
+
 def _outputs(out) -> dict[str, bytes]:
     """Every output but those holding timings (summary, report), by path."""
     return {str(p.relative_to(out)): p.read_bytes() for p in sorted(out.rglob("*"))
@@ -177,8 +225,6 @@ def test_bad_input(setup, tmp_path):
 def test_disk_full_keeps_finished_outputs_and_resumes(setup, tmp_path, monkeypatch, capsys):
     """A full disk mid-run: one line, exit 2, finished maps kept, no temporary files, resume."""
     import errno
-
-    import tifffile
 
     from thermocal.cli import main
 

@@ -14,6 +14,8 @@ calibration applied to the pivot ``calibration``) through the estimation pipelin
     OUT/log.jsonl                   one line per pivot: frame, time, FPA, registration quality
                                     (lowest ECC correlation in the group), warnings, errors
     OUT/log.csv, OUT/summary.json   written at the end (frames per second per stage)
+    OUT/run.json                    what the maps are made from (recording, options, files:
+                                    :mod:`thermocal.pipeline.run_record`), written first
 
 A frame whose raw image does not decode while streamed (it passed the checks at open, e.g. a
 CSQ frame whose JPEG-LS data is damaged) cannot be left out, the pivots being planned from the
@@ -37,7 +39,8 @@ The groups of a batch are estimated several at once, one per CPU core by default
 (:func:`pivot_workers`: each network call on its share of the cores), their log lines written
 in the groups' order: the same bytes as one at a time.
 
-A rerun with the same options resumes, and gives the same bytes as an uninterrupted run:
+A rerun with the same options resumes, and gives the same bytes as an uninterrupted run (a
+rerun with another recording, method, FPA, calibration or weights file is refused: ``run.json``):
 
 * a pivot is finished once its preview, its σ map, its map and then its log line are written
   (in that order); a pivot is skipped only when its log line says it succeeded and its maps
@@ -112,6 +115,7 @@ from thermocal.io.recording import (
     write_temperature_tiff,
 )
 from thermocal.pipeline.flight_log import read_log
+from thermocal.pipeline.run_record import RUN_FILE, check_run_record, run_record
 from thermocal.plotting import TemperaturePreviews
 from thermocal.registration.sequence import SequenceRegistration, register_sequence
 from thermocal.threads import caught_warnings, routed_warnings
@@ -358,7 +362,10 @@ def process_flight(
     prefit_s = time.perf_counter() - prefit_started
     if segment is not None and not 0 <= segment[0] < segment[1] <= len(batches):
         raise InvalidInputError(f"segment {segment}: the flight has batches 0…{len(batches)}")
+    record = run_record(header.path, options, model=_default_model(options))
+    check_run_record(Path(out_dir), record, has_maps=_has_log_lines(Path(out_dir)))
     out = _output_dirs(Path(out_dir))  # only now: every check has passed
+    write_json_atomic(out / RUN_FILE, record)  # what its maps are made from, before any map
     log_path = out / "log.jsonl" if segment is None else _segment_log(out, segment)
     if segment is None:  # a segment's neighbours may be writing theirs now
         _remove_stale_temp_files(out)
@@ -988,6 +995,23 @@ class _FrameWindow:
                 tuple(e for e in self._undecodable if a <= e[0] < z))
 
 
+def _default_model(options: FlightOptions) -> Path | None:
+    """The shipped weights a network method runs without ``--model`` (None otherwise)."""
+    if options.model is not None or ESTIMATORS[options.method].needs != "model":
+        return None
+    from thermocal.nn.infer import shipped_model_path
+
+    return shipped_model_path(options.method)
+
+
+def _has_log_lines(out: Path) -> bool:
+    """Whether ``out`` holds the log of an earlier run (its own or a segment's)."""
+    try:
+        return any(p.is_file() and p.stat().st_size > 0 for p in out.glob("log*.jsonl"))
+    except OSError:
+        return False
+
+
 def _output_dirs(out: Path) -> Path:
     """Create ``out``, ``out/temps`` and ``out/previews`` (none of them when one of the paths is
     taken by a file)."""
@@ -1005,7 +1029,7 @@ def _output_dirs(out: Path) -> Path:
 #: output folder.
 _TEMP_FILES = {
     ".": (temp_name_pattern("log", ".csv"), temp_name_pattern("summary", ".json"),
-          temp_name_pattern("log", ".jsonl")),
+          temp_name_pattern("log", ".jsonl"), temp_name_pattern("run", ".json")),
     "temps": (temp_name_pattern(r"frame_\d{6,}(?:_sigma)?", ".tiff"),),
     "previews": (temp_name_pattern(r"frame_\d{6,}", ".png"),),
 }
