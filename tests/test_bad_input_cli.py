@@ -406,6 +406,20 @@ CASES = [
      ["estimate", "{root}/rec.tiff", "--method", "nope", "--out", "{tmp}/t.tiff"],
      "Invalid value for '--method': 'nope'"),
     # train (each refused before any training)
+    # numbers no run can use (they started a 30-minute training run, or a traceback)
+    ("train-max-minutes-nan", ["train", "--out", "{tmp}/w.pt", "--max-minutes", "nan"],
+     "--max-minutes must be a number > 0, got nan"),
+    ("train-lr-inf", ["train", "--out", "{tmp}/w.pt", "--lr", "inf"],
+     "--lr must be a number > 0, got inf"),
+    ("train-lr-nan", ["train", "--out", "{tmp}/w.pt", "--lr", "nan"], "--lr must be a number > 0"),
+    ("train-seed-negative", ["train", "--out", "{tmp}/w.pt", "--seed", "-3"],
+     "'--seed': -3 is not in the range"),
+    ("simulate-chamber-seed-negative",
+     ["simulate", "chamber", "{tmp}/c.h5", "--size", SIZE, "--seed", "-1"],
+     "'--seed': -1 is not in the range"),
+    ("simulate-flight-seed-negative",
+     ["simulate", "flight", "{tmp}/f", "--size", SIZE, "--seed", "-1"],
+     "'--seed': -1 is not in the range"),
     ("train-chamber-missing",
      ["train", "--chamber", "{root}/nope.h5", "--out", "{tmp}/w.pt"], "nope.h5: no such file"),
     ("train-chamber-a-text-file",
@@ -680,6 +694,21 @@ def test_ctrl_c_while_the_modules_load_is_one_line_and_status_130():
     assert proc.returncode == 130, proc.stderr
     assert proc.stderr == "thermocal: interrupted\n"
     assert proc.stdout == ""
+
+
+def test_ctrl_c_while_a_command_runs_is_one_line_and_status_130(monkeypatch, capsys):
+    """Ctrl-C in a running command: ``thermocal: interrupted`` alone (click's own handling
+    wrote an empty line and then ``thermocal: aborted``)."""
+    from thermocal import cli
+
+    def interrupted(ctx):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli.cli, "invoke", interrupted)
+    with pytest.raises(SystemExit) as exc:
+        main(["demo"])
+    assert exc.value.code == 130
+    assert capsys.readouterr().err == "thermocal: interrupted\n"
 
 
 def test_importing_the_cli_leaves_ctrl_c_as_it_was():

@@ -108,6 +108,27 @@ def test_bad_campaign_input_is_one_line_exit_2_and_writes_nothing(data, tmp_path
     assert not out.exists()
 
 
+def test_a_recording_made_with_other_options_fails_alone_in_one_line(data, tmp_path, capsys):
+    """A campaign rerun into a folder whose first recording was made at another stride: that
+    recording is refused (resuming would mix two runs' maps), the other is made; the results
+    go to stdout and stderr holds the one line of the failure."""
+    from thermocal.cli import main
+
+    out = tmp_path / "out"
+    common = ["--out", str(out), "--method", "mean", "--calibration", str(data / "cal.h5"),
+              "--workers", "1", "--preview-every", "0"]
+    main(["campaign", str(data / "pass0"), *common, "--stride", "5"])
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as e:
+        main(["campaign", str(data / "pass0"), str(data / "pass1"), *common, "--stride", "3"])
+    captured = capsys.readouterr()
+    assert e.value.code == 2
+    assert captured.err.count("\n") == 1, captured.err
+    assert captured.err.startswith("thermocal: error: 1 of 2 recordings failed"), captured.err
+    assert "pass0: failed:" in captured.out and "--stride 5 → 3" in captured.out, captured.out
+    assert "pass1: " in captured.out and "maps made" in captured.out, captured.out
+
+
 class _DiesOn(WorkerPlugin):
     """A worker plugin that kills its worker process when it starts a task whose key holds
     ``name`` (a worker lost mid-task: out of memory, a node gone)."""

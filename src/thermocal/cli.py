@@ -84,7 +84,8 @@ def simulate() -> None:
 
 @simulate.command("chamber")
 @click.argument("out", type=click.Path(dir_okay=False, path_type=Path))
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed of noise and schedule.")
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True,
+              help="Seed of noise and schedule.")
 @click.option("--unit", type=int, default=0, show_default=True, help="Camera unit of the preset.")
 @click.option("--preset", type=click.Choice(CAMERA_PRESETS), default="tau2", show_default=True,
               help="Camera family (thermocal.camera.presets).")
@@ -164,7 +165,7 @@ _FLIGHT_FRAMES = {"seq": "frames.seq", "csq": "frames.csq"}
     "--scene", default="procedural", show_default=True, help="Scene file or 'procedural'."
 )
 @click.option("--frames", "n_frames", type=int, default=7, show_default=True)
-@click.option("--seed", type=int, default=0, show_default=True)
+@click.option("--seed", type=click.IntRange(min=0), default=0, show_default=True)
 @click.option("--unit", type=int, default=0, show_default=True)
 @click.option("--preset", type=click.Choice(CAMERA_PRESETS), default="tau2", show_default=True,
               help="Camera family (thermocal.camera.presets).")
@@ -311,7 +312,7 @@ def main(argv: list[str] | None = None) -> None:
     terminate = _exit_cleanly_on_sigterm()
     try:
         with removing_new_dirs_on_error():
-            cli.main(args=argv, prog_name="thermocal", standalone_mode=False)
+            _invoke(sys.argv[1:] if argv is None else list(argv))
     except click.exceptions.Abort:
         click.echo("thermocal: aborted", err=True)
         sys.exit(130)
@@ -340,6 +341,18 @@ def main(argv: list[str] | None = None) -> None:
         warnings.showwarning = shown
         if terminate is not None:
             signal.signal(signal.SIGTERM, terminate)
+
+
+def _invoke(args: list[str]) -> None:
+    """Run the command line ``args`` (click's ``main`` without its handling of Ctrl-C, which
+    writes an empty line before it aborts: :func:`main` says ``thermocal: interrupted`` alone);
+    ``--help`` and ``--version`` exit here."""
+    try:
+        with cli.make_context("thermocal", args) as ctx:
+            cli.invoke(ctx)
+    except click.exceptions.Exit as exc:
+        if exc.exit_code:
+            sys.exit(exc.exit_code)
 
 
 def _exit_cleanly_on_sigterm():

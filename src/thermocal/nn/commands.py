@@ -10,6 +10,7 @@ data, optimisation) are left out of it and listed by ``--help-all``.
 from __future__ import annotations
 
 import copy
+import math
 from pathlib import Path
 from typing import Any
 
@@ -158,7 +159,7 @@ def _experiment(*decls: str, **kwargs: Any):
     "--frames", "n_frames", type=int, default=SHIPPED["n_frames"], show_default=True,
     help="Frames per burst N (the bursts the network will estimate).",
 )
-@click.option("--seed", type=int, default=SHIPPED["seed"], show_default=True)
+@click.option("--seed", type=click.IntRange(min=0), default=SHIPPED["seed"], show_default=True)
 @click.option(
     "--workers", type=int, default=1, show_default=True, help="Data-generating processes."
 )
@@ -374,10 +375,11 @@ def _check_numbers(opts: dict[str, Any]) -> None:
         raise InvalidInputError(f"--steps must be >= 1, got {opts['steps']}")
     if opts["workers"] < 0:
         raise InvalidInputError(f"--workers must be >= 0, got {opts['workers']}")
-    if opts["max_minutes"] is not None and opts["max_minutes"] <= 0:
-        raise InvalidInputError(f"--max-minutes must be > 0, got {opts['max_minutes']}")
-    if opts["lr"] <= 0:
-        raise InvalidInputError(f"--lr must be > 0, got {opts['lr']}")
+    minutes = opts["max_minutes"]
+    if minutes is not None and not (math.isfinite(minutes) and minutes > 0):
+        raise InvalidInputError(f"--max-minutes must be a number > 0, got {minutes}")
+    if not (math.isfinite(opts["lr"]) and opts["lr"] > 0):
+        raise InvalidInputError(f"--lr must be a number > 0, got {opts['lr']}")
 
 
 def _camera_setup(opts: dict[str, Any], meta: dict[str, Any]) -> dict[str, Any]:

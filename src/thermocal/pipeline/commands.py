@@ -143,17 +143,17 @@ def campaign(inputs: tuple[Path, ...], out_dir: Path, scheduler: str | None,
         task = bar.add_task("campaign", total=sum(t.frames for t in tasks))
         summary = run_campaign(tasks, out_dir, scheduler=scheduler, workers=workers,
                                progress=lambda k: bar.advance(task, k))
-    for r in summary["recordings"]:
+    for r in summary["recordings"]:  # results on stdout, as a flight's: stderr is for errors
         click.echo(f"{r['name']}: " + (f"{r['processed']} maps made, "
                                        f"{r['skipped_already_done']} already done, "
                                        f"{r['failed_groups']} groups failed" if r["ok"]
-                                       else f"failed: {r['error']}"), err=True)
+                                       else f"failed: {r['error']}"))
     if summary["failed"]:
         raise ThermocalError(
             f"{summary['failed']} of {len(summary['recordings'])} recordings failed (the others "
             f"are done); each one's error is in {Path(out_dir) / 'campaign.json'}")
     click.echo(f"{len(summary['recordings'])} recordings processed into {out_dir} in "
-               f"{summary['wall_time_s']:.1f} s", err=True)
+               f"{summary['wall_time_s']:.1f} s")
 
 
 def _command_line() -> str:
