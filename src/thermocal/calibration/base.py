@@ -114,7 +114,7 @@ def check_frames(frames: Any, shape: tuple[int, int], *, bit_depth: int = 14) ->
     and :class:`ResolutionMismatchError` for frames of another size than the calibration.
     """
     counts = as_frames(frames, bit_depth=bit_depth)
-    check_same_shape(counts, np.empty(shape, dtype=np.uint8), "frames", "the calibration")
+    check_same_shape(counts, np.empty(shape, dtype=np.uint8), "each frame", "the calibration")
     check_not_saturated(counts, bit_depth=bit_depth)
     return counts
 

@@ -11,6 +11,7 @@ from pathlib import Path
 
 import click
 import numpy as np
+from click.core import ParameterSource
 
 from thermocal._validate import (
     HDF5_SUFFIXES,
@@ -79,6 +80,13 @@ def calibrate(chamber: Path, method: str, out: Path, report_path: Path | None,
         check_outputs_differ(report_path, out, ("--report", "--out"))
     if radial and method not in ("polynomial", AUTO):
         raise InvalidInputError("--radial applies to --method polynomial only")
+    given = click.get_current_context().get_parameter_source("scene_term")
+    if method not in ("polynomial", AUTO) and given == ParameterSource.COMMANDLINE:
+        raise InvalidInputError("--scene-term applies to --method polynomial only")
+    if fpa_ref_c is not None and method != AUTO and not CALIBRATION_METHODS[method].takes_fpa_ref:
+        takes = ", ".join(name for name, c in CALIBRATION_METHODS.items() if c.takes_fpa_ref)
+        raise InvalidInputError(f"--fpa-ref-c: --method {method} takes no reference FPA "
+                                f"temperature (only {takes} do)")
     if fpa_ref_c is not None:
         check_fpa_c(fpa_ref_c, "--fpa-ref-c")
     data = prepare_chamber(chamber)
@@ -236,8 +244,10 @@ def _naming_the_input(exc: InvalidInputError, frames: Path, calibration: Path
                       ) -> ThermocalError:
     """The error of a calibration's ``apply``, naming the input it is about."""
     message = str(exc)
-    if isinstance(exc, ResolutionMismatchError) or message.startswith((str(frames),
-                                                                        str(calibration))):
+    if isinstance(exc, ResolutionMismatchError):
+        return ResolutionMismatchError(f"{frames}: {message} ({calibration}): a calibration "
+                                       "serves the sensor size it was fitted at")
+    if message.startswith((str(frames), str(calibration))):
         return exc
     if message.startswith("frames"):
         return InvalidInputError(f"{frames}: {message}")

@@ -17,7 +17,7 @@ from thermocal.errors import InvalidInputError
 from thermocal.estimation.pipeline import estimate as run_pipeline
 from thermocal.estimation.registry import (
     ESTIMATORS,
-    check_backend_options,
+    check_method_options,
     make_estimator,
     method_help,
 )
@@ -79,7 +79,8 @@ def estimate_file(
     info = ESTIMATORS.get(method)
     own_constants = info is not None and info.needs == "recording"  # built from the file below
     if own_constants:
-        check_backend_options(method, backend, threads)
+        check_method_options(method, backend=backend, threads=threads,
+                             calibration=calibration, model=model_path)
     estimator = (None if own_constants
                  else make_estimator(method, model=model_path, calibration=calibration,
                                      backend=backend, threads=threads))

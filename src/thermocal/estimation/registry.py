@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
+from typing import Any
 
 from thermocal.calibration.base import Calibration
 from thermocal.errors import InvalidInputError
@@ -101,7 +102,8 @@ def make_estimator(
     info = ESTIMATORS.get(name)
     if info is None:
         raise InvalidInputError(f"unknown method {name!r}; choose from {', '.join(ESTIMATORS)}")
-    check_backend_options(name, backend, threads)
+    check_method_options(name, backend=backend, threads=threads, calibration=calibration,
+                         model=model, family=family)
     if info.needs == "recording":
         raise InvalidInputError(
             f"--method {name} is made from the recording's own constants once it is read: "
@@ -126,12 +128,27 @@ def make_estimator(
                                       concurrent=concurrent)
 
 
-def check_backend_options(name: str, backend: str, threads: int | None) -> None:
-    """Refuse ``--backend`` or ``--threads`` for a method that runs no network (they would be
-    ignored)."""
-    if ESTIMATORS[name].needs != "model" and (backend != "torch" or threads is not None):
+def check_method_options(name: str, *, backend: str = "torch", threads: int | None = None,
+                         calibration: Any = None, model: Any = None,
+                         family: str = "tau2") -> None:
+    """Refuse an option that ``--method name`` would ignore (the user would believe it used):
+    ``--backend`` or ``--threads`` or ``--model`` for a method that runs no network,
+    ``--calibration`` for one that takes none, ``--family`` (other than the default) for one
+    that does not start from a family's average unit."""
+    needs = ESTIMATORS[name].needs
+    if needs != "model" and (backend != "torch" or threads is not None):
         raise InvalidInputError(
             f"--backend and --threads choose how a network runs; --method {name} runs none")
+    if model is not None and needs != "model":
+        raise InvalidInputError(f"--model is a network's weights; --method {name} runs none")
+    if calibration is not None and needs not in ("calibration", "pass"):
+        takes = "|".join(n for n, e in ESTIMATORS.items() if e.needs in ("calibration", "pass"))
+        raise InvalidInputError(
+            f"--calibration is for --method {takes}; --method {name} does not use one")
+    if family != "tau2" and needs != "pass":
+        raise InvalidInputError(
+            f"--family chooses the average unit --method selfcal starts from; --method {name} "
+            "does not use one")
 
 
 def _calibration(calibration: str | os.PathLike[str] | Calibration | None) -> Calibration | None:

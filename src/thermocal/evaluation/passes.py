@@ -497,7 +497,9 @@ def evaluate_pass(spec: PassSpec, methods: Sequence[PassMethod], workdir: str | 
             refs = None if m.references is None else str(m.references(spec, folder))
             options = FlightOptions(method=m.method, calibration=None if cal is None else str(cal),
                                     model=m.model, frames=frames, stride=stride, preview_every=0,
-                                    force=m.force, family=spec.preset, references=refs)
+                                    force=m.force, references=refs,
+                                    # the family's average unit: where selfcal starts from
+                                    family=spec.preset if m.method == "selfcal" else "tau2")
             out = folder / f"out_{_slug(m.label)}"
             t = time.perf_counter()
             process_flight(recording, out, options)

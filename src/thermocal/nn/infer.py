@@ -57,7 +57,8 @@ def shipped_model_path(method: str) -> Path:
     if not path.is_file():
         raise InvalidInputError(
             f"no {method} model is shipped with this installation; train one with "
-            f"`thermocal train --variant {method} --out MODEL.pt` and pass --model MODEL.pt"
+            f"`thermocal train --variant {method} --out MODEL.pt` and give it (estimate, "
+            "flight: --model MODEL.pt; export: MODEL.pt)"
         )
     return path
 

@@ -98,7 +98,7 @@ from thermocal.estimation.base import Estimator
 from thermocal.estimation.pipeline import estimate
 from thermocal.estimation.registry import (
     ESTIMATORS,
-    check_backend_options,
+    check_method_options,
     make_estimator,
 )
 from thermocal.io import geotag
@@ -163,7 +163,9 @@ class FlightOptions:
                 f"unknown method {self.method!r}; choose from {', '.join(ESTIMATORS)}")
         if self.frames < 1 or self.stride < 1:
             raise InvalidInputError("--frames and --stride must be >= 1")
-        check_backend_options(self.method, self.backend, self.threads)
+        check_method_options(self.method, backend=self.backend, threads=self.threads,
+                             calibration=self.calibration, model=self.model,
+                             family=self.family)
         if self.registration_threads is not None and self.registration_threads < 1:
             raise InvalidInputError(
                 f"registration threads must be >= 1, got {self.registration_threads}")
