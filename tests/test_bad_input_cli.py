@@ -429,6 +429,10 @@ CASES = [
      "--memory-mb must be >= 16"),
     ("export-a-variant-not-shipped",
      ["export", "--method", "e2e", "--out", "{tmp}/e.onnx"], "export: MODEL.pt"),
+    ("bench-one-file-for-both-outputs",
+     ["bench", "--quick", "--json", "{tmp}/b.md", "--markdown", "{tmp}/b.md"],
+     "is the --json file"),
+    ("demo-out-empty", ["demo", "--out", ""], "--out: an empty path"),
     # numbers no run can use (they started a 30-minute training run, or a traceback)
     ("train-max-minutes-nan", ["train", "--out", "{tmp}/w.pt", "--max-minutes", "nan"],
      "--max-minutes must be a number > 0, got nan"),

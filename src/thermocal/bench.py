@@ -22,7 +22,7 @@ from typing import Any
 
 import click
 
-from thermocal._validate import check_output_file
+from thermocal._validate import check_output_file, check_outputs_differ
 from thermocal.evaluation.suites import SUITES as BENCHMARKS
 
 
@@ -102,6 +102,8 @@ def bench(quick: bool, json_out: Path | None, md_out: Path | None, only: tuple[s
     for path in (json_out, md_out):  # before hours of benchmarks, not after
         if path is not None:
             check_output_file(path)
+    if json_out is not None and md_out is not None:
+        check_outputs_differ(md_out, json_out, ("--markdown", "--json"))
     runs = run_benchmarks(only or BENCHMARKS, quick=quick)
     report = markdown_report(runs, quick=quick, host=host)
     if json_out:

@@ -251,14 +251,16 @@ def load_scene_or_procedural(scene: str, *, seed: int):
 
 @cli.command()
 @click.option(
-    "--out", "out_dir", type=click.Path(path_type=Path), default=Path("demo-out"),
+    "--out", "out_dir", type=click.Path(), default="demo-out",
     show_default=True, help="Report folder.",
 )
-def demo(out_dir: Path) -> None:
+def demo(out_dir: str) -> None:
     """Simulate, calibrate and measure on built-in data; print a table and write a figure."""
     from thermocal.demo import run_demo
 
-    run_demo(out_dir)
+    if not out_dir.strip():  # an empty path is the current folder to pathlib: a mistake
+        raise InvalidInputError("--out: an empty path; give the report's folder")
+    run_demo(Path(out_dir))
 
 
 def _register_commands() -> None:
