@@ -433,6 +433,9 @@ CASES = [
      ["bench", "--quick", "--json", "{tmp}/b.md", "--markdown", "{tmp}/b.md"],
      "is the --json file"),
     ("demo-out-empty", ["demo", "--out", ""], "--out: an empty path"),
+    ("simulate-chamber-blackbody-beyond-the-simulator",
+     ["simulate", "chamber", "{tmp}/c.h5", "--size", SIZE, "--blackbody-c", "10:10000:10"],
+     "--blackbody-c: 10…10000 °C goes beyond the -123.15…626.85 °C the camera simulator"),
     # numbers no run can use (they started a 30-minute training run, or a traceback)
     ("train-max-minutes-nan", ["train", "--out", "{tmp}/w.pt", "--max-minutes", "nan"],
      "--max-minutes must be a number > 0, got nan"),

@@ -66,6 +66,15 @@ def setpoints_from_range(start: float, stop: float, step: float) -> tuple[float,
     if not count <= MAX_SETPOINTS:
         raise InvalidInputError(
             f"{count:.0f} blackbody set points is too many (at most {MAX_SETPOINTS})")
+    from thermocal.constants import ZERO_CELSIUS_K
+    from thermocal.radiometry import BandRadiance
+
+    band = BandRadiance()  # the range of the simulator's radiance tables (any band's default)
+    lo, hi = band.t_min_k - ZERO_CELSIUS_K, band.t_max_k - ZERO_CELSIUS_K
+    if start > -ZERO_CELSIUS_K and (start < lo or stop > hi):  # below 0 K: said later
+        raise InvalidInputError(
+            f"--blackbody-c: {start:g}…{stop:g} °C goes beyond the {lo:g}…{hi:g} °C the camera "
+            "simulator covers")
     n = int(round((stop - start) / step)) + 1
     points = (start + step * k for k in range(n))
     return tuple(float(p) for p in points if p <= stop + 1e-9)
