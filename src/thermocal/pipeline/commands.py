@@ -205,15 +205,12 @@ def mosaic(out_dir: Path, clip_sigma: float, clip_floor_c: float, memory_mb: flo
     """Mosaic the temperature maps of a processed flight OUT (thermocal flight --out OUT) into
     OUT/mosaic: temperature, views, spread and σ TIFFs, a preview and mosaic.json; then
     rewrite OUT/report.html with it."""
-    from thermocal._validate import check_number
-    from thermocal.pipeline.mosaic import build_mosaic
+    from thermocal.pipeline.mosaic import build_mosaic, check_options
     from thermocal.pipeline.report import write_report
 
-    # checked here too, so that a bad value is named by its option (the function's names
-    # are its keywords)
-    check_number(clip_sigma, "--clip-sigma", low=0.0, low_open=True)
-    check_number(clip_floor_c, "--clip-floor-c", low=0.0)
-    check_number(memory_mb, "--memory-mb", low=16.0)
+    # first here, so that a bad value is named by its option, not by the function's keyword
+    check_options(clip_sigma=clip_sigma, clip_floor_c=clip_floor_c, memory_mb=memory_mb,
+                  option=lambda keyword: "--" + keyword.replace("_", "-"))
     summary = build_mosaic(out_dir, clip_sigma=clip_sigma, clip_floor_c=clip_floor_c,
                            memory_mb=memory_mb, motion=motion)
     canvas = summary["canvas"]

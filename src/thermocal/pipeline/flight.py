@@ -365,7 +365,7 @@ def process_flight(
     if segment is not None and not 0 <= segment[0] < segment[1] <= len(batches):
         raise InvalidInputError(f"segment {segment}: the flight has batches 0…{len(batches)}")
     record = run_record(header.path, options, model=_default_model(options))
-    check_run_record(Path(out_dir), record, has_maps=_has_log_lines(Path(out_dir)))
+    check_run_record(Path(out_dir), record)
     out = _output_dirs(Path(out_dir))  # only now: every check has passed
     write_json_atomic(out / RUN_FILE, record)  # what its maps are made from, before any map
     log_path = out / "log.jsonl" if segment is None else _segment_log(out, segment)
@@ -1004,14 +1004,6 @@ def _default_model(options: FlightOptions) -> Path | None:
     from thermocal.nn.infer import shipped_model_path
 
     return shipped_model_path(options.method)
-
-
-def _has_log_lines(out: Path) -> bool:
-    """Whether ``out`` holds the log of an earlier run (its own or a segment's)."""
-    try:
-        return any(p.is_file() and p.stat().st_size > 0 for p in out.glob("log*.jsonl"))
-    except OSError:
-        return False
 
 
 def _output_dirs(out: Path) -> Path:

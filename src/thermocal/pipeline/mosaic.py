@@ -78,7 +78,7 @@ from thermocal.errors import FileFormatError, InvalidInputError, RegistrationErr
 from thermocal.pipeline.flight_log import read_log
 from thermocal.registration.warp import translation
 
-__all__ = ["MAX_CANVAS_PIXELS", "MOTIONS", "build_mosaic"]
+__all__ = ["MAX_CANVAS_PIXELS", "MOTIONS", "build_mosaic", "check_options"]
 
 #: Motion models between consecutive maps (see :func:`build_mosaic`).
 MOTIONS = ("rigid", "affine")
@@ -110,6 +110,15 @@ class _Map:
     covered: int = 0  # view pixels on the canvas
     rejected: int = 0  # of them, clipped by the robust mean
     to_canvas: np.ndarray | None = None  # map pixel → canvas pixel
+
+
+def check_options(*, clip_sigma: Any, clip_floor_c: Any, memory_mb: Any,
+                  option: Any = str) -> tuple[float, float, float]:
+    """:func:`build_mosaic`'s numbers checked and as floats; ``option(keyword)`` is the name a
+    bad one is given by (the command line passes its option's)."""
+    return (check_number(clip_sigma, option("clip_sigma"), low=0.0, low_open=True),
+            check_number(clip_floor_c, option("clip_floor_c"), low=0.0),
+            check_number(memory_mb, option("memory_mb"), low=16.0))
 
 
 def build_mosaic(
@@ -161,9 +170,8 @@ def build_mosaic(
     out = Path(out_dir)
     if motion not in MOTIONS:
         raise InvalidInputError(f"motion {motion!r}: choose from {', '.join(MOTIONS)}")
-    clip_sigma = check_number(clip_sigma, "clip_sigma", low=0.0, low_open=True)
-    clip_floor_c = check_number(clip_floor_c, "clip_floor_c", low=0.0)
-    memory_mb = check_number(memory_mb, "memory_mb", low=16.0)
+    clip_sigma, clip_floor_c, memory_mb = check_options(
+        clip_sigma=clip_sigma, clip_floor_c=clip_floor_c, memory_mb=memory_mb)
     maps, left_out = _flight_maps(out)
     shape = _first_shape(maps, left_out)
     t = time.perf_counter()

@@ -47,13 +47,13 @@ def run_record(recording: Path, options: Any, *, model: Path | None = None) -> d
     return json.loads(json.dumps(record))  # as it reads back from the file
 
 
-def check_run_record(out: Path, record: dict[str, Any], *, has_maps: bool) -> None:
+def check_run_record(out: Path, record: dict[str, Any]) -> None:
     """Refuse to resume ``out`` when its ``run.json`` says its maps came from another run than
-    ``record`` (or, with ``has_maps``, when it has maps but no record: an older thermocal)."""
+    ``record``, or when it has a run's log but no record (an older thermocal)."""
     path = out / RUN_FILE
     remedy = f"give a new --out, or remove {out} to redo the run"
     if not path.is_file():
-        if has_maps:
+        if _has_log_lines(out):
             raise InvalidInputError(
                 f"{out}: holds maps of a run whose recording and options were not recorded; "
                 f"resuming could mix two runs' maps: {remedy}")
@@ -67,6 +67,14 @@ def check_run_record(out: Path, record: dict[str, Any], *, has_maps: bool) -> No
         raise InvalidInputError(
             f"{out}: holds maps of another run ({'; '.join(changed)}); resuming would mix the "
             f"two runs' maps: {remedy}")
+
+
+def _has_log_lines(out: Path) -> bool:
+    """Whether ``out`` holds the log of an earlier run (the flight's or a segment's)."""
+    try:
+        return any(p.is_file() and p.stat().st_size > 0 for p in out.glob("log*.jsonl"))
+    except OSError:
+        return False
 
 
 def _changes(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
