@@ -194,6 +194,9 @@ CASES = [
      ["train", "--chamber", "{root}/chamber.h5", "--out", "{root}/chamber.h5"], "is an input"),
     ("train-over-init",
      ["train", "--init", "{root}/weights.pt", "--out", "{root}/weights.pt"], "is an input"),
+    ("simulate-flight-beside-another-format",
+     ["simulate", "flight", "{root}/flight", "--size", SIZE, "--format", "csq"],
+     "holds a recording (frames.tiff)"),
     ("simulate-flight-over-its-scene",
      ["simulate", "flight", "{root}/flight", "--size", SIZE, "--scene",
       "{root}/flight/truth.tiff"], "is an input"),
@@ -435,7 +438,7 @@ CASES = [
     ("demo-out-empty", ["demo", "--out", ""], "--out: an empty path"),
     ("simulate-chamber-blackbody-beyond-the-simulator",
      ["simulate", "chamber", "{tmp}/c.h5", "--size", SIZE, "--blackbody-c", "10:10000:10"],
-     "--blackbody-c: 10…10000 °C goes beyond the -123.15…626.85 °C the camera simulator"),
+     "blackbody set points: 10…10000 °C go beyond the -123.15…626.85 °C the camera simulator"),
     # numbers no run can use (they started a 30-minute training run, or a traceback)
     ("train-max-minutes-nan", ["train", "--out", "{tmp}/w.pt", "--max-minutes", "nan"],
      "--max-minutes must be a number > 0, got nan"),

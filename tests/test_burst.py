@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from thermocal.burst import fill_stuck_pixels, scene_motion_px, stuck_pixels
+from thermocal.burst import burst_window, fill_stuck_pixels, scene_motion_px, stuck_pixels
 from thermocal.calibration.two_point import fit_two_point
 from thermocal.camera.model import render
 from thermocal.camera.presets import make_camera
@@ -204,3 +204,24 @@ def test_bad_pixels_take_the_median_of_their_good_neighbours():
                 want[k, r, c] = np.median(good) if good.size else np.median(temps[k][~bad])
         got = fill_bad_pixels(temps, bad)
         assert got is temps and np.array_equal(got, want)
+
+
+@pytest.mark.parametrize(("n_frames", "n", "pivot", "want"), [
+    (8, 7, None, (slice(1, 8), 3)),   # the middle frame (4) and three either side
+    (8, 7, 0, (slice(0, 7), 0)),      # moved inside at the start
+    (8, 7, 7, (slice(1, 8), 6)),      # and at the end
+    (20, 7, 10, (slice(7, 14), 3)),
+    (20, 6, 10, (slice(7, 13), 3)),
+    (7, 7, 2, (slice(0, 7), 2)),      # a burst of the network's own length: as it is
+    (5, 7, None, (slice(0, 5), None)),  # too short: left to the network's own check
+    (9, None, 4, (slice(0, 9), 4)),   # any length
+])
+def test_burst_window(n_frames, n, pivot, want):
+    assert burst_window(n_frames, n, pivot) == want
+
+
+def test_burst_window_refuses_a_pivot_outside_the_recording():
+    from thermocal.errors import InvalidInputError
+
+    with pytest.raises(InvalidInputError):
+        burst_window(9, 7, 9)

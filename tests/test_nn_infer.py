@@ -119,6 +119,30 @@ def test_estimate_registered_and_pivot(tmp_path, flight, tiny_model, capsys):
     assert tifffile.imread(out).shape == (48, 64)
 
 
+def test_a_longer_recording_gives_the_network_the_frames_around_the_pivot(
+        tmp_path, flight, tiny_model, capsys):
+    """A recording of more frames than the network takes: the N frames around --pivot (moved
+    inside at the ends), as if they had been the recording, the pivot among them."""
+    frames = np.concatenate([flight.frames, flight.frames[::-1]])  # 6 frames, N = 3
+    fpa = 30.0 + 0.01 * np.arange(6)
+    write_recording(tmp_path / "long.tiff", Recording(frames=frames, fpa_c=fpa))
+    for pivot, start, inner in ((None, 2, 1), (0, 0, 0), (5, 3, 2), (3, 2, 1)):
+        window = slice(start, start + 3)
+        write_recording(tmp_path / "w.tiff", Recording(frames=frames[window], fpa_c=fpa[window]))
+        maps = []
+        for name, p in (("long", pivot), ("w", inner)):
+            out = tmp_path / f"{name}_out.tiff"
+            args = ["estimate", str(tmp_path / f"{name}.tiff"), "--model", str(tiny_model),
+                    "--registered", "--out", str(out), "--pivot", str(p)]
+            code, err = run(args if p is not None else args[:-2], capsys)
+            assert code == 0, err
+            maps.append(tifffile.imread(out))
+        assert np.array_equal(*maps), pivot
+    code, err = run(["estimate", str(tmp_path / "long.tiff"), "--model", str(tiny_model),
+                     "--registered", "--pivot", "6", "--out", str(tmp_path / "x.tiff")], capsys)
+    assert code == 2 and "6" in err and len(err.strip().splitlines()) == 1
+
+
 @pytest.mark.parametrize(
     ("frames_fn", "extra", "message"),
     [

@@ -80,3 +80,13 @@ def test_bad_plans():
         ChamberPlan(setpoints_c=(-300.0,))
     with pytest.raises(InvalidInputError):
         ChamberPlan(frames_per_point=0)
+
+
+def test_set_points_beyond_the_radiance_tables_are_refused_before_any_work(tmp_path):
+    cam = make_camera("tau2", unit=0, size=(16, 12))
+    plan = ChamberPlan(setpoints_c=(10.0, 700.0), frames_per_point=1, duration_s=4,
+                       interval_s=1.0)
+    with pytest.raises(InvalidInputError, match=r"set points: 10…700 °C go beyond the "
+                       r"-123.15…626.85 °C"):
+        write_simulated_chamber(tmp_path / "c.h5", cam, plan, seed=0)
+    assert not list(tmp_path.iterdir())

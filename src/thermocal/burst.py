@@ -28,6 +28,7 @@ from thermocal.registration.warp import as_homographies
 __all__ = [
     "MIN_OVERLAP",
     "SATURATED_FRACTION",
+    "burst_window",
     "check_burst",
     "check_overlap",
     "fill_stuck_pixels",
@@ -41,6 +42,22 @@ __all__ = [
 
 #: Every frame must see at least this fraction of the pivot frame.
 MIN_OVERLAP = 0.1
+
+
+def burst_window(n_frames: int, n: int | None, pivot: int | None) -> tuple[slice, int | None]:
+    """The frames of a recording of ``n_frames`` an estimator of bursts of ``n`` takes.
+
+    ``n`` None (any length) or ``n_frames <= n``: every frame, ``pivot`` as given (checked
+    later, with the burst). Otherwise the ``n`` frames centred on ``pivot`` (default the
+    recording's middle frame, :func:`pivot_index`), moved inside the recording at its ends;
+    the pivot's index within them is returned. Raises :class:`InvalidInputError` for a pivot
+    outside the recording.
+    """
+    if n is None or n_frames <= n:
+        return slice(0, n_frames), pivot
+    p = pivot_index(pivot, n_frames)
+    start = min(max(p - n // 2, 0), n_frames - n)
+    return slice(start, start + n), p - start
 
 
 def check_burst(

@@ -66,15 +66,6 @@ def setpoints_from_range(start: float, stop: float, step: float) -> tuple[float,
     if not count <= MAX_SETPOINTS:
         raise InvalidInputError(
             f"{count:.0f} blackbody set points is too many (at most {MAX_SETPOINTS})")
-    from thermocal.constants import ZERO_CELSIUS_K
-    from thermocal.radiometry import BandRadiance
-
-    band = BandRadiance()  # the range of the simulator's radiance tables (any band's default)
-    lo, hi = band.t_min_k - ZERO_CELSIUS_K, band.t_max_k - ZERO_CELSIUS_K
-    if start > -ZERO_CELSIUS_K and (start < lo or stop > hi):  # below 0 K: said later
-        raise InvalidInputError(
-            f"--blackbody-c: {start:g}…{stop:g} °C goes beyond the {lo:g}…{hi:g} °C the camera "
-            "simulator covers")
     n = int(round((stop - start) / step)) + 1
     points = (start + step * k for k in range(n))
     return tuple(float(p) for p in points if p <= stop + 1e-9)
@@ -201,6 +192,7 @@ def simulate_flight_cmd(
 
     # every check before the folder is made (write_simulated_flight makes it)
     check_output_dir(out_dir)
+    _check_no_other_recording(out_dir, fmt)
     frames_out = _check_flight_format(out_dir, fmt)
     check_fpa_c(fpa_c, "--fpa-c")
     width, height = parse_size(size)
@@ -227,6 +219,23 @@ def simulate_flight_cmd(
         os.replace(out_dir / "frames.json", out_dir / "flight.json")
         (out_dir / "frames.tiff").unlink()
     click.echo(f"wrote {n_frames} frames ({motion}, scene {scene_name}) to {out_dir}")
+
+
+def _flight_frames_name(fmt: str) -> str:
+    """The name of ``simulate flight --format FMT``'s frames in OUT_DIR."""
+    return "frames.tiff" if fmt == "tiff" else _FLIGHT_FRAMES.get(fmt, "frames")
+
+
+def _check_no_other_recording(out_dir: Path, fmt: str) -> None:
+    """Refuse an OUT_DIR that holds the frames of a flight in another format: writing beside
+    them would leave two recordings in one folder (and the sidecar of one replaced), which a
+    flight then reads as either."""
+    ours = _flight_frames_name(fmt)
+    for other in sorted({_flight_frames_name(f) for f in FLIGHT_FORMATS} - {ours}):
+        if (out_dir / other).exists():
+            raise InvalidInputError(
+                f"{out_dir}: holds a recording ({other}); simulate flight --format {fmt} "
+                f"would write {ours} beside it: choose an empty folder or remove it")
 
 
 def _check_flight_format(out_dir: Path, fmt: str) -> Path | None:

@@ -65,7 +65,10 @@ def estimate_file(
     warning that names why. ``sigma_out``: where to write its uncertainty (float32 °C, 1σ,
     ``(H, W)``), refused before any work when the estimator has none. ``backend``,
     ``threads``: what runs a network (:func:`~thermocal.estimation.registry.make_estimator`).
+    A recording longer than a network's bursts gives it the frames around ``pivot``
+    (:func:`~thermocal.burst.burst_window`); ``pivot`` indexes the recording.
     """
+    from thermocal.burst import burst_window
     from thermocal.io.open import check_outside_recording, read_any_recording
     from thermocal.io.recording import write_sigma_tiff, write_temperature_tiff
 
@@ -94,8 +97,11 @@ def estimate_file(
         from thermocal.estimation.vendor import VendorCalibration
 
         estimator = VendorCalibration.from_recording(rec, frames_path)
+    # a network takes bursts of its own length: the frames around --pivot (or the middle)
+    window, pivot = burst_window(rec.n_frames, getattr(estimator, "n_frames", None), pivot)
+    fpa_series = None if rec.fpa_c is None else rec.fpa_c[window]
     try:
-        result = run_pipeline(rec.frames, estimator, fpa_c=rec.fpa_c, pivot=pivot,
+        result = run_pipeline(rec.frames[window], estimator, fpa_c=fpa_series, pivot=pivot,
                               registered=registered, force=force, bit_depth=rec.bit_depth)
     except InvalidInputError as exc:  # a burst's fault: name the file it came from
         text = str(exc)
@@ -147,7 +153,9 @@ NO_SIGMA_REMEDY = {
     default=None,
     help="Weights file (default: the shipped model for --method).",
 )
-@click.option("--pivot", type=int, default=None, help="Pivot frame index (default: the middle).")
+@click.option("--pivot", type=int, default=None,
+              help="Pivot frame index in FRAMES (default: the middle); a network made for "
+              "bursts of N frames takes the N frames around it.")
 @click.option(
     "--registered",
     is_flag=True,

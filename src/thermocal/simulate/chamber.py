@@ -113,7 +113,8 @@ def check_chamber_run(
     folder: str | os.PathLike[str] | None = None,
 ) -> None:
     """Check, before any work, that ``plan`` can be simulated for frames of ``frame_shape``
-    ``(H, W)``: the FPA temperatures its ambient range gives are plausible
+    ``(H, W)``: its blackbody set points lie within the simulator's radiance tables, the FPA
+    temperatures its ambient range gives are plausible
     (:data:`thermocal._validate.FPA_RANGE_C`) and the session is a sane amount of data that
     fits the memory and ``folder``'s free disk (:func:`thermocal._validate.check_data_size`).
 
@@ -122,6 +123,13 @@ def check_chamber_run(
     InvalidInputError
         If not.
     """
+    band = BandRadiance()  # the range of the simulator's radiance tables (any band's default)
+    t_lo, t_hi = band.t_min_k - ZERO_CELSIUS_K, band.t_max_k - ZERO_CELSIUS_K
+    points = plan.setpoints_c
+    if min(points) < t_lo or max(points) > t_hi:
+        raise InvalidInputError(
+            f"blackbody set points: {min(points):g}…{max(points):g} °C go beyond the "
+            f"{t_lo:g}…{t_hi:g} °C the camera simulator covers")
     thermal = thermal or ThermalParams()
     lo, hi = FPA_RANGE_C
     for ambient in plan.ambient_c:
