@@ -409,7 +409,8 @@ def test_plateaus_that_end_before_the_camera_settles_are_warned_of(family, warne
         assert any("plateau(s) held the FPA still for" in line
                    for line in report.summary_lines())
         _, lag = fit_with_report(run.session, "lin-lag")
-        assert not any("settled" in w for w in lag.warnings) and not lag.paces
+        assert not any("settled" in w for w in lag.warnings) and "still" not in lag.paces
+        assert lag.paces["margin_c_per_min"] == 0.3  # its paces, with a memory's margin
     # no ambient series, no plateau to judge
     from dataclasses import replace
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 import json
 import math
 import warnings
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -234,6 +235,37 @@ def test_paces_a_memoryless_calibration_never_held_are_outside():
     assert one == pytest.approx(bare) and one < steady / 2
 
 
+def test_a_method_with_memory_is_refused_only_beyond_its_wider_margin():
+    """Margin 0.3 °C/min (a method with memory): a steady 1.2 °C/min, 0.25 from the 1.5 held,
+    is inside; a steady 1.0, 0.45 away, outside, named as beyond the margin with what to
+    record; forced, its σ grows as a memoryless one's would (worst bin × distance in cells);
+    a report made before margins keeps one cell."""
+    base = _paced()
+    model = CalibrationSigma(replace(base.report, paces=base.report.paces
+                                     | {"margin_c_per_min": 0.3}))
+    t = np.arange(0.0, 3600.0, 10.0)
+    temps = np.full((t.size, 2, 2), 25.0)
+    for pace, unseen in ((1.2, False), (1.5, False), (1.0, True), (0.0, False)):
+        rate = np.full(t.size, pace)
+        assert model.unseen_paces(rate, t)[-1] == unseen, pace
+        assert base.unseen_paces(rate, t)[-1] == (pace not in (1.5, 0.0)), pace
+    (why,) = model.outside(temps, np.full(t.size, 27.0), rate_c_per_min=np.full(t.size, 1.0),
+                           time_s=t)
+    assert "more than 0.3 °C/min from any its chamber session held" in why
+    assert "+1.00 °C/min after +1.00" in why and "record a session" in why
+    inside = model.sigma(np.full((t.size, 1, 1), 25.0), 27.5,
+                         rate_c_per_min=np.full(t.size, 1.2), time_since_start_s=t)[-1, 0, 0]
+    assert inside == pytest.approx(base.rate_sigma([1.2])[0], rel=1e-5)  # shape 1 here
+    forced = model.sigma(np.full((t.size, 1, 1), 25.0), 27.5,
+                         rate_c_per_min=np.full(t.size, 1.0), time_since_start_s=t)[-1, 0, 0]
+    assert forced == pytest.approx(G * 0.6 * 4.5, rel=0.05)
+    again = CalibrationReport.from_dict(json.loads(json.dumps(model.report.to_dict())))
+    assert again.paces["margin_c_per_min"] == 0.3
+    with pytest.raises(InvalidInputError, match="not a calibration report"):
+        CalibrationReport.from_dict(model.report.to_dict() | {"fpa_paces": {
+            **model.report.to_dict()["fpa_paces"], "margin_c_per_min": 0.05}})
+
+
 def test_a_bursts_pace_sigma_grows_only_at_paces_never_held():
     from thermocal.estimation.base import FpaPace
 
@@ -398,13 +430,18 @@ def test_paces_survive_json_and_are_checked():
         CalibrationReport.from_dict(bad)
 
 
-def test_only_memoryless_methods_list_their_paces(fitted):
+def test_reports_list_their_paces_with_a_margin_by_memory(fitted):
     """The report of a method without memory of the FPA's pace lists the paces of its session
-    (a 0.25 °C/min sawtooth: steady near ±0.25 and still at its turns); lin-lag's and
-    wolf2016's do not (their models follow the pace's history or learn it)."""
+    (a 0.25 °C/min sawtooth: steady near ±0.25 and still at its turns), a frame inside within
+    a cell of them; lin-lag's and wolf2016's (their models follow the pace's history or learn
+    it) within MEMORY_PACE_MARGIN_C_PER_MIN."""
+    from thermocal.calibration.report import MEMORY_PACE_MARGIN_C_PER_MIN
+
     _, _, report = fitted
     cells = np.array(report.paces["cells"])
     assert report.paces["lag_s"] == 480.0 and len(cells) >= 3
+    assert report.paces["margin_c_per_min"] == report.paces["cell_c_per_min"] == 0.1
+    assert MEMORY_PACE_MARGIN_C_PER_MIN == 0.3  # lin-lag's: test_calibration_report
     assert [2, 2] in cells.tolist() or [3, 3] in cells.tolist()
     assert not CALIBRATION_METHODS["lin-lag"].memoryless
     assert not CALIBRATION_METHODS["wolf2016"].memoryless

@@ -134,11 +134,14 @@ class CalibrationReport:
         The σ that covers the interior folds' pixel errors as a Gaussian's would
         (:func:`coverage_sigma`), °C; None in a report made before it.
     paces : dict
-        For a method whose model has no memory of how the FPA changed
-        (:attr:`~thermocal.calibration.registry.CalibrationInfo.memoryless`), the FPA paces the
-        session held: ``lag_s`` (:data:`PACE_LAG_S`), ``cell_c_per_min``
+        The FPA paces the session held: ``lag_s`` (:data:`PACE_LAG_S`), ``cell_c_per_min``
         (:data:`PACE_CELL_C_PER_MIN`) and ``cells``, the visited cells ``[i, j]`` of the plane
-        (FPA rate, the same through a lag of ``lag_s``) / ``cell_c_per_min`` (:func:`paces_of`);
+        (FPA rate, the same through a lag of ``lag_s``) / ``cell_c_per_min`` (:func:`paces_of`),
+        and ``margin_c_per_min``, how far from them a frame is still inside: a cell for a
+        method whose model has no memory of how the FPA changed
+        (:attr:`~thermocal.calibration.registry.CalibrationInfo.memoryless`),
+        :data:`MEMORY_PACE_MARGIN_C_PER_MIN` for the others (empty for those in a report made
+        before it);
         and, where the session's plateaus ended before the camera settled
         (:func:`settling_warning`), ``still``: how long its plateaus held the FPA still
         (:func:`stillness_of`). Empty for the others and in a report made before it.
@@ -258,10 +261,16 @@ class CalibrationReport:
                      f"{rlo:+.2f}…{rhi:+.2f} °C/min" + (f" ({rates[0].split(' (')[0]}: errors "
                                                         "measured at these rates only)"
                                                         if rates else ""))
-        if self.paces:
+        cell = self.paces.get("cell_c_per_min")
+        if self.paces and self.paces.get("margin_c_per_min", cell) <= cell:
             lines.append(f"  held steadily at {_steady_paces(self.paces)} °C/min: {self.method} "
                          "has no memory of how the FPA changed, so frames at paces the session "
                          "never held are refused (lin-lag follows the pace's history)")
+        elif self.paces:
+            lines.append(f"  held steadily at {_steady_paces(self.paces)} °C/min: frames more "
+                         f"than {self.paces['margin_c_per_min']:g} °C/min from the paces the "
+                         f"session held are refused ({self.method}'s lag terms were fitted on "
+                         "those alone)")
         if self.paces.get("still"):
             still = self.paces["still"]
             lines.append(f"  its {still['plateaus']} plateau(s) held the FPA still for "
@@ -648,7 +657,7 @@ def cross_validate(
                if errors and CALIBRATION_METHODS[method].learns_online else [])
     if expected is None:
         notes.append("no interior set point or FPA segment could be left out and refitted")
-    paces = paces_of(data) if memoryless else {}
+    paces = paces_of(data, memoryless=memoryless)
     found = list(protocol_warnings or [])
     ends = plateau_ends(small, scorable) if memoryless else []
     if ends:
@@ -695,19 +704,35 @@ PACE_LAG_S = 480.0
 #: Cells of the (FPA rate, lagged FPA rate) plane that :attr:`CalibrationReport.paces` marks as
 #: held, °C/min a side.
 PACE_CELL_C_PER_MIN = 0.1
+#: How far (°C/min, Chebyshev, beyond the nearest held cell's half-width) a method *with*
+#: memory of the FPA's pace (``lin-lag``, ``wolf2016``) may be taken from the paces its session
+#: held. Its lag terms follow a pace's history, but their form was fitted on the session's
+#: paces alone: on the ``boson`` preset, whose optics lag in another form than the model's,
+#: ``lin-lag``'s error on a held-out 1 °C/min sawtooth grows with the distance of its turns
+#: from the session's cells (steps and a 1.5 °C/min sawtooth: MAE 0.09 °C at the cells, 0.23 °C
+#: 0.2–0.4 °C/min away), on ``tau2`` not at all (0.07 °C throughout). No fold of the session
+#: can tell the two apart (refitted without its sawtooth, lin-lag errs 2–4 °C on it, on both).
+#: Chosen on the coverage benchmark's held-out runs (five units of each family): 0.3 °C/min
+#: refuses 13–15 % of ``boson``'s frames and 0–4 % of ``tau2``'s; 0.4 refuses none and leaves
+#: ``boson`` at 90–94 % within 2σ.
+MEMORY_PACE_MARGIN_C_PER_MIN = 0.3
 
 
-def paces_of(data: ChamberData) -> dict[str, Any]:
+def paces_of(data: ChamberData, *, memoryless: bool = True) -> dict[str, Any]:
     """The paces a session's usable frames held (:attr:`CalibrationReport.paces`): each frame's
     FPA rate ``r`` and the same through a first-order lag of :data:`PACE_LAG_S`, ``y``
     (:func:`~thermocal.calibration.dataset.lagged_rate`), binned in cells of
-    :data:`PACE_CELL_C_PER_MIN`. A steady pace has ``y = r``; a pace just changed, ``y ≠ r``."""
+    :data:`PACE_CELL_C_PER_MIN`. A steady pace has ``y = r``; a pace just changed, ``y ≠ r``.
+    ``margin_c_per_min``: how far from them a frame's pace may lie, one cell for a
+    ``memoryless`` method, :data:`MEMORY_PACE_MARGIN_C_PER_MIN` for one with memory."""
     use = data.usable
     y = lagged_rate(data.fpa_rate_c_per_min, data.time_s, PACE_LAG_S)
     cells = np.unique(np.round(np.stack([data.fpa_rate_c_per_min, y], axis=1)[use]
                                / PACE_CELL_C_PER_MIN).astype(np.int64), axis=0)
     return {"lag_s": PACE_LAG_S, "cell_c_per_min": PACE_CELL_C_PER_MIN,
-            "cells": cells.tolist()}
+            "cells": cells.tolist(),
+            "margin_c_per_min": (PACE_CELL_C_PER_MIN if memoryless
+                                 else MEMORY_PACE_MARGIN_C_PER_MIN)}
 
 
 #: The FPA held still: within this of its present temperature, °C (a plateau's creep and the
@@ -756,9 +781,14 @@ def _paces_from(d: dict[str, Any]) -> dict[str, Any]:
         return {}
     cells = np.asarray(d["cells"], dtype=np.int64).reshape(-1, 2)
     lag, cell = float(d["lag_s"]), float(d["cell_c_per_min"])
-    if not (lag > 0 and cell > 0 and math.isfinite(lag) and math.isfinite(cell)):
-        raise ValueError(f"fpa_paces: lag {lag} s and cell {cell} °C/min must be > 0")
+    margin = float(d.get("margin_c_per_min", cell))  # a report made before margins: one cell
+    if not (lag > 0 and cell > 0 and margin >= cell and math.isfinite(lag)
+            and math.isfinite(margin)):
+        raise ValueError(f"fpa_paces: lag {lag} s, cell {cell} °C/min and margin {margin} "
+                         "°C/min must be > 0, finite, the margin at least a cell")
     out = {"lag_s": lag, "cell_c_per_min": cell, "cells": cells.tolist()}
+    if "margin_c_per_min" in d:
+        out["margin_c_per_min"] = margin
     if d.get("still") is not None:
         still = d["still"]
         band, held, plateaus = float(still["band_c"]), float(still["held_s"]), still["plateaus"]

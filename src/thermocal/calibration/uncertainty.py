@@ -52,7 +52,11 @@ steadily. Its cross-validation sees only the paces of its session, which its rep
 rate and the same through a lag of 8 min). A frame whose pace lies more than one cell from
 every cell the session held (:meth:`CalibrationSigma.pace_distance`) is outside; forced, its
 ``s`` becomes at least the report's largest rate-bin σ times its distance in cells: how large
-its error is no session measured.
+its error is no session measured. A method *with* memory (``lin-lag``, ``wolf2016``) is held to
+the same paces with a wider margin (the report's ``margin_c_per_min``,
+:data:`~thermocal.calibration.report.MEMORY_PACE_MARGIN_C_PER_MIN`): its lag terms follow a
+pace's history, but their form was fitted on the session's paces alone, and on a camera whose
+lag has another form its error grows with the distance from them where no fold can show it.
 
 **Stillness a session never reached.** Where the session's plateaus ended before the camera
 settled (:func:`~thermocal.calibration.report.settling_warning`: a memoryless method's error was
@@ -258,7 +262,7 @@ class CalibrationSigma:
         held: more than one cell from every held one (:meth:`pace_distance`), or, given their
         FPA temperatures ``fpa_c`` (°C ``(N,)``), held it still longer than the session's
         plateaus did (:meth:`still_excess`)."""
-        unseen = self.pace_distance(rate_c_per_min, time_s) > self._pace_cell
+        unseen = self.pace_distance(rate_c_per_min, time_s) > self._pace_margin
         if fpa_c is not None:
             unseen |= self._still(fpa_c, time_s)[1] > 1.0
         return unseen
@@ -369,23 +373,36 @@ class CalibrationSigma:
 
     @property
     def _pace_cell(self) -> float:
-        """The report's pace cell, °C/min (inf without paces: nothing is unseen)."""
+        """The report's pace cell, °C/min (inf without paces)."""
         return self.report.paces.get("cell_c_per_min", math.inf)
+
+    @property
+    def _pace_margin(self) -> float:
+        """How far from the held paces a frame's may lie, °C/min (its report's
+        ``margin_c_per_min``: a cell for a memoryless method; inf without paces: nothing is
+        unseen)."""
+        paces = self.report.paces
+        return paces.get("margin_c_per_min", paces.get("cell_c_per_min", math.inf))
 
     def _pace_reason(self, rate: float, lagged: float, count: str = "") -> str:
         """The pace refusal's text for a frame at ``rate`` after ``lagged`` °C/min."""
-        return (f"the FPA changed at paces its chamber session never held ({count}"
-                f"{'first ' if count else ''}{rate:+.2f} °C/min after {lagged:+.2f} over the "
-                f"last {self.report.paces['lag_s'] / 60:.0f} min), which the "
-                f"{self.report.method} calibration, with no memory of how the FPA changed, "
-                "cannot vouch for (lin-lag follows the pace's history)")
+        what = (f"{count}{'first ' if count else ''}{rate:+.2f} °C/min after {lagged:+.2f} over "
+                f"the last {self.report.paces['lag_s'] / 60:.0f} min")
+        if self._pace_margin <= self._pace_cell:
+            return (f"the FPA changed at paces its chamber session never held ({what}), which "
+                    f"the {self.report.method} calibration, with no memory of how the FPA "
+                    "changed, cannot vouch for (lin-lag follows the pace's history)")
+        return (f"the FPA changed at paces more than {self._pace_margin:g} °C/min from any its "
+                f"chamber session held ({what}): the {self.report.method} calibration's lag "
+                "terms were fitted on those alone (record a session that changes the FPA at "
+                "such paces, e.g. a sawtooth at this rate)")
 
     def _pace_sigma(self, distance: np.ndarray) -> np.ndarray:
-        """``s`` of frames at paces the session never held, from their :meth:`pace_distance`
-        (°C/min): the largest σ of the report's rate bins times the distance in cells (0 for
-        the others)."""
-        cell = self._pace_cell
-        return np.where(distance > cell, self._worst_sigma() * distance / cell, 0.0)
+        """``s`` of frames at paces the session never held (more than the margin from them),
+        from their :meth:`pace_distance` (°C/min): the largest σ of the report's rate bins
+        times the distance in cells (0 for the others)."""
+        return np.where(distance > self._pace_margin,
+                        self._worst_sigma() * distance / self._pace_cell, 0.0)
 
     def _still_sigma(self, excess: np.ndarray) -> np.ndarray:
         """``s`` of frames held still longer than the session's plateaus held it, from their
@@ -439,7 +456,7 @@ class CalibrationSigma:
                 lagged_rate_c_per_min is not None
                 or (time_s is not None and np.size(rate_c_per_min) > 1)):
             rate, lagged, d = self._pace(rate_c_per_min, time_s, lagged_rate_c_per_min)
-            unseen = d > self._pace_cell
+            unseen = d > self._pace_margin
             if unseen.any():
                 k = int(np.argmax(unseen))
                 count = (f"{int(unseen.sum())} of {unseen.size} frames; " if unseen.size > 1

@@ -20,8 +20,13 @@ on a held-out run of the same unit (``benchmarks/physics.py``'s sessions: its ow
 frame outside the session's FPA or scene range, or (a memoryless method) at an FPA pace the
 session never held, is refused (scored as ``--force`` gives it); the σ of a frame uses its FPA
 rate and pace history, as ``thermocal correct`` does for a recording with frame times.
+``--held-out other`` scores them on another held-out protocol instead
+(:func:`other_held_out_run`: a 0.6 °C/min sawtooth and ambient steps over a narrower range,
+other seeds): a check of choices made on the first one (the pace margin of a method with
+memory, :data:`~thermocal.calibration.report.MEMORY_PACE_MARGIN_C_PER_MIN`).
 
-Run: ``python -m thermocal.evaluation.suites.coverage [--quick] [--json OUT]``.
+Run: ``python -m thermocal.evaluation.suites.coverage [--quick] [--units U] [--held-out
+{ramp,other}] [--json OUT]``.
 """
 
 from __future__ import annotations
@@ -43,9 +48,11 @@ from thermocal.errors import OutsideDomainError, ThermocalError
 from thermocal.estimation.pipeline import estimate
 from thermocal.evaluation.heldout import eval_bursts
 from thermocal.evaluation.suites import physics
+from thermocal.evaluation.suites.calibration import HELD_OUT
 from thermocal.evaluation.tables import markdown_table
 from thermocal.metrics import rescaled_coverage, sigma_coverage
 from thermocal.nn.infer import NetworkEstimator
+from thermocal.simulate.chamber import ChamberPlan
 
 __all__ = ["calibration_rows", "main", "network_rows"]
 
@@ -57,6 +64,24 @@ SILENT_MAE_C = 1.0
 
 #: More held-out units of the preset than the five of the held-out set.
 MORE_UNITS = tuple(range(300, 320))
+
+#: The calibrations' held-out runs (``--held-out``): the physics benchmark's (a 0.25 °C/min
+#: ramp and hold, a 1 °C/min sawtooth) or :func:`other_held_out_run`.
+HELD_OUT_RUNS = ("ramp", "other")
+
+
+def other_held_out_run(camera, seed: int, quick: bool) -> physics.Run:
+    """A second held-out protocol, at paces neither the calibration session (steps, a
+    1.5 °C/min sawtooth) nor the first held-out run holds: a 0.6 °C/min 8↔38 °C sawtooth, then
+    ambient steps 8→38 °C; blackbody at the held-out set points (2 frames each); seeds
+    ``seed + 50`` on; the shutter as in the first."""
+    interval = 18.0 if quick else 6.0
+    saw = ChamberPlan(setpoints_c=HELD_OUT, frames_per_point=2, profile="sawtooth",
+                      ambient_c=(8.0, 38.0), rate_c_per_min=0.6, interval_s=interval)
+    steps = ChamberPlan(setpoints_c=HELD_OUT, frames_per_point=2, profile="steps",
+                        ambient_c=(8.0, 38.0), interval_s=interval)
+    return physics.simulate_run(camera, [saw, steps], seed + 50,
+                                shutter_interval_s=physics.SHUTTER_INTERVAL_S)
 
 
 def _run(network: NetworkEstimator, bursts: list[dict]) -> dict:
@@ -157,11 +182,13 @@ def _run_calibration(cal, model: CalibrationSigma, run: physics.Run, rng) -> dic
     return out
 
 
-def calibration_rows(*, quick: bool, units: tuple[int, ...] = (physics.UNIT,)) -> list[dict]:
+def calibration_rows(*, quick: bool, units: tuple[int, ...] = (physics.UNIT,),
+                     held_out: str = "ramp") -> list[dict]:
     """Every calibration ``auto`` may choose, fitted with its report on each family's session
-    of each of ``units`` and scored on the same unit's held-out run (unit ``u``'s sessions
-    take the seeds of unit :data:`~thermocal.evaluation.suites.physics.UNIT`'s plus
-    ``u − UNIT``: other noise, other drift)."""
+    of each of ``units`` and scored on the same unit's held-out run (``held_out``, one of
+    :data:`HELD_OUT_RUNS`; unit ``u``'s sessions take the seeds of unit
+    :data:`~thermocal.evaluation.suites.physics.UNIT`'s plus ``u − UNIT``: other noise, other
+    drift)."""
     rng = np.random.default_rng(0)
     size = physics.QUICK_SIZE if quick else physics.SIZE
     rows = []
@@ -169,12 +196,14 @@ def calibration_rows(*, quick: bool, units: tuple[int, ...] = (physics.UNIT,)) -
         cam = make_camera(family, unit=unit, size=size)
         shift = unit - physics.UNIT
         session = physics.calibration_session(cam, physics.SESSION_SEED + shift, quick)
-        held = physics.held_out_run(cam, physics.HELD_OUT_SEED + shift, quick)
+        held = (physics.held_out_run if held_out == "ramp" else other_held_out_run)(
+            cam, physics.HELD_OUT_SEED + shift, quick)
         ref = physics.plateau_fpa_c(session.session)
         for name, info in CALIBRATION_METHODS.items():
             if not info.auto:
                 continue
-            label = f"{family} unit {unit} (own session → held-out run)"
+            label = (f"{family} unit {unit} (own session → held-out run"
+                     + ("" if held_out == "ramp" else ", other protocol") + ")")
             try:
                 cal, report = fit_with_report(session.session, name,
                                               **({"fpa_ref_c": ref} if info.takes_fpa_ref
@@ -247,7 +276,11 @@ def report(rows: list[dict], info: dict) -> str:
                       _rescaled_cell(r.get("accepted_rescaled")),
                       _safe_cell(r.get("accepted_rescaled"))))
     table = markdown_table(header, cells)
-    return (f"## Coverage of the stated uncertainty\n\nmachine: {info['machine']}; "
+    other = ("" if info.get("held_out", "ramp") == "ramp" else
+             "**Held-out protocol: the other one** (`--held-out other`: a 0.6 °C/min 8↔38 °C "
+             "sawtooth, then ambient steps 8→38 °C, a frame every 6 s; paces neither the "
+             "session nor the first held-out run holds); no network rows.\n\n")
+    return (f"## Coverage of the stated uncertainty\n\n{other}machine: {info['machine']}; "
             f"{info['wall_s']:.0f} s\n\ndata: bursts of N = 7 frames, 336×256, over the held-out "
             "scenes (kpn benchmark set); FPA 15–45 °C; true homographies + Oz et al.'s "
             "registration error; pixels seen by ≥ half the frames. Calibrations: one unit "
@@ -331,12 +364,15 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--json", default=None, help="Write the results as JSON here.")
     parser.add_argument("--units", type=_units, default=(physics.UNIT,),
                         help="The calibrations' units, e.g. 101-105 (default %(default)s).")
+    parser.add_argument("--held-out", choices=HELD_OUT_RUNS, default="ramp",
+                        help="The calibrations' held-out protocol (other: a 0.6 °C/min "
+                        "sawtooth and steps; the network is then not run).")
     args = parser.parse_args(argv)
     start = time.perf_counter()
-    rows = (calibration_rows(quick=args.quick, units=args.units)
-            + network_rows(quick=args.quick))
+    rows = (calibration_rows(quick=args.quick, units=args.units, held_out=args.held_out)
+            + (network_rows(quick=args.quick) if args.held_out == "ramp" else []))
     info = {"machine": machine(), "wall_s": time.perf_counter() - start, "quick": args.quick,
-            "units": list(args.units)}
+            "units": list(args.units), "held_out": args.held_out}
     print(report(rows, info) + unit_spread(rows))
     if args.json:
         with open(args.json, "w", encoding="utf-8") as f:
