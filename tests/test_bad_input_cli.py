@@ -81,6 +81,15 @@ def inputs(tmp_path_factory) -> dict[str, Path]:
         shutil.copy(rec, root / f"{name}.tiff")
         text = json.dumps(sidecar | {"fpa_c": "FPA"}).replace('"FPA"', fpa)
         (root / f"{name}.json").write_text(text)
+    # frame times going backwards in the sidecar; one frame above the 14-bit maximum
+    shutil.copy(rec, root / "timeback.tiff")
+    back = list(sidecar["time_s"])
+    back[3], back[4] = back[4], back[3]
+    (root / "timeback.json").write_text(json.dumps(sidecar | {"time_s": back}))
+    over = tifffile.imread(rec)
+    over[3, 0, 0] = 20000
+    tifffile.imwrite(root / "over14.tiff", over, photometric="minisblack")
+    shutil.copy(root / "rec.json", root / "over14.json")
     frames = tifffile.imread(rec)
     frames[3] = 0
     tifffile.imwrite(root / "deadframe.tiff", frames, photometric="minisblack")
@@ -92,6 +101,9 @@ def inputs(tmp_path_factory) -> dict[str, Path]:
     (root / "weights.pt").write_bytes(b"not really weights")
     (root / "empty.pt").write_bytes(b"")
     (root / "notes.txt").write_text("a text file, not weights\n")
+    # a session held at one ambient (no FPA span)
+    main_ok(["simulate", "chamber", root / "constant.h5", "--size", "40x24",
+             "--frames-per-point", "2", "--ambient-profile", "constant", "--ambient-c", "25:25"])
     # a calibration of another size
     main_ok(["simulate", "chamber", root / "small.h5", "--size", "40x24",
              "--frames-per-point", "2"])
@@ -197,6 +209,34 @@ CASES = [
     ("simulate-flight-beside-another-format",
      ["simulate", "flight", "{root}/flight", "--size", SIZE, "--format", "csq"],
      "holds a recording (frames.tiff)"),
+    ("estimate-selfcal-sigma-out",
+     ["estimate", "{root}/rec.tiff", "--method", "selfcal", "--out", "{tmp}/t.tiff",
+      "--sigma-out", "{tmp}/s.tiff"], "selfcal fits a whole pass"),
+    ("estimate-camera-fpa-c",
+     ["estimate", "{root}/rec.tiff", "--method", "camera", "--fpa-c", "30", "--out",
+      "{tmp}/t.tiff"], "leave --fpa-c and --force out"),
+    ("flight-camera-force",
+     ["flight", "{root}/rec.tiff", "--method", "camera", "--force", "--out", "{tmp}/o"],
+     "leave --fpa-c and --force out"),
+    ("export-a-file-and-a-method",
+     ["export", "{root}/weights.pt", "--method", "e2e", "--out", "{tmp}/e.onnx"],
+     "leave --method out"),
+    ("campaign-scheduler-and-workers",
+     ["campaign", "{root}/rec.tiff", "--out", "{tmp}/c", "--scheduler", "tcp://127.0.0.1:1",
+      "--workers", "3"], "leave --workers out"),
+    # the remedy is a session that would pass: not the same narrow ambient range again
+    ("calibrate-one-ambient",
+     ["calibrate", "{root}/constant.h5", "--method", "polynomial", "--out", "{tmp}/c.h5"],
+     "or all the frames; record steps: `thermocal simulate chamber OUT.h5 --ambient-profile "
+     "steps --ambient-c 10:40"),
+    ("info-times-going-backwards", ["info", "{root}/timeback.tiff"],
+     "frame times go backwards (frame 4 is"),
+    ("correct-times-going-backwards",
+     ["correct", "{root}/timeback.tiff", "--calibration", "{root}/cal.h5", "--out",
+      "{tmp}/t.tiff"], "frame times go backwards"),
+    ("correct-one-frame-above-14-bit",
+     ["correct", "{root}/over14.tiff", "--calibration", "{root}/cal.h5", "--out",
+      "{tmp}/t.tiff"], "counts outside the 14-bit range 0..16383 from frame 3 on"),
     ("simulate-flight-over-its-scene",
      ["simulate", "flight", "{root}/flight", "--size", SIZE, "--scene",
       "{root}/flight/truth.tiff"], "is an input"),
@@ -910,3 +950,34 @@ def test_every_command_takes_a_folder(inputs, tmp_path, capsys):
         code, _, err = run(args, capsys)
         assert code == 0, (args, err)
     assert len(list((tmp_path / "fl" / "temps").glob("frame_??????.tiff"))) == 7
+
+
+def test_calibrate_whose_report_cannot_be_written_leaves_no_calibration(inputs, tmp_path,
+                                                                        capsys, monkeypatch):
+    """The report is written before the calibration file: a report that cannot be written (a
+    full disk, a folder that refuses it) leaves neither."""
+    import thermocal.io.atomic as atomic
+
+    def refuse(path, *args, **kwargs):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(atomic, "write_json_atomic", refuse)
+    code, _, err = run(["calibrate", inputs["chamber"], "--method", "two-point", "--out",
+                        tmp_path / "c.h5", "--report", tmp_path / "r.json"], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert not list(tmp_path.iterdir())
+
+
+def test_a_reader_that_went_away_is_no_error(inputs):
+    """``thermocal info REC | head -c0``: the pipe closed before the output, status 141 as a
+    shell gives a command ended by SIGPIPE, and nothing on stderr (it said "Broken pipe" as an
+    error)."""
+    import subprocess
+    import sys
+
+    proc = subprocess.Popen([sys.executable, "-m", "thermocal.cli", "info", str(inputs["rec"])],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    proc.stdout.close()  # before the child has imported anything: its first write fails
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=120) == 141, err
+    assert err == ""

@@ -240,3 +240,30 @@ def test_outside_the_domain_is_refused_unless_forced(flight):
     inside = estimate(flight.frames, Recorder(), fpa_c=flight.fpa_c,
                       homographies=flight.homographies)
     assert inside.outside == () and np.all(inside.sigma_c == 1.0)
+
+
+def test_every_estimator_that_may_lack_sigma_says_what_to_do():
+    from thermocal.estimation.commands import NO_SIGMA_REMEDY
+
+    for name, info in ESTIMATORS.items():  # "recording": the file's constants carry their σ
+        assert info.needs == "recording" or info.needs in NO_SIGMA_REMEDY, name
+
+
+def test_calibrations_get_the_frames_times(flight):
+    """Both calibration estimators hand the calibration the frames' times (a rate term needs
+    them: the mean's frames were calibrated without, and a lin calibration refused them)."""
+    seen = []
+
+    class Spy:
+        shape = flight.frames.shape[1:]
+
+        def apply(self, frames, *, fpa_c=None, time_s=None):
+            seen.append(time_s)
+            return np.zeros(np.shape(frames), dtype=np.float32)
+
+    t = np.arange(len(flight.frames)) / 30.0
+    for cls in (OzMean, PivotCalibration):
+        est = cls.__new__(cls)
+        est.calibration, est.sigma_model = Spy(), None
+        est.calibrate(flight.frames, 30.0, t)
+        assert seen.pop() is t, cls.__name__

@@ -119,3 +119,26 @@ def test_lin_lag_holds_for_lags_it_was_not_chosen_on(family, thermal):
                                        held)
         mae[method] = float(np.abs(est[:, ~cam.defects] - held.truth_c[:, None]).mean())
     assert mae["lin-lag"] < 0.3 and mae["lin-lag"] < mae["lin-level"] / 4
+
+
+def test_a_burst_shorter_than_the_rate_window_is_taken_as_steady(runs):
+    """A burst of 14 frames at 30 Hz whose FPA readings step by the sensor's 0.01 °C: no rate
+    can be told from half a second (the smoothed fit said −1.2 °C/min, and the rate term then
+    put the scene several °C off); lin applies it as at rest, as with one FPA value."""
+    session, held = runs["tau2"]
+    ref = physics.plateau_fpa_c(session.session)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cal = fit_calibration(session.session, "lin-lag", fpa_ref_c=ref)
+    frames = np.asarray(held.session.frames[:14])
+    fpa = np.round(ref + np.r_[np.zeros(7), np.full(7, 0.01)], 2)  # one quantisation step
+    burst = cal.apply(frames, fpa_c=fpa, time_s=np.arange(14) / 30.0)
+    steady = cal.apply(frames, fpa_c=fpa, frame_rate_hz=30.0)
+    at_rest = np.concatenate([cal.apply(frames[k:k + 1], fpa_c=fpa[k:k + 1]) for k in range(14)])
+    np.testing.assert_array_equal(burst, steady)
+    np.testing.assert_allclose(burst, at_rest, atol=1e-4)
+    # a burst spanning the window keeps its rate: here a ramp of 1 °C/min over 2 minutes
+    slow = np.arange(14) * 10.0
+    ramp = cal.apply(frames, fpa_c=ref + slow / 60.0, time_s=slow)
+    flat = cal.apply(frames, fpa_c=ref + slow / 60.0, time_s=slow * 0.001)  # 0.13 s
+    assert np.abs(ramp - flat).mean() > 0.01

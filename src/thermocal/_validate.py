@@ -265,9 +265,11 @@ def as_frames(
         top = 2**bit_depth - 1
         lo, hi = int(arr.min()), int(arr.max())
         if lo < 0 or hi > top:
+            flat = arr.reshape(len(arr), -1)
+            k = int(np.argmax((flat.min(axis=1) < 0) | (flat.max(axis=1) > top)))
             raise InvalidInputError(
-                f"{name}: counts outside the {bit_depth}-bit range 0..{top} (min {lo}, max {hi}); "
-                "check the bit depth or the file"
+                f"{name}: counts outside the {bit_depth}-bit range 0..{top} from frame {k} on "
+                f"(min {lo}, max {hi}); check the bit depth (a sidecar's bit_depth) or the file"
             )
     return arr
 
@@ -381,6 +383,14 @@ def check_frame_index(index: Any, n: int, name: str = "pivot", *, within: str = 
     if not 0 <= int(index) < n:
         raise InvalidInputError(f"{name} {index} is outside {within} (frames 0..{n - 1})")
     return int(index)
+
+
+def frames_above(block: np.ndarray, max_count: int) -> int | None:
+    """The first frame of ``block`` ``(N, H, W)`` holding a count above ``max_count`` (its
+    index in the block), or None."""
+    if not block.size or int(block.max()) <= max_count:
+        return None
+    return int(np.argmax(block.reshape(len(block), -1).max(axis=1) > max_count))
 
 
 def pivot_index(pivot: Any, n: int) -> int:

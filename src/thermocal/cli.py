@@ -343,6 +343,12 @@ def main(argv: list[str] | None = None) -> None:
     except ThermocalError as exc:
         click.echo(f"thermocal: error: {_one_line(exc)}", err=True)
         sys.exit(2)
+    except BrokenPipeError:
+        # the reader of our output went away (``thermocal info … | head -1``): nothing is
+        # wrong and nothing more can be said; stdout to /dev/null so that its final flush
+        # does not raise again, and the status a shell gives a command ended by SIGPIPE
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        sys.exit(141)
     except MemoryError:
         click.echo("thermocal: error: out of memory; use smaller or fewer frames (nothing "
                    "half-written is left)", err=True)

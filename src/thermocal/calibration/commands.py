@@ -104,10 +104,15 @@ def calibrate(chamber: Path, method: str, out: Path, report_path: Path | None,
         report = replace(report, notes=[*report.notes, "cross-validated as the per-pixel fit "
                                         "(--radial keeps its radial fit)"])
     cal = replace(cal, info=cal.info | {"report": report.to_dict()})  # type: ignore[type-var]
-    cal.save(out)
-    if report_path is not None:
+    if report_path is not None:  # the report first: a failure leaves neither file
         write_json_atomic(report_path, {"chamber": str(chamber), "calibration": str(out)}
                           | report.to_dict())
+    try:
+        cal.save(out)
+    except BaseException:
+        if report_path is not None:
+            report_path.unlink(missing_ok=True)
+        raise
     for text in report.warnings:
         click.echo(f"thermocal: warning: {' '.join(text.split())}", err=True)
     if report.ranking:

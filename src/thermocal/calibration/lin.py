@@ -279,7 +279,9 @@ class LinCalibration(StoredCalibrationMixin):
 
         ``fpa_c`` (°C per frame) is required; ``time_s`` gives the FPA rate (eq. 3; with the
         smoothing of the fit). Without ``time_s``, ``frame_rate_hz`` sets the frame times;
-        without either, a single FPA value or a single frame is taken as stable (rate 0).
+        without either, a single FPA value or a single frame is taken as stable (rate 0), as
+        is a recording shorter than the smoothing window (``rate_smooth_s``: a burst of a
+        second cannot tell its rate from the sensor's quantisation).
         """
         counts = check_frames(frames, self.shape)
         nfr = len(counts)
@@ -295,7 +297,11 @@ class LinCalibration(StoredCalibrationMixin):
             rate, t = np.zeros(nfr), None
         else:
             t = per_frame_series(time_s, nfr, "time_s", temperature=False)
-            rate = fpa_rate_c_per_min(fpa, t, smooth_s=self.rate_smooth_s)
+            # a recording shorter than the rate's smoothing window cannot tell a steady FPA
+            # from one changing by a degree a minute (0.01 °C steps over a second): taken as
+            # steady, as recording_fpa_rates leaves its rate unknown (σ of all rates)
+            rate = (np.zeros(nfr) if np.ptp(t) < self.rate_smooth_s
+                    else fpa_rate_c_per_min(fpa, t, smooth_s=self.rate_smooth_s))
         gf = self.corrected_counts(counts, fpa, rate, t)
         out = np.empty_like(gf)
         b, f = np.float32(self.planck_b), np.float32(self.planck_f)

@@ -163,6 +163,8 @@ def record_hint(data: ChamberData, profile: str, *, setpoints: int = 0) -> str:
         if not (isinstance(ambient, list | tuple) and len(ambient) == 2):
             amb = data.session.ambient_c
             ambient = (float(np.min(amb)), float(np.max(amb))) if amb is not None else (10, 40)
+        # at least the default 10…40 °C: the session's own range may be what was too narrow
+        ambient = (min(float(ambient[0]), 10.0), max(float(ambient[1]), 40.0))
         points = data.setpoints_c
         if setpoints and points.size < setpoints:
             points = np.linspace(points.min() if points.size else 10.0,
@@ -267,8 +269,9 @@ def check_protocol(data: ChamberData, method: str, needs: ProtocolNeeds,
             first_lack = first_lack or lack
         if lack is not None:
             hint = record_hint(data, "steps", setpoints=n_setpoints)
-            also = "" if given or not needs.fallback else \
-                f" (nor do {', '.join(describe_frames(data, f) for f in needs.fallback)})"
+            also = "" if given or not needs.fallback else "; nor do " + " or ".join(
+                "all the frames" if f == "all" else describe_frames(data, f)
+                for f in needs.fallback)
             other = (f"; or fit frames='{needs.fallback[0]}'"
                      if given and needs.fallback and options["frames"] == needs.frames else "")
             return ProtocolCheck(method, options, f"{method} {first_lack}{also}; {hint}{other}")

@@ -28,6 +28,11 @@ class _ThroughCalibration:
         self.calibration = calibration
         self.sigma_model = CalibrationSigma.of(calibration)
 
+    def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any) -> np.ndarray:
+        """The frames through the calibration, with their FPA temperatures and times (the
+        methods with a rate term need both)."""
+        return self.calibration.apply(frames, fpa_c=fpa_c, time_s=time_s)
+
     @property
     def fpa_paces(self) -> dict[str, Any]:
         """The paces of the calibration's report (``{}`` without a report)."""
@@ -73,15 +78,13 @@ class _ThroughCalibration:
 
 class OzMean(_ThroughCalibration):
     """Oz et al. eq. 9: the registered average of the per-frame temperatures a calibration
-    gives. Each frame goes through ``calibration.apply(frames, fpa_c=…)`` (°C) where it lies on
-    the sensor, is warped onto the pivot, and each pivot pixel's valid values are averaged."""
+    gives. Each frame goes through ``calibration.apply(frames, fpa_c=…, time_s=…)`` (°C) where
+    it lies on the sensor, is warped onto the pivot, and each pivot pixel's valid values are
+    averaged."""
 
     name = "mean"
     per_frame = False
     accepts_registered = True
-
-    def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any) -> np.ndarray:
-        return self.calibration.apply(frames, fpa_c=fpa_c)
 
     def estimate(self, burst: PreparedBurst) -> np.ndarray:
         count = burst.valid.sum(axis=0)
@@ -108,9 +111,6 @@ class PivotCalibration(_ThroughCalibration):
     name = "calibration"
     per_frame = True
     accepts_registered = True
-
-    def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any) -> np.ndarray:
-        return self.calibration.apply(frames, fpa_c=fpa_c, time_s=time_s)
 
     def estimate(self, burst: PreparedBurst) -> np.ndarray:
         return np.asarray(burst.warped[burst.pivot], dtype=np.float32)

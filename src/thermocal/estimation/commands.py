@@ -83,7 +83,8 @@ def estimate_file(
     own_constants = info is not None and info.needs == "recording"  # built from the file below
     if own_constants:
         check_method_options(method, backend=backend, threads=threads,
-                             calibration=calibration, model=model_path)
+                             calibration=calibration, model=model_path, fpa_c=fpa_c,
+                             force=force)
     estimator = (None if own_constants
                  else make_estimator(method, model=model_path, calibration=calibration,
                                      backend=backend, threads=threads))
@@ -100,8 +101,10 @@ def estimate_file(
     # a network takes bursts of its own length: the frames around --pivot (or the middle)
     window, pivot = burst_window(rec.n_frames, getattr(estimator, "n_frames", None), pivot)
     fpa_series = None if rec.fpa_c is None else rec.fpa_c[window]
+    times = None if rec.time_s is None else rec.time_s[window]
     try:
-        result = run_pipeline(rec.frames[window], estimator, fpa_c=fpa_series, pivot=pivot,
+        result = run_pipeline(rec.frames[window], estimator, fpa_c=fpa_series, time_s=times,
+                              pivot=pivot,
                               registered=registered, force=force, bit_depth=rec.bit_depth)
     except InvalidInputError as exc:  # a burst's fault: name the file it came from
         text = str(exc)
@@ -129,6 +132,8 @@ NO_SIGMA_REMEDY = {
                    "thermocal): calibrate again to get its uncertainty",
     "model": "its weights have no σ model beside them (NAME.sigma.json): fit one with "
              "`python -m thermocal.evaluation.sigma_fit WEIGHTS.pt`",
+    "pass": "selfcal fits a whole pass, not one burst: run `thermocal flight --method selfcal` "
+            "on the recording (it writes σ beside each map)",
 }
 
 

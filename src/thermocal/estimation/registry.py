@@ -130,12 +130,18 @@ def make_estimator(
 
 def check_method_options(name: str, *, backend: str = "torch", threads: int | None = None,
                          calibration: Any = None, model: Any = None,
-                         family: str = "tau2") -> None:
+                         family: str = "tau2", fpa_c: float | None = None,
+                         force: bool = False) -> None:
     """Refuse an option that ``--method name`` would ignore (the user would believe it used):
     ``--backend`` or ``--threads`` or ``--model`` for a method that runs no network,
     ``--calibration`` for one that takes none, ``--family`` (other than the default) for one
-    that does not start from a family's average unit."""
+    that does not start from a family's average unit, ``--fpa-c`` or ``--force`` for the
+    camera's own constants (they convert counts without the FPA, and have no domain)."""
     needs = ESTIMATORS[name].needs
+    if needs == "recording" and (fpa_c is not None or force):
+        raise InvalidInputError(
+            f"--method {name} converts counts with the file's own constants, which take no FPA "
+            "temperature and have no domain to force: leave --fpa-c and --force out")
     if needs != "model" and (backend != "torch" or threads is not None):
         raise InvalidInputError(
             f"--backend and --threads choose how a network runs; --method {name} runs none")

@@ -42,8 +42,9 @@ class ExactModel:
         """Frame shape ``(H, W)``."""
         return self.model.shape
 
-    def apply(self, frames, *, fpa_c=None):
-        """Raw frames ``(N, H, W)`` → °C ``(N, H, W)`` through the model's exact inverse."""
+    def apply(self, frames, *, fpa_c=None, time_s=None):
+        """Raw frames ``(N, H, W)`` → °C ``(N, H, W)`` through the model's exact inverse
+        (``time_s``, as every calibration takes it, unused: the model has no rate term)."""
         return calibrate_frames(self.model, frames, fpa_c)  # the camera settled, as in training
 
 

@@ -41,6 +41,7 @@ from thermocal._validate import (
     as_fpa_c,
     as_temperature_c,
     check_length,
+    frames_above,
 )
 from thermocal.errors import FileFormatError, InvalidInputError, ResolutionMismatchError
 from thermocal.io.atomic import atomic_path
@@ -1004,11 +1005,12 @@ def _iter_frames(
 ) -> Iterator[tuple[slice, np.ndarray]]:
     max_count = 2**bit_depth - 1
     for sl, block in LazyFrames(path, shape).iter_chunks(chunk):  # type: ignore[arg-type]
-        if block.size and int(block.max()) > max_count:
+        over = frames_above(block, max_count)
+        if over is not None:
             raise FileFormatError(
-                f"{path}: frames {sl.start}..{sl.stop - 1} hold counts above the "
-                f"{bit_depth}-bit maximum {max_count}"
-            )
+                f"{path}: frame {sl.start + over} holds counts above the {bit_depth}-bit "
+                f"maximum {max_count}: if the camera gives more bits, say so in the file's "
+                "bit_depth attribute")
         yield sl, block
 
 

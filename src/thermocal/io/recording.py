@@ -39,6 +39,7 @@ from thermocal._validate import (
     check_fpa_c,
     check_length,
     check_suffix,
+    frames_above,
 )
 from thermocal.errors import FileFormatError, InvalidInputError, ThermocalError
 from thermocal.io.atomic import atomic_path
@@ -494,6 +495,12 @@ def _sidecar_series(values: Any, key: str, n: int, json_path: Path) -> np.ndarra
             as_fpa_c(arr, key)
         except InvalidInputError as exc:
             raise FileFormatError(f"{json_path}: {exc}") from None
+    back = np.flatnonzero(np.diff(arr) < 0) if key == "time_s" else ()
+    if len(back):  # as the other formats' readers refuse it (io.open)
+        k = int(back[0]) + 1
+        raise FileFormatError(
+            f"{json_path}: frame times go backwards (frame {k} is {arr[k - 1] - arr[k]:.3f} s "
+            f"before frame {k - 1}); thermocal reads frames in time order only")
     return arr
 
 
@@ -647,11 +654,12 @@ def _iter_stack(
 
     def checked(start: int, block: np.ndarray) -> tuple[int, np.ndarray]:
         block = np.ascontiguousarray(block.reshape(-1, info.height, info.width), dtype=np.uint16)
-        if block.size and int(block.max()) > max_count:
+        over = frames_above(block, max_count)
+        if over is not None:
             raise FileFormatError(
-                f"{path}: frames {start}..{start + len(block) - 1} hold counts above the "
-                f"{bit_depth}-bit maximum {max_count}"
-            )
+                f"{path}: frame {start + over} holds counts above the {bit_depth}-bit maximum "
+                f"{max_count}: if the camera gives more bits, say so in its sidecar "
+                f"(\"bit_depth\": 16 in {sidecar_path(path).name})")
         return start, block
 
     if info.dataoffset is not None:

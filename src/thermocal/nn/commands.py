@@ -496,9 +496,9 @@ def _train_config(opts: dict[str, Any]):
               help="Output ONNX file (.onnx).")
 @click.option("--size", default="640x512", show_default=True,
               help="Frame size WxH the graph runs at (padded up to the network's multiple).")
-@click.option("--method", type=click.Choice(list(VARIANTS)), default="kpn", show_default=True,
-              help="The shipped network to export when MODEL is not given.")
-def export(model: str | None, out: Path, size: str, method: str) -> None:
+@click.option("--method", type=click.Choice(list(VARIANTS)), default=None,
+              help="The shipped network to export when MODEL is not given (default kpn).")
+def export(model: str | None, out: Path, size: str, method: str | None) -> None:
     """Export a network (MODEL: a weights file of `thermocal train`; default the shipped one of
     --method) as an ONNX graph, for ONNX Runtime, OpenVINO, or an edge device's compiler
     (TensorRT on a Jetson, an NPU's). The graph ends at the network's linear output; how to feed
@@ -506,6 +506,10 @@ def export(model: str | None, out: Path, size: str, method: str) -> None:
     from thermocal._validate import check_not_input, check_output_file, parse_size
 
     out = check_output_file(out, (".onnx",))
+    if model is not None and method is not None:  # MODEL's own variant would be exported
+        raise InvalidInputError(
+            f"--method picks a shipped network; {model} is given: leave --method out (the "
+            "file's own network is exported)")
     width, height = parse_size(size)
     try:
         import onnx  # noqa: F401
@@ -515,7 +519,7 @@ def export(model: str | None, out: Path, size: str, method: str) -> None:
     from thermocal.nn.infer import shipped_model_path
     from thermocal.nn.runners import export_onnx
 
-    weights = Path(model) if model is not None else shipped_model_path(method)
+    weights = Path(model) if model is not None else shipped_model_path(method or "kpn")
     check_not_input(out, weights)
     meta = export_onnx(weights, out, size=(width, height))
     click.echo(f"wrote {out}: {meta['thermocal.variant']}, N = {meta['thermocal.frames']}, "

@@ -130,10 +130,13 @@ def campaign(inputs: tuple[Path, ...], out_dir: Path, scheduler: str | None,
     same bytes as `thermocal flight`; a failed recording is reported in OUT/campaign.json and
     the others go on."""
     from thermocal._validate import check_not_input
-    from thermocal.errors import ThermocalError
+    from thermocal.errors import InvalidInputError, ThermocalError
     from thermocal.pipeline.campaign import campaign_tasks, run_campaign
     from thermocal.pipeline.flight import FlightOptions
 
+    if scheduler is not None and workers is not None:  # the cluster's own workers run them
+        raise InvalidInputError("--workers sizes the LocalCluster; with --scheduler the "
+                                "cluster's own workers run the tasks: leave --workers out")
     check_not_input(out_dir, *inputs, calibration, model)
     options = FlightOptions(method=method, calibration=calibration, model=model,
                             frames=n_frames, stride=stride, preview_every=preview_every,

@@ -165,7 +165,7 @@ class FlightOptions:
             raise InvalidInputError("--frames and --stride must be >= 1")
         check_method_options(self.method, backend=self.backend, threads=self.threads,
                              calibration=self.calibration, model=self.model,
-                             family=self.family)
+                             family=self.family, fpa_c=self.fpa_c, force=self.force)
         if self.registration_threads is not None and self.registration_threads < 1:
             raise InvalidInputError(
                 f"registration threads must be >= 1, got {self.registration_threads}")
