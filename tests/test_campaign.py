@@ -81,11 +81,17 @@ def test_a_failed_recording_is_reported_and_the_others_finish(data, tmp_path):
     assert good_result["ok"] and good_result["processed"] > 0
 
 
-def test_same_names_are_made_unique_in_the_order_given(data, tmp_path):
+def test_same_names_are_made_unique_whatever_the_order_given(data, tmp_path):
+    """Recordings of one name are numbered in the order of their paths, not of the command
+    line: a rerun with the inputs in another order finds its own folders (it failed every
+    recording as "another run's")."""
     other = tmp_path / "b" / "pass0"
     shutil.copytree(data / "pass0", other)
-    tasks = campaign_tasks([data / "pass0", other], tmp_path / "out", _options(data))
-    assert [t.name for t in tasks] == ["pass0", "pass0-2"]
+    first, second = sorted([(data / "pass0").resolve(), other.resolve()], key=str)
+    for order in ([data / "pass0", other], [other, data / "pass0"]):
+        tasks = campaign_tasks(order, tmp_path / "out", _options(data))
+        names = {Path(t.recording).resolve(): t.name for t in tasks}
+        assert names == {first: "pass0", second: "pass0-2"}
 
 
 @pytest.mark.parametrize("args, message", [

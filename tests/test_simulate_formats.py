@@ -209,6 +209,41 @@ def test_simulate_flight_in_a_camera_format(tmp_path, capsys, fmt, frames):
     np.testing.assert_allclose(back.time_s, want.time_s, atol=0.5e-3)
 
 
+@pytest.mark.parametrize("preset", ["tau2", "boson"])
+def test_a_simulated_flir_file_states_its_own_units_constants(tmp_path, capsys, preset):
+    """`--method camera` on a simulated SEQ reads it as the camera would: the unit's Planck
+    constants (an XT-R's put it 73 °C off), its fixed pattern left (raw, not corrected), within
+    the core's stated ±5 °C (2σ) on most pixels; its dead pixels filled, with a warning."""
+    import tifffile
+    from cli_run import run
+
+    code, _, err = run(["simulate", "flight", tmp_path / "f", "--frames", "7", "--size", "64x48",
+                        "--seed", "3", "--format", "seq", "--preset", preset], capsys)
+    assert code == 0, err
+    code, _, err = run(["estimate", tmp_path / "f" / "frames.seq", "--method", "camera",
+                        "--out", tmp_path / "t.tiff", "--sigma-out", tmp_path / "s.tiff"],
+                       capsys)
+    assert code == 0, err
+    err_c = tifffile.imread(tmp_path / "t.tiff") - tifffile.imread(tmp_path / "f" /
+                                                                    "truth.tiff")[3]
+    sigma = tifffile.imread(tmp_path / "s.tiff")
+    assert abs(float(err_c.mean())) < 2.5 and float(np.median(sigma)) == pytest.approx(2.5)
+    assert np.mean(np.abs(err_c) <= 2 * sigma) > 0.85
+
+
+def test_unit_planck_inverts_the_units_median_response():
+    from thermocal.camera.model import expected_counts
+    from thermocal.camera.presets import make_camera
+    from thermocal.simulate.formats import unit_planck
+
+    cam = make_camera("tau2", unit=4, size=(32, 24))
+    planck = unit_planck(cam, 25.0)
+    temps = np.linspace(0.0, 100.0, 11)
+    counts = np.median(expected_counts(cam, temps, np.full(11, 25.0))[:, ~cam.defects], axis=1)
+    np.testing.assert_allclose(planck.raw_to_temperature_c(counts), temps, atol=0.1)
+    assert (planck.emissivity, planck.distance_m) == (1.0, 0.0)
+
+
 @pytest.mark.parametrize(("args", "message"), [
     (["{tmp}/f", "--format", "mp4"], "'mp4' is not one of"),
     (["{tmp}/f.seq", "--format", "fff"], "OUT_DIR is a folder, not a .seq file"),

@@ -213,9 +213,11 @@ def simulate_flight_cmd(
             out_dir, plan, camera, extra=extra, progress=lambda k: bar.advance(task, k)
         )
     if frames_out is not None:  # the frames in a camera's format, converted in a stream
-        from thermocal.simulate.formats import convert_recording
+        from thermocal.simulate.formats import convert_recording, unit_planck
 
-        convert_recording(out_dir / "frames.tiff", frames_out, format=fmt, fps=fps)
+        # a FLIR file states its camera's constants: this unit's, not another camera's
+        flir = {} if fmt == "dualtau" else {"planck": unit_planck(camera, fpa_c)}
+        convert_recording(out_dir / "frames.tiff", frames_out, format=fmt, fps=fps, **flir)
         os.replace(out_dir / "frames.json", out_dir / "flight.json")
         (out_dir / "frames.tiff").unlink()
     click.echo(f"wrote {n_frames} frames ({motion}, scene {scene_name}) to {out_dir}")

@@ -15,6 +15,7 @@ Zenmuse XT, XT2 and XT-R (FLIR's Tau2 and XT data sheets, high-gain mode).
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
@@ -24,7 +25,28 @@ from thermocal.estimation.base import PreparedBurst
 from thermocal.io.recording import Recording
 from thermocal.radiometry import FlirPlanck
 
-__all__ = ["VendorCalibration", "vendor_accuracy"]
+__all__ = ["MAX_UNDEFINED_FRACTION", "VendorCalibration", "vendor_accuracy"]
+
+#: Pixels of a frame whose counts its constants give no temperature (below the count of a
+#: blackbody at 0 K: dead pixels) filled from their neighbours, at most this fraction of them.
+MAX_UNDEFINED_FRACTION = 0.001
+
+
+def _converted(planck: FlirPlanck, frame: np.ndarray, k: int) -> np.ndarray:
+    """One frame ``(H, W)`` through ``planck``, °C float32 (see ``VendorCalibration.calibrate``;
+    ``k``: its index in the burst, for the warning)."""
+    raw = frame.astype(np.float64)
+    undefined = ~((raw > planck.raw_min) & (raw < planck.raw_max))
+    if not undefined.any() or undefined.mean() > MAX_UNDEFINED_FRACTION:
+        return np.asarray(planck.raw_to_temperature_c(raw), np.float32)  # refuses the latter
+    from thermocal.calibration.base import ThermocalWarning, fill_bad_pixels
+
+    warnings.warn(f"frame {k}: {int(undefined.sum())} pixel(s) with counts the file's constants "
+                  "give no temperature (dead pixels): filled from their neighbours",
+                  ThermocalWarning, stacklevel=2)
+    raw[undefined] = np.median(raw[~undefined])
+    temps = np.asarray(planck.raw_to_temperature_c(raw), np.float32)[None]
+    return fill_bad_pixels(temps, undefined)[0]
 
 
 def vendor_accuracy(metadata: dict[str, Any]) -> tuple[float, float]:
@@ -96,8 +118,11 @@ class VendorCalibration:
             )
 
     def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any) -> np.ndarray:
-        return np.stack([np.asarray(p.raw_to_temperature_c(f.astype(np.float64)), np.float32)
-                         for p, f in zip(self.plancks, frames, strict=True)])
+        """Each frame through its constants; a few pixels whose counts the constants give no
+        temperature (dead pixels, at most :data:`MAX_UNDEFINED_FRACTION` of a frame) are
+        filled from their neighbours with a warning; more are refused by the formula."""
+        return np.stack([_converted(p, f, k) for k, (p, f) in enumerate(
+            zip(self.plancks, frames, strict=True))])
 
     def outside(self, calibrated: np.ndarray, fpa_c: float | None, *,
                 pace: Any = None) -> tuple[str, ...]:

@@ -83,7 +83,8 @@ def campaign_tasks(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[
 
     if not inputs:
         raise InvalidInputError("give at least one recording")
-    tasks, names, seen = [], set(), set()
+    names = _output_names([Path(raw) for raw in inputs])
+    tasks, seen = [], set()
     for raw in inputs:
         path = Path(raw)
         real = path.resolve()
@@ -95,16 +96,27 @@ def campaign_tasks(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[
         except ThermocalError as exc:
             text = str(exc)
             raise type(exc)(text if text.startswith(str(path)) else f"{path}: {text}") from None
-        stem = path.stem if path.is_file() else path.name
-        name, k = stem, 2
-        while name in names:
-            name, k = f"{stem}-{k}", k + 1
-        names.add(name)
+        name = names[real]
         target = Path(out) / name
         check_not_input(target, path)
         check_outside_recording(path, (out, "--out"))
         tasks.extend(_segments(CampaignTask(name, str(path), str(target), n, options)))
     return tasks
+
+
+def _output_names(paths: list[Path]) -> dict[Path, str]:
+    """Each recording's output folder name, by its resolved path: its file's stem (a folder's
+    name); recordings of one stem numbered ``stem``, ``stem-2``, … in the order of their
+    resolved paths, so that a rerun with the inputs in another order finds its own folders."""
+    by_stem: dict[str, list[Path]] = {}
+    for path in paths:
+        stem = path.stem if path.is_file() else path.name
+        by_stem.setdefault(stem, []).append(path.resolve())
+    names: dict[Path, str] = {}
+    for stem, group in by_stem.items():
+        for k, real in enumerate(sorted(set(group), key=str)):
+            names[real] = stem if k == 0 else f"{stem}-{k + 1}"
+    return names
 
 
 def _segments(task: CampaignTask) -> list[CampaignTask]:

@@ -152,9 +152,11 @@ def campaign(inputs: tuple[Path, ...], out_dir: Path, scheduler: str | None,
                                        f"{r['failed_groups']} groups failed" if r["ok"]
                                        else f"failed: {r['error']}"))
     if summary["failed"]:
+        total = len(summary["recordings"])
         raise ThermocalError(
-            f"{summary['failed']} of {len(summary['recordings'])} recordings failed (the others "
-            f"are done); each one's error is in {Path(out_dir) / 'campaign.json'}")
+            (f"all {total} recordings failed" if summary["failed"] == total else
+             f"{summary['failed']} of {total} recordings failed (the others are done)")
+            + f"; each one's error is in {Path(out_dir) / 'campaign.json'}")
     click.echo(f"{len(summary['recordings'])} recordings processed into {out_dir} in "
                f"{summary['wall_time_s']:.1f} s")
 

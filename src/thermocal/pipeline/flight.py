@@ -178,9 +178,12 @@ class FlightOptions:
         if self.references is not None and info.needs != "pass":
             raise InvalidInputError(
                 "--reference fixes the level of a flight-level method: use --method selfcal")
+        if self.hfov_deg is not None and not self.geotiff:
+            raise InvalidInputError("--hfov-deg is the field of view --geotiff maps with: give "
+                                    "--geotiff, or leave --hfov-deg out")
         if self.hfov_deg is not None and not (
-                self.geotiff and math.isfinite(self.hfov_deg) and 0 < self.hfov_deg < 180):
-            raise InvalidInputError("--hfov-deg must be between 0 and 180 degrees, with --geotiff")
+                math.isfinite(self.hfov_deg) and 0 < self.hfov_deg < 180):
+            raise InvalidInputError("--hfov-deg must be between 0 and 180 degrees")
 
 
 @dataclass

@@ -205,6 +205,10 @@ def _flight_maps(out: Path) -> tuple[list[_Map], list[dict[str, Any]]]:
     """The maps the flight log says were made, in frame order, and the pivots without one."""
     log = out / "log.jsonl"
     if not out.is_dir() or not log.is_file() or not (out / "temps").is_dir():
+        if out.exists() and not out.is_dir():  # a recording, given where its maps' folder goes
+            raise InvalidInputError(
+                f"{out}: is a file; mosaic takes the folder `thermocal flight {out} --out OUT` "
+                "wrote (its OUT)")
         raise InvalidInputError(
             f"{out}: not the output of thermocal flight (no log.jsonl and temps/); run "
             f"'thermocal flight RECORDING --out {out}' first"
