@@ -68,7 +68,8 @@ def test_sigma_inside_follows_the_cross_validation():
 
 
 def test_sigma_grows_outside_without_bound():
-    """Outside, σ grows linearly with the distance at the end folds' measured rate."""
+    """Outside, σ grows linearly with the distance at the end folds' measured rate; beyond the
+    one set-point step (10 °C here) those folds extrapolated, by the whole distance past it."""
     model = CalibrationSigma(_report())
     fpa_rate = (1.3 - 0.3) / 2.5  # excess MAE of the low end segment over half its width
     inside = model.sigma(np.array([[25.0]]), 27.5)[0, 0]
@@ -79,7 +80,11 @@ def test_sigma_grows_outside_without_bound():
         assert out == pytest.approx(expected, rel=1e-5) and out > inside
     hot = model.sigma(np.array([[140.0]]), 27.5)[0, 0]
     scene_rate = (0.6 - 0.3) / 10.0
-    assert hot == pytest.approx(G * (0.4 + 0.3 - 0.3 + scene_rate * 100.0), rel=1e-5)
+    assert hot == pytest.approx(G * (0.4 + 0.3 - 0.3 + scene_rate * 100.0) + 90.0, rel=1e-5)
+    near = model.sigma(np.array([[48.0]]), 27.5)[0, 0]  # 8 °C out: measured growth alone
+    assert near == pytest.approx(G * (0.4 + 0.3 - 0.3 + scene_rate * 8.0), rel=1e-5)
+    # a pixel clipped at the radiance tables' floor is not given a few degrees
+    assert model.sigma(np.array([[-123.15]]), 27.5)[0, 0] > 120.0
     flat = CalibrationSigma(_report(folds=[f | {"mae_c": 0.1} for f in _report().folds]))
     assert flat.sigma(np.array([[25.0]]), 45.0)[0, 0] == pytest.approx(
         G * (0.1 + MIN_GROWTH_PER_C * 10.0), rel=1e-5)

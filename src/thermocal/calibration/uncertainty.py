@@ -34,7 +34,10 @@ For a temperature ``T`` (°C) measured at FPA temperature ``t`` (°C)::
 - ``k_scene``, ``k_fpa``: how fast the error grew on the report's extrapolation folds (its end
   set points and end FPA segments, left out in turn): their excess MAE over the interior's per
   °C of extrapolation, never below :data:`MIN_GROWTH_PER_C`. Outside the ranges σ keeps growing
-  with the distance: it is not clipped;
+  with the distance: it is not clipped. Beyond one set-point step outside the scene range
+  (as far as the end folds extrapolated) no fold measured anything: σ also grows by the whole
+  distance past it, ``+ max(d_scene − step, 0)`` (a pixel whose counts the calibration cannot
+  invert, clipped at −123 °C, is not given a few degrees);
 - ``√(π/2)``: a Gaussian's σ from its MAE.
 
 :meth:`CalibrationSigma.outside` says why frames lie outside what a calibration was fitted on
@@ -160,7 +163,7 @@ class CalibrationSigma:
         k_scene = _growth(r.by_scene(), r.expected_mae_c, lambda f: step)
         k_fpa = _growth(r.by_fpa(), r.expected_mae_c,
                         lambda f: 0.5 * (f["held_out"][1] - f["held_out"][0]))
-        return scene, fpa, k_scene, k_fpa
+        return scene, fpa, k_scene, k_fpa, step
 
     def _overall_sigma(self) -> float:
         r = self.report
@@ -357,7 +360,7 @@ class CalibrationSigma:
         if time_since_start_s is not None:
             level = np.maximum(level, np.broadcast_to(self.start_sigma(time_since_start_s),
                                                       frames.shape[:1]))
-        (sx, sm), (fx, fm), k_scene, k_fpa = self._curves
+        (sx, sm), (fx, fm), k_scene, k_fpa, step = self._curves
         mean = self.report.expected_mae_c
         m_scene = np.interp(frames, sx, sm) if sx.size else np.full(frames.shape, mean)
         m_fpa = np.interp(fpa, fx, fm) if fx.size else np.full(fpa.shape, mean)
@@ -368,7 +371,10 @@ class CalibrationSigma:
         least = min([mean, *sm, *fm])
         shape = np.maximum(m_scene + m_fpa[:, None, None] - mean, least) / mean
         growth = k_scene * d_scene + (k_fpa * d_fpa)[:, None, None]
-        out = (level[:, None, None] * shape + _GAUSS * growth).astype(np.float32)
+        # beyond one set-point step outside, no fold measured the error: it may be the whole
+        # distance (a pixel clipped at the radiance tables' floor reads −123 °C whatever it saw)
+        unmeasured = np.maximum(d_scene - step, 0.0)
+        out = (level[:, None, None] * shape + _GAUSS * growth + unmeasured).astype(np.float32)
         return out if temps.ndim == 3 else out[0]
 
     @property

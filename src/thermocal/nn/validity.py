@@ -129,8 +129,9 @@ def outside_domain(domain: Domain, frames_c: np.ndarray | None, fpa_c: float
         if cross > LINE_RATIO_MAX * own:
             other = "row" if domain.line_fpn == "column" else "column"
             reasons.append(
-                f"its fixed pattern runs along {other}s ({cross:.2f} °C against {own:.2f} °C "
-                f"along {domain.line_fpn}s): not a camera of the {domain.family} family the "
-                "network was trained on"
+                f"its fixed pattern runs along {other}s nearly as much as along "
+                f"{domain.line_fpn}s ({cross:.2f} °C against {own:.2f} °C; a "
+                f"{domain.family} burst's stays below {LINE_RATIO_MAX:g} of it): not a camera "
+                f"of the {domain.family} family the network was trained on"
             )
     return tuple(reasons)
