@@ -988,3 +988,10 @@ def test_a_reader_that_went_away_is_no_error(inputs):
     err = proc.stderr.read().decode()
     assert proc.wait(timeout=120) == 141, err
     assert err == ""
+
+
+def test_info_on_a_pipe_says_it_is_not_a_file(tmp_path, capsys):
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    code, _, err = run(["info", fifo], capsys)
+    assert code == 2 and "not a file or a folder (a pipe, a device)" in err

@@ -625,3 +625,17 @@ def test_flight_method_camera_uses_each_frames_constants(tmp_path):
     with pytest.raises(InvalidInputError, match="Planck constants"):
         write_recording(tmp_path / "r.tiff", Recording(frames.astype(np.uint16), bit_depth=16))
         process_flight(tmp_path / "r.tiff", tmp_path / "out2", options)
+
+
+def test_a_damaged_exif_is_one_warning_naming_the_file(shared_data, tmp_path, capsys):
+    """Bytes 252–3151 of the DJI R-JPEG inverted (its EXIF IFDs): Pillow warned per tag, three
+    unattributed lines; now one naming the file, and the frame is still read."""
+    from cli_run import run
+
+    data = bytearray(_real(shared_data, "recordings", "dji_xtr_tau2.jpg").read_bytes())
+    data[252:3152] = bytes(b ^ 0xFF for b in data[252:3152])
+    (tmp_path / "dmg.jpg").write_bytes(bytes(data))
+    code, out, err = run(["info", tmp_path / "dmg.jpg"], capsys)
+    assert code == 0 and "1 frame(s) of 640x512" in out
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "dmg.jpg: damaged EXIF" in lines[0], err

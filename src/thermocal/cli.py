@@ -314,10 +314,18 @@ if _SIGINT_BEFORE_LOADING is not None:  # loaded: Ctrl-C raises KeyboardInterrup
     signal.signal(signal.SIGINT, _SIGINT_BEFORE_LOADING)
 
 
+#: The warnings :func:`_show_warning` has shown in this run (reset by :func:`main`).
+_shown: set[str] = set()
+
+
 def _show_warning(message, category, filename, lineno, file=None, line=None) -> None:
     """:func:`warnings.showwarning` for the command line: one line ``thermocal: warning: ...``,
-    without the source path and line of Python's own form."""
+    without the source path and line of Python's own form; a text already shown in this run
+    is not repeated (a file's metadata read twice warned twice)."""
     text = " ".join(str(message).split())
+    if text in _shown:
+        return
+    _shown.add(text)
     click.echo(f"thermocal: warning: {text}", err=True)
 
 
@@ -331,6 +339,7 @@ def main(argv: list[str] | None = None) -> None:
 
     shown = warnings.showwarning
     warnings.showwarning = _show_warning
+    _shown.clear()
     terminate = _exit_cleanly_on_sigterm()
     try:
         with removing_new_dirs_on_error():

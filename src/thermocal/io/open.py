@@ -610,7 +610,9 @@ def open_recording(path: str | os.PathLike[str]) -> RecordingSource:
     if p.is_dir():
         return _open_folder(p)
     if not p.is_file():
-        raise FileFormatError(f"{p}: no such file or folder")
+        raise FileFormatError(f"{p}: " + ("not a file or a folder (a pipe, a device): give the "
+                                          "recording's file" if p.exists()
+                                          else "no such file or folder"))
     head = _head(p)
     try:
         kind = _kind(p, head)

@@ -17,6 +17,7 @@ from __future__ import annotations
 import io
 import re
 import struct
+import warnings
 from pathlib import Path
 from typing import Any
 
@@ -134,7 +135,7 @@ def rjpeg_metadata(data: bytes, name: str, *, exif: bool = True) -> tuple[
         raise FileFormatError(
             f"{name}: truncated JPEG (the file ends before its end-of-image marker)")
     shape, planck, meta = fff_record_metadata(record, name)
-    meta.update(_exif(data) if exif else {})
+    meta.update(_exif(data, name) if exif else {})
     exif_gps = meta.pop("exif_gps", None)
     if meta.get("gps") is None and exif_gps is not None:
         meta["gps"] = exif_gps
@@ -152,17 +153,25 @@ def _dms(values: Any, ref: str) -> float:
     return -deg if ref in ("S", "W") else deg
 
 
-def _exif(data: bytes) -> dict[str, Any]:
-    """Make, model and GPS from the EXIF segment (Pillow); {} when there is none."""
+def _exif(data: bytes, name: str = "the R-JPEG") -> dict[str, Any]:
+    """Make, model and GPS from the EXIF segment (Pillow); {} when there is none. Pillow's
+    complaints about a damaged segment (one warning per tag) become one warning naming
+    ``name``."""
     from PIL import Image
+
+    from thermocal.threads import caught_warnings
 
     out: dict[str, Any] = {}
     try:
-        with Image.open(io.BytesIO(data)) as im:
+        with caught_warnings() as said, Image.open(io.BytesIO(data)) as im:
             exif = im.getexif()
             gps = exif.get_ifd(0x8825)
     except Exception:  # a JPEG whose EXIF Pillow cannot read: the FLIR record still counts
         return out
+    if said:
+        warnings.warn(f"{name}: damaged EXIF ({len(said)} problem(s), first: "
+                      f"{' '.join(str(said[0].message).split())}): its make, model or GPS may "
+                      "be missing", stacklevel=3)
     for tag, key in ((0x010F, "make"), (0x0110, "model")):
         if tag in exif:
             out[key] = str(exif[tag]).strip("\x00 ")
