@@ -52,7 +52,7 @@ class Recorder:
     def check(self, frames, *, registered, homographies):
         self.seen.append(("check", frames.shape))
 
-    def calibrate(self, frames, fpa_c, time_s):
+    def calibrate(self, frames, fpa_c, time_s, *, pace=None):
         self.seen.append(("calibrate", frames.copy(), fpa_c))
         return frames.astype(np.float32) * 0.5 + np.arange(frames.shape[2], dtype=np.float32)
 

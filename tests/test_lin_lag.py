@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from thermocal.calibration import CALIBRATION_METHODS, fit_calibration
-from thermocal.calibration.dataset import lagged_rate
+from thermocal.calibration.dataset import fpa_rate_c_per_min, lagged_rate
 from thermocal.camera.presets import BOSON, make_camera
 from thermocal.camera.thermal import ambient_profile, thermal_response
 from thermocal.errors import InvalidInputError
@@ -142,3 +142,32 @@ def test_a_burst_shorter_than_the_rate_window_is_taken_as_steady(runs):
     ramp = cal.apply(frames, fpa_c=ref + slow / 60.0, time_s=slow)
     flat = cal.apply(frames, fpa_c=ref + slow / 60.0, time_s=slow * 0.001)  # 0.13 s
     assert np.abs(ramp - flat).mean() > 0.01
+
+
+def test_a_burst_takes_the_rate_its_recording_measured(runs):
+    """A flight calibrates a burst of a second with the FPA rate its recording measured over
+    minutes (the pipeline's pace): on a steady stretch of the held-out 1 °C/min sawtooth the
+    burst then reads as the whole recording applied at once does; taken as steady (no rate
+    known) it errs by degrees."""
+    from thermocal.estimation.base import FpaPace
+    from thermocal.estimation.calibrated import PivotCalibration
+
+    session, held = runs["tau2"]
+    ref = physics.plateau_fpa_c(session.session)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cal = fit_calibration(session.session, "lin-level", fpa_ref_c=ref)
+        saw = np.flatnonzero(held.part == 1)
+        frames = np.asarray(held.session.frames)[saw]
+        fpa, t = held.session.fpa_c[saw], held.session.time_s[saw]
+        whole = cal.apply(frames, fpa_c=fpa, time_s=t)
+        rate = fpa_rate_c_per_min(fpa, t, smooth_s=cal.rate_smooth_s)
+        k = int(np.argmax(np.abs(rate) > 0.9)) + 5  # well into a steady ramp
+        burst = slice(k, k + 3)
+        times = np.arange(3) / 30.0  # three frames of a 30 Hz burst
+        est = PivotCalibration(cal)
+        told = est.calibrate(frames[burst], fpa[burst], times,
+                             pace=FpaPace(float(rate[k + 1])))
+        blind = est.calibrate(frames[burst], fpa[burst], times)
+    assert np.abs(told - whole[burst]).mean() < 0.05
+    assert np.abs(blind - whole[burst]).mean() > 0.5

@@ -58,7 +58,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, ClassVar
 
 import numpy as np
 from scipy.optimize import curve_fit
@@ -77,12 +77,14 @@ from thermocal.calibration.dataset import (
     STABLE,
     FrameScan,
     describe_frames,
-    fpa_rate_c_per_min,
     iter_frames,
     lagged_rate,
     prepare_chamber,
     require_fpa_span,
     require_setpoints,
+)
+from thermocal.calibration.dataset import (
+    fpa_rate_c_per_min as measured_rate,
 )
 from thermocal.calibration.store import (
     FPA_LIMITS_C,
@@ -273,15 +275,22 @@ class LinCalibration(StoredCalibrationMixin):
             out[k] = g
         return out
 
+    #: ``apply`` takes the frames' FPA rate from their recording (``fpa_rate_c_per_min``).
+    takes_fpa_rate: ClassVar[bool] = True
+
     def apply(self, frames: Any, *, fpa_c: Any = None, time_s: Any = None,
-              frame_rate_hz: float | None = None) -> np.ndarray:
+              frame_rate_hz: float | None = None,
+              fpa_rate_c_per_min: Any = None) -> np.ndarray:
         """Scene temperature, °C, float32 ``(N, H, W)``.
 
         ``fpa_c`` (°C per frame) is required; ``time_s`` gives the FPA rate (eq. 3; with the
         smoothing of the fit). Without ``time_s``, ``frame_rate_hz`` sets the frame times;
         without either, a single FPA value or a single frame is taken as stable (rate 0), as
         is a recording shorter than the smoothing window (``rate_smooth_s``: a burst of a
-        second cannot tell its rate from the sensor's quantisation).
+        second cannot tell its rate from the sensor's quantisation). ``fpa_rate_c_per_min``
+        (°C/min, one or one per frame): the rate the frames' recording measured over a longer
+        span (a flight's burst), used instead; the lagged rates (lin-lag) then start steady at
+        it (a burst has no history).
         """
         counts = check_frames(frames, self.shape)
         nfr = len(counts)
@@ -289,7 +298,14 @@ class LinCalibration(StoredCalibrationMixin):
         warn_outside_range(fpa, self.fpa_range_c, self.method)
         if time_s is None and frame_rate_hz is not None:
             time_s = np.arange(nfr) / float(frame_rate_hz)
-        if time_s is None:
+        if fpa_rate_c_per_min is not None:
+            rate = np.broadcast_to(np.asarray(fpa_rate_c_per_min, np.float64).reshape(-1),
+                                   (nfr,)).copy()
+            if not np.all(np.isfinite(rate)):
+                raise InvalidInputError("lin: fpa_rate_c_per_min must be finite")
+            t = (None if time_s is None
+                 else per_frame_series(time_s, nfr, "time_s", temperature=False))
+        elif time_s is None:
             if nfr > 1 and np.ptp(fpa) > 0:
                 raise InvalidInputError(
                     "lin: the FPA rate needs the time of each frame (sidecar 'time_s')"
@@ -301,7 +317,7 @@ class LinCalibration(StoredCalibrationMixin):
             # from one changing by a degree a minute (0.01 °C steps over a second): taken as
             # steady, as recording_fpa_rates leaves its rate unknown (σ of all rates)
             rate = (np.zeros(nfr) if np.ptp(t) < self.rate_smooth_s
-                    else fpa_rate_c_per_min(fpa, t, smooth_s=self.rate_smooth_s))
+                    else measured_rate(fpa, t, smooth_s=self.rate_smooth_s))
         gf = self.corrected_counts(counts, fpa, rate, t)
         out = np.empty_like(gf)
         b, f = np.float32(self.planck_b), np.float32(self.planck_f)

@@ -169,11 +169,13 @@ class Estimator(Protocol):
         """Refuse a burst ``(N, H, W)`` it cannot take (size, length), before any work."""
         ...
 
-    def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any) -> np.ndarray:
+    def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any, *,
+                  pace: FpaPace | None = None) -> np.ndarray:
         """Per-pixel map of raw frames ``(N, H, W)`` where they lie on the sensor, ``(N, H, W)``
         (°C, or the counts themselves); never changes ``frames``. ``fpa_c`` is the burst's FPA
         temperature as given (one value or one per frame, or None), ``time_s`` the frames'
-        times (or None)."""
+        times (or None), ``pace`` how the FPA was changing as their recording measured it
+        (None: not known; a calibration with a rate term takes its rate)."""
         ...
 
     def outside(self, calibrated: np.ndarray, fpa_c: float | None, *,

@@ -72,7 +72,7 @@ def calibrate_stage(estimator: Estimator, frames: np.ndarray, fpa_c: Any, time_s
     it takes them) and :func:`domain_stage`'s reasons. The calibration's warnings (e.g. an FPA
     outside its range) are given only when the burst is not refused: a refusal says it once."""
     with caught_warnings() as raised:
-        calibrated = estimator.calibrate(frames, fpa_c, time_s)
+        calibrated = estimator.calibrate(frames, fpa_c, time_s, pace=pace)
     outside = domain_stage(estimator, calibrated, fpa, force=force, pace=pace)
     for w in raised:
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)

@@ -250,7 +250,8 @@ class SelfCalibration:
                 f"frames are {frames.shape[2]}x{frames.shape[1]} but the pattern was fitted on "
                 f"{self.pattern.shape[1]}x{self.pattern.shape[0]}")
 
-    def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any) -> np.ndarray:
+    def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any, *,
+                  pace: Any = None) -> np.ndarray:
         """Raw frames → °C: the start model, the pattern removed, the references' level."""
         assert self.pattern is not None  # check() refused otherwise
         fpa = np.broadcast_to(np.asarray(fpa_c, np.float64), (len(frames),))

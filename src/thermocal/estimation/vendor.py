@@ -117,7 +117,8 @@ class VendorCalibration:
                 f"{len(self.plancks)}"
             )
 
-    def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any) -> np.ndarray:
+    def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any, *,
+                  pace: Any = None) -> np.ndarray:
         """Each frame through its constants; a few pixels whose counts the constants give no
         temperature (dead pixels, at most :data:`MAX_UNDEFINED_FRACTION` of a frame) are
         filled from their neighbours with a warning; more are refused by the formula."""

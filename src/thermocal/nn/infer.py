@@ -265,7 +265,8 @@ class NetworkEstimator:
                 "as recorded (not --registered) or its homographies"
             )
 
-    def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any) -> np.ndarray:
+    def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any, *,
+                  pace: Any = None) -> np.ndarray:
         if not self.model.config.calibrated:
             return frames
         return calibrated_frames(self.model, frames, fpa_c)
