@@ -244,6 +244,10 @@ CASES = [
                          "--out", "{tmp}/o"], "--hfov-deg must be between 0 and 180 degrees"),
     ("mosaic-of-a-recording", ["mosaic", "{root}/rec.tiff"],
      "is a file; mosaic takes the folder"),
+    # the unit's Planck constants are fitted before any work: nothing left behind
+    ("simulate-flight-seq-saturating",
+     ["simulate", "flight", "{tmp}/out", "--size", SIZE, "--preset", "boson", "--fpa-c", "120",
+      "--format", "seq"], "saturates at FPA 120 °C"),
     ("simulate-flight-over-its-scene",
      ["simulate", "flight", "{root}/flight", "--size", SIZE, "--scene",
       "{root}/flight/truth.tiff"], "is an input"),

@@ -243,7 +243,7 @@ def test_paces_a_memoryless_calibration_never_held_are_outside():
 def test_a_method_with_memory_is_refused_only_beyond_its_wider_margin():
     """Margin 0.3 °C/min (a method with memory): a steady 1.2 °C/min, 0.25 from the 1.5 held,
     is inside; a steady 1.0, 0.45 away, outside, named as beyond the margin with what to
-    record; forced, its σ grows as a memoryless one's would (worst bin × distance in cells);
+    record; forced, its σ grows from the worst bin's at the margin by one per cell beyond;
     a report made before margins keeps one cell."""
     base = _paced()
     model = CalibrationSigma(replace(base.report, paces=base.report.paces
@@ -256,14 +256,14 @@ def test_a_method_with_memory_is_refused_only_beyond_its_wider_margin():
         assert base.unseen_paces(rate, t)[-1] == (pace not in (1.5, 0.0)), pace
     (why,) = model.outside(temps, np.full(t.size, 27.0), rate_c_per_min=np.full(t.size, 1.0),
                            time_s=t)
-    assert "more than 0.3 °C/min from any its chamber session held" in why
+    assert "more than 0.3 °C/min from any pace its chamber session held" in why
     assert "+1.00 °C/min after +1.00" in why and "record a session" in why
     inside = model.sigma(np.full((t.size, 1, 1), 25.0), 27.5,
                          rate_c_per_min=np.full(t.size, 1.2), time_since_start_s=t)[-1, 0, 0]
     assert inside == pytest.approx(base.rate_sigma([1.2])[0], rel=1e-5)  # shape 1 here
     forced = model.sigma(np.full((t.size, 1, 1), 25.0), 27.5,
                          rate_c_per_min=np.full(t.size, 1.0), time_since_start_s=t)[-1, 0, 0]
-    assert forced == pytest.approx(G * 0.6 * 4.5, rel=0.05)
+    assert forced == pytest.approx(G * 0.6 * 2.5, rel=0.05)  # 1.5 cells past the margin, +1
     again = CalibrationReport.from_dict(json.loads(json.dumps(model.report.to_dict())))
     assert again.paces["margin_c_per_min"] == 0.3
     with pytest.raises(InvalidInputError, match="not a calibration report"):

@@ -207,3 +207,20 @@ def test_task_keys_cannot_collide_and_a_short_recording_is_one_task(data, tmp_pa
         np.full((2, 48, 64), 8000, np.uint16), fpa_c=np.full(2, 28.0), time_s=np.arange(2.0)))
     tasks = campaign_tasks([short, data / "pass0"], tmp_path / "out", _options(data))
     assert [t.segment for t in tasks] == [None, None]
+
+
+def test_numbered_names_never_take_another_recordings_name(tmp_path):
+    """x/a, y/a and z/a-2: y/a is not numbered a-2, which z/a-2's own name is (both wrote into
+    OUT/a-2)."""
+    from thermocal.pipeline.campaign import _output_names
+
+    paths = []
+    for folder, name in (("x", "a"), ("y", "a"), ("z", "a-2"), ("w", "a")):
+        (tmp_path / folder).mkdir()
+        paths.append(tmp_path / folder / f"{name}.tiff")
+        paths[-1].write_bytes(b"")
+    for order in (paths, paths[::-1]):
+        names = _output_names(order)
+        assert len(set(names.values())) == 4
+        assert names[(tmp_path / "z" / "a-2.tiff").resolve()] == "a-2"
+        assert sorted(names.values()) == ["a", "a-2", "a-3", "a-4"]

@@ -267,3 +267,26 @@ def test_calibrations_get_the_frames_times(flight):
         est.calibration, est.sigma_model = Spy(), None
         est.calibrate(flight.frames, 30.0, t)
         assert seen.pop() is t, cls.__name__
+
+
+def test_selfcal_gives_its_start_calibration_the_times_and_rate(flight):
+    """selfcal from a lin calibration: the frames' times and, from the whole recording, their
+    FPA rate (it gave neither: lin refused a batch whose FPA moved, or dropped its rate term)."""
+    from thermocal.estimation.selfcal import SelfCalibration
+
+    seen = {}
+
+    class Spy:
+        shape = flight.frames.shape[1:]
+        takes_fpa_rate = True
+        bad = np.zeros(shape, dtype=bool)
+
+        def apply(self, frames, *, fpa_c=None, time_s=None, fpa_rate_c_per_min=None):
+            seen.update(time_s=time_s, rate=fpa_rate_c_per_min)
+            return np.full(np.shape(frames), 20.0, dtype=np.float32)
+
+    t = np.arange(len(flight.frames)) / 30.0
+    est = SelfCalibration(Spy(), fpa_rates=(t, np.full(t.size, 0.7)))
+    est.start_temperature(flight.frames, 30.0, t)
+    assert seen["time_s"] is t
+    np.testing.assert_allclose(seen["rate"], 0.7)

@@ -171,3 +171,18 @@ def test_a_burst_takes_the_rate_its_recording_measured(runs):
         blind = est.calibrate(frames[burst], fpa[burst], times)
     assert np.abs(told - whole[burst]).mean() < 0.05
     assert np.abs(blind - whole[burst]).mean() > 0.5
+
+
+def test_repeated_frame_times_leave_the_rate_unknown(runs):
+    """Time stamps that repeat (a reader's whole seconds): no rate can be measured, as
+    recording_fpa_rates has it; lin takes the frames as steady instead of refusing them."""
+    session, held = runs["tau2"]
+    ref = physics.plateau_fpa_c(session.session)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cal = fit_calibration(session.session, "lin-level", fpa_ref_c=ref)
+    frames = np.asarray(held.session.frames[:90])
+    t = np.repeat(np.arange(30) * 3.0, 3)  # 87 s in 3-s steps, each stamp thrice
+    fpa = np.full(90, ref)
+    steady = cal.apply(frames, fpa_c=fpa, time_s=t)
+    np.testing.assert_array_equal(steady, cal.apply(frames, fpa_c=fpa, time_s=None))

@@ -7,6 +7,7 @@ also while the modules load.
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import sys
@@ -202,6 +203,11 @@ def simulate_flight_cmd(
         for name in outputs:
             check_not_input(out_dir / name, scene, what="the output")
     camera = make_camera(preset, unit=unit, size=(width, height))
+    flir = {}  # a FLIR file states its camera's constants: this unit's (checked before any work)
+    if frames_out is not None and fmt != "dualtau":
+        from thermocal.simulate.formats import unit_planck
+
+        flir = {"planck": unit_planck(camera, fpa_c)}
     scene_c, scene_name = load_scene_or_procedural(scene, seed=seed)
     plan = plan_flight(
         scene_c, camera, n_frames=n_frames, motion=motion, fpa_c=fpa_c, fps=fps, seed=seed
@@ -213,10 +219,8 @@ def simulate_flight_cmd(
             out_dir, plan, camera, extra=extra, progress=lambda k: bar.advance(task, k)
         )
     if frames_out is not None:  # the frames in a camera's format, converted in a stream
-        from thermocal.simulate.formats import convert_recording, unit_planck
+        from thermocal.simulate.formats import convert_recording
 
-        # a FLIR file states its camera's constants: this unit's, not another camera's
-        flir = {} if fmt == "dualtau" else {"planck": unit_planck(camera, fpa_c)}
         convert_recording(out_dir / "frames.tiff", frames_out, format=fmt, fps=fps, **flir)
         os.replace(out_dir / "frames.json", out_dir / "flight.json")
         (out_dir / "frames.tiff").unlink()
@@ -358,7 +362,8 @@ def main(argv: list[str] | None = None) -> None:
         # the reader of our output went away (``thermocal info … | head -1``): nothing is
         # wrong and nothing more can be said; stdout to /dev/null so that its final flush
         # does not raise again, and the status a shell gives a command ended by SIGPIPE
-        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        with contextlib.suppress(OSError, ValueError, AttributeError):  # a captured stdout
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         sys.exit(141)
     except MemoryError:
         click.echo("thermocal: error: out of memory; use smaller or fewer frames (nothing "

@@ -316,7 +316,8 @@ class LinCalibration(StoredCalibrationMixin):
             # a recording shorter than the rate's smoothing window cannot tell a steady FPA
             # from one changing by a degree a minute (0.01 °C steps over a second): taken as
             # steady, as recording_fpa_rates leaves its rate unknown (σ of all rates)
-            rate = (np.zeros(nfr) if np.ptp(t) < self.rate_smooth_s
+            # (and times that repeat leave it unknown too, as recording_fpa_rates has it)
+            rate = (np.zeros(nfr) if np.ptp(t) < self.rate_smooth_s or np.any(np.diff(t) <= 0)
                     else measured_rate(fpa, t, smooth_s=self.rate_smooth_s))
         gf = self.corrected_counts(counts, fpa, rate, t)
         out = np.empty_like(gf)

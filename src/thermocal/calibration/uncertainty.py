@@ -398,17 +398,19 @@ class CalibrationSigma:
             return (f"the FPA changed at paces its chamber session never held ({what}), which "
                     f"the {self.report.method} calibration, with no memory of how the FPA "
                     "changed, cannot vouch for (lin-lag follows the pace's history)")
-        return (f"the FPA changed at paces more than {self._pace_margin:g} °C/min from any its "
-                f"chamber session held ({what}): the {self.report.method} calibration's lag "
-                "terms were fitted on those alone (record a session that changes the FPA at "
+        return (f"the FPA changed at paces more than {self._pace_margin:g} °C/min from any "
+                f"pace its chamber session held ({what}): the {self.report.method} "
+                "calibration's lag terms were fitted on those alone (record a session that "
+                "changes the FPA at "
                 "such paces, e.g. a sawtooth at this rate)")
 
     def _pace_sigma(self, distance: np.ndarray) -> np.ndarray:
         """``s`` of frames at paces the session never held (more than the margin from them),
         from their :meth:`pace_distance` (°C/min): the largest σ of the report's rate bins
-        times the distance in cells (0 for the others)."""
-        return np.where(distance > self._pace_margin,
-                        self._worst_sigma() * distance / self._pace_cell, 0.0)
+        times the cells beyond the margin, one at the margin (for a memoryless method, whose
+        margin is a cell, the distance in cells; 0 for the others)."""
+        cells = (distance - self._pace_margin) / self._pace_cell + 1.0
+        return np.where(distance > self._pace_margin, self._worst_sigma() * cells, 0.0)
 
     def _still_sigma(self, excess: np.ndarray) -> np.ndarray:
         """``s`` of frames held still longer than the session's plateaus held it, from their

@@ -32,18 +32,17 @@ __all__ = ["MAX_UNDEFINED_FRACTION", "VendorCalibration", "vendor_accuracy"]
 MAX_UNDEFINED_FRACTION = 0.001
 
 
-def _converted(planck: FlirPlanck, frame: np.ndarray, k: int) -> np.ndarray:
-    """One frame ``(H, W)`` through ``planck``, °C float32 (see ``VendorCalibration.calibrate``;
-    ``k``: its index in the burst, for the warning)."""
+def _converted(planck: FlirPlanck, frame: np.ndarray) -> np.ndarray:
+    """One frame ``(H, W)`` through ``planck``, °C float32 (see ``VendorCalibration.calibrate``)."""
     raw = frame.astype(np.float64)
     undefined = ~((raw > planck.raw_min) & (raw < planck.raw_max))
     if not undefined.any() or undefined.mean() > MAX_UNDEFINED_FRACTION:
         return np.asarray(planck.raw_to_temperature_c(raw), np.float32)  # refuses the latter
     from thermocal.calibration.base import ThermocalWarning, fill_bad_pixels
 
-    warnings.warn(f"frame {k}: {int(undefined.sum())} pixel(s) with counts the file's constants "
-                  "give no temperature (dead pixels): filled from their neighbours",
-                  ThermocalWarning, stacklevel=2)
+    warnings.warn(f"{int(undefined.sum())} pixel(s) of a frame with counts the file's "
+                  "constants give no temperature (dead or saturated pixels): filled from their "
+                  "neighbours", ThermocalWarning, stacklevel=2)
     raw[undefined] = np.median(raw[~undefined])
     temps = np.asarray(planck.raw_to_temperature_c(raw), np.float32)[None]
     return fill_bad_pixels(temps, undefined)[0]
@@ -122,8 +121,7 @@ class VendorCalibration:
         """Each frame through its constants; a few pixels whose counts the constants give no
         temperature (dead pixels, at most :data:`MAX_UNDEFINED_FRACTION` of a frame) are
         filled from their neighbours with a warning; more are refused by the formula."""
-        return np.stack([_converted(p, f, k) for k, (p, f) in enumerate(
-            zip(self.plancks, frames, strict=True))])
+        return np.stack([_converted(p, f) for p, f in zip(self.plancks, frames, strict=True)])
 
     def outside(self, calibrated: np.ndarray, fpa_c: float | None, *,
                 pace: Any = None) -> tuple[str, ...]:

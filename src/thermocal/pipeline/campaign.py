@@ -2,7 +2,8 @@
 Dask cluster.
 
 Each recording is one task: :func:`~thermocal.pipeline.flight.process_flight` into
-``OUT/<name>/`` (``name``: the recording's file or folder name, made unique in the order given),
+``OUT/<name>/`` (``name``: the recording's file or folder name, numbered where several share
+one in the order of their paths, whatever the order given),
 so that every recording's folder is what ``thermocal flight RECORDING --out OUT/<name>`` writes,
 the same bytes (tested). The tasks run on a :class:`distributed.LocalCluster` of this machine's
 cores by default, or on the scheduler at ``--scheduler ADDRESS`` — one started by
@@ -112,10 +113,16 @@ def _output_names(paths: list[Path]) -> dict[Path, str]:
     for path in paths:
         stem = path.stem if path.is_file() else path.name
         by_stem.setdefault(stem, []).append(path.resolve())
-    names: dict[Path, str] = {}
-    for stem, group in by_stem.items():
-        for k, real in enumerate(sorted(set(group), key=str)):
-            names[real] = stem if k == 0 else f"{stem}-{k + 1}"
+    groups = {stem: sorted(set(group), key=str) for stem, group in by_stem.items()}
+    names = {group[0]: stem for stem, group in groups.items()}  # every stem its own first
+    used = set(groups)
+    for stem in sorted(groups):  # the others numbered past every name taken (a stem "a-2" too)
+        k = 2
+        for real in groups[stem][1:]:
+            while f"{stem}-{k}" in used:
+                k += 1
+            names[real] = f"{stem}-{k}"
+            used.add(names[real])
     return names
 
 
