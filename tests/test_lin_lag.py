@@ -121,15 +121,20 @@ def test_lin_lag_holds_for_lags_it_was_not_chosen_on(family, thermal):
     assert mae["lin-lag"] < 0.3 and mae["lin-lag"] < mae["lin-level"] / 4
 
 
+def _fitted(session, method: str):
+    """``method`` fitted on a run's session at its plateau FPA: (calibration, that FPA)."""
+    ref = physics.plateau_fpa_c(session.session)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fit_calibration(session.session, method, fpa_ref_c=ref), ref
+
+
 def test_a_burst_shorter_than_the_rate_window_is_taken_as_steady(runs):
     """A burst of 14 frames at 30 Hz whose FPA readings step by the sensor's 0.01 °C: no rate
     can be told from half a second (the smoothed fit said −1.2 °C/min, and the rate term then
     put the scene several °C off); lin applies it as at rest, as with one FPA value."""
     session, held = runs["tau2"]
-    ref = physics.plateau_fpa_c(session.session)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        cal = fit_calibration(session.session, "lin-lag", fpa_ref_c=ref)
+    cal, ref = _fitted(session, "lin-lag")
     frames = np.asarray(held.session.frames[:14])
     fpa = np.round(ref + np.r_[np.zeros(7), np.full(7, 0.01)], 2)  # one quantisation step
     burst = cal.apply(frames, fpa_c=fpa, time_s=np.arange(14) / 30.0)
@@ -153,10 +158,9 @@ def test_a_burst_takes_the_rate_its_recording_measured(runs):
     from thermocal.estimation.calibrated import PivotCalibration
 
     session, held = runs["tau2"]
-    ref = physics.plateau_fpa_c(session.session)
+    cal, _ = _fitted(session, "lin-level")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        cal = fit_calibration(session.session, "lin-level", fpa_ref_c=ref)
         saw = np.flatnonzero(held.part == 1)
         frames = np.asarray(held.session.frames)[saw]
         fpa, t = held.session.fpa_c[saw], held.session.time_s[saw]
@@ -177,10 +181,7 @@ def test_repeated_frame_times_leave_the_rate_unknown(runs):
     """Time stamps that repeat (a reader's whole seconds): no rate can be measured, as
     recording_fpa_rates has it; lin takes the frames as steady instead of refusing them."""
     session, held = runs["tau2"]
-    ref = physics.plateau_fpa_c(session.session)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        cal = fit_calibration(session.session, "lin-level", fpa_ref_c=ref)
+    cal, ref = _fitted(session, "lin-level")
     frames = np.asarray(held.session.frames[:90])
     t = np.repeat(np.arange(30) * 3.0, 3)  # 87 s in 3-s steps, each stamp thrice
     fpa = np.full(90, ref)
