@@ -999,3 +999,22 @@ def test_info_on_a_pipe_says_it_is_not_a_file(tmp_path, capsys):
     os.mkfifo(fifo)
     code, _, err = run(["info", fifo], capsys)
     assert code == 2 and "not a file or a folder (a pipe, a device)" in err
+
+
+def test_calibrate_whose_calibration_cannot_be_written_keeps_the_earlier_report(
+        inputs, tmp_path, capsys, monkeypatch):
+    """The report is put in place only once the calibration is: a calibration that cannot be
+    written leaves no new file and an earlier run's report as it was."""
+    from thermocal.calibration.two_point import TwoPointCalibration
+
+    (tmp_path / "r.json").write_text('{"earlier": true}\n')
+
+    def refuse(self, path):
+        raise OSError(28, "No space left on device")
+
+    monkeypatch.setattr(TwoPointCalibration, "save", refuse)
+    code, _, err = run(["calibrate", inputs["chamber"], "--method", "two-point", "--out",
+                        tmp_path / "c.h5", "--report", tmp_path / "r.json"], capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["r.json"]
+    assert (tmp_path / "r.json").read_text() == '{"earlier": true}\n'

@@ -607,3 +607,16 @@ def test_a_flight_lags_the_rate_by_its_calibrations_own_pace_lag(fitted):
 
     assert _pace_history(series, SimpleNamespace(fpa_paces={})) == none  # a network
     assert _pace_history(series | {"time_s": t[::-1]}, estimator) == none
+
+
+def test_the_unmeasured_growth_starts_where_each_end_fold_stopped():
+    """Set points 10, 20, 30, 60 °C: the hot end's fold extrapolated 30 °C (60 left out, fitted
+    on 10–30), the cold end's 10 °C; σ grows by the whole distance only past those."""
+    folds = [f | {"held_out": 60.0} if f["kind"] == "setpoint" and f["held_out"] == 40.0 else f
+             for f in _report().folds]
+    model = CalibrationSigma(_report(folds=folds, scene_range_c=(10.0, 60.0)))
+    (_, _), _, k_scene, _, ends = model._curves
+    assert ends == (10.0, 30.0)
+    s = {t: float(model.sigma(np.array([[t]]), 27.5)[0, 0]) for t in (80.0, 100.0, -5.0, -10.0)}
+    assert s[100.0] - s[80.0] == pytest.approx(G * k_scene * 20.0 + 10.0, rel=1e-4)
+    assert s[-10.0] - s[-5.0] == pytest.approx(G * k_scene * 5.0 + 5.0, rel=1e-4)

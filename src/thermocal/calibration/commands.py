@@ -6,6 +6,7 @@ Their method names and help come from the registry,
 
 from __future__ import annotations
 
+import contextlib
 import warnings
 from pathlib import Path
 
@@ -70,7 +71,7 @@ def calibrate(chamber: Path, method: str, out: Path, report_path: Path | None,
 
     from thermocal.calibration.dataset import prepare_chamber
     from thermocal.calibration.report import auto_calibration, fit_with_report, ranking_line
-    from thermocal.io.atomic import write_json_atomic
+    from thermocal.io.atomic import atomic_path, write_json_atomic
 
     check_output_file(out, _CALIBRATION_SUFFIXES)
     check_not_input(out, chamber)
@@ -104,15 +105,13 @@ def calibrate(chamber: Path, method: str, out: Path, report_path: Path | None,
         report = replace(report, notes=[*report.notes, "cross-validated as the per-pixel fit "
                                         "(--radial keeps its radial fit)"])
     cal = replace(cal, info=cal.info | {"report": report.to_dict()})  # type: ignore[type-var]
-    if report_path is not None:  # the report first: a failure leaves neither file
-        write_json_atomic(report_path, {"chamber": str(chamber), "calibration": str(out)}
-                          | report.to_dict())
-    try:
-        cal.save(out)
-    except BaseException:
+    with contextlib.ExitStack() as stack:  # the report written first, put in place only once
+        # the calibration is: a failure of either leaves neither (and an earlier report as it was)
         if report_path is not None:
-            report_path.unlink(missing_ok=True)
-        raise
+            written = stack.enter_context(atomic_path(report_path))
+            write_json_atomic(written, {"chamber": str(chamber), "calibration": str(out)}
+                              | report.to_dict())
+        cal.save(out)
     for text in report.warnings:
         click.echo(f"thermocal: warning: {' '.join(text.split())}", err=True)
     if report.ranking:

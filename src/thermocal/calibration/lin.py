@@ -74,6 +74,7 @@ from thermocal.calibration.base import (
     warn_outside_range,
 )
 from thermocal.calibration.dataset import (
+    RATE_SMOOTH_S,
     STABLE,
     FrameScan,
     describe_frames,
@@ -317,7 +318,8 @@ class LinCalibration(StoredCalibrationMixin):
             # from one changing by a degree a minute (0.01 °C steps over a second): taken as
             # steady, as recording_fpa_rates leaves its rate unknown (σ of all rates)
             # (and times that repeat leave it unknown too, as recording_fpa_rates has it)
-            rate = (np.zeros(nfr) if np.ptp(t) < self.rate_smooth_s or np.any(np.diff(t) <= 0)
+            short = np.ptp(t) < min(self.rate_smooth_s, RATE_SMOOTH_S)  # as σ's rates have it
+            rate = (np.zeros(nfr) if short or np.any(np.diff(t) <= 0)
                     else measured_rate(fpa, t, smooth_s=self.rate_smooth_s))
         gf = self.corrected_counts(counts, fpa, rate, t)
         out = np.empty_like(gf)

@@ -34,10 +34,10 @@ For a temperature ``T`` (°C) measured at FPA temperature ``t`` (°C)::
 - ``k_scene``, ``k_fpa``: how fast the error grew on the report's extrapolation folds (its end
   set points and end FPA segments, left out in turn): their excess MAE over the interior's per
   °C of extrapolation, never below :data:`MIN_GROWTH_PER_C`. Outside the ranges σ keeps growing
-  with the distance: it is not clipped. Beyond one set-point step outside the scene range
-  (as far as the end folds extrapolated) no fold measured anything: σ also grows by the whole
-  distance past it, ``+ max(d_scene − step, 0)`` (a pixel whose counts the calibration cannot
-  invert, clipped at −123 °C, is not given a few degrees);
+  with the distance: it is not clipped. Beyond the step to the next set point outside the
+  scene range (as far as that end's fold extrapolated) no fold measured anything: σ also grows
+  by the whole distance past it (a pixel whose counts the calibration cannot invert, clipped at
+  −123 °C, is not given a few degrees);
 - ``√(π/2)``: a Gaussian's σ from its MAE.
 
 :meth:`CalibrationSigma.outside` says why frames lie outside what a calibration was fitted on
@@ -163,7 +163,10 @@ class CalibrationSigma:
         k_scene = _growth(r.by_scene(), r.expected_mae_c, lambda f: step)
         k_fpa = _growth(r.by_fpa(), r.expected_mae_c,
                         lambda f: 0.5 * (f["held_out"][1] - f["held_out"][0]))
-        return scene, fpa, k_scene, k_fpa, step
+        # how far the end folds extrapolated, below and above: one step to the next set point
+        ends = ((points[1] - points[0], points[-1] - points[-2]) if len(points) > 1
+                else (step, step))
+        return scene, fpa, k_scene, k_fpa, ends
 
     def _overall_sigma(self) -> float:
         r = self.report
@@ -360,7 +363,7 @@ class CalibrationSigma:
         if time_since_start_s is not None:
             level = np.maximum(level, np.broadcast_to(self.start_sigma(time_since_start_s),
                                                       frames.shape[:1]))
-        (sx, sm), (fx, fm), k_scene, k_fpa, step = self._curves
+        (sx, sm), (fx, fm), k_scene, k_fpa, (step_lo, step_hi) = self._curves
         mean = self.report.expected_mae_c
         m_scene = np.interp(frames, sx, sm) if sx.size else np.full(frames.shape, mean)
         m_fpa = np.interp(fpa, fx, fm) if fx.size else np.full(fpa.shape, mean)
@@ -373,7 +376,8 @@ class CalibrationSigma:
         growth = k_scene * d_scene + (k_fpa * d_fpa)[:, None, None]
         # beyond one set-point step outside, no fold measured the error: it may be the whole
         # distance (a pixel clipped at the radiance tables' floor reads −123 °C whatever it saw)
-        unmeasured = np.maximum(d_scene - step, 0.0)
+        unmeasured = (np.maximum(lo - step_lo - frames, 0.0)
+                      + np.maximum(frames - hi - step_hi, 0.0))
         out = (level[:, None, None] * shape + _GAUSS * growth + unmeasured).astype(np.float32)
         return out if temps.ndim == 3 else out[0]
 
