@@ -263,10 +263,9 @@ def as_frames(
             raise InvalidInputError(f"{name}: frame {k} contains NaN or infinite values")
     elif bit_depth is not None:
         top = 2**bit_depth - 1
-        lo, hi = int(arr.min()), int(arr.max())
-        if lo < 0 or hi > top:
-            flat = arr.reshape(len(arr), -1)
-            k = int(np.argmax((flat.min(axis=1) < 0) | (flat.max(axis=1) > top)))
+        k = first_frame_outside(arr, top)
+        if k is not None:
+            lo, hi = int(arr.min()), int(arr.max())
             raise InvalidInputError(
                 f"{name}: counts outside the {bit_depth}-bit range 0..{top} from frame {k} on "
                 f"(min {lo}, max {hi}); check the bit depth (a sidecar's bit_depth) or the file"
@@ -385,12 +384,13 @@ def check_frame_index(index: Any, n: int, name: str = "pivot", *, within: str = 
     return int(index)
 
 
-def frames_above(block: np.ndarray, max_count: int) -> int | None:
-    """The first frame of ``block`` ``(N, H, W)`` holding a count above ``max_count`` (its
-    index in the block), or None."""
-    if not block.size or int(block.max()) <= max_count:
+def first_frame_outside(block: np.ndarray, top: int) -> int | None:
+    """The first frame of ``block`` ``(N, H, W)`` holding a count outside ``0..top`` (its index
+    in the block), or None."""
+    if not block.size or (int(block.min()) >= 0 and int(block.max()) <= top):
         return None
-    return int(np.argmax(block.reshape(len(block), -1).max(axis=1) > max_count))
+    flat = block.reshape(len(block), -1)
+    return int(np.argmax((flat.min(axis=1) < 0) | (flat.max(axis=1) > top)))
 
 
 def pivot_index(pivot: Any, n: int) -> int:

@@ -255,8 +255,8 @@ def _check_flight_format(out_dir: Path, fmt: str) -> Path | None:
     if out_dir.suffix.lower() in FILE_LIKE_SUFFIXES:
         raise InvalidInputError(
             f"{out_dir}: OUT_DIR is a folder, not a {out_dir.suffix} file; simulate flight "
-            f"--format {fmt} writes its frames into OUT_DIR/{_FLIGHT_FRAMES.get(fmt, 'frames')}")
-    return check_output_path(out_dir / _FLIGHT_FRAMES.get(fmt, "frames"), format=fmt,
+            f"--format {fmt} writes its frames into OUT_DIR/{_flight_frames_name(fmt)}")
+    return check_output_path(out_dir / _flight_frames_name(fmt), format=fmt,
                              parent_made_later=True)
 
 

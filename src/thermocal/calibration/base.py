@@ -65,6 +65,18 @@ class Calibration(Protocol):
         ...
 
 
+def apply_with_rate(calibration: Calibration, frames: Any, *, fpa_c: Any, time_s: Any,
+                    fpa_rate_c_per_min: Any = None) -> np.ndarray:
+    """``calibration.apply`` of ``frames`` at ``fpa_c`` and ``time_s``, given also the FPA rate
+    their recording measured (°C/min, one or one per frame; None: not known) where the
+    calibration takes it (``takes_fpa_rate``: a rate term, which a burst's own second of
+    readings cannot feed)."""
+    if fpa_rate_c_per_min is not None and getattr(calibration, "takes_fpa_rate", False):
+        return calibration.apply(frames, fpa_c=fpa_c, time_s=time_s,
+                                 fpa_rate_c_per_min=fpa_rate_c_per_min)
+    return calibration.apply(frames, fpa_c=fpa_c, time_s=time_s)
+
+
 @runtime_checkable
 class StreamingCorrector(Protocol):
     """Corrects a recording frame by frame, learning from each frame as it goes (stateful).

@@ -317,16 +317,19 @@ def recording_still_time(fpa_c: Any, time_s: Any, *, band_c: float, max_gap_s: f
     return still_time(mean, t, band_c=band_c, max_gap_s=max_gap_s)
 
 
-def recording_fpa_rates(fpa_c: Any, time_s: Any) -> np.ndarray | None:
-    """A recording's FPA rate at each frame, °C/min, smoothed as a chamber session's
-    (:data:`RATE_SMOOTH_S`; what a calibration's uncertainty depends on), ``(M,)``; None without
-    FPA temperatures and frame times, for a recording shorter than the smoothing window (a
-    quantised sensor over a few seconds cannot tell a steady FPA from one changing by a degree
-    a minute), or with times that do not increase (then σ is that of all rates)."""
-    if fpa_c is None or time_s is None or len(fpa_c) < 2 or np.ptp(time_s) < RATE_SMOOTH_S:
+def recording_fpa_rates(fpa_c: Any, time_s: Any, *, smooth_s: float = RATE_SMOOTH_S
+                        ) -> np.ndarray | None:
+    """A recording's FPA rate at each frame, °C/min, smoothed over ``smooth_s`` s (default a
+    chamber session's, :data:`RATE_SMOOTH_S`: what a calibration's uncertainty depends on),
+    ``(M,)``; None without FPA temperatures and frame times, for a recording shorter than the
+    smoothing window (``smooth_s``, at most :data:`RATE_SMOOTH_S`: a quantised sensor over a few
+    seconds cannot tell a steady FPA from one changing by a degree a minute), or with times
+    that do not increase (then σ is that of all rates)."""
+    if (fpa_c is None or time_s is None or len(fpa_c) < 2
+            or np.ptp(time_s) < min(smooth_s, RATE_SMOOTH_S)):
         return None
     try:
-        return fpa_rate_c_per_min(fpa_c, time_s, smooth_s=RATE_SMOOTH_S)
+        return fpa_rate_c_per_min(fpa_c, time_s, smooth_s=smooth_s)
     except InvalidInputError:
         return None
 

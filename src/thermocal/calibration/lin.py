@@ -74,18 +74,15 @@ from thermocal.calibration.base import (
     warn_outside_range,
 )
 from thermocal.calibration.dataset import (
-    RATE_SMOOTH_S,
     STABLE,
     FrameScan,
     describe_frames,
     iter_frames,
     lagged_rate,
     prepare_chamber,
+    recording_fpa_rates,
     require_fpa_span,
     require_setpoints,
-)
-from thermocal.calibration.dataset import (
-    fpa_rate_c_per_min as measured_rate,
 )
 from thermocal.calibration.store import (
     FPA_LIMITS_C,
@@ -314,13 +311,10 @@ class LinCalibration(StoredCalibrationMixin):
             rate, t = np.zeros(nfr), None
         else:
             t = per_frame_series(time_s, nfr, "time_s", temperature=False)
-            # a recording shorter than the rate's smoothing window cannot tell a steady FPA
-            # from one changing by a degree a minute (0.01 °C steps over a second): taken as
-            # steady, as recording_fpa_rates leaves its rate unknown (σ of all rates)
-            # (and times that repeat leave it unknown too, as recording_fpa_rates has it)
-            short = np.ptp(t) < min(self.rate_smooth_s, RATE_SMOOTH_S)  # as σ's rates have it
-            rate = (np.zeros(nfr) if short or np.any(np.diff(t) <= 0)
-                    else measured_rate(fpa, t, smooth_s=self.rate_smooth_s))
+            # a recording too short (or with repeated times) to measure a rate: taken as
+            # steady, its rate unknown as σ has it (0.01 °C steps over a second said −1.2 °C/min)
+            rate = recording_fpa_rates(fpa, t, smooth_s=self.rate_smooth_s)
+            rate = np.zeros(nfr) if rate is None else rate
         gf = self.corrected_counts(counts, fpa, rate, t)
         out = np.empty_like(gf)
         b, f = np.float32(self.planck_b), np.float32(self.planck_f)

@@ -405,8 +405,7 @@ class CalibrationSigma:
         return (f"the FPA changed at paces more than {self._pace_margin:g} °C/min from any "
                 f"pace its chamber session held ({what}): the {self.report.method} "
                 "calibration's lag terms were fitted on those alone (record a session that "
-                "changes the FPA at "
-                "such paces, e.g. a sawtooth at this rate)")
+                "changes the FPA at such paces, e.g. a sawtooth at this rate)")
 
     def _pace_sigma(self, distance: np.ndarray) -> np.ndarray:
         """``s`` of frames at paces the session never held (more than the margin from them),

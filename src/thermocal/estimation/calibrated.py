@@ -7,7 +7,7 @@ from typing import Any
 
 import numpy as np
 
-from thermocal.calibration.base import Calibration
+from thermocal.calibration.base import Calibration, apply_with_rate
 from thermocal.calibration.uncertainty import REMEDY, CalibrationSigma
 from thermocal.errors import ResolutionMismatchError
 from thermocal.estimation.base import Estimate, FpaPace, PreparedBurst, view_spread
@@ -34,11 +34,8 @@ class _ThroughCalibration:
         methods with a rate term need both), and for those that take it the FPA rate their
         recording measured (``pace``): a burst of a second cannot tell its own (a lin
         calibration without its rate term errs 1.7–3.6 °C on a 1 °C/min sawtooth)."""
-        rate = None if pace is None else pace.rate_c_per_min
-        if rate is not None and getattr(self.calibration, "takes_fpa_rate", False):
-            return self.calibration.apply(frames, fpa_c=fpa_c, time_s=time_s,
-                                          fpa_rate_c_per_min=rate)
-        return self.calibration.apply(frames, fpa_c=fpa_c, time_s=time_s)
+        return apply_with_rate(self.calibration, frames, fpa_c=fpa_c, time_s=time_s,
+                               fpa_rate_c_per_min=None if pace is None else pace.rate_c_per_min)
 
     @property
     def fpa_paces(self) -> dict[str, Any]:

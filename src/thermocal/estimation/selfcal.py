@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from thermocal.calibration.base import Calibration, fill_bad_pixels
+from thermocal.calibration.base import Calibration, apply_with_rate, fill_bad_pixels
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import InvalidInputError, ResolutionMismatchError
 from thermocal.estimation.base import PreparedBurst, view_spread
@@ -197,13 +197,11 @@ class SelfCalibration:
         """Raw frames ``(N, H, W)`` taken at ``time_s`` (s, or None) → °C through the start
         model, float32: the calibration, or the family's average unit inverted exactly at the
         reported FPA temperature and (where the frames' times are known) its rate."""
-        if self.calibration is not None:  # with the times, and the recording's rate where the
-            # calibration has a rate term (a batch's own times cannot tell it)
-            rate = ({"fpa_rate_c_per_min": np.interp(np.asarray(time_s, np.float64),
-                                                      *self.fpa_rates)}
-                    if getattr(self.calibration, "takes_fpa_rate", False)
-                    and self.fpa_rates is not None and time_s is not None else {})
-            return np.asarray(self.calibration.apply(frames, fpa_c=fpa_c, time_s=time_s, **rate),
+        if self.calibration is not None:  # with the times, and the recording's rate
+            rate = (None if self.fpa_rates is None or time_s is None
+                    else np.interp(np.asarray(time_s, np.float64), *self.fpa_rates))
+            return np.asarray(apply_with_rate(self.calibration, frames, fpa_c=fpa_c,
+                                              time_s=time_s, fpa_rate_c_per_min=rate),
                               np.float32)
         from thermocal.camera.model import invert
 

@@ -41,7 +41,7 @@ from thermocal._validate import (
     as_fpa_c,
     as_temperature_c,
     check_length,
-    frames_above,
+    first_frame_outside,
 )
 from thermocal.errors import FileFormatError, InvalidInputError, ResolutionMismatchError
 from thermocal.io.atomic import atomic_path
@@ -1005,7 +1005,7 @@ def _iter_frames(
 ) -> Iterator[tuple[slice, np.ndarray]]:
     max_count = 2**bit_depth - 1
     for sl, block in LazyFrames(path, shape).iter_chunks(chunk):  # type: ignore[arg-type]
-        over = frames_above(block, max_count)
+        over = first_frame_outside(block, max_count)
         if over is not None:
             raise FileFormatError(
                 f"{path}: frame {sl.start + over} holds counts above the {bit_depth}-bit "

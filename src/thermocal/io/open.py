@@ -107,6 +107,7 @@ from thermocal.io.fff import (
 )
 from thermocal.io.recording import (
     Recording,
+    check_time_order,
     iter_recording,
     read_recording,
     read_recording_header,
@@ -411,7 +412,7 @@ class _FlirFileSource(RecordingSource):
         if first is None:
             raise no_frames_error(path, self.damaged)
         self._index, self._numbers = good, numbers
-        _check_time_order(times, [f"frame {k}" for k in numbers], path)
+        check_time_order(times, [f"frame {k}" for k in numbers], path)
         suffix = path.suffix.lower()
         compressed = fff_raw_codec(head) == "jpegls"
         if compressed or suffix == ".csq":
@@ -486,7 +487,7 @@ class _FolderSource(RecordingSource):
         self.damaged.sort()
         if first is None:
             raise no_frames_error(path, self.damaged)
-        _check_time_order(times, [f.name for f in good], path)
+        check_time_order(times, [f.name for f in good], path)
         self._files = good
         self._t0 = times[0]
         core = first[2].get("core_c")
@@ -743,17 +744,6 @@ def no_frames_error(path: Path, damaged: list[tuple[str, str]]) -> FileFormatErr
     listed = "; ".join(f"{w}: {r}" for w, r in damaged[:3])
     return FileFormatError(f"{path}: none of its {len(damaged)} frames can be read ({listed}"
                            f"{'; …' if len(damaged) > 3 else ''})")
-
-
-def _check_time_order(times: list[float | None], labels: list[str], path: Path) -> None:
-    """Refuse frames whose time stamps go backwards (naming the two frames)."""
-    for k in range(1, len(times)):
-        a, b = times[k - 1], times[k]
-        if a is not None and b is not None and b < a:
-            raise FileFormatError(
-                f"{path}: frame times go backwards ({labels[k]} is {a - b:.3f} s before "
-                f"{labels[k - 1]}); thermocal reads frames in time order only"
-            )
 
 
 def _camera_header(meta: dict[str, Any]) -> dict[str, Any]:

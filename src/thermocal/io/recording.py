@@ -39,7 +39,7 @@ from thermocal._validate import (
     check_fpa_c,
     check_length,
     check_suffix,
-    frames_above,
+    first_frame_outside,
 )
 from thermocal.errors import FileFormatError, InvalidInputError, ThermocalError
 from thermocal.io.atomic import atomic_path
@@ -52,6 +52,7 @@ __all__ = [
     "Recording",
     "RecordingHeader",
     "RecordingWriter",
+    "check_time_order",
     "iter_recording",
     "read_recording_header",
     "read_recording",
@@ -474,6 +475,17 @@ def _sidecar_bit_depth(sidecar: dict[str, Any] | None, json_path: Path) -> int:
         raise FileFormatError(f"{json_path}: {exc}") from None
 
 
+def check_time_order(times: list[float | None], labels: list[str], path: Path) -> None:
+    """Refuse frames whose time stamps go backwards (naming the two frames)."""
+    for k in range(1, len(times)):
+        a, b = times[k - 1], times[k]
+        if a is not None and b is not None and b < a:
+            raise FileFormatError(
+                f"{path}: frame times go backwards ({labels[k]} is {a - b:.3f} s before "
+                f"{labels[k - 1]}); thermocal reads frames in time order only"
+            )
+
+
 def _sidecar_series(values: Any, key: str, n: int, json_path: Path) -> np.ndarray:
     if not isinstance(values, list) or not all(
         isinstance(v, int | float) and not isinstance(v, bool) for v in values
@@ -495,12 +507,8 @@ def _sidecar_series(values: Any, key: str, n: int, json_path: Path) -> np.ndarra
             as_fpa_c(arr, key)
         except InvalidInputError as exc:
             raise FileFormatError(f"{json_path}: {exc}") from None
-    back = np.flatnonzero(np.diff(arr) < 0) if key == "time_s" else ()
-    if len(back):  # as the other formats' readers refuse it (io.open)
-        k = int(back[0]) + 1
-        raise FileFormatError(
-            f"{json_path}: frame times go backwards (frame {k} is {arr[k - 1] - arr[k]:.3f} s "
-            f"before frame {k - 1}); thermocal reads frames in time order only")
+    if key == "time_s":  # as every other format's reader (io.open)
+        check_time_order(arr.tolist(), [f"frame {k}" for k in range(arr.size)], json_path)
     return arr
 
 
@@ -654,7 +662,7 @@ def _iter_stack(
 
     def checked(start: int, block: np.ndarray) -> tuple[int, np.ndarray]:
         block = np.ascontiguousarray(block.reshape(-1, info.height, info.width), dtype=np.uint16)
-        over = frames_above(block, max_count)
+        over = first_frame_outside(block, max_count)
         if over is not None:
             raise FileFormatError(
                 f"{path}: frame {start + over} holds counts above the {bit_depth}-bit maximum "

@@ -66,7 +66,6 @@ from thermocal.radiometry import FlirPlanck
 __all__ = [
     "DEFAULT_PLANCK",
     "DEFAULT_START_EPOCH_S",
-    "unit_planck",
     "FILE_LIKE_SUFFIXES",
     "FOLDER_FORMATS",
     "WRITE_FORMATS",
@@ -75,6 +74,7 @@ __all__ = [
     "fff_record",
     "gps_line",
     "rjpeg_bytes",
+    "unit_planck",
     "write_chunks_as",
     "write_recording_as",
 ]
@@ -98,38 +98,33 @@ DEFAULT_PLANCK = FlirPlanck(17096.453125, 0.048084795475006104, 1428.0, 1.0, -37
                             emissivity=0.95, distance_m=20.0, reflected_c=20.0,
                             atmosphere_c=20.0, ir_window_c=20.0, humidity=0.5)
 
+
 def unit_planck(camera: Any, fpa_c: float) -> FlirPlanck:
     """Planck constants that describe a simulated unit, for the FLIR files it is written to:
-    ``U(T) = R1 / (R2·(exp(B/T) − F)) − O`` fitted (R2 = F = 1; scipy's ``curve_fit``) to the
-    median over its pixels of its noise-free counts for blackbodies at −20…120 °C (those below
-    its 14-bit ceiling), the FPA at ``fpa_c`` °C; object parameters that leave the raw signal as
-    it is (ε = 1, no distance, a window that transmits all). What a FLIR camera states of
-    itself, so that ``--method camera`` reads a simulated file as the camera would: its unit's
-    level and fixed pattern left (the file's raw is not nonuniformity-corrected), not another
-    camera's constants (:data:`DEFAULT_PLANCK`, an XT-R's, put such a file 70 °C off).
-    R1, B and O are rounded as the FFF record stores them (float32, O an integer)."""
-    from scipy.optimize import curve_fit
-
+    FLIR's ``U(T) = R1 / (R2·(exp(B/T) − F)) − O`` is Lin et al.'s eq. 4 with ``R = R1/R2``
+    (R2 = 1) and ``O`` negated, fitted (:func:`~thermocal.calibration.lin.fit_planck_curve`)
+    to the median over the unit's pixels of its noise-free counts for blackbodies at
+    −20…120 °C (those inside its bit depth), the FPA at ``fpa_c`` °C; object parameters that
+    leave the raw signal as it is (ε = 1, no distance, a window that transmits all). What a FLIR
+    camera states of itself, so that ``--method camera`` reads a simulated file as the camera
+    would: its unit's level and fixed pattern left (the file's raw is not
+    nonuniformity-corrected), not another camera's constants (:data:`DEFAULT_PLANCK`, an
+    XT-R's, put such a file 70 °C off). R1, B and F are rounded as the FFF record stores them
+    (float32), O to an integer."""
+    from thermocal.calibration.lin import fit_planck_curve
     from thermocal.camera.model import expected_counts
 
     temps = np.linspace(-20.0, 120.0, 57)
     counts = expected_counts(camera, temps, np.full(temps.size, float(fpa_c)))
-    good = ~np.asarray(camera.defects)
-    level = np.median(counts[:, good], axis=1).astype(np.float64)
-    keep = (level > 0) & (level < 2**14 - 1)
+    level = np.median(counts[:, ~np.asarray(camera.defects)], axis=1).astype(np.float64)
+    keep = (level > 0) & (level < 2**camera.bit_depth - 1)
     if keep.sum() < 8:
         raise InvalidInputError(f"the simulated unit saturates at FPA {fpa_c:g} °C: no Planck "
                                 "constants describe it")
-    kelvin = temps[keep] + ZERO_CELSIUS_K
-
-    def planck(t, r, b, o):
-        return r / np.expm1(b / t) - o
-
-    guess = (DEFAULT_PLANCK.r1 / DEFAULT_PLANCK.r2, DEFAULT_PLANCK.b, DEFAULT_PLANCK.o)
-    (r, b, o), _ = curve_fit(planck, kelvin, level[keep], p0=guess, maxfev=20000)
-    return FlirPlanck(float(np.float32(r)), 1.0, float(np.float32(b)), 1.0, float(round(o)),
-                      emissivity=1.0, distance_m=0.0, reflected_c=20.0, atmosphere_c=20.0,
-                      ir_window_c=20.0, humidity=0.5)
+    r, b, f, o = fit_planck_curve(temps[keep] + ZERO_CELSIUS_K, level[keep])
+    return FlirPlanck(float(np.float32(r)), 1.0, float(np.float32(b)), float(np.float32(f)),
+                      float(round(-o)), emissivity=1.0, distance_m=0.0, reflected_c=20.0,
+                      atmosphere_c=20.0, ir_window_c=20.0, humidity=0.5)
 
 
 #: Time of the first frame by default, s since 1970 UTC (2023-11-14 22:13:20).

@@ -65,11 +65,6 @@ SILENT_MAE_C = 1.0
 #: More held-out units of the preset than the five of the held-out set.
 MORE_UNITS = tuple(range(300, 320))
 
-#: The calibrations' held-out runs (``--held-out``): the physics benchmark's (a 0.25 °C/min
-#: ramp and hold, a 1 °C/min sawtooth) or :func:`other_held_out_run`.
-HELD_OUT_RUNS = ("ramp", "other")
-
-
 def other_held_out_run(camera, seed: int, quick: bool) -> physics.Run:
     """A second held-out protocol, at paces neither the calibration session (steps, a
     1.5 °C/min sawtooth) nor the first held-out run holds: a 0.6 °C/min 8↔38 °C sawtooth, then
@@ -82,6 +77,11 @@ def other_held_out_run(camera, seed: int, quick: bool) -> physics.Run:
                         ambient_c=(8.0, 38.0), interval_s=interval)
     return physics.simulate_run(camera, [saw, steps], seed + 50,
                                 shutter_interval_s=physics.SHUTTER_INTERVAL_S)
+
+
+#: The calibrations' held-out runs (``--held-out``) by name: the physics benchmark's (a
+#: 0.25 °C/min ramp and hold, a 1 °C/min sawtooth) and :func:`other_held_out_run`.
+HELD_OUT_RUNS = {"ramp": physics.held_out_run, "other": other_held_out_run}
 
 
 def _run(network: NetworkEstimator, bursts: list[dict]) -> dict:
@@ -196,8 +196,7 @@ def calibration_rows(*, quick: bool, units: tuple[int, ...] = (physics.UNIT,),
         cam = make_camera(family, unit=unit, size=size)
         shift = unit - physics.UNIT
         session = physics.calibration_session(cam, physics.SESSION_SEED + shift, quick)
-        held = (physics.held_out_run if held_out == "ramp" else other_held_out_run)(
-            cam, physics.HELD_OUT_SEED + shift, quick)
+        held = HELD_OUT_RUNS[held_out](cam, physics.HELD_OUT_SEED + shift, quick)
         ref = physics.plateau_fpa_c(session.session)
         for name, info in CALIBRATION_METHODS.items():
             if not info.auto:
@@ -364,7 +363,7 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--json", default=None, help="Write the results as JSON here.")
     parser.add_argument("--units", type=_units, default=(physics.UNIT,),
                         help="The calibrations' units, e.g. 101-105 (default %(default)s).")
-    parser.add_argument("--held-out", choices=HELD_OUT_RUNS, default="ramp",
+    parser.add_argument("--held-out", choices=list(HELD_OUT_RUNS), default="ramp",
                         help="The calibrations' held-out protocol (other: a 0.6 °C/min "
                         "sawtooth and steps; the network is then not run).")
     args = parser.parse_args(argv)
