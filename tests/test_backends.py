@@ -63,7 +63,9 @@ def test_bad_thread_counts_are_refused(threads):
 def test_backend_gives_pytorchs_temperatures(backend, burst):
     """The whole pipeline on a burst through each backend: the same temperatures and σ as
     PyTorch's within 1e-3 °C (the issue's bound; measured 3e-5)."""
-    args = {"fpa_c": burst.fpa_c, "homographies": burst.homographies, "pivot": burst.pivot}
+    # force: 100×70 frames are too small for the family check; σ is inflated alike for both
+    args = {"fpa_c": burst.fpa_c, "homographies": burst.homographies, "pivot": burst.pivot,
+            "force": True}
     ref = estimate(burst.frames, NetworkEstimator.from_file("kpn"), **args)
     got = estimate(burst.frames, NetworkEstimator.from_file("kpn", backend=backend, threads=1),
                    **args)

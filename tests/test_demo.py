@@ -8,7 +8,7 @@ from thermocal.demo import DEMO_UNIT, run_demo
 
 
 def test_demo_runs_small_and_writes_its_report(tmp_path):
-    results = run_demo(tmp_path, size=(96, 64))
+    results = run_demo(tmp_path, size=(160, 120))  # the smallest the network checks
     names = {p.name for p in tmp_path.iterdir()}
     assert {"report.png", "error_cdf.png", "results.json"} <= names
     rows = {r["method"].split(" (")[0]: r for r in results["rows"]}

@@ -63,6 +63,8 @@ def _options(data: Path, method: str = "mean", **kw) -> FlightOptions:
     kw.setdefault("stride", 3)
     kw.setdefault("preview_every", 4)
     calibration = None if method == "kpn" else str(data / "cal.h5")
+    if method == "kpn":  # 64×48 frames: too small to check the network's camera family
+        kw.setdefault("force", True)
     return FlightOptions(method=method, calibration=calibration, **kw)
 
 

@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from PIL import Image
 
-from thermocal.errors import FileFormatError, InvalidInputError
+from thermocal.errors import FileFormatError, InvalidInputError, ThermocalError
 from thermocal.io.chamber import import_envchamberctrl_npz
 from thermocal.io.dualtau import interpolate_fpa_readings
 from thermocal.io.fff import parse_fff_record, planck_from_metadata
@@ -515,6 +515,28 @@ def test_info_says_what_a_recording_holds(shared_data, tmp_path, capsys):
     assert f"R1 {_num(dump['Planck R1']):g}" in out and "FPA 26.00…26.00 °C" in out
     code, out, err = run(["info", tmp_path / "nothing.seq"], capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1 and "no such file" in err
+
+
+def test_info_warns_of_counts_beyond_the_bit_depth(tmp_path, capsys):
+    """A DualTau flight of 16-bit counts (the rig's format says 14): ``info`` still describes
+    it but warns, naming the first such frame and the largest count (the other commands refuse
+    it); a flight within 14 bits gets no warning."""
+    from cli_run import run
+
+    frames = _frames(6, seed=4)
+    t0 = 1_700_000_000_000_000_000
+    _dualtau_file(tmp_path / "a.npz", frames[:3], np.full(3, 3010), t0)
+    code, out, err = run(["info", tmp_path], capsys)
+    assert code == 0 and "14-bit" in out and "warning" not in err
+    frames[4, 2, 3] = 40_000
+    _dualtau_file(tmp_path / "b.npz", frames[3:], np.full(3, 3010), t0 + 300_000_000)
+    code, out, err = run(["info", tmp_path], capsys)
+    assert code == 0 and "14-bit" in out
+    assert "counts reach 40000, beyond 14-bit (from frame 4)" in err
+    from thermocal.io.open import read_any_recording
+
+    with pytest.raises(ThermocalError, match="frame 4"):  # what the other commands read with
+        read_any_recording(tmp_path)
 
 
 def test_the_commands_read_any_format(shared_data):

@@ -3,6 +3,8 @@ range, and a camera of another family; ``--force`` estimates it with a warning."
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from cli_run import run
@@ -12,7 +14,7 @@ from thermocal.errors import OutsideDomainError
 from thermocal.estimation.pipeline import estimate
 from thermocal.metrics import line_patterns
 from thermocal.nn.infer import NetworkEstimator
-from thermocal.nn.validity import LINE_RATIO_MAX, Domain, outside_domain
+from thermocal.nn.validity import LINE_CHECK_MIN_PX, LINE_RATIO_MAX, Domain, outside_domain
 from thermocal.scenes.procedural import procedural_scene
 from thermocal.simulate.flight import simulate_flight
 
@@ -53,17 +55,34 @@ def test_line_patterns_see_lines_not_scenes():
 def test_domain_checks_name_each_reason():
     d = Domain((10.0, 50.0), (-15.0, 60.0), (-40.0, 100.0), "tau2", "column")
     rng = np.random.default_rng(1)
-    stripes = rng.normal(0, 1.0, 48).astype(np.float32)
-    frames = 20.0 + np.zeros((2, 40, 48), np.float32) + stripes
+    stripes = rng.normal(0, 1.0, 160).astype(np.float32)
+    frames = 20.0 + np.zeros((2, 120, 160), np.float32) + stripes
     assert outside_domain(d, frames, 30.0) == ()
     assert "FPA temperature 55.0 °C" in outside_domain(d, frames, 55.0)[0]
-    assert "median 90.0 °C" in outside_domain(d, frames + 70.0, 30.0)[0]
+    assert "median 89.9 °C" in outside_domain(d, frames + 70.0, 30.0)[0]  # stripes: −0.1
     hot = frames.copy()
     hot[:, :10] = 400.0
     assert any("spans" in r for r in outside_domain(d, hot, 30.0))
     (why,) = outside_domain(d, np.swapaxes(frames, 1, 2).copy(), 30.0)
     assert "runs along rows" in why and "tau2 family" in why
     assert outside_domain(d, None, 30.0) == ()
+
+
+def test_frames_too_small_to_check_the_family_are_refused():
+    """Below LINE_CHECK_MIN_PX a side no line statistic tells the families apart (RESULTS.md):
+    refused whichever way the lines run, with the size; a network without a line pattern to
+    check (none recorded) takes them."""
+    d = Domain((10.0, 50.0), (-15.0, 60.0), (-40.0, 100.0), "tau2", "column")
+    stripes = np.random.default_rng(2).normal(0, 1.0, 160).astype(np.float32)
+    small = 20.0 + np.zeros((2, LINE_CHECK_MIN_PX - 1, 160), np.float32) + stripes
+    (why,) = outside_domain(d, small, 30.0)
+    assert f"160×{LINE_CHECK_MIN_PX - 1}" in why and "too small" in why and "tau2" in why
+    rows = np.swapaxes(small, 1, 2).copy()  # lines along rows: refused for its size all the same
+    (why,) = outside_domain(d, rows, 30.0)
+    assert f"{LINE_CHECK_MIN_PX - 1}×160" in why and "too small" in why
+    fit = 20.0 + np.zeros((2, LINE_CHECK_MIN_PX, 160), np.float32) + stripes
+    assert outside_domain(d, fit, 30.0) == ()
+    assert outside_domain(replace(d, line_fpn=None), small, 30.0) == ()
 
 
 def test_boson_burst_refused_tau2_burst_accepted(network):

@@ -15,13 +15,22 @@ __all__ = ["info", "recording_summary"]
 def recording_summary(path: str | Path) -> dict[str, Any]:
     """What a recording holds (one pass over its frames' series and metadata, frames streamed):
     format, frame count and size, bit depth, FPA range and sampling, time span, GPS, the Planck
-    constants of its first frame, and the frames left out as damaged (those found at open and
-    those whose raw image does not decode). JSON values."""
+    constants of its first frame, the frames left out as damaged (those found at open and
+    those whose raw image does not decode), and ``beyond_bit_depth`` (the first frame with a
+    count the format's bit depth cannot hold, and the largest count) where there is one. JSON
+    values."""
+    from thermocal._validate import first_frame_outside
     from thermocal.io.open import open_recording
 
     source = open_recording(path)
     fpa, measured, times, first_meta, gps, attitude, n = [], [], [], None, 0, 0, 0
+    top, beyond, count_max = 2**source.bit_depth - 1, None, 0
     for chunk in source.iter_frames(skip_undecodable=True):
+        k = first_frame_outside(chunk.frames, top) if beyond is None else None
+        if k is not None:  # counts the stated bit depth cannot hold: the other commands refuse
+            beyond = chunk.start + k
+        if chunk.frames.size:
+            count_max = max(count_max, int(chunk.frames.max()))
         n += len(chunk)
         if chunk.fpa_c is not None:
             fpa.append(np.asarray(chunk.fpa_c, dtype=np.float64))
@@ -41,6 +50,8 @@ def recording_summary(path: str | Path) -> dict[str, Any]:
         "damaged_frames": [{"frame": w, "reason": r} for w, r in source.damaged],
         "damaged_summary": source.damaged_summary(),
     }
+    if beyond is not None:
+        out["beyond_bit_depth"] = {"first_frame": beyond, "count_max": count_max}
     if n == 0:
         from thermocal.io.open import no_frames_error
 
@@ -76,6 +87,11 @@ def info(path: Path) -> None:
         click.echo(f"thermocal: warning: {s['damaged_summary']}", err=True)
     click.echo(f"{s['path']}: {s['format']}, {s['frames']} frame(s) of {s['size']}, "
                f"{s['bit_depth']}-bit")
+    if "beyond_bit_depth" in s:
+        b = s["beyond_bit_depth"]
+        click.echo(f"thermocal: warning: counts reach {b['count_max']}, beyond "
+                   f"{s['bit_depth']}-bit (from frame {b['first_frame']}): the commands that "
+                   "read its frames refuse it; check how it was recorded", err=True)
     if "fpa_c" in s:
         f = s["fpa_c"]
         res = f" (resolution {f['resolution_c']:g} °C)" if f.get("resolution_c") else ""

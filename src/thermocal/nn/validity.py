@@ -11,7 +11,9 @@ its weights file:
   range of training scene levels, and its 1st–99th percentiles within the clip range;
 - the **family's fixed pattern**: the line pattern that the nominal calibration leaves must run
   the way the family's does (``tau2``: columns, Oz et al. eq. 19). A camera whose lines run the
-  other way is not of the family, however plausible its counts.
+  other way is not of the family, however plausible its counts. Frames smaller than
+  :data:`LINE_CHECK_MIN_PX` a side are refused: on them no line statistic tells the families
+  apart, so the family cannot be vouched for.
 
 What no check at one FPA temperature can see (a family with the same line pattern but another
 response to the FPA temperature) is what the network's uncertainty must cover.
@@ -27,7 +29,7 @@ import numpy as np
 from thermocal.camera.presets import CameraPreset
 from thermocal.metrics import line_patterns
 
-__all__ = ["LINE_RATIO_MAX", "REMEDY", "Domain", "outside_domain"]
+__all__ = ["LINE_CHECK_MIN_PX", "LINE_RATIO_MAX", "REMEDY", "Domain", "outside_domain"]
 
 #: What to do about a burst outside the network's domain.
 REMEDY = ("train from a chamber session of this camera: `thermocal train --chamber`, or "
@@ -40,6 +42,11 @@ REMEDY = ("train from a chamber session of this camera: `thermocal train --chamb
 #: bursts at or above 1.28 (measured while choosing it); ``benchmarks/coverage.py`` shows the
 #: outcome: no ``tau2`` burst refused for its pattern, every ``boson`` burst refused.
 LINE_RATIO_MAX = 0.6
+#: Smallest frame side, px, on which the fixed pattern's direction tells the families apart
+#: (RESULTS.md, "The network's family check on small frames": over 12 units × 7-frame bursts,
+#: from 160×120 up ``tau2`` ratios stayed at or below 0.57 and ``boson`` ratios at or above
+#: 0.96; at 96×72 and below they overlap, a line's median over so few pixels keeps the scene).
+LINE_CHECK_MIN_PX = 120
 #: The scene's level and spread are read from every ``PERCENTILE_STRIDE``-th row and column.
 PERCENTILE_STRIDE = 2
 
@@ -123,7 +130,13 @@ def outside_domain(domain: Domain, frames_c: np.ndarray | None, fpa_c: float
     if p1 < lo or p99 > hi:
         reasons.append(f"the scene spans {p1:.0f}…{p99:.0f} °C, beyond the {lo:g}…{hi:g} °C of "
                        "its training scenes")
-    if domain.line_fpn in ("column", "row"):
+    if domain.line_fpn in ("column", "row") and min(frames_c.shape[-2:]) < LINE_CHECK_MIN_PX:
+        h, w = frames_c.shape[-2:]
+        reasons.append(
+            f"its frames, {w}×{h}, are too small to check that the camera is of the "
+            f"{domain.family} family the network was trained on (the fixed pattern's direction "
+            f"needs at least {LINE_CHECK_MIN_PX} px a side)")
+    elif domain.line_fpn in ("column", "row"):
         rows, cols = line_patterns(frames_c)
         own, cross = (cols, rows) if domain.line_fpn == "column" else (rows, cols)
         if cross > LINE_RATIO_MAX * own:

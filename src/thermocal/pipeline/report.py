@@ -422,6 +422,11 @@ def _header(out: Path, summary: dict[str, Any], entries: list[dict[str, Any]]) -
         verdict += f'; <span class="bad">{failed} failed</span> (see below)'
     if warned:
         verdict += f'; <span class="warn">{warned} with warnings</span>'
+    gone = sum(not (out / "temps" / f"frame_{e['frame']:06d}.tiff").is_file()
+               for e in entries if "error" not in e)
+    if gone:  # moved or deleted since the flight: its figures are the log's, not the files'
+        verdict += (f'; <span class="bad">{gone} of those maps no longer in temps/</span> '
+                    "(moved or deleted since)")
     if len(entries) < summary["groups"]:
         verdict += f"; {summary['groups'] - len(entries)} not logged (interrupted?)"
     return (f"<h1>Flight report: {_e(Path(recording).name)}</h1>\n"
