@@ -332,6 +332,82 @@ def test_a_memoryless_report_bins_its_errors_by_pace(fitted):
     assert report.by_rate and all("pace_c_per_min" in b for b in report.by_rate)
     again = CalibrationReport.from_dict(json.loads(json.dumps(report.to_dict())))
     assert CalibrationSigma(again).by_pace
+    # and by how far the pace was from steady, bins of the same frames
+    assert report.by_change and again.by_change == report.by_change
+    assert sum(b["frames"] for b in report.by_change) == sum(b["frames"] for b in report.by_rate)
+    assert [b["change_c_per_min"][0] for b in report.by_change][0] == 0.0
+
+
+def test_fpa_change_is_the_rate_less_its_lagged_rate():
+    from thermocal.calibration.dataset import fpa_change, lagged_rate
+
+    t = np.arange(0.0, 3600.0, 10.0)
+    rate = np.where(t < 1800.0, 0.0, 1.0)  # held, then a 1 °C/min ramp
+    change = fpa_change(rate, t, 480.0)
+    np.testing.assert_allclose(change, np.abs(rate - lagged_rate(rate, t, 480.0)))
+    assert change[179] == 0.0 and change[180] > 0.9 and change[-1] < 0.05  # settles on the ramp
+    both = fpa_change(np.r_[rate, rate], np.r_[t, t], 480.0)  # two recordings: each its own
+    np.testing.assert_array_equal(both[t.size:], change)
+
+
+def test_a_memoryless_sigma_grows_just_after_the_pace_changed():
+    """A pace bin pools a steady ramp with the minutes after a step at the same pace: a frame's
+    σ is at least its change bin's (|rate − lagged rate|, the bins above the steady one), given
+    with the frame or from its recording; a report without change bins (a method with memory,
+    an older file) keeps the pace bins alone."""
+    cells = [[i, j] for i in range(-17, 17) for j in range(-17, 17)]
+    bins = [{"pace_c_per_min": [0.0, 0.05], "frames": 5, "mae_c": 0.15},
+            {"pace_c_per_min": [1.0, 2.0], "frames": 5, "mae_c": 0.5}]
+    change = [{"change_c_per_min": [0.0, 0.5], "frames": 20, "mae_c": 0.2, "sigma_c": 0.3},
+              {"change_c_per_min": [0.5, None], "frames": 20, "mae_c": 1.0, "sigma_c": 1.2}]
+    paces = {"lag_s": 480.0, "cell_c_per_min": 0.1, "cells": cells}
+    model = CalibrationSigma(_report(by_rate=bins, fpa_rate_c_per_min=(-1.6, 1.6), paces=paces,
+                                     by_change=change))
+    plain = CalibrationSigma(_report(by_rate=bins, fpa_rate_c_per_min=(-1.6, 1.6), paces=paces))
+    t = np.arange(0.0, 3600.0, 10.0)
+    rate = np.where(t < 1800.0, 0.0, 1.5)  # held, then a 1.5 °C/min ramp
+    temps = np.full((t.size, 1, 1), 25.0)
+    sigma = model.sigma(temps, 27.5, rate_c_per_min=rate, time_since_start_s=t)[:, 0, 0]
+    before = plain.sigma(temps, 27.5, rate_c_per_min=rate, time_since_start_s=t)[:, 0, 0]
+    assert sigma[181] == pytest.approx(1.2, rel=1e-5) and before[181] == pytest.approx(G * 0.5)
+    assert sigma[-1] == pytest.approx(G * 0.5, rel=1e-5) == before[-1]  # steady on the ramp
+    # held: the pace bin's; the steady change bin (0.3) is not used, it pools plateaus and ramps
+    assert sigma[100] == pytest.approx(G * 0.15, rel=1e-5)
+    one = model.sigma(np.full((1, 1), 25.0), 27.5, rate_c_per_min=[1.5],
+                      lagged_rate_c_per_min=[0.2])[0, 0]
+    assert one == pytest.approx(1.2, rel=1e-5)
+    again = CalibrationReport.from_dict(json.loads(json.dumps(model.report.to_dict())))
+    assert again.by_change == change
+    # a burst's pace (selfcal's level) and a rate not known take it too
+    from thermocal.estimation.base import FpaPace
+
+    assert model.burst_pace_sigma(FpaPace(1.5, 0.2, None)) == pytest.approx(1.2)
+    assert plain.burst_pace_sigma(FpaPace(1.5, 0.2, None)) == 0.0
+    assert model.change_sigma([np.nan, 0.1]).tolist() == [1.2, 0.0]
+
+
+@pytest.mark.parametrize("bins, ok", [
+    ([{"change_c_per_min": ["0.5", None], "frames": "7", "sigma_c": "1.2"}], True),
+    ([{"change_c_per_min": [0.5, 0.2], "frames": 7, "sigma_c": 1.2}], False),
+    ([{"change_c_per_min": [0.5, None], "frames": 7, "sigma_c": "nan"}], False),
+    ([{"change_c_per_min": [0.5, None], "frames": 1e400, "sigma_c": 1.2}], False),
+    ([{"change_c_per_min": [0.5, None], "frames": 7.5, "sigma_c": 1.2}], False),
+    ([{"change_c_per_min": None, "frames": 7, "sigma_c": 1.2}], False),
+    ([{"change_c_per_min": [-1, None], "frames": 7, "sigma_c": 1.2}], False),
+    ([{"frames": 7, "sigma_c": 1.2}], False),
+    ("a string", False),
+])
+def test_change_bins_are_read_back_checked_as_numbers(bins, ok):
+    """A damaged report's change bins: refused in one line, or kept as the numbers they
+    spell (never a string that σ then trips over)."""
+    d = _report().to_dict() | {"mae_by_fpa_change_c": bins}
+    if not ok:
+        with pytest.raises(InvalidInputError, match="not a calibration report"):
+            CalibrationReport.from_dict(d)
+        return
+    report = CalibrationReport.from_dict(d)
+    assert report.by_change == [{"change_c_per_min": [0.5, None], "frames": 7, "sigma_c": 1.2}]
+    assert CalibrationSigma(report).change_sigma([0.7]).tolist() == [1.2]
 
 
 def _stilled() -> CalibrationSigma:

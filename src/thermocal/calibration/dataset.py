@@ -129,16 +129,33 @@ def fpa_pace(rate_c_per_min: Any, time_s: Any, lag_s: float) -> np.ndarray:
     each recording on its own (a time that does not increase starts one). A frame just after
     a change is not settled though its rate is 0: what lags the FPA is still catching up.
     """
+    r, lagged = _rate_and_lagged(rate_c_per_min, time_s, lag_s)
+    return np.maximum(np.abs(r), np.abs(lagged))
+
+
+def fpa_change(rate_c_per_min: Any, time_s: Any, lag_s: float) -> np.ndarray:
+    """How far the FPA's pace is from steady, °C/min ``(M,)``: ``|r − y|``, its present rate
+    less that rate seen through a lag of ``lag_s`` s (:func:`lagged_rate`), each recording on
+    its own (a time that does not increase starts one). Large just after the FPA started or
+    stopped changing, when what lags it is furthest from where a steady pace would hold it."""
+    r, lagged = _rate_and_lagged(rate_c_per_min, time_s, lag_s)
+    return np.abs(r - lagged)
+
+
+def _rate_and_lagged(rate_c_per_min: Any, time_s: Any, lag_s: float
+                     ) -> tuple[np.ndarray, np.ndarray]:
+    """The rates ``(M,)`` °C/min and :func:`lagged_rate` of each recording among them (a time
+    that does not increase starts one)."""
     r = np.asarray(rate_c_per_min, dtype=np.float64)
     t = np.asarray(time_s, dtype=np.float64)
     if r.shape != t.shape or r.ndim != 1:
         raise InvalidInputError(f"rate {r.shape} and time_s {t.shape} must be equal (M,)")
-    out = np.abs(r)
+    lagged = r.copy()
     starts = np.r_[0, np.flatnonzero(np.diff(t) <= 0) + 1, r.size]
     for a, b in zip(starts[:-1], starts[1:], strict=True):
         if b > a:
-            out[a:b] = np.maximum(out[a:b], np.abs(lagged_rate(r[a:b], t[a:b], lag_s)))
-    return out
+            lagged[a:b] = lagged_rate(r[a:b], t[a:b], lag_s)
+    return r, lagged
 
 
 def still_time(fpa_c: Any, time_s: Any, *, band_c: float, max_gap_s: float) -> np.ndarray:

@@ -56,6 +56,7 @@ from thermocal._validate import SATURATED_FRACTION, saturated_fraction
 from thermocal.calibration.base import Calibration, ThermocalWarning
 from thermocal.calibration.dataset import (
     ChamberData,
+    fpa_change,
     fpa_pace,
     iter_frames,
     lagged_rate,
@@ -150,6 +151,12 @@ class CalibrationReport:
         first; :attr:`~thermocal.calibration.registry.CalibrationInfo.learns_online`), the same
         by time since the session began (``time_s``: ``[low, high]`` s, :data:`TIME_EDGES`);
         empty for the others and in a report made before it.
+    by_change : list of dict
+        For a memoryless method, the same by how far the FPA's pace was from steady
+        (``change_c_per_min``: :func:`~thermocal.calibration.dataset.fpa_change` through
+        :data:`PACE_LAG_S`, ``[low, high]``, :data:`CHANGE_EDGES`): a pace bin pools frames
+        just after a step with frames of a steady ramp at the same pace, and the first err
+        more; empty for the others and in a report made before it.
     """
 
     method: str
@@ -168,6 +175,7 @@ class CalibrationReport:
     sigma_c: float | None = None
     by_time: list[dict[str, Any]] = field(default_factory=list)
     paces: dict[str, Any] = field(default_factory=dict)
+    by_change: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def extrapolated_mae_c(self) -> float | None:
@@ -199,6 +207,7 @@ class CalibrationReport:
             "mae_by_fpa_rate_c": self.by_rate,
             "expected_sigma_c": self.sigma_c,
             "mae_by_time_since_start_c": self.by_time,
+            "mae_by_fpa_change_c": self.by_change,
             "fpa_paces": self.paces,
             "sample": self.sample,
             "warnings": list(self.warnings),
@@ -232,8 +241,9 @@ class CalibrationReport:
                     d["expected_sigma_c"]),
                 by_time=[dict(r) for r in d.get("mae_by_time_since_start_c", [])],
                 paces=_paces_from(d.get("fpa_paces") or {}),
+                by_change=_change_bins_from(d.get("mae_by_fpa_change_c") or []),
             )
-        except (KeyError, TypeError, ValueError) as exc:
+        except (KeyError, TypeError, ValueError, OverflowError) as exc:
             raise InvalidInputError(f"not a calibration report ({type(exc).__name__}: "
                                     f"{str(exc)[:80]})") from None
 
@@ -596,6 +606,7 @@ def cross_validate(
     refit_options = options | fixed_reference(calibration, method)
     errors: list[np.ndarray] = []  # per-frame errors of the interior folds
     rates: list[np.ndarray] = []  # and their frames' FPA rates (or paces), °C/min
+    changes: list[np.ndarray] = []  # and how far from steady their paces were, °C/min
     since: list[np.ndarray] = []  # and their time since the session began, s
     from thermocal.calibration.registry import CALIBRATION_METHODS
 
@@ -611,6 +622,8 @@ def cross_validate(
     rate_key = "pace_c_per_min" if memoryless else "rate_c_per_min"
     binned_rate = (fpa_pace(small.fpa_rate_c_per_min, small.time_s, PACE_LAG_S) if memoryless
                    else small.fpa_rate_c_per_min)
+    change = (fpa_change(small.fpa_rate_c_per_min, small.time_s, PACE_LAG_S) if memoryless
+              else None)
     # the fit on the sample, all its frames, and its pixel errors: made once, when first needed
     # (by the end folds' check and the settling check)
     sample_fit = cache(lambda: _fit(small, method, refit_options))
@@ -643,6 +656,8 @@ def cross_validate(
         if not desc["extrapolation"]:
             errors.append(pix)
             rates.append(binned_rate[held])
+            if change is not None:
+                changes.append(change[held])
             since.append(small.time_s[held] - small.time_s[0])
     failed = [f for f in folds if f.get("mae_c") is None and not f["extrapolation"]]
     if failed:
@@ -655,6 +670,9 @@ def cross_validate(
     by_time = (_binned(np.concatenate(errors), np.concatenate(since), TIME_EDGES, "time_s",
                        min_frames=MIN_BIN_FRAMES)
                if errors and CALIBRATION_METHODS[method].learns_online else [])
+    by_change = (_binned(np.concatenate(errors), np.concatenate(changes), CHANGE_EDGES,
+                         "change_c_per_min", min_frames=MIN_BIN_FRAMES)
+                 if errors and memoryless else [])
     if expected is None:
         notes.append("no interior set point or FPA segment could be left out and refitted")
     paces = paces_of(data, memoryless=memoryless)
@@ -695,6 +713,7 @@ def cross_validate(
         sigma_c=sigma,
         by_time=by_time,
         paces=paces,
+        by_change=by_change,
     )
 
 
@@ -821,6 +840,27 @@ def _rate_bins_from(rows: list[Any]) -> list[dict[str, Any]]:
             raise ValueError(f"mae_by_fpa_rate_c: a bin [{lo}, {hi}] °C/min of MAE {mae} °C")
     return out
 
+
+def _change_bins_from(rows: list[Any]) -> list[dict[str, Any]]:
+    """A report's ``mae_by_fpa_change_c`` read back, checked: ``change_c_per_min`` ``[low,
+    high]`` (°C/min, high None for the last), ``frames``, and a finite σ."""
+    out = []
+    for row in rows:
+        b = dict(row)
+        lo, hi = b["change_c_per_min"]
+        lo, hi = float(lo), None if hi is None else float(hi)
+        sigma, frames = float(b["sigma_c"]), float(b["frames"])
+        if not (0 <= lo < math.inf and (hi is None or hi > lo) and 0 <= sigma < math.inf
+                and 0 <= frames < math.inf and frames == int(frames)):
+            raise ValueError(f"mae_by_fpa_change_c: a bin [{lo}, {hi}] °C/min of σ {sigma} °C "
+                             f"over {frames} frames")
+        out.append(b | {"change_c_per_min": [lo, hi], "sigma_c": sigma, "frames": int(frames)})
+    return out
+
+
+#: Edges of the bins of :attr:`CalibrationReport.by_change`, °C/min: steady, settling, just
+#: changed, stepped.
+CHANGE_EDGES = (0.0, 0.2, 0.5, 1.0, math.inf)
 
 #: Edges of the FPA-rate bins of :attr:`CalibrationReport.by_rate`, absolute rates in °C/min.
 RATE_EDGES = (0.0, 0.05, 0.2, 0.5, 1.0, 2.0, math.inf)

@@ -25,7 +25,12 @@ For a temperature ``T`` (°C) measured at FPA temperature ``t`` (°C)::
   the report's 8-min lag), in the report's bins and here alike: the minutes after a change,
   rate 0 but optics still catching up, are not taken for settled ones (binned by the present
   rate, `polynomial`'s σ on `tau2`'s held-out runs covered 91 % of errors at 1σ, 71–76 % by
-  pace). A rate whose history is not known takes the largest σ of the bins at or above it.
+  pace). A rate whose history is not known takes the largest σ of the bins at or above it. A
+  memoryless method's frame of a recording (or given its lagged rate) also takes at least the σ
+  of how far its pace is from steady (:meth:`CalibrationSigma.change_sigma`, the report's
+  ``mae_by_fpa_change_c``): a pace bin pools a steady ramp with the minutes just after a step
+  at the same pace, and those err more (``lin-level`` on ``boson`` just after 5 °C ambient
+  steps: 4–17 frames per unit erred beyond 2σ, 0–4 with it).
   Where the rate is not known (a burst of a fraction of a second) ``s`` is that of all the
   interior folds' errors (``expected_sigma_c``). A report made before it stored σ:
   ``s = √(π/2)·MAE``;
@@ -219,6 +224,25 @@ class CalibrationSigma:
             out[(t >= lo) & (t < (math.inf if hi is None else hi))] = b["sigma_c"]
         return out
 
+    def change_sigma(self, change_c_per_min: Any) -> np.ndarray:
+        """σ of how far each frame's pace was from steady (°C/min, ``|r − y|``; ``(N,)``), °C:
+        its bin of the report's ``mae_by_fpa_change_c`` (a memoryless method's) above the steady
+        one; 0 in the steady bin and where the report has none (a method with memory, an older
+        report): the pace bins alone.
+
+        The steady bin pools plateaus with steady ramps, which the pace bins tell apart: taking
+        it too left no frame silent on the first held-out run but over-covered every memoryless
+        method (``polynomial`` on ``tau2`` 100 % within 2σ; RESULTS.md, 2026-11-28)."""
+        d = np.asarray(change_c_per_min, dtype=np.float64).reshape(-1)
+        out = np.zeros(d.shape)
+        used = [b for b in self.report.by_change if b["change_c_per_min"][0] > 0]
+        for b in used:  # the steady bin pools plateaus with ramps: the pace bins tell them apart
+            lo, hi = b["change_c_per_min"]
+            out[(d >= lo) & (d < (math.inf if hi is None else hi))] = b["sigma_c"]
+        if used:  # a rate not known (NaN): how it changed is not known either, the worst bin
+            out[np.isnan(d)] = max(b["sigma_c"] for b in used)
+        return out
+
     def pace_distance(self, rate_c_per_min: Any, time_s: Any) -> np.ndarray:
         """How far each frame's pace lies from the paces the session held, °C/min ``(N,)``: the
         Chebyshev distance in the plane (FPA rate, the same through the report's lag) from the
@@ -337,7 +361,8 @@ class CalibrationSigma:
         session never held, :meth:`_pace_sigma`, or held still longer than the session did,
         the report's largest rate-bin σ times :meth:`still_excess` (one frame has no pace
         history: give its ``lagged_rate_c_per_min``, °C/min, and ``still_s``, s, one or one
-        per frame, taken from its recording)."""
+        per frame, taken from its recording); for a memoryless method with a pace history, at
+        least :meth:`change_sigma` of ``|rate − lagged rate|``."""
         temps = np.asarray(temps_c, dtype=np.float64)
         frames = temps if temps.ndim == 3 else temps[None]
         fpa = np.broadcast_to(np.asarray(fpa_c, dtype=np.float64).reshape(-1), frames.shape[:1])
@@ -353,11 +378,12 @@ class CalibrationSigma:
                     np.broadcast_to(np.asarray(time_since_start_s, dtype=np.float64).reshape(-1),
                                     (n,)) if recording else None,
                     None if recording else lagged_rate_c_per_min)
+                change = self.change_sigma(np.abs(rate - lagged))
                 if self.by_pace:  # the bins are of the pace: the larger of the two rates
                     rate = np.maximum(np.abs(rate), np.abs(lagged))
             level = self.rate_sigma(rate, at_least=self.by_pace and not history)
             if history:
-                level = np.maximum(level, self._pace_sigma(d))
+                level = np.maximum(level, np.maximum(self._pace_sigma(d), change))
         excess = self._still(fpa, time_since_start_s if recording else None, still_s)[1]
         level = np.maximum(level, self._still_sigma(excess))
         if time_since_start_s is not None:
@@ -424,14 +450,16 @@ class CalibrationSigma:
     def burst_pace_sigma(self, pace: Any) -> float:
         """The σ level a burst changing at ``pace`` (an
         :class:`~thermocal.estimation.base.FpaPace`, or None) takes at a pace the session never
-        held (:meth:`_pace_sigma`) or held still longer than the session's plateaus did
-        (:meth:`sigma`), °C; 0 at a held pace, or without the pace's history."""
+        held (:meth:`_pace_sigma`), just after the pace changed (:meth:`change_sigma`) or held
+        still longer than the session's plateaus did (:meth:`sigma`), °C; 0 at a held steady
+        pace, or without the pace's history."""
         if pace is None:
             return 0.0
         level = 0.0
         if pace.lagged_c_per_min is not None:
-            level = float(self._pace_sigma(self._distance(
-                np.array([pace.rate_c_per_min]), np.array([pace.lagged_c_per_min])))[0])
+            rate, lagged = np.array([pace.rate_c_per_min]), np.array([pace.lagged_c_per_min])
+            level = float(max(self._pace_sigma(self._distance(rate, lagged))[0],
+                              self.change_sigma(np.abs(rate - lagged))[0]))
         if pace.still_s is not None:
             level = max(level, float(self._still_sigma(self.still_excess([pace.still_s]))[0]))
         return level
