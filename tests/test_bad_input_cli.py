@@ -244,6 +244,22 @@ CASES = [
                          "--out", "{tmp}/o"], "--hfov-deg must be between 0 and 180 degrees"),
     ("mosaic-of-a-recording", ["mosaic", "{root}/rec.tiff"],
      "is a file; mosaic takes the folder"),
+    # counts of threads or processes no machine of this size can run (one allocated 4 GB)
+    ("flight-threads-a-million",
+     ["flight", "{root}/rec.tiff", "--out", "{tmp}/o", "--threads", "1000000"],
+     "--threads 1000000: more than 4 per CPU core"),
+    ("campaign-workers-a-million",
+     ["campaign", "{root}/rec.tiff", "--out", "{tmp}/c", "--workers", "1000000", "--method",
+      "mean", "--calibration", "{root}/cal.h5"], "--workers 1000000: more than 4 per CPU core"),
+    # outputs mixed in beside another recording's frames
+    ("flight-into-a-recordings-folder",
+     ["flight", "{root}/rec.tiff", "--out", "{root}/flight", "--method", "mean",
+      "--calibration", "{root}/cal.h5"], "flight: holds a recording (frames.tiff"),
+    ("campaign-into-a-recordings-folder",
+     ["campaign", "{root}/rec.tiff", "--out", "{root}/flight", "--method", "mean",
+      "--calibration", "{root}/cal.h5"], "flight: holds a recording (frames.tiff"),
+    ("info-of-network-weights", ["info", "{shipped}"],
+     "a PyTorch file (network weights?), not a recording"),
     # the unit's Planck constants are fitted before any work: nothing left behind
     ("simulate-flight-seq-saturating",
      ["simulate", "flight", "{tmp}/out", "--size", SIZE, "--preset", "boson", "--fpa-c", "120",
@@ -882,6 +898,50 @@ def test_warnings_are_one_clean_line(inputs, tmp_path, capsys):
 # ---------------------------------------------------------------------------------------------
 # output folders
 # ---------------------------------------------------------------------------------------------
+
+
+def test_a_mosaic_whose_report_cannot_follow_writes_nothing(inputs, tmp_path, capsys):
+    """A flight folder whose summary.json is damaged: mosaic refuses before mosaicking (it
+    left a whole mosaic/ behind, the report saying there was none)."""
+    out = tmp_path / "o"
+    main_ok(["flight", inputs["rec"], "--out", out, "--method", "mean", "--calibration",
+             inputs["cal"], "--frames", "3", "--stride", "2"])
+    (out / "summary.json").write_text('{"groups": 3,')
+    before = snapshot(out)
+    code, stdout, err = run(["mosaic", out], capsys)
+    assert_refused(code, stdout, err, "summary.json: unreadable or damaged")
+    assert snapshot(out) == before and not (out / "mosaic").exists()
+
+
+def test_a_cut_log_leaves_maps_out_of_a_mosaic_with_a_warning(inputs, tmp_path, capsys):
+    """A log.jsonl cut short: the maps it no longer lists are left out of the mosaic with a
+    warning naming the remedy (it took 1 of 3 maps silently); a line of a negative frame is
+    not taken for a pivot (the report counted 4 of 3 groups)."""
+    from thermocal.pipeline.flight_log import read_log
+
+    out = tmp_path / "o"
+    main_ok(["flight", inputs["rec"], "--out", out, "--method", "mean", "--calibration",
+             inputs["cal"], "--frames", "3", "--stride", "2"])
+    log = out / "log.jsonl"
+    lines = log.read_text().splitlines()
+    log.write_text(lines[0] + "\n" + '{"frame": -5}\n')
+    assert [e["frame"] for e in read_log(log)] == [json.loads(lines[0])["frame"]]
+    code, stdout, err = run(["mosaic", out], capsys)
+    assert code == 0 and f"{len(lines) - 1} map(s) in temps/ that log.jsonl does not list" in err
+    summary = json.loads((out / "mosaic" / "mosaic.json").read_text())
+    assert len(summary["maps_used"]) == 1
+    assert sum(m["reason"] == "not in log.jsonl" for m in summary["maps_left_out"]) == len(
+        lines) - 1
+
+
+def test_groups_of_one_frame_are_the_frame_through_the_method(inputs, tmp_path, capsys):
+    """--frames 1 with a multi-frame method: each map is its pivot alone (a traceback before:
+    no pair to take a registration correlation of)."""
+    out = tmp_path / "o"
+    main_ok(["flight", inputs["rec"], "--out", out, "--method", "mean", "--calibration",
+             inputs["cal"], "--frames", "1", "--stride", "3"])
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["processed"] == 3 and summary["failed"] == 0
 
 
 def test_a_failed_flight_leaves_no_empty_folders(inputs, tmp_path, capsys):

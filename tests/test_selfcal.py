@@ -343,3 +343,33 @@ def test_flight_refuses_a_hover_and_says_what_it_needs(capsys, tmp_path):
     assert code == 2 and "Traceback" not in err and len(err.strip().splitlines()) == 1
     assert "selfcal needs at least" in err or "it needs at least" in err
     assert not out.exists()
+
+
+def test_a_pass_of_another_family_is_refused_and_forced_with_sigma_grown(capsys, tmp_path):
+    """Starting from a family's average unit, a pass whose fixed pattern runs the other way
+    (a ``boson`` pass from ``tau2``'s start, 9.5 °C off before) is refused, saying which
+    families there are; ``--family boson`` takes it; ``--force`` gives σ of at least
+    OTHER_FAMILY_SIGMA_C. Frames of 160×128: large enough to check (LINE_CHECK_MIN_PX)."""
+    import tifffile
+
+    from thermocal.estimation.selfcal import OTHER_FAMILY_SIGMA_C
+
+    rec = tmp_path / "boson"
+    assert run(["simulate", "flight", rec, "--preset", "boson", "--size", "160x128",
+                "--frames", "35", "--motion", "uav"], capsys)[0] == 0
+    code, _, err = run(["flight", rec, "--out", tmp_path / "a", "--method", "selfcal",
+                        "--preview-every", "0"], capsys)
+    assert code == 2 and "not a camera of the tau2 family" in err and "--family" in err
+    assert not list((tmp_path / "a").glob("temps/frame_*.tiff"))
+    code, _, err = run(["flight", rec, "--out", tmp_path / "b", "--method", "selfcal",
+                        "--family", "boson", "--preview-every", "0"], capsys)
+    assert code == 0, err
+    truth = tifffile.imread(rec / "truth.tiff")
+    maps = sorted((tmp_path / "b" / "temps").glob("frame_??????.tiff"))
+    k = int(maps[0].stem.split("_")[1])
+    assert abs(float(np.median(tifffile.imread(maps[0]) - truth[k]))) < 1.5
+    code, _, err = run(["flight", rec, "--out", tmp_path / "c", "--method", "selfcal",
+                        "--force", "--preview-every", "0"], capsys)
+    assert code == 0, err
+    sigma = tifffile.imread(tmp_path / "c" / "temps" / f"{maps[0].stem}_sigma.tiff")
+    assert sigma.min() >= OTHER_FAMILY_SIGMA_C

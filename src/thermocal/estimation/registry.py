@@ -138,6 +138,10 @@ def check_method_options(name: str, *, backend: str = "torch", threads: int | No
     that does not start from a family's average unit, ``--fpa-c`` or ``--force`` for the
     camera's own constants (they convert counts without the FPA, and have no domain)."""
     needs = ESTIMATORS[name].needs
+    if threads is not None:
+        from thermocal.cores import check_per_core
+
+        check_per_core(threads, "--threads")
     if needs == "recording" and (fpa_c is not None or force):
         raise InvalidInputError(
             f"--method {name} converts counts with the file's own constants, which take no FPA "

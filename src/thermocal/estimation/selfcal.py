@@ -44,7 +44,8 @@ from thermocal.estimation.pass_pattern import (
 )
 from thermocal.radiometry import TAU2, BandRadiance
 
-__all__ = ["FAMILY_LEVEL_SIGMA_C", "SelfCalibration", "start_band", "unseen_line_sigma"]
+__all__ = ["FAMILY_LEVEL_SIGMA_C", "OTHER_FAMILY_SIGMA_C", "SelfCalibration", "start_band",
+           "unseen_line_sigma"]
 
 #: The level no motion reveals when starting from the family's average unit: its unit-to-unit
 #: spread (:data:`thermocal.nn.uncertainty.UNIT_FLOOR_MIN_C`, the same floor as the network's).
@@ -52,6 +53,13 @@ FAMILY_LEVEL_SIGMA_C = 0.34 * float(np.sqrt(np.pi / 2))
 
 REMEDY = ("selfcal fits a whole pass: run `thermocal flight --method selfcal` on a recording of "
           "at least 30 frames that moves across the scene")
+
+#: σ added in quadrature to a pass forced through another family's average unit, °C: a
+#: calibration of one family errs 12–17 °C on the other (``benchmarks/physics.py``, the
+#: calibrations' cross-family MAE); the audit's ``boson`` pass through ``tau2``'s: 9.5 °C.
+OTHER_FAMILY_SIGMA_C = 15.0
+#: Frames of a pass the family check looks at (evenly spaced over the frames fitted on).
+FAMILY_CHECK_FRAMES = 7
 
 
 def start_band(calibration: Calibration | None, family: str) -> BandRadiance:
@@ -141,6 +149,12 @@ class SelfCalibration:
         The FPA temperature's rate of change over the pass (from the whole recording), for
         the family start model's transient term (1.7 °C per °C/min on ``tau2``): looked up
         by each frame's time.
+    not_of_family : str, optional
+        Set by :meth:`fitted` when starting from the family's average unit: why the pass's
+        frames are not of that family (their fixed pattern runs the other way:
+        :func:`~thermocal.nn.validity.family_pattern_reason`, as the network checks); every
+        burst is then outside, and forced, its σ grows by :data:`OTHER_FAMILY_SIGMA_C`. Frames
+        under :data:`~thermocal.nn.validity.LINE_CHECK_MIN_PX` a side are not checked.
     """
 
     calibration: Calibration | None = None
@@ -149,13 +163,24 @@ class SelfCalibration:
     level_offset: float = 0.0
     level_sigma_c: float | None = None
     fpa_rates: tuple[np.ndarray, np.ndarray] | None = None
+    not_of_family: str | None = None
 
     name = "selfcal"
     n_frames = None
     needs_fpa = True
     per_frame = False
     accepts_registered = False
-    remedy = REMEDY
+
+    @property
+    def remedy(self) -> str:
+        """What to do about a burst outside: of another family, say which to start from."""
+        from thermocal.camera.presets import PRESETS
+
+        if self.not_of_family:
+            return (f"give --family of the camera's family ({', '.join(PRESETS)}), or start "
+                    "from its own calibration (--calibration); --force estimates anyway with "
+                    f"σ grown by {OTHER_FAMILY_SIGMA_C:g} °C")
+        return REMEDY
 
     def __post_init__(self) -> None:
         from thermocal.camera.presets import PRESETS
@@ -238,7 +263,29 @@ class SelfCalibration:
         radiance = est.start_radiance(np.asarray(frames), fpa, time_s)
         pattern = fit_residual_pattern(radiance, homographies, fpa_c=fpa, use=use, good=good,
                                        radial=self.radial)
-        return replace(est, pattern=pattern)
+        return replace(est, pattern=pattern,
+                       not_of_family=est._family_check(np.asarray(frames), fpa, time_s, use))
+
+    def _family_check(self, frames: np.ndarray, fpa: np.ndarray, time_s: Any,
+                      use: np.ndarray | None) -> str | None:
+        """Why a pass's raw ``frames`` are not of the start family (None: they are, or the
+        start is the unit's own calibration, or the frames are too small to tell):
+        :func:`~thermocal.nn.validity.family_pattern_reason` of
+        :data:`FAMILY_CHECK_FRAMES` of them through the family's average unit."""
+        from thermocal.camera.presets import PRESETS
+        from thermocal.nn.validity import LINE_CHECK_MIN_PX, family_pattern_reason
+
+        if self.calibration is not None or min(frames.shape[1:]) < LINE_CHECK_MIN_PX:
+            return None
+        pool = np.flatnonzero(use) if use is not None else np.arange(len(frames))
+        if pool.size == 0:
+            return None
+        pick = pool[np.unique(np.linspace(0, pool.size - 1, FAMILY_CHECK_FRAMES).astype(int))]
+        times = None if time_s is None else np.asarray(time_s, np.float64)[pick]
+        temps = self.start_temperature(frames[pick], fpa[pick], times)
+        return family_pattern_reason(temps, self.family,
+                                     PRESETS[self.family].fpn.split("-")[0],
+                                     of="that selfcal starts from (--family)")
 
     def with_level(self, offset: float, sigma_c: float) -> SelfCalibration:
         """A copy whose level is fixed by references: ``offset`` radiance removed, σ ``sigma_c``."""
@@ -270,10 +317,11 @@ class SelfCalibration:
                 pace: Any = None) -> tuple[str, ...]:
         """The start calibration's ranges (FPA, scene; its FPA rates and paces where ``pace``
         is known); the family's average unit has none."""
+        family = (self.not_of_family,) if self.not_of_family else ()
         model = self.sigma_model
         if model is None:
-            return ()
-        return model.outside_burst(calibrated, fpa_c, pace)
+            return family
+        return family + tuple(model.outside_burst(calibrated, fpa_c, pace))
 
     def estimate(self, burst: PreparedBurst) -> np.ndarray:
         """Oz et al. eq. 9 on the corrected frames: the registered mean."""
@@ -321,4 +369,6 @@ class SelfCalibration:
         dl_dt = (self.band.radiance(t_k + 0.5) - self.band.radiance(t_k - 0.5))
         pattern = self.pattern.offset_se / np.maximum(dl_dt, 1e-9)
         spread, n = view_spread(burst.warped, burst.valid)
-        return np.sqrt(level**2 + unseen**2 + pattern**2 + spread**2 / n).astype(np.float32)
+        other = OTHER_FAMILY_SIGMA_C if outside and self.not_of_family else 0.0
+        return np.sqrt(level**2 + unseen**2 + pattern**2 + spread**2 / n + other**2).astype(
+            np.float32)

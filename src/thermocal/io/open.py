@@ -647,8 +647,12 @@ def _kind(p: Path, head: bytes) -> str:
             return "envchamberctrl"
         if "frames" in keys:
             return "dualtau"
-        raise FileFormatError(f"{p}: an .npz without 'frames' (has {sorted(keys)}); not a "
-                              "DualTauUAV or EnvChamberCtrl recording")
+        if any(k.endswith("data.pkl") for k in keys):  # torch.save's zip layout
+            raise FileFormatError(f"{p}: a PyTorch file (network weights?), not a recording")
+        listed = sorted(keys)
+        shown = ", ".join(listed[:5]) + (f", … {len(listed)} in all" if len(listed) > 5 else "")
+        raise FileFormatError(f"{p}: an .npz without 'frames' (has {shown or 'nothing'}); not "
+                              "a DualTauUAV or EnvChamberCtrl recording")
     raise FileFormatError(
         f"{p}: unknown recording format (expected a TIFF recording, FLIR FFF/SEQ/CSQ, FLIR "
         "R-JPEG or a DualTauUAV/EnvChamberCtrl .npz)"

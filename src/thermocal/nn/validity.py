@@ -29,7 +29,8 @@ import numpy as np
 from thermocal.camera.presets import CameraPreset
 from thermocal.metrics import line_patterns
 
-__all__ = ["LINE_CHECK_MIN_PX", "LINE_RATIO_MAX", "REMEDY", "Domain", "outside_domain"]
+__all__ = ["LINE_CHECK_MIN_PX", "LINE_RATIO_MAX", "REMEDY", "Domain", "family_pattern_reason",
+           "outside_domain"]
 
 #: What to do about a burst outside the network's domain.
 REMEDY = ("train from a chamber session of this camera: `thermocal train --chamber`, or "
@@ -130,21 +131,30 @@ def outside_domain(domain: Domain, frames_c: np.ndarray | None, fpa_c: float
     if p1 < lo or p99 > hi:
         reasons.append(f"the scene spans {p1:.0f}…{p99:.0f} °C, beyond the {lo:g}…{hi:g} °C of "
                        "its training scenes")
-    if domain.line_fpn in ("column", "row") and min(frames_c.shape[-2:]) < LINE_CHECK_MIN_PX:
-        h, w = frames_c.shape[-2:]
-        reasons.append(
-            f"its frames, {w}×{h}, are too small to check that the camera is of the "
-            f"{domain.family} family the network was trained on (the fixed pattern's direction "
-            f"needs at least {LINE_CHECK_MIN_PX} px a side)")
-    elif domain.line_fpn in ("column", "row"):
-        rows, cols = line_patterns(frames_c)
-        own, cross = (cols, rows) if domain.line_fpn == "column" else (rows, cols)
-        if cross > LINE_RATIO_MAX * own:
-            other = "row" if domain.line_fpn == "column" else "column"
-            reasons.append(
-                f"its fixed pattern runs along {other}s nearly as much as along "
-                f"{domain.line_fpn}s ({cross:.2f} °C against {own:.2f} °C; a "
-                f"{domain.family} burst's stays below {LINE_RATIO_MAX:g} of it): not a camera "
-                f"of the {domain.family} family the network was trained on"
-            )
-    return tuple(reasons)
+    reason = family_pattern_reason(frames_c, domain.family, domain.line_fpn,
+                                   of="the network was trained on")
+    return (*reasons, reason) if reason else tuple(reasons)
+
+
+def family_pattern_reason(frames_c: np.ndarray, family: str | None, line_fpn: str | None, *,
+                          of: str) -> str | None:
+    """Why frames ``(N, H, W)`` (°C through the family's average unit) are not of ``family``,
+    whose fixed pattern runs along ``line_fpn`` (``"column"`` or ``"row"``; otherwise not
+    checked): their pattern runs the other way nearly as much, or they are smaller than
+    :data:`LINE_CHECK_MIN_PX` a side, too small to tell. None when they are. ``of`` ends the
+    sentence: what was made for the family ("the network was trained on")."""
+    if line_fpn not in ("column", "row"):
+        return None
+    h, w = frames_c.shape[-2:]
+    if min(h, w) < LINE_CHECK_MIN_PX:
+        return (f"its frames, {w}×{h}, are too small to check that the camera is of the "
+                f"{family} family {of} (the fixed pattern's direction needs at least "
+                f"{LINE_CHECK_MIN_PX} px a side)")
+    rows, cols = line_patterns(frames_c)
+    own, cross = (cols, rows) if line_fpn == "column" else (rows, cols)
+    if cross <= LINE_RATIO_MAX * own:
+        return None
+    other = "row" if line_fpn == "column" else "column"
+    return (f"its fixed pattern runs along {other}s nearly as much as along {line_fpn}s "
+            f"({cross:.2f} °C against {own:.2f} °C; a {family} burst's stays below "
+            f"{LINE_RATIO_MAX:g} of it): not a camera of the {family} family {of}")

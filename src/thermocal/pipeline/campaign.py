@@ -41,6 +41,7 @@ from typing import Any
 
 from thermocal.errors import InvalidInputError, ThermocalError
 from thermocal.pipeline.flight import FlightOptions
+from thermocal.pipeline.run_record import check_not_a_recording_folder
 
 __all__ = ["CampaignTask", "campaign_tasks", "run_campaign"]
 
@@ -255,13 +256,16 @@ def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
     """Run ``tasks`` on the cluster; write and return ``OUT/campaign.json`` (each recording's
     result, in the order given). ``progress(k)`` after each finished recording of ``k`` frames.
     """
-    from thermocal.cores import available_cores
+    from thermocal.cores import available_cores, check_per_core
     from thermocal.io.atomic import ensure_output_dir, write_json_atomic
 
     cores = available_cores()
     n_workers = cores if workers is None else workers
     if n_workers < 1:
         raise InvalidInputError(f"--workers must be >= 1, got {n_workers}")
+    if scheduler is None:  # processes of this machine's LocalCluster
+        check_per_core(n_workers, "--workers")
+    check_not_a_recording_folder(Path(out))
     started = time.perf_counter()
     client = connect(scheduler, n_workers)
     from distributed import as_completed  # installed: connect() checked

@@ -211,11 +211,13 @@ def mosaic(out_dir: Path, clip_sigma: float, clip_floor_c: float, memory_mb: flo
     OUT/mosaic: temperature, views, spread and σ TIFFs, a preview and mosaic.json; then
     rewrite OUT/report.html with it."""
     from thermocal.pipeline.mosaic import build_mosaic, check_options
-    from thermocal.pipeline.report import write_report
+    from thermocal.pipeline.report import load_summary, write_report
 
     # first here, so that a bad value is named by its option, not by the function's keyword
     check_options(clip_sigma=clip_sigma, clip_floor_c=clip_floor_c, memory_mb=memory_mb,
                   option=lambda keyword: "--" + keyword.replace("_", "-"))
+    if (Path(out_dir) / "summary.json").exists():  # the report follows: its summary first, so
+        load_summary(Path(out_dir))  # that a damaged one leaves no mosaic without its report
     summary = build_mosaic(out_dir, clip_sigma=clip_sigma, clip_floor_c=clip_floor_c,
                            memory_mb=memory_mb, motion=motion)
     canvas = summary["canvas"]

@@ -842,8 +842,9 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
         if run.sequence is not None:
             local = first - run.start
             homographies = run.sequence.to_pivot(range(local, local + n), pivot - run.start)
-            entry["registration_correlation"] = float(
-                run.sequence.correlation[local + 1 : local + n].min())
+            if n > 1:  # a group of one frame has no pair to correlate
+                entry["registration_correlation"] = float(
+                    run.sequence.correlation[local + 1 : local + n].min())
         # an estimator of the recording's own constants takes those of the group's frames
         group_estimator = (estimator.for_frames(first, n) if hasattr(estimator, "for_frames")
                            else estimator)

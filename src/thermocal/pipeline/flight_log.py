@@ -17,7 +17,7 @@ __all__ = ["read_log"]
 
 def read_log(log_path: Path) -> list[dict[str, Any]]:
     """The latest entry of each pivot in the log, by pivot; lines that are not a JSON object
-    with an integer ``frame`` (cut by an interruption, edited) are ignored."""
+    with an integer ``frame`` of 0 or more (cut by an interruption, edited) are ignored."""
     entries: dict[int, dict[str, Any]] = {}
     try:
         data = log_path.read_bytes()
@@ -31,7 +31,7 @@ def read_log(log_path: Path) -> list[dict[str, Any]]:
         if not isinstance(entry, dict):
             continue
         frame = entry.get("frame")
-        if isinstance(frame, bool) or not isinstance(frame, int):
+        if isinstance(frame, bool) or not isinstance(frame, int) or frame < 0:
             continue
         entries[frame] = entry  # the latest try of each pivot
     return [entries[k] for k in sorted(entries)]

@@ -65,6 +65,7 @@ import re
 import shutil
 import tempfile
 import time
+import warnings
 from collections import OrderedDict
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -225,6 +226,15 @@ def _flight_maps(out: Path) -> tuple[list[_Map], list[dict[str, Any]]]:
         else:
             sigma = path.with_name(f"frame_{frame:06d}_sigma.tiff")
             maps.append(_Map(frame, path, sigma if sigma.is_file() else None))
+    logged = {entry["frame"] for entry in entries}
+    unlogged = sorted(int(p.stem[6:]) for p in (out / "temps").glob("frame_[0-9]*.tiff")
+                      if p.stem[6:].isdigit() and len(p.stem) == 12
+                      and int(p.stem[6:]) not in logged)
+    if unlogged:  # a log cut short or edited: the maps are there, what made them is not
+        warnings.warn(f"{len(unlogged)} map(s) in temps/ that log.jsonl does not list (frame "
+                      f"{unlogged[0]}{', …' if len(unlogged) > 1 else ''}) left out: rerun "
+                      "`thermocal flight` into this folder to log them again", stacklevel=2)
+        left_out += [{"frame": k, "reason": "not in log.jsonl"} for k in unlogged]
     if not maps:
         raise InvalidInputError(
             f"{out}: no temperature map to mosaic ({len(entries)} pivots logged, none with a "

@@ -36,7 +36,7 @@ from thermocal.errors import FileFormatError, InvalidInputError, OutputError
 from thermocal.io.atomic import atomic_path
 from thermocal.pipeline.flight_log import read_log
 
-__all__ = ["REPORT_NAME", "write_report"]
+__all__ = ["REPORT_NAME", "load_summary", "write_report"]
 
 #: The report's file name in the flight output folder.
 REPORT_NAME = "report.html"
@@ -101,7 +101,7 @@ def write_report(out_dir: str | Path, *, max_rows: int = 40, previews: int = 6) 
     if max_rows < 1 or previews < 0:
         raise InvalidInputError("max_rows must be >= 1 and previews >= 0")
     out = Path(out_dir)
-    summary = _load_summary(out)
+    summary = load_summary(out)
     target = out / REPORT_NAME
     if target.exists() and not target.is_file():
         raise InvalidInputError(f"{target}: exists and is not a file; move it away")
@@ -116,7 +116,7 @@ def write_report(out_dir: str | Path, *, max_rows: int = 40, previews: int = 6) 
     return target
 
 
-def _load_summary(out: Path) -> dict[str, Any]:
+def load_summary(out: Path) -> dict[str, Any]:
     """The flight's ``summary.json``, checked to be one; InvalidInputError otherwise."""
     if not out.is_dir():
         raise InvalidInputError(f"{out}: not a folder; give the output folder of `thermocal "

@@ -20,10 +20,14 @@ from typing import Any
 
 from thermocal.errors import InvalidInputError
 
-__all__ = ["RUN_FILE", "check_run_record", "run_record"]
+__all__ = ["RECORDING_SUFFIXES", "RUN_FILE", "check_not_a_recording_folder", "check_run_record",
+           "run_record"]
 
 #: The record's name in the output folder.
 RUN_FILE = "run.json"
+#: Names of the files a recording is made of (what ``thermocal info`` reads; a TIFF with its
+#: JSON sidecar); an output folder writes none of them at its top.
+RECORDING_SUFFIXES = (".tif", ".tiff", ".seq", ".csq", ".fff", ".jpg", ".jpeg", ".npz")
 #: :class:`~thermocal.pipeline.flight.FlightOptions` fields that change the maps' numbers.
 MAP_OPTIONS = ("method", "frames", "stride", "fpa_c", "force", "geotiff", "hfov_deg", "family",
                "backend")
@@ -47,9 +51,33 @@ def run_record(recording: Path, options: Any, *, model: Path | None = None) -> d
     return json.loads(json.dumps(record))  # as it reads back from the file
 
 
+def check_not_a_recording_folder(out: Path) -> None:
+    """Refuse an output folder ``out`` that holds a recording's files at its top (its maps and
+    logs would be mixed in beside another recording's frames, which a later flight of that
+    folder would read as one recording)."""
+    def recording(p: Path) -> bool:  # a TIFF is one with its sidecar; hidden files are ours
+        if p.name.startswith(".") or p.suffix.lower() not in RECORDING_SUFFIXES:
+            return False
+        tiff = p.suffix.lower() in (".tif", ".tiff")
+        return p.is_file() and (not tiff or p.with_suffix(".json").is_file())
+
+    try:
+        found = sorted(p.name for p in out.iterdir() if recording(p))
+    except (FileNotFoundError, NotADirectoryError):
+        return  # made later, or refused as a file where the folder goes
+    except OSError as exc:
+        raise InvalidInputError(f"{out}: cannot list ({exc.strerror or exc})") from None
+    if found:
+        raise InvalidInputError(
+            f"{out}: holds a recording ({found[0]}{', …' if len(found) > 1 else ''}); give an "
+            "output folder of its own (e.g. a new folder beside it)")
+
+
 def check_run_record(out: Path, record: dict[str, Any]) -> None:
     """Refuse to resume ``out`` when its ``run.json`` says its maps came from another run than
-    ``record``, or when it has a run's log but no record (an older thermocal)."""
+    ``record``, or when it has a run's log but no record (an older thermocal); refuse an
+    ``out`` holding a recording (:func:`check_not_a_recording_folder`)."""
+    check_not_a_recording_folder(out)
     path = out / RUN_FILE
     remedy = f"give a new --out, or remove {out} to redo the run"
     if not path.is_file():
