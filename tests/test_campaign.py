@@ -224,3 +224,23 @@ def test_numbered_names_never_take_another_recordings_name(tmp_path):
         assert len(set(names.values())) == 4
         assert names[(tmp_path / "z" / "a-2.tiff").resolve()] == "a-2"
         assert sorted(names.values()) == ["a", "a-2", "a-3", "a-4"]
+
+
+def test_a_rerun_with_inputs_left_out_or_added_keeps_each_recordings_folder(data, tmp_path):
+    """A campaign run again on some of its recordings, or with another of the same name:
+    each keeps the folder the first run gave it (a rerun on the second alone was refused as
+    "another run's"), and campaign.json keeps the recordings this run left out."""
+    other = tmp_path / "b" / "pass0"
+    shutil.copytree(data / "pass0", other)
+    out = tmp_path / "out"
+    first, second = sorted([(data / "pass0").resolve(), other.resolve()], key=str)
+    both = run_campaign(campaign_tasks([first, second], out, _options(data)), out, workers=1)
+    assert [r["name"] for r in both["recordings"]] == ["pass0", "pass0-2"]
+    again = run_campaign(campaign_tasks([second], out, _options(data)), out, workers=1)
+    assert [(r["name"], r["ok"]) for r in again["recordings"]] == [("pass0-2", True)]
+    assert [r["name"] for r in again["earlier"]] == ["pass0"]
+    third = tmp_path / "c" / "pass0"
+    shutil.copytree(data / "pass0", third)
+    names = {Path(t.recording).resolve(): t.name
+             for t in campaign_tasks([third, first], out, _options(data))}
+    assert names == {first: "pass0", third.resolve(): "pass0-3"}

@@ -2,8 +2,9 @@
 Dask cluster.
 
 Each recording is one task: :func:`~thermocal.pipeline.flight.process_flight` into
-``OUT/<name>/`` (``name``: the recording's file or folder name, numbered where several share
-one in the order of their paths, whatever the order given),
+``OUT/<name>/`` (``name``: the one an earlier run into OUT gave the recording, else its file
+or folder name, numbered where several share one in the order of their paths, whatever the
+order given; ``OUT/campaign.json`` keeps the recordings a rerun left out under ``earlier``),
 so that every recording's folder is what ``thermocal flight RECORDING --out OUT/<name>`` writes,
 the same bytes (tested). The tasks run on a :class:`distributed.LocalCluster` of this machine's
 cores by default, or on the scheduler at ``--scheduler ADDRESS`` — one started by
@@ -32,6 +33,7 @@ options a flight would refuse, the scheduler reachable.
 
 from __future__ import annotations
 
+import json
 import os
 import time
 from collections.abc import Callable
@@ -85,7 +87,7 @@ def campaign_tasks(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[
 
     if not inputs:
         raise InvalidInputError("give at least one recording")
-    names = _output_names([Path(raw) for raw in inputs])
+    names = _output_names([Path(raw) for raw in inputs], _earlier_names(Path(out)))
     tasks, seen = [], set()
     for raw in inputs:
         path = Path(raw)
@@ -106,17 +108,30 @@ def campaign_tasks(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[
     return tasks
 
 
-def _output_names(paths: list[Path]) -> dict[Path, str]:
-    """Each recording's output folder name, by its resolved path: its file's stem (a folder's
-    name); recordings of one stem numbered ``stem``, ``stem-2``, … in the order of their
-    resolved paths, so that a rerun with the inputs in another order finds its own folders."""
+def _output_names(paths: list[Path], earlier: dict[Path, str] | None = None
+                  ) -> dict[Path, str]:
+    """Each recording's output folder name, by its resolved path: the name an earlier run of
+    the campaign gave it (``earlier``, :func:`_earlier_names`), else its file's stem (a
+    folder's name), recordings of one stem numbered ``stem``, ``stem-2``, … in the order of
+    their resolved paths past every name taken, so that a rerun with the inputs in another
+    order, or with some left out or added, finds its own folders."""
+    earlier = earlier or {}
+    names = {path.resolve(): earlier[path.resolve()] for path in paths
+             if path.resolve() in earlier}
     by_stem: dict[str, list[Path]] = {}
     for path in paths:
-        stem = path.stem if path.is_file() else path.name
-        by_stem.setdefault(stem, []).append(path.resolve())
+        if path.resolve() not in names:
+            stem = path.stem if path.is_file() else path.name
+            by_stem.setdefault(stem, []).append(path.resolve())
     groups = {stem: sorted(set(group), key=str) for stem, group in by_stem.items()}
-    names = {group[0]: stem for stem, group in groups.items()}  # every stem its own first
-    used = set(groups)
+    taken = set(earlier.values())
+    for stem, group in groups.items():  # every stem its own first, unless an earlier run's
+        if stem not in taken:
+            names[group[0]] = stem
+            taken.add(stem)
+        else:
+            groups[stem] = [None, *group]  # numbered from its first
+    used = taken | set(groups)
     for stem in sorted(groups):  # the others numbered past every name taken (a stem "a-2" too)
         k = 2
         for real in groups[stem][1:]:
@@ -124,6 +139,32 @@ def _output_names(paths: list[Path]) -> dict[Path, str]:
                 k += 1
             names[real] = f"{stem}-{k}"
             used.add(names[real])
+    return names
+
+
+def _earlier_runs(out: Path) -> list[dict[str, Any]]:
+    """The recordings an earlier run of the campaign into ``out`` listed in its
+    ``campaign.json`` (its own and those it kept from runs before), each with its ``name``
+    and ``recording``; ``[]`` without a readable one."""
+    try:
+        summary = json.loads((out / "campaign.json").read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, ValueError):
+        return []
+    if not isinstance(summary, dict):
+        return []
+    runs = [*(summary.get("recordings") or []), *(summary.get("earlier") or [])]
+    return [r for r in runs if isinstance(r, dict) and isinstance(r.get("name"), str)
+            and isinstance(r.get("recording"), str)]
+
+
+def _earlier_names(out: Path) -> dict[Path, str]:
+    """Each recording's output folder name in an earlier run into ``out`` (:func:`_earlier_runs`),
+    by its resolved path, for the folders that are still there."""
+    names: dict[Path, str] = {}
+    for r in _earlier_runs(out):
+        name = r["name"]
+        if Path(name).name == name and name not in (".", "..") and (out / name).is_dir():
+            names.setdefault(Path(r["recording"]).resolve(), name)
     return names
 
 
@@ -316,7 +357,11 @@ def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
         if cluster is not None:
             cluster.close()
     names = list(dict.fromkeys(t.name for t in tasks))  # a recording's segments: one result
+    # what earlier runs into OUT did for recordings this one left out: kept, not lost
+    earlier = [r for r in _earlier_runs(out_dir) if r["name"] not in names]
     summary = {"recordings": [results[name] for name in names],
+               **({"earlier": list({r["name"]: r for r in earlier}.values())}
+                  if earlier else {}),
                "failed": sum(not results[name]["ok"] for name in names),
                "workers": n_workers, "scheduler": scheduler or "LocalCluster",
                "options": asdict(tasks[0].options) if tasks else {},
