@@ -258,6 +258,9 @@ CASES = [
     ("campaign-into-a-recordings-folder",
      ["campaign", "{root}/rec.tiff", "--out", "{root}/flight", "--method", "mean",
       "--calibration", "{root}/cal.h5"], "flight: holds a recording (frames.tiff"),
+    ("flight-selfcal-family-and-calibration",
+     ["flight", "{root}/rec.tiff", "--out", "{tmp}/o", "--method", "selfcal", "--family",
+      "boson", "--calibration", "{root}/cal.h5"], "with --calibration it starts from that"),
     ("info-of-network-weights", ["info", "{shipped}"],
      "a PyTorch file (network weights?), not a recording"),
     # the unit's Planck constants are fitted before any work: nothing left behind

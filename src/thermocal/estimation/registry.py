@@ -135,8 +135,10 @@ def check_method_options(name: str, *, backend: str = "torch", threads: int | No
     """Refuse an option that ``--method name`` would ignore (the user would believe it used):
     ``--backend`` or ``--threads`` or ``--model`` for a method that runs no network,
     ``--calibration`` for one that takes none, ``--family`` (other than the default) for one
-    that does not start from a family's average unit, ``--fpa-c`` or ``--force`` for the
-    camera's own constants (they convert counts without the FPA, and have no domain)."""
+    that does not start from a family's average unit or is given a calibration to start from,
+    ``--fpa-c`` or ``--force`` for the camera's own constants (they convert counts without the
+    FPA, and have no domain); ``--threads`` beyond
+    :data:`~thermocal.cores.MAX_PER_CORE` per core."""
     needs = ESTIMATORS[name].needs
     if threads is not None:
         from thermocal.cores import check_per_core
@@ -159,6 +161,10 @@ def check_method_options(name: str, *, backend: str = "torch", threads: int | No
         raise InvalidInputError(
             f"--family chooses the average unit --method selfcal starts from; --method {name} "
             "does not use one")
+    if family != "tau2" and calibration is not None:
+        raise InvalidInputError(
+            "--family chooses the average unit selfcal starts from without a calibration; "
+            "with --calibration it starts from that: leave --family out")
 
 
 def _calibration(calibration: str | os.PathLike[str] | Calibration | None) -> Calibration | None:
