@@ -244,3 +244,20 @@ def test_a_rerun_with_inputs_left_out_or_added_keeps_each_recordings_folder(data
     names = {Path(t.recording).resolve(): t.name
              for t in campaign_tasks([third, first], out, _options(data))}
     assert names == {first: "pass0", third.resolve(): "pass0-3"}
+
+
+def test_the_workers_leave_ctrl_c_to_the_command():
+    """The LocalCluster's worker processes start with SIGINT ignored, so that Ctrl-C (sent to
+    the whole process group) is answered by the command alone, in one line (each worker printed
+    its KeyboardInterrupt traceback); the command's own handler is as it was."""
+    import signal
+
+    before = signal.getsignal(signal.SIGINT)
+    client = campaign.connect(None, 1)
+    try:
+        ignored = client.run(lambda: signal.getsignal(signal.SIGINT) == signal.SIG_IGN)
+    finally:
+        client.close()
+        client.cluster.close()
+    assert list(ignored.values()) == [True]
+    assert signal.getsignal(signal.SIGINT) is before

@@ -286,8 +286,23 @@ def connect(scheduler: str | None, workers: int) -> Any:
                 f"({type(exc).__name__}: {str(exc).splitlines()[0][:120] if str(exc) else ''}); "
                 "start one (dask scheduler, dask-jobqueue, dask-kubernetes) or leave out "
                 "--scheduler for this machine's cores") from None
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                           dashboard_address=":0")  # any free port: no clash, no warning
+    import logging
+    import signal
+    import threading
+
+    # the worker processes start with Ctrl-C ignored (a disposition a new process keeps, and
+    # Python then installs no KeyboardInterrupt of its own): Ctrl-C reaches the whole process
+    # group, and only this process should answer it, closing the cluster, in one line (each
+    # worker printed its tracebacks). While the workers start, Ctrl-C waits.
+    main = threading.current_thread() is threading.main_thread()
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN) if main else None
+    try:
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                               dashboard_address=":0",  # any free port: no clash, no warning
+                               silence_logs=logging.ERROR)  # the command says what went wrong
+    finally:
+        if main:
+            signal.signal(signal.SIGINT, previous)
     return Client(cluster)
 
 
