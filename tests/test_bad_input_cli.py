@@ -500,6 +500,8 @@ CASES = [
      "--clip-sigma: expected a finite number"),
     ("mosaic-memory-too-small", ["mosaic", "{tmp}", "--memory-mb", "0"],
      "--memory-mb must be >= 16"),
+    ("export-a-folder", ["export", "{tmp}", "--out", "{tmp}/e.onnx"],
+     "a folder, not a weights file"),
     ("export-a-variant-not-shipped",
      ["export", "--method", "e2e", "--out", "{tmp}/e.onnx"], "export: MODEL.pt"),
     ("bench-one-file-for-both-outputs",

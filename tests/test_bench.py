@@ -27,6 +27,16 @@ def test_bench_refuses_a_missing_output_folder_before_running(tmp_path, capsys):
     assert exc.value.code == 2 and "does not exist" in capsys.readouterr().err
 
 
+def test_a_benchmark_named_twice_runs_once(monkeypatch, capsys):
+    import thermocal.bench as bench
+
+    asked = []
+    monkeypatch.setattr(bench, "run_benchmarks",
+                        lambda names, *, quick: asked.append(names) or {})
+    main(["bench", "--quick", "--only", "simulator", "--only", "nuc", "--only", "simulator"])
+    assert asked == [("simulator", "nuc")]
+
+
 def test_report_names_the_machine_and_failures():
     runs = {"simulator": {"markdown": "| a |", "results": {}, "seconds": 3.0, "rc": 0,
                           "stderr_tail": []},

@@ -104,7 +104,7 @@ def bench(quick: bool, json_out: Path | None, md_out: Path | None, only: tuple[s
             check_output_file(path)
     if json_out is not None and md_out is not None:
         check_outputs_differ(md_out, json_out, ("--markdown", "--json"))
-    runs = run_benchmarks(only or BENCHMARKS, quick=quick)
+    runs = run_benchmarks(tuple(dict.fromkeys(only)) or BENCHMARKS, quick=quick)  # once each
     report = markdown_report(runs, quick=quick, host=host)
     if json_out:
         write_json_atomic(json_out, {"machine": host, "quick": quick, "benchmarks": runs})

@@ -197,6 +197,8 @@ def load_model(path: str | os.PathLike[str]) -> tuple[KPN, Normalisation, dict[s
         Missing, truncated, damaged or not a thermocal KPN weights file.
     """
     p = Path(path)
+    if p.is_dir():
+        raise FileFormatError(f"{p}: a folder, not a weights file (a .pt of `thermocal train`)")
     if not p.is_file():
         raise FileFormatError(f"{p}: no such weights file (train one with `thermocal train`)")
     try:
