@@ -177,6 +177,10 @@ def test_references_fix_a_known_level():
     ("frame,x,y,radius_px,temperature_c\n1,20,20,4,nan\n", "temperature_c is nan"),
     ("frame,x,y,radius_px,temperature_c,emissivity\n1,20,20,4,20,1.5\n", "emissivity must be"),
     ("frame,x,y,radius_px,temperature_c\n1.5,20,20,4,20\n", "frame 1.5 does not exist"),
+    ("frame,x,y,radius_px,temperature_c\n1,20,20,4,700\n",
+     "temperature_c 700 °C is outside the -123…627 °C"),
+    ("frame,x,y,radius_px,temperature_c,reflected_c\n1,20,20,4,20,5000\n",
+     "reflected_c 5000 °C is outside"),
 ])
 def test_bad_reference_files_get_one_line(tmp_path, text, message):
     path = tmp_path / "REF.csv"

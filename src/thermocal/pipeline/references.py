@@ -46,6 +46,19 @@ DEFAULT_SIGMA_C = 0.1
 DISAGREE_SIGMAS = 3.0
 
 
+def _check_in_tables(t_c: float, column: str, where: str) -> None:
+    """A reference's temperature (°C) inside the radiance tables' range
+    (:class:`~thermocal.radiometry.BandRadiance`'s default ``t_min_k``…``t_max_k``); one line
+    naming the row otherwise."""
+    from thermocal.radiometry import BandRadiance
+
+    lo = BandRadiance.t_min_k - ZERO_CELSIUS_K
+    hi = BandRadiance.t_max_k - ZERO_CELSIUS_K
+    if not lo <= t_c <= hi:
+        raise InvalidInputError(f"{where}: {column} {t_c:g} °C is outside the {lo:.0f}…{hi:.0f} "
+                                "°C the radiance tables cover")
+
+
 @dataclass(frozen=True)
 class Reference:
     """One row of a reference file (see the module)."""
@@ -124,11 +137,14 @@ def read_references(path: str | os.PathLike[str], *, n_frames: int,
         t = _number(row["temperature_c"], "temperature_c", where)
         if t <= -ZERO_CELSIUS_K:
             raise InvalidInputError(f"{where}: temperature_c {t:g} °C is at or below absolute zero")
+        _check_in_tables(t, "temperature_c", where)
         eps = _number(row["emissivity"], "emissivity", where) if row.get("emissivity") else 1.0
         if not 0 < eps <= 1:
             raise InvalidInputError(f"{where}: emissivity must be in (0, 1], not {eps:g}")
         refl = (_number(row["reflected_c"], "reflected_c", where) if row.get("reflected_c")
                 else None)
+        if refl is not None:
+            _check_in_tables(refl, "reflected_c", where)
         sigma = (_number(row["sigma_c"], "sigma_c", where) if row.get("sigma_c")
                  else DEFAULT_SIGMA_C)
         if sigma <= 0:
