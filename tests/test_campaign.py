@@ -97,6 +97,7 @@ def test_same_names_are_made_unique_whatever_the_order_given(data, tmp_path):
 @pytest.mark.parametrize("args, message", [
     (["{data}/cal.h5"], "cal.h5"),
     (["{data}/pass0", "{data}/pass0"], "given twice"),
+    (["{data}/pass0", "{data}/pass0/frames.tiff"], "frames.tiff: given twice"),  # folder, file
     (["{data}/pass0", "--scheduler", "tcp://127.0.0.1:9"], "cannot reach the Dask scheduler"),
     (["{data}/pass0", "--workers", "0"], "--workers"),
     (["{data}/pass0", "--method", "mean"], "--calibration"),

@@ -329,6 +329,15 @@ def test_flight_refuses_a_pass_too_short_or_a_reference_without_selfcal(flown, c
     code, _, err = run(["flight", short / "frames.tiff", "--out", out, "--method", "selfcal"],
                        capsys)
     assert code == 2 and f"at least {MIN_FRAMES} frames" in err and not out.exists()
+    # 35 frames, but groups of 9 every 9 frames use 27: said so (it said "this one has 27")
+    tifffile.imwrite(short / "frames.tiff", tifffile.imread(rec)[:35])
+    meta = json.loads(rec.with_suffix(".json").read_text())
+    meta = {k: (v[:35] if isinstance(v, list) and len(v) == 70 else v) for k, v in meta.items()}
+    (short / "frames.json").write_text(json.dumps(meta))
+    code, _, err = run(["flight", short / "frames.tiff", "--out", out, "--method", "selfcal",
+                        "--frames", "9", "--stride", "9"], capsys)
+    assert code == 2 and "the groups at this --frames and --stride use 27" in err
+    assert not out.exists()
     ref = tmp_path / "REF.csv"
     ref.write_text("frame,x,y,radius_px,temperature_c\n3,10,10,2,20\n")
     code, _, err = run(["flight", rec, "--out", out, "--method", "kpn", "--reference", ref],

@@ -92,9 +92,10 @@ def campaign_tasks(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[
     for raw in inputs:
         path = Path(raw)
         real = path.resolve()
-        if real in seen:
+        key = _recording_file(path)
+        if key in seen:
             raise InvalidInputError(f"{path}: given twice")
-        seen.add(real)
+        seen.add(key)
         try:
             n = recording_length(path)
         except ThermocalError as exc:
@@ -140,6 +141,22 @@ def _output_names(paths: list[Path], earlier: dict[Path, str] | None = None
             names[real] = f"{stem}-{k}"
             used.add(names[real])
     return names
+
+
+def _recording_file(path: Path) -> Path:
+    """The file a recording is read from, resolved: a folder holding one recording of the
+    project's format is its ``NAME.tiff`` (so that the folder and the file are one recording);
+    anything else its own resolved path."""
+    if path.is_dir():
+        from thermocal.io.open import open_recording
+
+        try:
+            source = open_recording(path)
+        except ThermocalError:
+            return path.resolve()  # not a recording: refused with its reason just after
+        if Path(source.path).is_file():
+            return Path(source.path).resolve()
+    return path.resolve()
 
 
 def _earlier_runs(out: Path) -> list[dict[str, Any]]:

@@ -742,6 +742,11 @@ def _fit_batch(estimator: Any, run: _Batch, series: dict[str, Any]) -> Any:
     if run.sequence is None:
         raise RegistrationError(run.error or "the batch was not registered")
     m = len(run.frames)
+    if m < MIN_FRAMES:  # the frames the groups use, not the recording's (which may hold more)
+        raise InvalidInputError(
+            f"selfcal needs at least {MIN_FRAMES} frames of a pass; the groups at this --frames "
+            f"and --stride use {m} (frames {run.start}-{run.start + m - 1}): give a smaller "
+            "--stride or a longer recording")
     mid = m // 2
     homographies, use = run.sequence.chained_to(mid)
     for i, _, _ in run.undecodable:
