@@ -696,3 +696,25 @@ def test_the_unmeasured_growth_starts_where_each_end_fold_stopped():
     s = {t: float(model.sigma(np.array([[t]]), 27.5)[0, 0]) for t in (80.0, 100.0, -5.0, -10.0)}
     assert s[100.0] - s[80.0] == pytest.approx(G * k_scene * 20.0 + 10.0, rel=1e-4)
     assert s[-10.0] - s[-5.0] == pytest.approx(G * k_scene * 5.0 + 5.0, rel=1e-4)
+
+
+def test_a_report_of_an_older_thermocal_says_what_it_lacks(fitted, tmp_path):
+    """A report without paces (all methods), or a memoryless method's without change bins:
+    said, with the remedy, when an estimator is made of it; one made now: nothing."""
+    import warnings
+
+    from thermocal.calibration.base import ThermocalWarning
+    from thermocal.estimation.calibrated import PivotCalibration
+
+    assert "no FPA paces" in CalibrationSigma(_report()).older_report()
+    paced = _report(paces={"lag_s": 480.0, "cell_c_per_min": 0.1, "cells": [[0, 0]]})
+    assert "pace is from steady" in CalibrationSigma(paced).older_report()
+    assert CalibrationSigma(replace(paced, method="lin-lag")).older_report() is None
+    _, cal, report = fitted
+    assert CalibrationSigma(report).older_report() is None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ThermocalWarning)
+        PivotCalibration(cal)  # made now: no warning
+    old = replace(cal, info=cal.info | {"report": replace(report, by_change=[]).to_dict()})
+    with pytest.warns(ThermocalWarning, match="older thermocal.*calibrate again"):
+        PivotCalibration(old)

@@ -189,7 +189,7 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
     from thermocal.calibration.base import ThermocalWarning
     from thermocal.calibration.dataset import recording_fpa_rates
     from thermocal.calibration.registry import load_any_calibration
-    from thermocal.calibration.uncertainty import REMEDY, CalibrationSigma
+    from thermocal.calibration.uncertainty import REMEDY, CalibrationSigma, older_report_warning
     from thermocal.errors import OutsideDomainError
     from thermocal.io.open import check_outside_recording, read_any_recording
     from thermocal.io.recording import write_sigma_tiff, write_temperature_tiff
@@ -205,6 +205,10 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
         check_fpa_c(fpa_c, "--fpa-c")
     cal = load_any_calibration(calibration_path)
     model = CalibrationSigma.of(cal)
+    older = None if model is None else model.older_report()
+    if older:
+        click.echo(f"thermocal: warning: {calibration_path}: {older_report_warning(older)}",
+                   err=True)
     if sigma_out is not None and model is None:
         raise InvalidInputError(f"{calibration_path} has no cross-validation report (made by an "
                                 "older thermocal, or none could be measured): calibrate again "

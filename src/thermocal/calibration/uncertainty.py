@@ -97,7 +97,8 @@ from thermocal.calibration.report import (
     report_of,
 )
 
-__all__ = ["FPA_MARGIN_C", "MIN_GROWTH_PER_C", "RATE_MARGIN", "REMEDY", "CalibrationSigma"]
+__all__ = ["FPA_MARGIN_C", "MIN_GROWTH_PER_C", "RATE_MARGIN", "REMEDY", "CalibrationSigma",
+           "older_report_warning"]
 
 #: The least growth of the error outside the calibrated ranges, °C of MAE per °C outside.
 MIN_GROWTH_PER_C = 0.02
@@ -141,6 +142,13 @@ def _growth(folds: list[dict[str, Any]], interior: float, distance: Any) -> floa
     return max([MIN_GROWTH_PER_C, *rates])
 
 
+def older_report_warning(what: str) -> str:
+    """The warning for a calibration whose report lacks ``what``
+    (:meth:`CalibrationSigma.older_report`)."""
+    return (f"the calibration was made by an older thermocal: its report holds {what}; "
+            "calibrate again (`thermocal calibrate`) to have it")
+
+
 @dataclass(frozen=True)
 class CalibrationSigma:
     """σ of a calibration's temperatures and the ranges it covers (see the module docstring)."""
@@ -155,6 +163,22 @@ class CalibrationSigma:
         if report is None or report.expected_mae_c is None:
             return None
         return cls(report)
+
+    def older_report(self) -> str | None:
+        """What the report lacks that one made now records (a file made by an older
+        thermocal), in words, or None: the FPA paces its session held (frames are then not
+        checked against them), or, for a memoryless method, σ by how far the pace is from
+        steady (:meth:`change_sigma`)."""
+        from thermocal.calibration.registry import CALIBRATION_METHODS  # here: no cycle
+
+        info = CALIBRATION_METHODS.get(self.report.method)
+        if not self.report.paces:
+            return ("no FPA paces, so frames are not checked against the paces its session "
+                    "held")
+        if info is not None and info.memoryless and not self.report.by_change:
+            return ("no σ by how far the FPA's pace is from steady, so σ just after the FPA "
+                    "starts or stops changing may be too small")
+        return None
 
     @cached_property
     def _curves(self) -> tuple:

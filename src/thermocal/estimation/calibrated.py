@@ -3,12 +3,13 @@ Oz et al. (``mean``) and the pivot frame alone (``calibration``)."""
 
 from __future__ import annotations
 
+import warnings
 from typing import Any
 
 import numpy as np
 
-from thermocal.calibration.base import Calibration, apply_with_rate
-from thermocal.calibration.uncertainty import REMEDY, CalibrationSigma
+from thermocal.calibration.base import Calibration, ThermocalWarning, apply_with_rate
+from thermocal.calibration.uncertainty import REMEDY, CalibrationSigma, older_report_warning
 from thermocal.errors import ResolutionMismatchError
 from thermocal.estimation.base import Estimate, FpaPace, PreparedBurst, view_spread
 from thermocal.estimation.pipeline import estimate
@@ -27,6 +28,9 @@ class _ThroughCalibration:
     def __init__(self, calibration: Calibration) -> None:
         self.calibration = calibration
         self.sigma_model = CalibrationSigma.of(calibration)
+        older = None if self.sigma_model is None else self.sigma_model.older_report()
+        if older:
+            warnings.warn(older_report_warning(older), ThermocalWarning, stacklevel=2)
 
     def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any, *,
                   pace: FpaPace | None = None) -> np.ndarray:
