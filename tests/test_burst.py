@@ -225,3 +225,21 @@ def test_burst_window_refuses_a_pivot_outside_the_recording():
 
     with pytest.raises(InvalidInputError):
         burst_window(9, 7, 9)
+
+
+def test_clipped_pixels_are_filled_even_when_the_scene_holds_still():
+    """A pixel at 0 or at the top count in any frame is filled from its neighbours whatever
+    the motion (given ``top``); a static scene's sharp features are kept; without ``top``, as
+    before (a hovering burst's saturated pixel read 80 °C where the scene was 17 °C)."""
+    rng = np.random.default_rng(0)
+    frame = rng.integers(5000, 5100, (40, 48)).astype(np.uint16)
+    frame[20, 20] = 9000  # a bright point of the scene: held still, not a defect
+    burst = np.repeat(frame[None], 5, axis=0)
+    burst[:, 5, 7] = 16383  # saturated in every frame
+    burst[2, 30, 40] = 0  # dead in one frame
+    still = np.repeat(np.eye(3)[None], 5, axis=0)
+    out, bad = fill_stuck_pixels(burst, still, top=16383)
+    assert bad[5, 7] and bad[30, 40] and not bad[20, 20] and bad.sum() == 2
+    assert 5000 <= out[0, 5, 7] <= 5100 and 5000 <= out[2, 30, 40] <= 5100
+    assert out[0, 20, 20] == 9000 and burst[0, 5, 7] == 16383  # the input untouched
+    assert not fill_stuck_pixels(burst, still)[1].any()  # without top: motion decides

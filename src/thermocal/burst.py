@@ -172,13 +172,19 @@ def _count_median(d: np.ndarray) -> float:
                  + np.searchsorted(cum, n // 2, side="right")) / 2.0
 
 
-def fill_stuck_pixels(frames: Any, homographies: Any = None) -> tuple[np.ndarray, np.ndarray]:
+def fill_stuck_pixels(frames: Any, homographies: Any = None, *, top: int | None = None
+                      ) -> tuple[np.ndarray, np.ndarray]:
     """A copy of a raw burst ``(N, H, W)`` with its :func:`stuck_pixels` replaced by the median
     of their good 3×3 neighbours (rounded for integer frames), and their mask ``(H, W)``. Every
-    other pixel and the dtype are kept."""
+    other pixel and the dtype are kept. Given ``top`` (the largest count, ``2**bit_depth − 1``),
+    integer pixels at 0 or at ``top`` in any frame are filled too, whether or not the scene
+    moved: a clipped count says nothing of the scene (a saturated pixel of a hovering burst read
+    80 °C where the scene was 17 °C, with σ 1 °C)."""
     arr = np.asarray(frames)
     out = arr.copy()
     bad = stuck_pixels(arr, homographies)
+    if top is not None and np.issubdtype(arr.dtype, np.integer) and arr.size:
+        bad |= (arr.min(axis=0) <= 0) | (arr.max(axis=0) >= top)
     if bad.any():
         filled = fill_bad_pixels(arr.astype(np.float32), bad)[:, bad]
         if np.issubdtype(arr.dtype, np.integer):

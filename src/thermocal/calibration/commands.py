@@ -211,8 +211,9 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
                    err=True)
     if sigma_out is not None and model is None:
         raise InvalidInputError(f"{calibration_path} has no cross-validation report (made by an "
-                                "older thermocal, or none could be measured): calibrate again "
-                                "to get its uncertainty")
+                                "older thermocal, or from a session with too few set points to "
+                                "leave one out): calibrate again, from a session of at least 3 "
+                                "set points, to get its uncertainty")
     rec = read_any_recording(frames, fpa_c=fpa_c)
     if sigma_out is not None and rec.fpa_c is None:
         raise InvalidInputError(f"{frames}: no FPA temperature, which σ depends on: give --fpa-c "

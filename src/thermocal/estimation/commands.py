@@ -129,7 +129,9 @@ def estimate_file(
 #: What to do when an estimator has no uncertainty model, by what it is built from.
 NO_SIGMA_REMEDY = {
     "calibration": "the calibration file has no cross-validation report (made by an older "
-                   "thermocal): calibrate again to get its uncertainty",
+                   "thermocal, or from a session with too few set points to leave one out): "
+                   "calibrate again, from a session of at least 3 set points, to get its "
+                   "uncertainty",
     "model": "its weights have no σ model beside them (NAME.sigma.json): fit one with "
              "`python -m thermocal.evaluation.sigma_fit WEIGHTS.pt`",
     "pass": "selfcal fits a whole pass, not one burst: run `thermocal flight --method selfcal` "

@@ -176,7 +176,8 @@ def estimate(
     # 2. register
     hs = register_stage(arr, p, registered=registered, homographies=homographies)
     # 3. fill stuck pixels
-    filled = fill_stuck_pixels(arr, hs)[0] if fill_defects and not registered else arr
+    filled = (fill_stuck_pixels(arr, hs, top=2**bit_depth - 1)[0]
+              if fill_defects and not registered else arr)
     # 4. calibrate
     calibrated, outside = calibrate_stage(estimator, filled, fpa if estimator.needs_fpa else fpa_c,
                                           time_s, fpa, force=force, pace=pace)
