@@ -661,3 +661,21 @@ def test_a_damaged_exif_is_one_warning_naming_the_file(shared_data, tmp_path, ca
     assert code == 0 and "1 frame(s) of 640x512" in out
     lines = err.strip().splitlines()
     assert len(lines) == 1 and "dmg.jpg: damaged EXIF" in lines[0], err
+
+
+def test_a_flir_file_renamed_tiff_is_read_by_its_content(shared_data, tmp_path, capsys):
+    """A DJI R-JPEG renamed ``.tif`` is read as the R-JPEG it is (it was "not a readable
+    TIFF"), the same frames as under its own name; an HDF5 file given as a recording says
+    what it is."""
+    from cli_run import run
+
+    from thermocal.io.open import read_any_recording
+
+    dji = _real(shared_data, "recordings", "dji_xtr_tau2.jpg")
+    renamed = tmp_path / "i.tif"
+    renamed.write_bytes(dji.read_bytes())
+    np.testing.assert_array_equal(read_any_recording(renamed).frames,
+                                  read_any_recording(dji).frames)
+    (tmp_path / "c.h5").write_bytes(b"\x89HDF\r\n\x1a\n" + bytes(64))
+    code, _, err = run(["info", tmp_path / "c.h5"], capsys)
+    assert code == 2 and "an HDF5 file" in err and "thermocal calibrate" in err

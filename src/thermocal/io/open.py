@@ -641,6 +641,9 @@ def _kind(p: Path, head: bytes) -> str:
         return "fff"
     if head[:3] == JPEG_MAGIC:
         return "rjpeg"
+    if head[:8] == b"\x89HDF\r\n\x1a\n":
+        raise FileFormatError(f"{p}: an HDF5 file (a chamber session or a calibration?), not a "
+                              "recording: `thermocal calibrate` reads chamber sessions")
     if head[:4] == _ZIP_MAGIC:
         keys = npz_keys(p)
         if "blackbody" in keys:
@@ -760,9 +763,20 @@ def _camera_header(meta: dict[str, Any]) -> dict[str, Any]:
 
 def _project_recording(p: Path) -> bool:
     """Whether the commands read ``p`` with the project's own reader
-    (:mod:`thermocal.io.recording`): a ``.tif``/``.tiff`` recording, or a path that does not
-    exist (its message then names the missing file)."""
-    return p.suffix.lower() in (".tif", ".tiff") or not p.exists()
+    (:mod:`thermocal.io.recording`): a ``.tif``/``.tiff`` recording whose content is a TIFF's
+    (or cannot be read: that reader names why), or a path that does not exist (its message
+    then names the missing file). A FLIR file renamed ``.tiff`` goes to :func:`open_recording`,
+    which tells it by its content."""
+    if not p.exists():
+        return True
+    if p.suffix.lower() not in (".tif", ".tiff"):
+        return False
+    try:  # by its content: a FLIR file renamed .tiff is read as what it is
+        with open(p, "rb") as fh:
+            head = fh.read(4)
+    except OSError:
+        return True  # its reader names the file and why it cannot be read
+    return not head or head in _TIFF_MAGICS or not p.is_file()
 
 
 def read_any_recording(path: str | os.PathLike[str], *, fpa_c: float | None = None

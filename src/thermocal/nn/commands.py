@@ -115,7 +115,7 @@ def _experiment(*decls: str, **kwargs: Any):
     "out",
     type=click.Path(path_type=Path),
     required=True,
-    help="Weights file to write (.pt); a checkpoint OUT.ckpt is kept beside it.",
+    help="Weights file to write (.pt); a checkpoint is kept beside it (m.pt → m.ckpt).",
 )
 @click.option(
     "--preset",
@@ -142,7 +142,9 @@ def _experiment(*decls: str, **kwargs: Any):
     help="Start from this weights file, or 'shipped' for the shipped KPN (same network; its "
     "normalisation is kept).",
 )
-@click.option("--resume", is_flag=True, help="Continue from OUT.ckpt (the budget is this call's).")
+@click.option("--resume", is_flag=True,
+              help="Continue from the checkpoint beside OUT (m.pt → m.ckpt; the budget is "
+              "this call's).")
 @click.option(
     "--max-minutes",
     type=float,
