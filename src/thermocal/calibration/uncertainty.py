@@ -142,6 +142,16 @@ def _growth(folds: list[dict[str, Any]], interior: float, distance: Any) -> floa
     return max([MIN_GROWTH_PER_C, *rates])
 
 
+def _bins_sigma(values: np.ndarray, bins: list[dict[str, Any]], key: str) -> np.ndarray:
+    """Each of ``values`` ``(N,)``'s σ in ``bins`` (a report's bins: ``key`` ``[low, high]``,
+    high None for the last, and ``sigma_c``), °C; 0 outside every bin."""
+    out = np.zeros(values.shape)
+    for b in bins:
+        lo, hi = b[key]
+        out[(values >= lo) & (values < (math.inf if hi is None else hi))] = b["sigma_c"]
+    return out
+
+
 def older_report_warning(what: str) -> str:
     """The warning for a calibration whose report lacks ``what``
     (:meth:`CalibrationSigma.older_report`)."""
@@ -240,13 +250,8 @@ class CalibrationSigma:
         :data:`~thermocal.calibration.report.MIN_BIN_FRAMES` frames (a report made before
         sparse bins were pooled), 0 elsewhere (no start-up seen)."""
         t = np.asarray(time_since_start_s, dtype=np.float64).reshape(-1)
-        out = np.zeros(t.shape)
-        for b in self.report.by_time:
-            if b["frames"] < MIN_BIN_FRAMES or b.get("sigma_c") is None:
-                continue
-            lo, hi = b["time_s"]
-            out[(t >= lo) & (t < (math.inf if hi is None else hi))] = b["sigma_c"]
-        return out
+        return _bins_sigma(t, [b for b in self.report.by_time if b["frames"] >= MIN_BIN_FRAMES
+                               and b.get("sigma_c") is not None], "time_s")
 
     def change_sigma(self, change_c_per_min: Any) -> np.ndarray:
         """σ of how far each frame's pace was from steady (°C/min, ``|r − y|``; ``(N,)``), °C:
@@ -258,11 +263,8 @@ class CalibrationSigma:
         it too left no frame silent on the first held-out run but over-covered every memoryless
         method (``polynomial`` on ``tau2`` 100 % within 2σ; RESULTS.md, 2026-11-28)."""
         d = np.asarray(change_c_per_min, dtype=np.float64).reshape(-1)
-        out = np.zeros(d.shape)
         used = [b for b in self.report.by_change if b["change_c_per_min"][0] > 0]
-        for b in used:  # the steady bin pools plateaus with ramps: the pace bins tell them apart
-            lo, hi = b["change_c_per_min"]
-            out[(d >= lo) & (d < (math.inf if hi is None else hi))] = b["sigma_c"]
+        out = _bins_sigma(d, used, "change_c_per_min")
         if used:  # a rate not known (NaN): how it changed is not known either, the worst bin
             out[np.isnan(d)] = max(b["sigma_c"] for b in used)
         return out

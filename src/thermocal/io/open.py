@@ -772,9 +772,8 @@ def _project_recording(p: Path) -> bool:
     if p.suffix.lower() not in (".tif", ".tiff"):
         return False
     try:  # by its content: a FLIR file renamed .tiff is read as what it is
-        with open(p, "rb") as fh:
-            head = fh.read(4)
-    except OSError:
+        head = _head(p, 4)
+    except FileFormatError:
         return True  # its reader names the file and why it cannot be read
     return not head or head in _TIFF_MAGICS or not p.is_file()
 

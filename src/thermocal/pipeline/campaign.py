@@ -83,7 +83,7 @@ def campaign_tasks(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[
         An input that is not a recording (named), the same recording twice, ``out`` inside one.
     """
     from thermocal._validate import check_not_input
-    from thermocal.io.open import check_outside_recording, recording_length
+    from thermocal.io.open import check_outside_recording
 
     if not inputs:
         raise InvalidInputError("give at least one recording")
@@ -91,17 +91,15 @@ def campaign_tasks(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[
     tasks, seen = [], set()
     for raw in inputs:
         path = Path(raw)
-        real = path.resolve()
-        key = _recording_file(path)
-        if key in seen:
-            raise InvalidInputError(f"{path}: given twice")
-        seen.add(key)
         try:
-            n = recording_length(path)
+            key, n = _recording_file_and_length(path)
         except ThermocalError as exc:
             text = str(exc)
             raise type(exc)(text if text.startswith(str(path)) else f"{path}: {text}") from None
-        name = names[real]
+        if key in seen:
+            raise InvalidInputError(f"{path}: given twice")
+        seen.add(key)
+        name = names[path.resolve()]
         target = Path(out) / name
         check_not_input(target, path)
         check_outside_recording(path, (out, "--out"))
@@ -143,20 +141,17 @@ def _output_names(paths: list[Path], earlier: dict[Path, str] | None = None
     return names
 
 
-def _recording_file(path: Path) -> Path:
-    """The file a recording is read from, resolved: a folder holding one recording of the
-    project's format is its ``NAME.tiff`` (so that the folder and the file are one recording);
-    anything else its own resolved path."""
-    if path.is_dir():
-        from thermocal.io.open import open_recording
+def _recording_file_and_length(path: Path) -> tuple[Path, int]:
+    """The file a recording is read from, resolved (a folder holding one recording of the
+    project's format is its ``NAME.tiff``, so that the folder and the file are one recording;
+    anything else its own resolved path), and its frame count: its headers read once."""
+    from thermocal.io.open import open_recording, recording_length
 
-        try:
-            source = open_recording(path)
-        except ThermocalError:
-            return path.resolve()  # not a recording: refused with its reason just after
-        if Path(source.path).is_file():
-            return Path(source.path).resolve()
-    return path.resolve()
+    if path.is_dir():
+        source = open_recording(path)
+        file = Path(source.path)
+        return (file.resolve() if file.is_file() else path.resolve()), source.n_frames
+    return path.resolve(), recording_length(path)
 
 
 def _earlier_runs(out: Path) -> list[dict[str, Any]]:

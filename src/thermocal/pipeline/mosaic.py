@@ -94,6 +94,8 @@ _TILE_PX = 512  # largest tile side
 _MIN_TILE_PX = 16
 _CACHE_MAPS = 48  # maps kept read between tiles (neighbouring tiles share most of their maps)
 _PREVIEW_PX = 2000  # longest side of the preview image, pixels
+#: A map's name in temps/, as the flight writes it (``frame_{pivot:06d}.tiff``).
+_MAP_NAME = re.compile(r"frame_(\d{6,})\.tiff")
 _STAGING = re.compile(r"\.mosaic\.(old\.)?[a-z0-9_]{8}")  # tempfile.mkdtemp's names
 _REACH = 3  # chains a map may join (those that grew last)
 
@@ -227,9 +229,9 @@ def _flight_maps(out: Path) -> tuple[list[_Map], list[dict[str, Any]]]:
             sigma = path.with_name(f"frame_{frame:06d}_sigma.tiff")
             maps.append(_Map(frame, path, sigma if sigma.is_file() else None))
     logged = {entry["frame"] for entry in entries}
-    unlogged = sorted(int(p.stem[6:]) for p in (out / "temps").glob("frame_[0-9]*.tiff")
-                      if p.stem[6:].isdigit() and len(p.stem) == 12
-                      and int(p.stem[6:]) not in logged)
+    unlogged = sorted(int(m[1]) for m in (_MAP_NAME.fullmatch(p.name)
+                                          for p in (out / "temps").glob("frame_*.tiff"))
+                      if m and int(m[1]) not in logged)
     if unlogged:  # a log cut short or edited: the maps are there, what made them is not
         warnings.warn(f"{len(unlogged)} map(s) in temps/ that log.jsonl does not list (frame "
                       f"{unlogged[0]}{', …' if len(unlogged) > 1 else ''}) left out: rerun "
