@@ -104,6 +104,13 @@ def inputs(tmp_path_factory) -> dict[str, Path]:
     # a session held at one ambient (no FPA span)
     main_ok(["simulate", "chamber", root / "constant.h5", "--size", "40x24",
              "--frames-per-point", "2", "--ambient-profile", "constant", "--ambient-c", "25:25"])
+    # a session of 2 set points at one ambient, which no fold can cross-validate, and the
+    # calibration written from it all the same (--force): without a report
+    main_ok(["simulate", "chamber", root / "twopoints.h5", "--size", SIZE, "--frames-per-point",
+             "2", "--blackbody-c", "20:40:20", "--ambient-profile", "constant", "--ambient-c",
+             "25:25"])
+    main_ok(["calibrate", root / "twopoints.h5", "--method", "two-point", "--out",
+             root / "cal_unreported.h5", "--force"])
     # a calibration of another size
     main_ok(["simulate", "chamber", root / "small.h5", "--size", "40x24",
              "--frames-per-point", "2"])
@@ -157,6 +164,22 @@ def _bad_recordings(root: Path) -> None:
 # {root}: the inputs' folder (never changed); {tmp}: this test's own folder (nothing is to be
 # created in it); {link}: a symbolic link {tmp}/link.tiff to {root}/rec.tiff
 CASES = [
+    # a calibration that cannot be cross-validated, or a file without its report: unchecked
+    ("calibrate-two-setpoints-not-cross-validated",
+     ["calibrate", "{root}/twopoints.h5", "--method", "two-point", "--out", "{tmp}/c.h5"],
+     "cannot be cross-validated on this session"),
+    ("correct-with-a-calibration-without-report",
+     ["correct", "{root}/rec.tiff", "--calibration", "{root}/cal_unreported.h5", "--out",
+      "{tmp}/t.tiff"], "no cross-validation report"),
+    ("correct-forced-sigma-of-a-calibration-without-report",
+     ["correct", "{root}/rec.tiff", "--calibration", "{root}/cal_unreported.h5", "--out",
+      "{tmp}/t.tiff", "--sigma-out", "{tmp}/s.tiff", "--force"], "no cross-validation report"),
+    ("estimate-with-a-calibration-without-report",
+     ["estimate", "{root}/rec.tiff", "--method", "mean", "--calibration",
+      "{root}/cal_unreported.h5", "--out", "{tmp}/t.tiff"], "no cross-validation report"),
+    ("flight-with-a-calibration-without-report",
+     ["flight", "{root}/flight", "--out", "{tmp}/out", "--method", "calibration",
+      "--calibration", "{root}/cal_unreported.h5"], "no cross-validation report"),
     # data loss: an output that is an input
     ("correct-over-recording",
      ["correct", "{root}/rec.tiff", "--calibration", "{root}/cal.h5", "--out",
@@ -859,7 +882,11 @@ def test_nan_from_a_calibration_names_the_calibration_file(inputs, tmp_path, cap
     import thermocal.calibration.registry as registry
     from thermocal.errors import InvalidInputError
 
+    real = registry.load_any_calibration(inputs["cal"])
+
     class NaNCalibration:
+        info = real.info  # its cross-validation report: a file without one is refused first
+
         def apply(self, frames, **kwargs):
             raise InvalidInputError("radiance: contains NaN")
 

@@ -198,8 +198,17 @@ def test_thermocal_estimate_with_a_calibration(tmp_path, flight, capsys):
     write_recording(tmp_path / "burst.tiff", Recording(flight.frames, fpa_c=flight.fpa_c))
     for method, est in (("calibration", PivotCalibration(cal)), ("mean", OzMean(cal))):
         out = tmp_path / f"{method}.tiff"
-        main(["estimate", str(tmp_path / "burst.tiff"), "--method", method, "--calibration",
-              str(tmp_path / "cal.h5"), "--registered", "--out", str(out)])
+        argv = ["estimate", str(tmp_path / "burst.tiff"), "--method", method, "--calibration",
+                str(tmp_path / "cal.h5"), "--registered", "--out", str(out)]
+        # a file without a cross-validation report cannot be checked: refused, unless --force
+        with pytest.raises(SystemExit) as exc:
+            main(argv)
+        err = capsys.readouterr().err
+        assert exc.value.code == 2 and "no cross-validation report" in err and "--force" in err
+        assert not out.exists()
+        main([*argv, "--force"])
+        err = capsys.readouterr().err
+        assert "warning" in err and "no cross-validation report" in err
         want = estimate(flight.frames, est, fpa_c=flight.fpa_c, registered=True)
         assert np.array_equal(tifffile.imread(out), want.temperature_c)
     with pytest.raises(SystemExit) as exc:

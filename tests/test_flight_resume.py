@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 import thermocal.pipeline.flight as flight
-from thermocal.calibration import fit_calibration
+from thermocal.calibration.report import fit_with_report
 from thermocal.camera import make_camera
 from thermocal.errors import InvalidInputError, ThermocalError
 from thermocal.io.recording import (
@@ -46,7 +46,7 @@ def data(tmp_path_factory):
                        profile="sawtooth", ambient_c=(15.0, 35.0), rate_c_per_min=0.2,
                        interval_s=20.0)
     write_simulated_chamber(tmp / "chamber.h5", camera, plan, seed=1)
-    fit_calibration(tmp / "chamber.h5", method="polynomial", frames="settled").save(tmp / "cal.h5")
+    fit_with_report(tmp / "chamber.h5", "polynomial", frames="settled")[0].save(tmp / "cal.h5")
     scene = 20.0 + 10.0 * np.random.default_rng(0).random((64, 64))
     write_simulated_flight(tmp / "flight",
                            plan_flight(scene, camera, n_frames=43, motion="uav", fpa_c=28.0,
@@ -128,7 +128,7 @@ def test_interrupted_run_resumes_to_the_same_bytes(data, tmp_path, tmp_path_fact
     # pivots after the k-th that other workers were estimating finish their maps, not their
     # log lines: the rerun redoes them
     assert k <= len(maps) <= k + (0 if workers == 1 else 2 * workers)
-    assert len(sigmas) == (len(maps) if method == "kpn" else 0)
+    assert len(sigmas) == len(maps)  # every method here has its σ (the calibration its report)
     summary = process_flight(data / "flight" / "frames.tiff", out, options)
     assert summary["skipped_already_done"] == k
     assert summary["processed"] == summary["groups"] - k
@@ -375,8 +375,8 @@ def test_bad_input_creates_no_folder(data, tmp_path, capsys):
     plan = ChamberPlan(setpoints_c=(10.0, 30.0, 50.0), frames_per_point=2, profile="sawtooth",
                        ambient_c=(15.0, 35.0), rate_c_per_min=0.2, interval_s=20.0)
     write_simulated_chamber(tmp_path / "small.h5", other, plan, seed=1)
-    fit_calibration(tmp_path / "small.h5", method="polynomial",
-                    frames="settled").save(tmp_path / "small_cal.h5")
+    fit_with_report(tmp_path / "small.h5", "polynomial",
+                    frames="settled")[0].save(tmp_path / "small_cal.h5")
     short = tmp_path / "short"
     short.mkdir()
     recording = read_recording(rec)

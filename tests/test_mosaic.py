@@ -278,7 +278,7 @@ def test_a_processed_flight(tmp_path):
     (``--method calibration``, stride 3) → the mosaic, against the scene the pass flew over."""
     import cv2
 
-    from thermocal.calibration import fit_calibration
+    from thermocal.calibration.report import fit_with_report
     from thermocal.camera import make_camera
     from thermocal.pipeline.flight import FlightOptions, process_flight
     from thermocal.simulate.chamber import ChamberPlan, write_simulated_chamber
@@ -289,8 +289,8 @@ def test_a_processed_flight(tmp_path):
                        profile="sawtooth", ambient_c=(15.0, 35.0), rate_c_per_min=0.2,
                        interval_s=20.0)
     write_simulated_chamber(tmp_path / "chamber.h5", camera, plan, seed=1)
-    fit_calibration(tmp_path / "chamber.h5", method="polynomial",
-                    frames="settled").save(tmp_path / "cal.h5")
+    fit_with_report(tmp_path / "chamber.h5", "polynomial",
+                    frames="settled")[0].save(tmp_path / "cal.h5")
     flight = plan_flight(_scene((160, 240), seed=3), camera, n_frames=40, motion="uav",
                          fpa_c=28.0, seed=2)
     write_simulated_flight(tmp_path / "flight", flight, camera)

@@ -4,12 +4,13 @@ from __future__ import annotations
 
 import json
 import threading
+from pathlib import Path
 
 import numpy as np
 import pytest
 import tifffile
 
-from thermocal.calibration import fit_calibration
+from thermocal.calibration.report import fit_with_report
 from thermocal.camera import make_camera
 from thermocal.errors import FileFormatError, InvalidInputError
 from thermocal.io.recording import read_temperature_tiff
@@ -30,7 +31,7 @@ def setup(tmp_path_factory):
                        profile="sawtooth", ambient_c=(15.0, 35.0), rate_c_per_min=0.2,
                        interval_s=20.0)
     write_simulated_chamber(tmp / "chamber.h5", camera, plan, seed=1)
-    cal = fit_calibration(tmp / "chamber.h5", method="polynomial", frames="settled")
+    cal, _ = fit_with_report(tmp / "chamber.h5", "polynomial", frames="settled")
     cal.save(tmp / "cal.h5")
     scene = 20.0 + 10.0 * np.random.default_rng(0).random((64, 64))
     flight = plan_flight(scene, camera, n_frames=23, motion="uav", fpa_c=28.0, seed=2)
@@ -52,7 +53,8 @@ def test_calibration_method_writes_one_map_per_pivot_and_resumes(setup, tmp_path
     summary = process_flight(setup / "flight" / "frames.tiff", out, options)
     assert summary["processed"] == 3 and summary["failed"] == 0
     names = sorted(p.name for p in (out / "temps").iterdir())
-    assert names == ["frame_000003.tiff", "frame_000010.tiff", "frame_000017.tiff"]
+    maps = ["frame_000003.tiff", "frame_000010.tiff", "frame_000017.tiff"]
+    assert names == sorted(maps + [m.replace(".tiff", "_sigma.tiff") for m in maps])
     assert sorted(p.name for p in (out / "previews").iterdir()) == ["frame_000003.png",
                                                                     "frame_000017.png"]
     truth = read_temperature_tiff(setup / "flight" / "truth.tiff")
@@ -233,8 +235,8 @@ def test_disk_full_keeps_finished_outputs_and_resumes(setup, tmp_path, monkeypat
     lock = threading.Lock()  # the pivots write at once
 
     def imwrite_then_full(*args, **kwargs):
-        with lock:
-            calls["n"] += 1
+        with lock:  # the disk fills at the second map (a pivot writes its σ map first)
+            calls["n"] += "_sigma" not in Path(str(args[0])).name
             full = calls["n"] > 1
         if full:
             raise OSError(errno.ENOSPC, "No space left on device", str(args[0]))
@@ -251,12 +253,13 @@ def test_disk_full_keeps_finished_outputs_and_resumes(setup, tmp_path, monkeypat
     assert len(err.splitlines()) == 1 and "No space left on device" in err
     assert "rerun to resume" in err
     # the one map written before the disk filled is kept (which one: the pivots run at once)
-    kept = [p.name for p in (out / "temps").iterdir()]
+    kept = [p.name for p in (out / "temps").iterdir() if not p.stem.endswith("_sigma")]
     assert len(kept) == 1 and kept[0] in ("frame_000003.tiff", "frame_000010.tiff",
                                           "frame_000017.tiff")
+    assert (out / "temps" / kept[0].replace(".tiff", "_sigma.tiff")).is_file()
     monkeypatch.setattr(tifffile, "imwrite", real_imwrite)
     main(argv)
-    names = sorted(p.name for p in (out / "temps").iterdir())
+    names = sorted(p.name for p in (out / "temps").iterdir() if not p.stem.endswith("_sigma"))
     assert names == ["frame_000003.tiff", "frame_000010.tiff", "frame_000017.tiff"]
 
 

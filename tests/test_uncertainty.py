@@ -109,6 +109,40 @@ def test_estimate_writes_sigma_and_inflates_it_outside(tmp_path, capsys):
     assert code == 2 and "input" in err and not (tmp_path / "x.tiff").exists()
 
 
+def test_forced_beyond_the_training_scenes_sigma_grows_by_the_distance(tmp_path, capsys):
+    """A scene 40 °C hotter than any training scene level, forced: σ grows by at least how far
+    beyond it lies (no training burst measured the error there: a FLIR T1030sc CSQ forced
+    through the tau2 network read 101 °C where the camera reads 19 °C); inside, no growth."""
+    from thermocal.camera.presets import make_camera
+    from thermocal.io.recording import Recording, write_recording
+    from thermocal.nn.infer import NetworkEstimator
+    from thermocal.nn.validity import beyond_training_c
+    from thermocal.scenes.procedural import procedural_scene
+    from thermocal.simulate.flight import simulate_flight
+
+    domain = NetworkEstimator.from_file("kpn").domain
+    lo, hi = domain.scene_level_c
+    clip_lo, clip_hi = domain.scene_clip_c
+    inside = np.full((4, 5), (lo + hi) / 2, np.float32)
+    assert not beyond_training_c(domain, inside, inside).any()
+    hot = inside + (hi - inside[0, 0]) + 30.0  # the level 30 °C above the training levels
+    t = np.full_like(inside, clip_hi + 5.0)
+    assert np.allclose(beyond_training_c(domain, hot, t), 35.0, atol=0.01)
+    assert np.allclose(beyond_training_c(domain, None, inside - (inside[0, 0] - clip_lo) - 2), 2)
+
+    scene = procedural_scene((256, 256), rng=np.random.default_rng(3), kind="mixed")
+    scene = scene - np.median(scene) + hi + 40.0
+    fl = simulate_flight(scene, make_camera("tau2", unit=104, size=(160, 128)), n_frames=7,
+                         motion="walk", fpa_c=25.0, seed=3)
+    path, _ = write_recording(tmp_path / "hot.tiff", Recording(fl.frames, fpa_c=fl.fpa_c))
+    out, sig = tmp_path / "t.tiff", tmp_path / "s.tiff"
+    code, _, err = run(["estimate", path, "--out", out, "--sigma-out", sig], capsys)
+    assert code == 2 and "training scenes" in err
+    code, _, err = run(["estimate", path, "--out", out, "--sigma-out", sig, "--force"], capsys)
+    assert code == 0 and "warning" in err, err
+    assert np.median(tifffile.imread(sig)) >= 35.0
+
+
 def test_fuzzed_sigma_models_are_refused_or_sane(tmp_path):
     """200 byte-level mutants of the shipped σ model: each is refused with FileFormatError or
     reads as the very same model (its SHA-256: a changed number cannot pass); nothing else."""

@@ -268,7 +268,8 @@ def as_frames(
             lo, hi = int(arr.min()), int(arr.max())
             raise InvalidInputError(
                 f"{name}: counts outside the {bit_depth}-bit range 0..{top} from frame {k} on "
-                f"(min {lo}, max {hi}); check the bit depth (a sidecar's bit_depth) or the file"
+                f"(min {lo}, max {hi}); check the bit depth (a sidecar's bit_depth) or the file, "
+                "or whether it comes from the camera the model was made for"
             )
     return arr
 

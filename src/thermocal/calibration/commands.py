@@ -25,6 +25,7 @@ from thermocal._validate import (
 from thermocal.calibration.registry import CALIBRATION_METHODS, method_help
 from thermocal.errors import (
     FileFormatError,
+    FitError,
     InvalidInputError,
     ResolutionMismatchError,
     ThermocalError,
@@ -60,8 +61,12 @@ def _epilog() -> str:
 @click.option("--scene-term", type=click.Choice(["radiance", "t4", "linear"]), default="radiance",
               show_default=True, help="Scene term of the polynomial model.")
 @click.option("--radial", is_flag=True, help="Polynomial: keep only the radial fit (eq. 16–17).")
+@click.option("--force", is_flag=True,
+              help="Write a calibration that the session cannot cross-validate (no set point "
+              "or FPA segment can be left out): its temperatures then have no uncertainty and "
+              "are not checked against its ranges without --force.")
 def calibrate(chamber: Path, method: str, out: Path, report_path: Path | None,
-              fpa_ref_c: float | None, scene_term: str, radial: bool) -> None:
+              fpa_ref_c: float | None, scene_term: str, radial: bool, force: bool) -> None:
     """Fit a calibration to a chamber file (HDF5, or an EnvChamberCtrl .npz), cross-validate it
     (set points and FPA segments left out in turn) and store the report with it.
 
@@ -97,6 +102,13 @@ def calibrate(chamber: Path, method: str, out: Path, report_path: Path | None,
     else:
         cal, report = fit_with_report(data, method, **options[method])
     chosen = report.method
+    if report.expected_mae_c is None and not force:  # σ comes from the interior folds
+        raise FitError(f"{chosen} cannot be cross-validated on this session "
+                       f"({'; '.join(report.notes[:1]) or 'no fold'}), so its temperatures "
+                       "would have neither an uncertainty nor ranges to check: record at least "
+                       "3 set points over FPA temperatures spanning 4 °C or more (`thermocal "
+                       "simulate chamber --help` shows such a protocol), or --force to write "
+                       "it all the same")
     if radial:
         if chosen != "polynomial":
             raise InvalidInputError(f"--radial applies to the polynomial model; auto chose "
@@ -179,7 +191,8 @@ def _frames_text(method: str, counts: dict) -> tuple[str, str]:
               "(N, H, W)), from the calibration's cross-validation report.")
 @click.option("--force", is_flag=True,
               help="Correct frames outside the calibration's FPA or scene range instead of "
-              "refusing them; their σ grows with the distance outside.")
+              "refusing them; their σ grows with the distance outside. A calibration without a "
+              "cross-validation report is then used, without an uncertainty.")
 def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path,
             sigma_out: Path | None, force: bool) -> None:
     """Turn a recording's raw frames into temperatures (°C) with a calibration file of any
@@ -189,7 +202,13 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
     from thermocal.calibration.base import ThermocalWarning
     from thermocal.calibration.dataset import recording_fpa_rates
     from thermocal.calibration.registry import load_any_calibration
-    from thermocal.calibration.uncertainty import REMEDY, CalibrationSigma, older_report_warning
+    from thermocal.calibration.uncertainty import (
+        NO_REPORT,
+        NO_REPORT_REMEDY,
+        REMEDY,
+        CalibrationSigma,
+        older_report_warning,
+    )
     from thermocal.errors import OutsideDomainError
     from thermocal.io.open import check_outside_recording, read_any_recording
     from thermocal.io.recording import write_sigma_tiff, write_temperature_tiff
@@ -209,11 +228,10 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
     if older:
         click.echo(f"thermocal: warning: {calibration_path}: {older_report_warning(older)}",
                    err=True)
-    if sigma_out is not None and model is None:
-        raise InvalidInputError(f"{calibration_path} has no cross-validation report (made by an "
-                                "older thermocal, or from a session with too few set points to "
-                                "leave one out): calibrate again, from a session of at least 3 "
-                                "set points, to get its uncertainty")
+    if model is None and (sigma_out is not None or not force):  # --force cannot give σ
+        remedy = NO_REPORT_REMEDY.split(";")[0] if sigma_out is not None else NO_REPORT_REMEDY
+        error = InvalidInputError if sigma_out is not None else OutsideDomainError
+        raise error(f"{calibration_path}: {NO_REPORT}; {remedy}")
     rec = read_any_recording(frames, fpa_c=fpa_c)
     if sigma_out is not None and rec.fpa_c is None:
         raise InvalidInputError(f"{frames}: no FPA temperature, which σ depends on: give --fpa-c "
@@ -235,6 +253,9 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
     if outside:
         click.echo(f"thermocal: warning: {frames} lies outside the calibration's ranges "
                    f"({'; '.join(outside)}); corrected all the same (--force)", err=True)
+    elif model is None:
+        click.echo(f"thermocal: warning: {calibration_path}: {NO_REPORT}; corrected all the "
+                   "same (--force), without an uncertainty", err=True)
     if sigma_out is not None:  # σ first: a failure leaves neither file
         since = None if rec.time_s is None else np.asarray(rec.time_s) - rec.time_s[0]
         write_sigma_tiff(sigma_out, model.sigma(temps, rec.fpa_c, rate_c_per_min=rates,

@@ -262,7 +262,8 @@ def two_point(
     if points.size < 2:
         raise FitError(
             f"two-point calibration needs 2 blackbody set points near FPA {ref:.2f} °C, found "
-            f"{points.size}; widen fpa_tolerance_c or record more set points"
+            f"{points.size}; record set points at this FPA temperature, or choose as reference "
+            "(--fpa-ref-c) an FPA temperature the session held for 2 set points"
         )
     lo = float(points[0] if low_c is None else low_c)
     hi = float(points[-1] if high_c is None else high_c)

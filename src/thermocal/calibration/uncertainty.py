@@ -97,8 +97,8 @@ from thermocal.calibration.report import (
     report_of,
 )
 
-__all__ = ["FPA_MARGIN_C", "MIN_GROWTH_PER_C", "RATE_MARGIN", "REMEDY", "CalibrationSigma",
-           "older_report_warning"]
+__all__ = ["FPA_MARGIN_C", "MIN_GROWTH_PER_C", "NO_REPORT", "NO_REPORT_REMEDY", "RATE_MARGIN",
+           "REMEDY", "CalibrationSigma", "older_report_warning"]
 
 #: The least growth of the error outside the calibrated ranges, °C of MAE per °C outside.
 MIN_GROWTH_PER_C = 0.02
@@ -109,6 +109,14 @@ RATE_MARGIN = 1.25
 #: What to do about frames outside a calibration's ranges.
 REMEDY = ("calibrate over these conditions (a chamber session that covers them: `thermocal "
           "calibrate`); --force gives the temperatures with their uncertainty grown")
+
+#: Why frames cannot be checked against a calibration without a cross-validation report.
+NO_REPORT = ("the calibration has no cross-validation report (made by an older thermocal, or "
+             "from a session with too few set points or FPA segments to leave one out), so "
+             "neither the ranges it was fitted on nor its error can be checked")
+#: What to do about it.
+NO_REPORT_REMEDY = ("calibrate again (`thermocal calibrate`) from a session of at least 3 set "
+                    "points; --force gives the temperatures without an uncertainty")
 
 _GAUSS = math.sqrt(math.pi / 2)
 

@@ -9,7 +9,13 @@ from typing import Any
 import numpy as np
 
 from thermocal.calibration.base import Calibration, ThermocalWarning, apply_with_rate
-from thermocal.calibration.uncertainty import REMEDY, CalibrationSigma, older_report_warning
+from thermocal.calibration.uncertainty import (
+    NO_REPORT,
+    NO_REPORT_REMEDY,
+    REMEDY,
+    CalibrationSigma,
+    older_report_warning,
+)
 from thermocal.errors import ResolutionMismatchError
 from thermocal.estimation.base import Estimate, FpaPace, PreparedBurst, view_spread
 from thermocal.estimation.pipeline import estimate
@@ -23,10 +29,13 @@ class _ThroughCalibration:
 
     n_frames = None
     needs_fpa = False
-    remedy = REMEDY
 
-    def __init__(self, calibration: Calibration) -> None:
+    def __init__(self, calibration: Calibration, *, report_needed: bool = False) -> None:
+        """``report_needed``: without a cross-validation report the calibration cannot be
+        checked, so every burst is outside its domain (as a file given to a command must be);
+        otherwise (a fit in hand, e.g. a benchmark's camera model) it is not checked."""
         self.calibration = calibration
+        self.report_needed = report_needed
         self.sigma_model = CalibrationSigma.of(calibration)
         older = None if self.sigma_model is None else self.sigma_model.older_report()
         if older:
@@ -41,6 +50,17 @@ class _ThroughCalibration:
         return apply_with_rate(self.calibration, frames, fpa_c=fpa_c, time_s=time_s,
                                fpa_rate_c_per_min=None if pace is None else pace.rate_c_per_min)
 
+    def unchecked(self) -> str | None:
+        """Why no burst can be checked against the calibration (a file without its report,
+        when ``report_needed``), or None."""
+        return NO_REPORT if self.report_needed and self.sigma_model is None else None
+
+    @property
+    def remedy(self) -> str:
+        """What to do about a burst outside its domain: calibrate over its conditions, or
+        (a calibration without a report) calibrate again."""
+        return NO_REPORT_REMEDY if self.sigma_model is None else REMEDY
+
     @property
     def fpa_paces(self) -> dict[str, Any]:
         """The paces of the calibration's report (``{}`` without a report)."""
@@ -51,10 +71,11 @@ class _ThroughCalibration:
         """The FPA and scene ranges of the calibration's chamber session, and where ``pace`` is
         known its FPA rates and (a memoryless method) its paces
         (:meth:`~thermocal.calibration.uncertainty.CalibrationSigma.outside_burst`; the FPA
-        only when the burst has one); ``()`` for a calibration without a report (an older
-        file)."""
+        only when the burst has one). Without a report (an older file, a session too small
+        to cross-validate): that it cannot be checked when ``report_needed``, else ``()``."""
         if self.sigma_model is None:
-            return ()
+            why = self.unchecked()
+            return (why,) if why else ()
         return self.sigma_model.outside_burst(calibrated, fpa_c, pace)
 
     def uncertainty(self, burst: PreparedBurst, temperature_c: np.ndarray, *, outside: bool

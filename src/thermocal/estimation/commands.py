@@ -15,6 +15,7 @@ from thermocal._validate import (
 )
 from thermocal.errors import InvalidInputError
 from thermocal.estimation.pipeline import estimate as run_pipeline
+from thermocal.estimation.pipeline import refuse_unchecked
 from thermocal.estimation.registry import (
     ESTIMATORS,
     check_method_options,
@@ -88,6 +89,8 @@ def estimate_file(
     estimator = (None if own_constants
                  else make_estimator(method, model=model_path, calibration=calibration,
                                      backend=backend, threads=threads))
+    if estimator is not None:
+        refuse_unchecked(estimator, calibration, force=force)
     # a network without its .sigma.json, a calibration without its report
     if sigma_out is not None and estimator is not None and getattr(
             estimator, "sigma_model", None) is None:

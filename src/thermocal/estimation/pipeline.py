@@ -36,7 +36,7 @@ from thermocal.estimation.base import Estimate, Estimator, FpaPace, PreparedBurs
 from thermocal.registration.warp import warp_to_pivot
 from thermocal.threads import caught_warnings
 
-__all__ = ["calibrate_stage", "domain_stage", "estimate", "register_stage"]
+__all__ = ["calibrate_stage", "domain_stage", "estimate", "refuse_unchecked", "register_stage"]
 
 
 def register_stage(
@@ -63,6 +63,21 @@ def domain_stage(estimator: Estimator, calibrated: np.ndarray, fpa_c: float | No
     if reasons and not force:
         raise OutsideDomainError(f"{'; '.join(reasons)}; {estimator.remedy}")
     return reasons
+
+
+def refuse_unchecked(estimator: Estimator, source: Any, *, force: bool) -> None:
+    """Before any work: an estimator that can check no burst against its domain (one built
+    from a calibration file without its cross-validation report: ``unchecked()``) is refused
+    with one line naming ``source`` (the file) and its remedy, unless ``force``.
+
+    Raises
+    ------
+    OutsideDomainError
+    """
+    unchecked = getattr(estimator, "unchecked", None)
+    why = unchecked() if unchecked is not None else None
+    if why and not force:
+        raise OutsideDomainError(f"{source}: {why}; {estimator.remedy}")
 
 
 def calibrate_stage(estimator: Estimator, frames: np.ndarray, fpa_c: Any, time_s: Any,

@@ -120,8 +120,10 @@ def make_estimator(
             )
         from thermocal.estimation.calibrated import OzMean, PivotCalibration
 
-        cal = _calibration(calibration)
-        return OzMean(cal) if name == "mean" else PivotCalibration(cal)
+        # a file must carry its report (what it was fitted on); a fit in hand is the caller's
+        checked = isinstance(calibration, (str, os.PathLike))
+        kind = OzMean if name == "mean" else PivotCalibration
+        return kind(_calibration(calibration), report_needed=checked)
     from thermocal.nn.infer import NetworkEstimator  # torch: only for a network
 
     return NetworkEstimator.from_file(name, model, backend=backend, threads=threads,

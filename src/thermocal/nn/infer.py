@@ -30,7 +30,7 @@ from thermocal.nn.model import KPN, frame_means
 from thermocal.nn.runners import Runner, make_runner
 from thermocal.nn.store import load_model, nominal_for
 from thermocal.nn.uncertainty import SigmaModel, sidecar_path
-from thermocal.nn.validity import REMEDY, Domain, outside_domain
+from thermocal.nn.validity import REMEDY, Domain, beyond_training_c, outside_domain
 from thermocal.nn.variants import VARIANTS
 from thermocal.registration.warp import warp_to_pivot
 
@@ -283,10 +283,16 @@ class NetworkEstimator:
     def uncertainty(self, burst: PreparedBurst, temperature_c: np.ndarray, *, outside: bool
                     ) -> np.ndarray | None:
         """σ of the network's σ model (:mod:`thermocal.nn.uncertainty`, the ``NAME.sigma.json``
-        beside its weights); None without one."""
+        beside its weights); None without one. ``outside`` its domain (forced), σ also grows by
+        the whole distance beyond its training scenes (:func:`~thermocal.nn.validity.
+        beyond_training_c`)."""
         if self.sigma_model is None:
             return None
-        return self.sigma_model.sigma(burst.warped, burst.valid, temperature_c, outside=outside)
+        sigma = self.sigma_model.sigma(burst.warped, burst.valid, temperature_c, outside=outside)
+        if not outside or self.domain is None:
+            return sigma
+        frame_c = burst.warped[burst.pivot] if self.model.config.calibrated else None
+        return sigma + beyond_training_c(self.domain, frame_c, temperature_c)
 
     def estimate(self, burst: PreparedBurst) -> np.ndarray:
         p, valid = burst.pivot, burst.valid

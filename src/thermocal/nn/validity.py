@@ -29,8 +29,8 @@ import numpy as np
 from thermocal.camera.presets import CameraPreset
 from thermocal.metrics import line_patterns
 
-__all__ = ["LINE_CHECK_MIN_PX", "LINE_RATIO_MAX", "REMEDY", "Domain", "family_pattern_reason",
-           "outside_domain"]
+__all__ = ["LINE_CHECK_MIN_PX", "LINE_RATIO_MAX", "REMEDY", "Domain", "beyond_training_c",
+           "family_pattern_reason", "outside_domain"]
 
 #: What to do about a burst outside the network's domain.
 REMEDY = ("train from a chamber session of this camera: `thermocal train --chamber`, or "
@@ -134,6 +134,29 @@ def outside_domain(domain: Domain, frames_c: np.ndarray | None, fpa_c: float
     reason = family_pattern_reason(frames_c, domain.family, domain.line_fpn,
                                    of="the network was trained on")
     return (*reasons, reason) if reason else tuple(reasons)
+
+
+def beyond_training_c(domain: Domain, frame_c: np.ndarray | None, temperature_c: np.ndarray
+                      ) -> np.ndarray:
+    """How far beyond its training scenes a forced estimate lies, ``(H, W)`` float32, °C.
+
+    The distance of the scene's median (``frame_c``, the pivot's raw frame ``(H, W)`` through
+    the network's nominal calibration, °C; None for a network of raw counts) beyond the range
+    of training scene levels, plus each pixel's distance (``temperature_c``, the estimate
+    ``(H, W)``, °C) beyond the range of training pixel temperatures; 0 inside. No training
+    burst measured the error there, so it may be the whole distance, as a calibration's σ
+    beyond its last set point (:mod:`thermocal.calibration.uncertainty`): the shipped network
+    forced on a FLIR T1030sc CSQ read 101 °C where the camera's own calibration reads 19 °C,
+    from counts whose median through the ``tau2`` nominal lies 45 °C above the training levels.
+    """
+    t = np.asarray(temperature_c, dtype=np.float64)
+    lo, hi = domain.scene_clip_c
+    out = np.maximum(lo - t, 0.0) + np.maximum(t - hi, 0.0)
+    if frame_c is not None:
+        level = float(np.median(np.asarray(frame_c)[::PERCENTILE_STRIDE, ::PERCENTILE_STRIDE]))
+        lo, hi = domain.scene_level_c
+        out += max(lo - level, 0.0) + max(level - hi, 0.0)
+    return out.astype(np.float32)
 
 
 def family_pattern_reason(frames_c: np.ndarray, family: str | None, line_fpn: str | None, *,

@@ -95,7 +95,7 @@ from thermocal.calibration.report import PACE_LAG_S
 from thermocal.cores import available_cores
 from thermocal.errors import InvalidInputError, OutputError, RegistrationError
 from thermocal.estimation.base import Estimator
-from thermocal.estimation.pipeline import estimate
+from thermocal.estimation.pipeline import estimate, refuse_unchecked
 from thermocal.estimation.registry import (
     ESTIMATORS,
     check_method_options,
@@ -236,6 +236,7 @@ def _estimator(options: FlightOptions, frame_shape: tuple[int, int]) -> Estimato
                                calibration=options.calibration, family=options.family,
                                backend=options.backend, threads=options.threads,
                                concurrent=pivot_workers(options))
+    refuse_unchecked(estimator, options.calibration, force=options.force)
     calibration = getattr(estimator, "calibration", None)
     if calibration is not None and tuple(calibration.shape) != tuple(frame_shape):
         raise InvalidInputError(

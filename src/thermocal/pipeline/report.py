@@ -235,7 +235,8 @@ def _sigma_model(options: dict[str, Any]) -> str | None:
     return (f"σ model {path.name}: σ grows where the frames disagree, at edges and where fewer "
             f"frames see a pixel, never below {sigma.floor_c:.2f} °C (the unit's own level, "
             f"which no view reveals); {on}; outside the network's domain (--force) "
-            f"{sigma.outside_c:.0f} °C more in quadrature")
+            f"{sigma.outside_c:.0f} °C more in quadrature, and the whole distance beyond its "
+            "training scenes")
 
 
 # --- figures ---------------------------------------------------------------------------------

@@ -38,18 +38,20 @@ def recordings_and_calibration(tmp: Path, *, frames: int, count: int = RECORDING
                                size: tuple[int, int] = SIZE) -> tuple[list[Path], Path]:
     """``count`` UAV passes of ``frames`` frames of ``size`` (``tau2`` unit 9, procedural
     scenes) in ``tmp/pass<k>``, and the unit's polynomial calibration ``tmp/cal.h5``."""
-    from thermocal.calibration import fit_calibration
+    from thermocal.calibration.report import fit_with_report
     from thermocal.camera import make_camera
     from thermocal.scenes.procedural import procedural_scene
     from thermocal.simulate.chamber import ChamberPlan, write_simulated_chamber
     from thermocal.simulate.flight import plan_flight, write_simulated_flight
 
     camera = make_camera("tau2", unit=9, size=size)
-    plan = ChamberPlan(setpoints_c=(10.0, 20.0, 30.0, 40.0, 50.0), frames_per_point=2,
+    # set points over the procedural scenes' 16…66 °C: a pass beyond them would be refused
+    plan = ChamberPlan(setpoints_c=(10.0, 25.0, 40.0, 55.0, 70.0), frames_per_point=2,
                        profile="sawtooth", ambient_c=(15.0, 35.0), rate_c_per_min=0.2,
                        interval_s=20.0)
     write_simulated_chamber(tmp / "chamber.h5", camera, plan, seed=1)
-    fit_calibration(tmp / "chamber.h5", method="polynomial", frames="settled").save(tmp / "cal.h5")
+    # with its report: a calibration file given to a command must carry one
+    fit_with_report(tmp / "chamber.h5", "polynomial", frames="settled")[0].save(tmp / "cal.h5")
     recordings = []
     side = 2 * max(size)
     for k in range(count):
