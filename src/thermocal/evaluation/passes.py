@@ -283,11 +283,13 @@ def one_reference_disc(spec: PassSpec, folder: Path, *, sigma_c: float = REFEREN
 
 def default_methods() -> list[PassMethod]:
     """The shipped network, and the classical ``mean`` with another unit's two-point
-    (calibration-free, as the network) and with the unit's own polynomial (a reference, run with
-    ``--force``: the held-out scenes reach below its chamber session's coldest blackbody)."""
+    (calibration-free, as the network; run with ``--force``: a fit in hand without a
+    cross-validation report, which a flight cannot check) and with the unit's own polynomial (a
+    reference, run with ``--force``: the held-out scenes reach below its chamber session's
+    coldest blackbody)."""
     return [
         PassMethod("kpn (calibration-free)", "kpn"),
-        PassMethod("mean + other unit's two-point", "mean", other_unit_two_point),
+        PassMethod("mean + other unit's two-point", "mean", other_unit_two_point, force=True),
         PassMethod("mean + own polynomial (reference)", "mean", own_polynomial, force=True),
     ]
 
@@ -600,7 +602,7 @@ def _methods_by_name(names: Sequence[str], *, force: bool,
     one_reference_disc_ = functools.partial(one_reference_disc, sigma_c=reference_sigma_c)
     table = {"kpn": PassMethod("kpn (calibration-free)", "kpn", force=force),
              "mean-other": PassMethod("mean + other unit's two-point", "mean",
-                                      other_unit_two_point, force=force),
+                                      other_unit_two_point, force=True),  # no report
              "mean-own": PassMethod("mean + own polynomial (reference)", "mean", own_polynomial,
                                     force=True),
              "calibration-own": PassMethod("calibration (pivot alone) + own polynomial",
