@@ -102,6 +102,19 @@ def test_outside_names_the_fpa_and_the_scene():
     assert "FPA changes at up to 0.90 °C/min, faster than the 0.50 °C/min" in why
 
 
+def test_a_scene_out_of_range_far_from_the_fits_fpa_names_the_fpa():
+    """A two-point fitted at one FPA reads a scene out of range at an FPA far from it: the
+    refusal says the FPA may be the cause (it blamed the scene alone); near it, it does not."""
+    model = CalibrationSigma(_report(method="two-point"), fitted_fpa_c=(21.0, 21.0))
+    (why,) = model.outside(np.full((1, 4, 4), 55.0), [34.0])
+    assert "scene spans 55.0…55.0 °C" in why
+    assert "fit made at FPA 21.0 °C, 13.0 °C from these frames'" in why
+    (why,) = model.outside(np.full((1, 4, 4), 55.0), [24.0])
+    assert "scene spans" in why and "fit made at" not in why
+    assert "fit made at" not in CalibrationSigma(_report()).outside(
+        np.full((1, 4, 4), 55.0), [34.0])[0]
+
+
 def test_sparse_start_up_bins_are_pooled_with_the_bins_after_them():
     """The report's sample holds few frames of a recording's first minutes: a time bin of fewer
     than MIN_BIN_FRAMES frames is pooled with the next (the last with the one before), so that

@@ -104,6 +104,10 @@ __all__ = ["FPA_MARGIN_C", "MIN_GROWTH_PER_C", "NO_REPORT", "NO_REPORT_REMEDY", 
 MIN_GROWTH_PER_C = 0.02
 #: FPA temperatures this close outside the session's range are inside (the sensor's noise), °C.
 FPA_MARGIN_C = 0.5
+#: Frames this far from the FPA temperatures a fit used, °C, may read their scene out of range
+#: because of their FPA, which the refusal then says (a two-point at 15.5 °C reads a 20 °C
+#: scene as 7…42 °C at an FPA of 45 °C).
+FITTED_FPA_NOTE_C = 5.0
 #: FPA rates up to this many times the session's fastest are inside (the rate estimate's noise).
 RATE_MARGIN = 1.25
 #: What to do about frames outside a calibration's ranges.
@@ -172,6 +176,9 @@ class CalibrationSigma:
     """σ of a calibration's temperatures and the ranges it covers (see the module docstring)."""
 
     report: CalibrationReport
+    #: The FPA temperatures the fit itself used, °C (a two-point's one reference; None: not
+    #: known): frames far from them may read a scene out of range because of their FPA.
+    fitted_fpa_c: tuple[float, float] | None = None
 
     @classmethod
     def of(cls, calibration: Calibration) -> CalibrationSigma | None:
@@ -180,7 +187,9 @@ class CalibrationSigma:
         report = report_of(calibration)
         if report is None or report.expected_mae_c is None:
             return None
-        return cls(report)
+        fitted = getattr(calibration, "fpa_range", None) or getattr(calibration, "fpa_range_c",
+                                                                    None)
+        return cls(report, None if fitted is None else (float(fitted[0]), float(fitted[1])))
 
     def older_report(self) -> str | None:
         """What the report lacks that one made now records (a file made by an older
@@ -559,5 +568,21 @@ class CalibrationSigma:
         p1, p99 = (float(v) for v in np.percentile(temps_c, [1, 99]))
         if p1 < lo or p99 > hi:
             reasons.append(f"the scene spans {p1:.1f}…{p99:.1f} °C, beyond the blackbody's "
-                           f"{lo:.1f}…{hi:.1f} °C of its chamber session")
+                           f"{lo:.1f}…{hi:.1f} °C of its chamber session"
+                           + self._fitted_fpa_note(fpa))
         return tuple(reasons)
+
+    def _fitted_fpa_note(self, fpa: np.ndarray) -> str:
+        """Where frames lie more than :data:`FITTED_FPA_NOTE_C` from the FPA temperatures the
+        fit used (a two-point at one reference), that their FPA may be what misreads the scene;
+        else ``""``."""
+        if self.fitted_fpa_c is None or not fpa.size:
+            return ""
+        a, b = self.fitted_fpa_c
+        away = max(a - float(fpa.min()), float(fpa.max()) - b, 0.0)
+        if away <= FITTED_FPA_NOTE_C:
+            return ""
+        at = f"{a:.1f} °C" if b - a < 0.1 else f"{a:.1f}…{b:.1f} °C"
+        return (f" (read through a fit made at FPA {at}, {away:.1f} °C from these frames': "
+                f"their FPA, which {self.report.method} does not follow, may be what misreads "
+                "the scene)")
