@@ -243,3 +243,26 @@ def test_clipped_pixels_are_filled_even_when_the_scene_holds_still():
     assert 5000 <= out[0, 5, 7] <= 5100 and 5000 <= out[2, 30, 40] <= 5100
     assert out[0, 20, 20] == 9000 and burst[0, 5, 7] == 16383  # the input untouched
     assert not fill_stuck_pixels(burst, still)[1].any()  # without top: motion decides
+
+
+def test_frozen_pixels_are_filled_when_the_camera_holds_still(camera, scene):
+    """A camera held still: its dead and hot pixels never change by a count while every live
+    pixel carries temporal noise, so they are filled whatever the motion; the scene's
+    single-pixel spots and thin lines, which do change, are kept. Fewer than
+    FROZEN_MIN_FRAMES frames, or a noiseless burst, give none."""
+    from thermocal.burst import FROZEN_MIN_FRAMES, frozen_pixels
+
+    truth = scene[40:88, 40:104].copy()
+    truth[10, :] = 60.0
+    rng = np.random.default_rng(3)
+    frames = render(camera, np.repeat(truth[None], 7, axis=0), 30.0, housing_c=28.5, rng=rng)
+    still = np.repeat(np.eye(3)[None], 7, axis=0)
+    out, bad = fill_stuck_pixels(frames, still)
+    assert np.array_equal(bad, camera.defects)
+    assert np.array_equal(out[:, ~bad], frames[:, ~bad])
+    assert np.array_equal(frozen_pixels(frames.min(0), frames.max(0), 7), camera.defects)
+    short = frames[:FROZEN_MIN_FRAMES - 1]
+    assert not frozen_pixels(short.min(0), short.max(0), len(short)).any()
+    quiet = render(camera, np.repeat(truth[None], 7, axis=0), 30.0, housing_c=28.5,
+                   noise=False)
+    assert not frozen_pixels(quiet.min(0), quiet.max(0), 7).any()

@@ -26,6 +26,8 @@ from thermocal.registration.burst import register_burst
 from thermocal.registration.warp import as_homographies
 
 __all__ = [
+    "FROZEN_MIN_FRAMES",
+    "FROZEN_MIN_RANGE",
     "MIN_OVERLAP",
     "SATURATED_FRACTION",
     "burst_window",
@@ -34,6 +36,7 @@ __all__ = [
     "fill_stuck_pixels",
     "find_homographies",
     "fpa_value",
+    "frozen_pixels",
     "pivot_index",
     "scene_motion_at",
     "scene_motion_px",
@@ -172,19 +175,46 @@ def _count_median(d: np.ndarray) -> float:
                  + np.searchsorted(cum, n // 2, side="right")) / 2.0
 
 
+#: A burst's pixel is frozen when its counts do not change over at least this many frames…
+FROZEN_MIN_FRAMES = 5
+#: …while the burst's median pixel spans at least this many counts (its temporal noise).
+FROZEN_MIN_RANGE = 4.0
+
+
+def frozen_pixels(low: np.ndarray, high: np.ndarray, n_frames: int) -> np.ndarray:
+    """Pixels whose counts never change over a burst, ``(H, W)`` bool, from its per-pixel
+    minimum and maximum over ``n_frames`` frames.
+
+    A live microbolometer's readout always carries temporal noise: over 7 frames of a static
+    scene the simulator's ``tau2`` and ``boson`` units span 6–7 counts at the median pixel, and
+    0–1 live pixels of 86,000 stayed at one count, where every one of their 17 dead pixels did.
+    So a pixel frozen while the median pixel spans at least :data:`FROZEN_MIN_RANGE` counts is
+    dead or stuck, whether or not the scene moved (which :func:`stuck_pixels` needs: a burst of
+    a camera held still hid them). Bursts of fewer than :data:`FROZEN_MIN_FRAMES` frames, or
+    whose median pixel spans less (a noiseless or averaged recording), give none."""
+    span = np.asarray(high, dtype=np.float64) - np.asarray(low, dtype=np.float64)
+    if n_frames < FROZEN_MIN_FRAMES or span.size == 0 or np.median(span) < FROZEN_MIN_RANGE:
+        return np.zeros(span.shape, dtype=bool)
+    return span == 0
+
+
 def fill_stuck_pixels(frames: Any, homographies: Any = None, *, top: int | None = None
                       ) -> tuple[np.ndarray, np.ndarray]:
-    """A copy of a raw burst ``(N, H, W)`` with its :func:`stuck_pixels` replaced by the median
-    of their good 3×3 neighbours (rounded for integer frames), and their mask ``(H, W)``. Every
-    other pixel and the dtype are kept. Given ``top`` (the largest count, ``2**bit_depth − 1``),
-    integer pixels at 0 or at ``top`` in any frame are filled too, whether or not the scene
-    moved: a clipped count says nothing of the scene (a saturated pixel of a hovering burst read
-    80 °C where the scene was 17 °C, with σ 1 °C)."""
+    """A copy of a raw burst ``(N, H, W)`` with its :func:`stuck_pixels` and
+    :func:`frozen_pixels` replaced by the median of their good 3×3 neighbours (rounded for
+    integer frames), and their mask ``(H, W)``. Every other pixel and the dtype are kept. Given
+    ``top`` (the largest count, ``2**bit_depth − 1``), integer pixels at 0 or at ``top`` in any
+    frame are filled too, whether or not the scene moved: a clipped count says nothing of the
+    scene (a saturated pixel of a hovering burst read 80 °C where the scene was 17 °C, with
+    σ 1 °C)."""
     arr = np.asarray(frames)
     out = arr.copy()
     bad = stuck_pixels(arr, homographies)
-    if top is not None and np.issubdtype(arr.dtype, np.integer) and arr.size:
-        bad |= (arr.min(axis=0) <= 0) | (arr.max(axis=0) >= top)
+    if arr.ndim == 3 and arr.size:
+        low, high = arr.min(axis=0), arr.max(axis=0)
+        bad |= frozen_pixels(low, high, arr.shape[0])
+        if top is not None and np.issubdtype(arr.dtype, np.integer):
+            bad |= (low <= 0) | (high >= top)
     if bad.any():
         filled = fill_bad_pixels(arr.astype(np.float32), bad)[:, bad]
         if np.issubdtype(arr.dtype, np.integer):
