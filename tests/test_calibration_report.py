@@ -411,6 +411,13 @@ def test_plateaus_that_end_before_the_camera_settles_are_warned_of(family, warne
         _, lag = fit_with_report(run.session, "lin-lag")
         assert not any("settled" in w for w in lag.warnings) and "still" not in lag.paces
         assert lag.paces["margin_c_per_min"] == 0.3  # its paces, with a memory's margin
+        # its frames taken alone (lags started steady at their own rate, as a short
+        # recording's are) err more than with their history: measured, and said
+        alone = lag.without_history
+        assert alone["lag_s"] == 480.0 and alone["frames"] > 0
+        assert alone["mae_c"] > lag.expected_mae_c and alone["sigma_c"] > lag.sigma_c
+        assert any("FPA history it cannot see" in line for line in lag.summary_lines())
+        assert not report.without_history  # polynomial: memoryless, nothing to see
     # no ambient series, no plateau to judge
     from dataclasses import replace
 

@@ -722,7 +722,10 @@ def test_a_report_of_an_older_thermocal_says_what_it_lacks(fitted, tmp_path):
     assert "no FPA paces" in CalibrationSigma(_report()).older_report()
     paced = _report(paces={"lag_s": 480.0, "cell_c_per_min": 0.1, "cells": [[0, 0]]})
     assert "pace is from steady" in CalibrationSigma(paced).older_report()
-    assert CalibrationSigma(replace(paced, method="lin-lag")).older_report() is None
+    assert "FPA history" in CalibrationSigma(replace(paced, method="lin-lag")).older_report()
+    alone = {"sigma_c": 0.2, "mae_c": 0.17, "lag_s": 480.0, "frames": 10}
+    assert CalibrationSigma(replace(paced, method="lin-lag",
+                                    without_history=alone)).older_report() is None
     _, cal, report = fitted
     assert CalibrationSigma(report).older_report() is None
     with warnings.catch_warnings():
@@ -731,3 +734,30 @@ def test_a_report_of_an_older_thermocal_says_what_it_lacks(fitted, tmp_path):
     old = replace(cal, info=cal.info | {"report": replace(report, by_change=[]).to_dict()})
     with pytest.warns(ThermocalWarning, match="older thermocal.*calibrate again"):
         PivotCalibration(old)
+
+
+def test_frames_without_their_history_take_the_sigma_measured_so():
+    """lin-lag's lags start steady at a short recording's rate: its report measures the error
+    of frames taken alone (σ well above the interior folds'), and σ takes it at a recording's
+    start (or for a burst, whose start is not known), fading with the longest lag."""
+    from thermocal.calibration.report import CalibrationReport
+
+    alone = {"sigma_c": 2.0, "mae_c": 1.7, "lag_s": 480.0, "frames": 10}
+    model = CalibrationSigma(_report(method="lin-lag", without_history=alone))
+    assert model.history_sigma(None, 2) == pytest.approx([2.0, 2.0])
+    assert model.history_sigma([0.0, 480.0, 4800.0], 3) == pytest.approx(
+        [2.0, 2.0 / math.e, 2.0 * math.exp(-10)])
+    assert not CalibrationSigma(_report()).history_sigma(None, 3).any()
+    temps = np.full((1, 4, 4), 25.0)
+    without = CalibrationSigma(_report(method="lin-lag")).sigma(temps, [27.0])
+    assert without.max() < 0.5  # the interior folds' level (shape 1 here)
+    assert model.sigma(temps, [27.0]) == pytest.approx(np.full_like(without, 2.0))
+    assert model.sigma(temps, [27.0], time_since_start_s=[0.0]) == pytest.approx(
+        np.full_like(without, 2.0))
+    assert model.sigma(temps, [27.0], time_since_start_s=[3600.0]) == pytest.approx(without)
+    back = CalibrationReport.from_dict(model.report.to_dict())
+    assert back.without_history == alone
+    for bad in ({"sigma_c": -1.0}, {"lag_s": 0.0}, {"frames": 2.5}, {"mae_c": math.inf}):
+        with pytest.raises(InvalidInputError):
+            CalibrationReport.from_dict(model.report.to_dict()
+                                        | {"without_history": alone | bad})

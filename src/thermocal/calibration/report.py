@@ -53,7 +53,7 @@ from typing import Any
 import numpy as np
 
 from thermocal._validate import SATURATED_FRACTION, saturated_fraction
-from thermocal.calibration.base import Calibration, ThermocalWarning
+from thermocal.calibration.base import Calibration, ThermocalWarning, apply_with_rate
 from thermocal.calibration.dataset import (
     ChamberData,
     fpa_change,
@@ -157,6 +157,14 @@ class CalibrationReport:
         :data:`PACE_LAG_S`, ``[low, high]``, :data:`CHANGE_EDGES`): a pace bin pools frames
         just after a step with frames of a steady ramp at the same pace, and the first err
         more; empty for the others and in a report made before it.
+    without_history : dict
+        For a method whose model remembers how the FPA changed without learning online
+        (``lin-lag``'s lagged rates), the interior folds' error on each frame taken alone, its
+        lagged rates started steady at its own rate as a recording too short to show its
+        history starts them (:func:`frame_errors_alone`): ``sigma_c``
+        (:func:`coverage_sigma`), ``mae_c``, ``frames``, and ``lag_s``, the model's longest lag,
+        over which a recording's own history takes that start's place. Empty for the others
+        and in a report made before it.
     """
 
     method: str
@@ -176,6 +184,7 @@ class CalibrationReport:
     by_time: list[dict[str, Any]] = field(default_factory=list)
     paces: dict[str, Any] = field(default_factory=dict)
     by_change: list[dict[str, Any]] = field(default_factory=list)
+    without_history: dict[str, Any] = field(default_factory=dict)
 
     @property
     def extrapolated_mae_c(self) -> float | None:
@@ -208,6 +217,7 @@ class CalibrationReport:
             "expected_sigma_c": self.sigma_c,
             "mae_by_time_since_start_c": self.by_time,
             "mae_by_fpa_change_c": self.by_change,
+            "without_history": self.without_history,
             "fpa_paces": self.paces,
             "sample": self.sample,
             "warnings": list(self.warnings),
@@ -242,6 +252,7 @@ class CalibrationReport:
                 by_time=[dict(r) for r in d.get("mae_by_time_since_start_c", [])],
                 paces=_paces_from(d.get("fpa_paces") or {}),
                 by_change=_change_bins_from(d.get("mae_by_fpa_change_c") or []),
+                without_history=_without_history_from(d.get("without_history") or {}),
             )
         except (KeyError, TypeError, ValueError, OverflowError) as exc:
             raise InvalidInputError(f"not a calibration report ({type(exc).__name__}: "
@@ -287,6 +298,11 @@ class CalibrationReport:
                          f"{still['held_s'] / 60:.0f} min (median), before the camera "
                          "settled: frames held still for "
                          "longer are refused")
+        if self.without_history:
+            alone = self.without_history
+            lines.append(f"  frames whose FPA history it cannot see (a recording's first "
+                         f"{alone['lag_s'] / 60:.0f} min, a burst): {alone['mae_c']:.2f} °C MAE "
+                         f"(σ {alone['sigma_c']:.2f}, fading over those minutes)")
         return lines
 
 
@@ -510,6 +526,26 @@ def _applied(calibration: Calibration, data: ChamberData, idx: np.ndarray) -> np
                                  time_s=data.time_s[idx])
 
 
+#: Frame times, s, that make each frame a recording of its own: a lag's state keeps
+#: exp(−1e9 / τ) = 0 of the frame before, so the lagged rates start steady at the frame's rate.
+_APART_S = 1e9
+
+
+def frame_errors_alone(calibration: Calibration, data: ChamberData, scored: np.ndarray
+                       ) -> np.ndarray:
+    """The absolute error of each pixel of the ``scored`` frames of ``data`` (°C, ``(M, P)``
+    for the M scored frames) with each frame taken alone, at its own FPA rate: what a model
+    that remembers the FPA's rates (lin-lag's lags) gives a recording too short to show its
+    history, which starts its lagged rates steady at the present one."""
+    idx = np.flatnonzero(scored)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ThermocalWarning)
+        est = apply_with_rate(calibration, np.asarray(data.session.frames[idx]),
+                              fpa_c=data.fpa_c[idx], time_s=np.arange(idx.size) * _APART_S,
+                              fpa_rate_c_per_min=data.fpa_rate_c_per_min[idx])
+    return np.abs(est - data.scene_c[idx, None, None].astype(np.float32)).reshape(idx.size, -1)
+
+
 def coverage_sigma(abs_errors: np.ndarray) -> float:
     """The σ that best covers ``abs_errors`` (°C, any shape) as a Gaussian's would: the one
     whose shares of errors within 1σ and 2σ come closest (least squares) to 68.3 % and 95.4 %.
@@ -619,6 +655,12 @@ def cross_validate(
     # a memoryless method's error follows how fast the FPA has been changing, not its present
     # rate alone (what lags the FPA catches up after the rate is 0): its bins are by pace
     memoryless = CALIBRATION_METHODS[method].memoryless
+    # a model that remembers the FPA's rates without learning online (lin-lag's lags): its
+    # error on frames whose history it cannot see, measured too (a short recording's)
+    lags = tuple(getattr(calibration, "rate_lags_s", ()) or ())
+    remembers = (not memoryless and not CALIBRATION_METHODS[method].learns_online
+                 and bool(lags))
+    alone: list[np.ndarray] = []  # the interior folds' pixel errors, each frame alone
     rate_key = "pace_c_per_min" if memoryless else "rate_c_per_min"
     binned_rate = (fpa_pace(small.fpa_rate_c_per_min, small.time_s, PACE_LAG_S) if memoryless
                    else small.fpa_rate_c_per_min)
@@ -655,6 +697,8 @@ def cross_validate(
         folds.append(desc | {"frames": int(held.sum()), "mae_c": float(np.mean(err))})
         if not desc["extrapolation"]:
             errors.append(pix)
+            if remembers:
+                alone.append(frame_errors_alone(cal, small, held))
             rates.append(binned_rate[held])
             if change is not None:
                 changes.append(change[held])
@@ -673,6 +717,9 @@ def cross_validate(
     by_change = (_binned(np.concatenate(errors), np.concatenate(changes), CHANGE_EDGES,
                          "change_c_per_min", min_frames=MIN_BIN_FRAMES)
                  if errors and memoryless else [])
+    without_history = ({"sigma_c": coverage_sigma(np.concatenate(alone)),
+                        "mae_c": float(np.mean(np.concatenate(alone))), "lag_s": max(lags),
+                        "frames": int(sum(len(a) for a in alone))} if alone else {})
     if expected is None:
         notes.append("no interior set point or FPA segment could be left out and refitted")
     paces = paces_of(data, memoryless=memoryless)
@@ -714,6 +761,7 @@ def cross_validate(
         by_time=by_time,
         paces=paces,
         by_change=by_change,
+        without_history=without_history,
     )
 
 
@@ -856,6 +904,20 @@ def _change_bins_from(rows: list[Any]) -> list[dict[str, Any]]:
                              f"over {frames} frames")
         out.append(b | {"change_c_per_min": [lo, hi], "sigma_c": sigma, "frames": int(frames)})
     return out
+
+
+def _without_history_from(d: Any) -> dict[str, Any]:
+    """A report's ``without_history`` read back, checked: finite ``sigma_c``, ``mae_c`` (°C)
+    and ``lag_s`` (s, > 0), whole ``frames`` (empty: none)."""
+    d = dict(d)
+    if not d:
+        return {}
+    sigma, mae, lag, frames = (float(d[k]) for k in ("sigma_c", "mae_c", "lag_s", "frames"))
+    if not (0 <= sigma < math.inf and 0 <= mae < math.inf and 0 < lag < math.inf
+            and 0 < frames < math.inf and frames == int(frames)):
+        raise ValueError(f"without_history: σ {sigma} °C, MAE {mae} °C, lag {lag} s over "
+                         f"{frames} frames")
+    return {"sigma_c": sigma, "mae_c": mae, "lag_s": lag, "frames": int(frames)}
 
 
 #: Edges of the bins of :attr:`CalibrationReport.by_change`, °C/min: steady, settling, just
