@@ -69,14 +69,17 @@ def test_sigma_inside_follows_the_cross_validation():
 
 def test_sigma_grows_outside_without_bound():
     """Outside, σ grows linearly with the distance at the end folds' measured rate; beyond the
-    one set-point step (10 °C here) those folds extrapolated, by the whole distance past it."""
+    one set-point step (10 °C here) those folds extrapolated, by the whole distance past it;
+    beyond one end FPA segment (5 °C here), by UNMEASURED_FPA_GROWTH_PER_C per °C past it."""
+    from thermocal.calibration.uncertainty import UNMEASURED_FPA_GROWTH_PER_C as UNMEASURED
+
     model = CalibrationSigma(_report())
     fpa_rate = (1.3 - 0.3) / 2.5  # excess MAE of the low end segment over half its width
     inside = model.sigma(np.array([[25.0]]), 27.5)[0, 0]
     for d in (1.0, 10.0, 100.0):
         out = model.sigma(np.array([[25.0]]), 20.0 - d)[0, 0]
         m_fpa = 0.3  # interpolated MAE clamps at the end of the interior curve
-        expected = G * (0.3 + m_fpa - 0.3 + fpa_rate * d)
+        expected = G * (0.3 + m_fpa - 0.3 + fpa_rate * d) + UNMEASURED * max(d - 5.0, 0.0)
         assert out == pytest.approx(expected, rel=1e-5) and out > inside
     hot = model.sigma(np.array([[140.0]]), 27.5)[0, 0]
     scene_rate = (0.6 - 0.3) / 10.0
@@ -87,7 +90,7 @@ def test_sigma_grows_outside_without_bound():
     assert model.sigma(np.array([[-123.15]]), 27.5)[0, 0] > 120.0
     flat = CalibrationSigma(_report(folds=[f | {"mae_c": 0.1} for f in _report().folds]))
     assert flat.sigma(np.array([[25.0]]), 45.0)[0, 0] == pytest.approx(
-        G * (0.1 + MIN_GROWTH_PER_C * 10.0), rel=1e-5)
+        G * (0.1 + MIN_GROWTH_PER_C * 10.0) + UNMEASURED * 5.0, rel=1e-5)
 
 
 def test_outside_names_the_fpa_and_the_scene():
@@ -761,3 +764,60 @@ def test_frames_without_their_history_take_the_sigma_measured_so():
         with pytest.raises(InvalidInputError):
             CalibrationReport.from_dict(model.report.to_dict()
                                         | {"without_history": alone | bad})
+
+
+def test_a_memoryless_fit_is_inside_only_at_paces_held_near_its_fpa():
+    """A memoryless fit at each FPA temperature absorbs the lag bias of the paces it saw there:
+    a session that held the FPA still only at 15 °C and ramped at 2 °C/min through 30 °C
+    cannot vouch for a camera held still at 30 °C (a polynomial so fitted read 5.5 °C off,
+    σ 0.6). Near 15 °C it can; a pace of unknown history (too short a recording) is taken as
+    steady, as the calibration applies it; forced, σ grows with the distance."""
+    from thermocal.calibration.report import CalibrationReport
+
+    cells = [[0, 0, 15], [20, 20, 22], [20, 20, 30], [20, 20, 38]]
+    paces = {"lag_s": 480.0, "cell_c_per_min": 0.1, "margin_c_per_min": 0.1,
+             "cells": [[0, 0], [20, 20]], "fpa_cell_c": 1.0, "fpa_reach_c": 3.0,
+             "fpa_cells": cells}
+    model = CalibrationSigma(_report(paces=paces, fpa_range_c=(15.0, 40.0),
+                                     fpa_rate_c_per_min=(-0.1, 2.0)))
+    temps = np.full((1, 4, 4), 25.0)
+    (why,) = model.outside(temps, [30.0], rate_c_per_min=[0.0], lagged_rate_c_per_min=[0.0])
+    assert "held only more than 3 °C from 30.0 °C" in why and "lin-lag" in why
+    assert model.outside(temps, [16.0], rate_c_per_min=[0.0], lagged_rate_c_per_min=[0.0]) == ()
+    assert model.outside(temps, [30.0], rate_c_per_min=[2.0], lagged_rate_c_per_min=[2.0]) == ()
+    (why,) = model.outside(np.full((3, 4, 4), 25.0), [30.0] * 3)  # no rate: a short recording
+    assert "pace not known" in why and "3 of 3 frames" in why
+    assert model.outside(temps, [16.0]) == ()
+    steady = model.sigma(temps, [30.0])[0].min()
+    assert steady > 10 * model.sigma(temps, [16.0])[0].max()  # forced: ~19 cells beyond
+    # a pace held nowhere near in pace, but at this FPA: as before (the plane's distance)
+    assert "never held" in model.outside(temps, [30.0], rate_c_per_min=[1.0],
+                                         lagged_rate_c_per_min=[1.0])[0]
+    # read back, checked
+    again = CalibrationReport.from_dict(model.report.to_dict())
+    assert again.paces == model.report.paces
+    for bad in ({"fpa_cell_c": 0.0}, {"fpa_reach_c": -1.0}, {"fpa_cells": []}):
+        with pytest.raises(InvalidInputError):
+            CalibrationReport.from_dict(model.report.to_dict()
+                                        | {"fpa_paces": paces | bad})
+
+
+def test_sigma_outside_an_unmeasured_fpa_range_grows_by_the_distance():
+    """A session at one FPA measured no growth with the FPA: σ grows by at least
+    UNMEASURED_FPA_GROWTH_PER_C per °C outside (a two-point from a session at 30.5 °C erred
+    0.26 °C at 30.0, σ 0.05). One with FPA folds grows as they measured up to one end segment
+    beyond its range, and by that much per °C past it (lin-level forced at 80 °C, 35 °C above
+    its session: 9.9 °C off where σ said 2.6)."""
+    from thermocal.calibration.uncertainty import UNMEASURED_FPA_GROWTH_PER_C
+
+    temps = np.full((1, 4, 4), 25.0)
+    one_fpa = _report(folds=[f for f in _report().folds if f["kind"] == "setpoint"],
+                      fpa_range_c=(30.5, 30.5))
+    model = CalibrationSigma(one_fpa)
+    inside = model.sigma(temps, [30.5]).max()
+    assert model.sigma(temps, [30.0]).min() >= inside + G * 0.5 * UNMEASURED_FPA_GROWTH_PER_C - 1e-6
+    model = CalibrationSigma(_report())  # FPA 20–35, end segments 5 °C wide, growth 0.4/°C
+    near = model.sigma(temps, [38.0]).max()  # within one segment: the folds' growth alone
+    far = model.sigma(temps, [50.0]).min()  # and 10 °C past the segment
+    assert far - near == pytest.approx(G * 0.4 * 12.0 + 10.0 * UNMEASURED_FPA_GROWTH_PER_C,
+                                       rel=1e-4)

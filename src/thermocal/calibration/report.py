@@ -794,12 +794,28 @@ def paces_of(data: ChamberData, *, memoryless: bool = True) -> dict[str, Any]:
     ``memoryless`` method, :data:`MEMORY_PACE_MARGIN_C_PER_MIN` for one with memory."""
     use = data.usable
     y = lagged_rate(data.fpa_rate_c_per_min, data.time_s, PACE_LAG_S)
-    cells = np.unique(np.round(np.stack([data.fpa_rate_c_per_min, y], axis=1)[use]
-                               / PACE_CELL_C_PER_MIN).astype(np.int64), axis=0)
-    return {"lag_s": PACE_LAG_S, "cell_c_per_min": PACE_CELL_C_PER_MIN,
-            "cells": cells.tolist(),
-            "margin_c_per_min": (PACE_CELL_C_PER_MIN if memoryless
-                                 else MEMORY_PACE_MARGIN_C_PER_MIN)}
+    plane = np.round(np.stack([data.fpa_rate_c_per_min, y], axis=1)[use]
+                     / PACE_CELL_C_PER_MIN).astype(np.int64)
+    out = {"lag_s": PACE_LAG_S, "cell_c_per_min": PACE_CELL_C_PER_MIN,
+           "cells": np.unique(plane, axis=0).tolist(),
+           "margin_c_per_min": (PACE_CELL_C_PER_MIN if memoryless
+                                else MEMORY_PACE_MARGIN_C_PER_MIN)}
+    if memoryless:  # where (at which FPA temperatures) each pace was held
+        fpa = np.floor(data.fpa_c[use] / PACE_FPA_CELL_C).astype(np.int64)[:, None]
+        out |= {"fpa_cell_c": PACE_FPA_CELL_C, "fpa_reach_c": PACE_FPA_REACH_C,
+                "fpa_cells": np.unique(np.hstack([plane, fpa]), axis=0).tolist()}
+    return out
+
+
+#: The FPA temperature cells in which :func:`paces_of` records where a pace was held, °C.
+PACE_FPA_CELL_C = 1.0
+#: How far from the FPA temperatures at which the session held a pace a memoryless method's
+#: frame at that pace is inside, °C. A memoryless fit at an FPA temperature absorbs the lag
+#: bias of the paces it saw there: a polynomial fitted to a session that only ramped at
+#: 2 °C/min through 30 °C (held still only at its 15.5 °C start) erred 5.5 °C on a camera held
+#: still at 30 °C, σ 0.6. A steps session's plateaus lie 5 °C apart (every FPA within 2.5 °C
+#: of one).
+PACE_FPA_REACH_C = 3.0
 
 
 #: The FPA held still: within this of its present temperature, °C (a plateau's creep and the
@@ -856,6 +872,13 @@ def _paces_from(d: dict[str, Any]) -> dict[str, Any]:
     out = {"lag_s": lag, "cell_c_per_min": cell, "cells": cells.tolist()}
     if "margin_c_per_min" in d:
         out["margin_c_per_min"] = margin
+    if d.get("fpa_cells") is not None:
+        fpa_cells = np.asarray(d["fpa_cells"], dtype=np.int64).reshape(-1, 3)
+        fpa_cell, reach = float(d["fpa_cell_c"]), float(d["fpa_reach_c"])
+        if not (0 < fpa_cell < math.inf and 0 <= reach < math.inf and fpa_cells.size):
+            raise ValueError(f"fpa_paces: FPA cells of {fpa_cell} °C within {reach} °C must be "
+                             "> 0, finite, and some")
+        out |= {"fpa_cell_c": fpa_cell, "fpa_reach_c": reach, "fpa_cells": fpa_cells.tolist()}
     if d.get("still") is not None:
         still = d["still"]
         band, held, plateaus = float(still["band_c"]), float(still["held_s"]), still["plateaus"]

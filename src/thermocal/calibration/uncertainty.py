@@ -102,12 +102,24 @@ __all__ = ["FPA_MARGIN_C", "MIN_GROWTH_PER_C", "NO_REPORT", "NO_REPORT_REMEDY", 
 
 #: The least growth of the error outside the calibrated ranges, °C of MAE per °C outside.
 MIN_GROWTH_PER_C = 0.02
+#: The growth of the error outside the FPA range of a session that measured none (held at one
+#: FPA temperature: no FPA segment could be left out), °C of MAE per °C outside. A two-point
+#: from a session held at 30.5 °C erred 0.26 °C on frames at 30.0 °C, σ 0.05; on a steps
+#: session its cross-validation's FPA folds err 6–14 °C 8–30 °C from its reference: about
+#: 0.5 °C per °C, which this covers at 1σ.
+UNMEASURED_FPA_GROWTH_PER_C = 1.0
 #: FPA temperatures this close outside the session's range are inside (the sensor's noise), °C.
 FPA_MARGIN_C = 0.5
 #: Frames this far from the FPA temperatures a fit used, °C, may read their scene out of range
 #: because of their FPA, which the refusal then says (a two-point at 15.5 °C reads a 20 °C
 #: scene as 7…42 °C at an FPA of 45 °C).
 FITTED_FPA_NOTE_C = 5.0
+#: How far from the paces held near its FPA temperature (``fpa_cells``) a memoryless method's
+#: frame is still inside, °C/min: wider than the margin of the paces held anywhere (a cell),
+#: since a fit at one FPA temperature is held by its neighbours' too (a 0.2 °C/min sawtooth's
+#: polynomial reads a camera held still at 28 °C within 0.15 °C), narrow enough for a pace
+#: met only far away (a 2 °C/min ramp's: 5.5 °C off at a still 30 °C).
+LOCAL_PACE_MARGIN_C_PER_MIN = 0.3
 #: FPA rates up to this many times the session's fastest are inside (the rate estimate's noise).
 RATE_MARGIN = 1.25
 #: What to do about frames outside a calibration's ranges.
@@ -222,10 +234,23 @@ class CalibrationSigma:
         k_scene = _growth(r.by_scene(), r.expected_mae_c, lambda f: step)
         k_fpa = _growth(r.by_fpa(), r.expected_mae_c,
                         lambda f: 0.5 * (f["held_out"][1] - f["held_out"][0]))
+        if not any(f.get("mae_c") is not None for f in r.by_fpa()):
+            k_fpa = max(k_fpa, UNMEASURED_FPA_GROWTH_PER_C)  # a session at one FPA
         # how far the end folds extrapolated, below and above: one step to the next set point
         ends = ((points[1] - points[0], points[-1] - points[-2]) if len(points) > 1
                 else (step, step))
         return scene, fpa, k_scene, k_fpa, ends
+
+    @cached_property
+    def _fpa_ends(self) -> tuple[float, float]:
+        """How far the end FPA folds extrapolated, below and above, °C: the widths of the end
+        segments (inf without FPA folds: the growth outside is then unmeasured from the
+        range itself, :data:`UNMEASURED_FPA_GROWTH_PER_C`)."""
+        spans = sorted((float(f["held_out"][0]), float(f["held_out"][1]))
+                       for f in self.report.by_fpa())
+        if not spans:
+            return math.inf, math.inf
+        return spans[0][1] - spans[0][0], spans[-1][1] - spans[-1][0]
 
     def _overall_sigma(self) -> float:
         r = self.report
@@ -304,47 +329,73 @@ class CalibrationSigma:
             np.asarray(time_since_start_s, dtype=np.float64).reshape(-1), (n,)))
         return alone["sigma_c"] * np.exp(-np.maximum(since, 0.0) / alone["lag_s"])
 
-    def pace_distance(self, rate_c_per_min: Any, time_s: Any) -> np.ndarray:
+    def pace_distance(self, rate_c_per_min: Any, time_s: Any, *, fpa_c: Any = None
+                      ) -> np.ndarray:
         """How far each frame's pace lies from the paces the session held, °C/min ``(N,)``: the
         Chebyshev distance in the plane (FPA rate, the same through the report's lag) from the
-        nearest held cell's centre, less half a cell, at least 0. ``rate_c_per_min`` and
-        ``time_s`` (s) are one recording's, ``(N,)`` in time order. Zeros where the report
-        lists no paces (a method with memory, or an older report) and for times out of order
-        (not one recording: no pace history)."""
-        return self._pace(rate_c_per_min, time_s)[2]
+        nearest held cell's centre, less half a cell, at least 0; given the frames' FPA
+        temperatures ``fpa_c`` (°C), of the cells held near them (:meth:`_distance`).
+        ``rate_c_per_min`` and ``time_s`` (s) are one recording's, ``(N,)`` in time order.
+        Zeros where the report lists no paces (a method with memory, or an older report) and
+        for times out of order (not one recording: no pace history)."""
+        return self._pace(rate_c_per_min, time_s, None, fpa_c)[2]
 
-    def _pace(self, rate_c_per_min: Any, time_s: Any, lagged_rate_c_per_min: Any = None
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _pace(self, rate_c_per_min: Any, time_s: Any, lagged_rate_c_per_min: Any = None,
+              fpa_c: Any = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Each frame's rate and lagged rate, °C/min, and its :meth:`pace_distance` (all
-        ``(N,)``): the lagged rate given (``lagged_rate_c_per_min``, one or one per frame,
-        taken from the frames' recording), or made from the rates of one recording at
-        ``time_s`` (the rate itself where there is no pace history)."""
+        ``(N,)``; at its FPA temperature ``fpa_c``, °C, where given): the lagged rate given
+        (``lagged_rate_c_per_min``, one or one per frame, taken from the frames' recording),
+        or made from the rates of one recording at ``time_s`` (the rate itself where there is
+        no pace history)."""
         rate = np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)
         if lagged_rate_c_per_min is not None:
             lagged = np.broadcast_to(
                 np.asarray(lagged_rate_c_per_min, dtype=np.float64).reshape(-1), rate.shape)
-            return rate, lagged, self._distance(rate, lagged)
+            return rate, lagged, self._distance(rate, lagged, fpa_c)
         t = np.asarray(time_s, dtype=np.float64).reshape(-1)
         paces = self.report.paces
         if (not paces or not paces["cells"] or rate.size == 0 or t.shape != rate.shape
                 or np.any(np.diff(t) <= 0)):
             return rate, rate, np.zeros(rate.shape)
         lagged = lagged_rate(rate, t, paces["lag_s"])
-        return rate, lagged, self._distance(rate, lagged)
+        return rate, lagged, self._distance(rate, lagged, fpa_c)
 
-    def _distance(self, rate: np.ndarray, lagged: np.ndarray) -> np.ndarray:
+    def _distance(self, rate: np.ndarray, lagged: np.ndarray, fpa: Any = None) -> np.ndarray:
         """:meth:`pace_distance` of points (rate, lagged rate), °C/min ``(N,)`` each; zeros
-        where the report lists no paces."""
+        where the report lists no paces. Given their FPA temperatures ``fpa`` (°C, one or one
+        per point) and a report that says where each pace was held (a memoryless method's
+        ``fpa_cells``), the distance from the paces held within ``fpa_reach_c`` of a point's
+        FPA also counts, less :data:`LOCAL_PACE_MARGIN_C_PER_MIN` beyond the margin: a pace
+        held only at other FPA temperatures (none within reach: a cell beyond that margin)."""
         paces = self.report.paces
         if not paces or not paces["cells"]:
             return np.zeros(rate.shape)
         cell = paces["cell_c_per_min"]
         held = np.asarray(paces["cells"], dtype=np.float64).reshape(-1, 2) * cell
         point = np.stack([rate, lagged], axis=1)
-        out = np.empty(rate.shape)
-        for i in range(0, rate.size, 4096):  # (frames × cells) at a time, bounded
-            d = np.abs(point[i:i + 4096, None, :] - held[None]).max(axis=2).min(axis=1)
-            out[i:i + 4096] = np.maximum(d - 0.5 * cell, 0.0)
+        out = self._nearest(point, held) - 0.5 * cell
+        if fpa is not None and np.size(fpa) and paces.get("fpa_cells"):
+            where = np.asarray(paces["fpa_cells"], dtype=np.float64).reshape(-1, 3)
+            centre = (where[:, 2] + 0.5) * paces["fpa_cell_c"]
+            reach = paces["fpa_reach_c"] + 0.5 * paces["fpa_cell_c"]
+            at = np.broadcast_to(np.asarray(fpa, dtype=np.float64).reshape(-1), rate.shape)
+            local = self._nearest(point, where[:, :2] * cell, at, centre, reach) - 0.5 * cell
+            local[np.isinf(local)] = LOCAL_PACE_MARGIN_C_PER_MIN + cell  # none within reach
+            out = np.maximum(out, local - (LOCAL_PACE_MARGIN_C_PER_MIN - self._pace_margin))
+        return np.maximum(out, 0.0)
+
+    @staticmethod
+    def _nearest(point: np.ndarray, held: np.ndarray, at: np.ndarray | None = None,
+                 centre: np.ndarray | None = None, reach: float = 0.0) -> np.ndarray:
+        """The Chebyshev distance of each point ``(N, 2)`` to the nearest ``held`` ``(M, 2)``,
+        °C/min (given the points' FPA temperatures ``at`` ``(N,)`` and the cells'
+        ``centre`` ``(M,)``, of the cells within ``reach`` °C alone; inf where none is)."""
+        out = np.empty(point.shape[0])
+        for i in range(0, point.shape[0], 4096):  # (frames × cells) at a time, bounded
+            d = np.abs(point[i:i + 4096, None, :] - held[None]).max(axis=2)
+            if at is not None:
+                d = np.where(np.abs(at[i:i + 4096, None] - centre[None]) > reach, np.inf, d)
+            out[i:i + 4096] = d.min(axis=1) if d.shape[1] else np.inf
         return out
 
     def unseen_paces(self, rate_c_per_min: Any, time_s: Any, *, fpa_c: Any = None
@@ -353,7 +404,7 @@ class CalibrationSigma:
         held: more than one cell from every held one (:meth:`pace_distance`), or, given their
         FPA temperatures ``fpa_c`` (°C ``(N,)``), held it still longer than the session's
         plateaus did (:meth:`still_excess`)."""
-        unseen = self.pace_distance(rate_c_per_min, time_s) > self._pace_margin
+        unseen = self.pace_distance(rate_c_per_min, time_s, fpa_c=fpa_c) > self._pace_margin
         if fpa_c is not None:
             unseen |= self._still(fpa_c, time_s)[1] > 1.0
         return unseen
@@ -438,13 +489,16 @@ class CalibrationSigma:
                     rate,
                     np.broadcast_to(np.asarray(time_since_start_s, dtype=np.float64).reshape(-1),
                                     (n,)) if recording else None,
-                    None if recording else lagged_rate_c_per_min)
+                    None if recording else lagged_rate_c_per_min, fpa)
                 change = self.change_sigma(np.abs(rate - lagged))
                 if self.by_pace:  # the bins are of the pace: the larger of the two rates
                     rate = np.maximum(np.abs(rate), np.abs(lagged))
             level = self.rate_sigma(rate, at_least=self.by_pace and not history)
             if history:
                 level = np.maximum(level, np.maximum(self._pace_sigma(d), change))
+        elif self.report.paces.get("fpa_cells"):  # no rate: taken as steady, as applied
+            level = np.maximum(level, self._pace_sigma(self._distance(np.zeros(n), np.zeros(n),
+                                                                      fpa)))
         excess = self._still(fpa, time_since_start_s if recording else None, still_s)[1]
         level = np.maximum(level, self._still_sigma(excess))
         if time_since_start_s is not None:
@@ -466,6 +520,12 @@ class CalibrationSigma:
         # distance (a pixel clipped at the radiance tables' floor reads −123 °C whatever it saw)
         unmeasured = (np.maximum(lo - step_lo - frames, 0.0)
                       + np.maximum(frames - hi - step_hi, 0.0))
+        # and beyond one FPA segment outside: UNMEASURED_FPA_GROWTH_PER_C (lin-level forced at
+        # an FPA of 80 °C, 35 °C above its session's: 9.9 °C off where σ said 2.6)
+        seg_lo, seg_hi = self._fpa_ends
+        unmeasured = unmeasured + (UNMEASURED_FPA_GROWTH_PER_C * (
+            np.maximum(flo - seg_lo - fpa, 0.0) + np.maximum(fpa - fhi - seg_hi, 0.0)))[
+                :, None, None]
         out = (level[:, None, None] * shape + _GAUSS * growth + unmeasured).astype(np.float32)
         return out if temps.ndim == 3 else out[0]
 
@@ -482,10 +542,25 @@ class CalibrationSigma:
         paces = self.report.paces
         return paces.get("margin_c_per_min", paces.get("cell_c_per_min", math.inf))
 
-    def _pace_reason(self, rate: float, lagged: float, count: str = "") -> str:
-        """The pace refusal's text for a frame at ``rate`` after ``lagged`` °C/min."""
+    def _pace_reason(self, rate: float, lagged: float, count: str = "",
+                     fpa: float | None = None, *, unknown: bool = False) -> str:
+        """The pace refusal's text for a frame at ``rate`` after ``lagged`` °C/min (at FPA
+        temperature ``fpa``, °C, where known; ``unknown``: its pace was not known, and taken as
+        steady)."""
         what = (f"{count}{'first ' if count else ''}{rate:+.2f} °C/min after {lagged:+.2f} over "
                 f"the last {self.report.paces['lag_s'] / 60:.0f} min")
+        if unknown:
+            what = (f"{count}its pace not known from so short a recording, taken as steady, as "
+                    "the calibration applies it")
+        if fpa is not None and self._distance(np.array([rate]), np.array([lagged]))[0] \
+                <= self._pace_margin:  # held, but at other FPA temperatures only
+            paces = self.report.paces
+            return (f"the FPA changed at a pace its chamber session held only more than "
+                    f"{paces['fpa_reach_c']:g} °C from {fpa:.1f} °C ({what}), and the "
+                    f"{self.report.method} calibration, with no memory of how the FPA changed, "
+                    "fitted each FPA temperature to the paces it saw there (record a session "
+                    "that holds the FPA still, in steps, across its range; lin-lag follows the "
+                    "pace's history)")
         if self._pace_margin <= self._pace_cell:
             return (f"the FPA changed at paces its chamber session never held ({what}), which "
                     f"the {self.report.method} calibration, with no memory of how the FPA "
@@ -553,23 +628,35 @@ class CalibrationSigma:
         :meth:`still_excess`, from ``time_s`` or each frame's ``still_s``, s), or
         their scene (its 1st–99th percentile beyond the blackbody's range); ``()`` inside."""
         reasons = []
+        fpa = np.asarray(fpa_c, dtype=np.float64).reshape(-1)
         if rate_c_per_min is not None and self.report.paces and (
                 lagged_rate_c_per_min is not None
                 or (time_s is not None and np.size(rate_c_per_min) > 1)):
-            rate, lagged, d = self._pace(rate_c_per_min, time_s, lagged_rate_c_per_min)
+            rate, lagged, d = self._pace(rate_c_per_min, time_s, lagged_rate_c_per_min,
+                                         fpa if fpa.size else None)
             unseen = d > self._pace_margin
             if unseen.any():
                 k = int(np.argmax(unseen))
                 count = (f"{int(unseen.sum())} of {unseen.size} frames; " if unseen.size > 1
                          else "")
-                reasons.append(self._pace_reason(rate[k], lagged[k], count=count))
+                at = float(fpa[min(k, fpa.size - 1)]) if fpa.size else None
+                reasons.append(self._pace_reason(rate[k], lagged[k], count=count, fpa=at))
+        elif rate_c_per_min is None and fpa.size and self.report.paces.get("fpa_cells"):
+            # no rate (a recording too short to show it): taken as steady, as it is applied
+            unseen = self._distance(np.zeros(fpa.size), np.zeros(fpa.size), fpa) \
+                > self._pace_margin
+            if unseen.any():
+                k = int(np.argmax(unseen))
+                count = (f"{int(unseen.sum())} of {unseen.size} frames; " if unseen.size > 1
+                         else "")
+                reasons.append(self._pace_reason(0.0, 0.0, count=count, fpa=float(fpa[k]),
+                                                 unknown=True))
         if rate_c_per_min is not None and np.size(rate_c_per_min):
             fastest = float(np.max(np.abs(rate_c_per_min)))
             if fastest > RATE_MARGIN * self.max_rate_c_per_min + 0.05:
                 reasons.append(f"the FPA changes at up to {fastest:.2f} °C/min, faster than the "
                                f"{self.max_rate_c_per_min:.2f} °C/min of the "
                                f"{self.report.method} calibration's chamber session")
-        fpa = np.asarray(fpa_c, dtype=np.float64).reshape(-1)
         if still_s is not None or (time_s is not None and fpa.size):
             held, excess = self._still(fpa, time_s, still_s)
             if np.any(excess > 1.0):
