@@ -180,6 +180,14 @@ CASES = [
     ("flight-with-a-calibration-without-report",
      ["flight", "{root}/flight", "--out", "{tmp}/out", "--method", "calibration",
       "--calibration", "{root}/cal_unreported.h5"], "no cross-validation report"),
+    # data loss: an output that would replace a file of another kind
+    ("simulate-chamber-over-a-calibration",
+     ["simulate", "chamber", "{root}/cal.h5", "--size", "16x16"], "holds a calibration"),
+    ("calibrate-over-a-chamber-session",
+     ["calibrate", "{root}/chamber.h5", "--method", "two-point", "--out", "{root}/small.h5"],
+     "holds a chamber session"),
+    ("simulate-flight-into-a-folder-of-other-files",
+     ["simulate", "flight", "{root}", "--size", "48x32"], "simulate flight does not write"),
     # data loss: an output that is an input
     ("correct-over-recording",
      ["correct", "{root}/rec.tiff", "--calibration", "{root}/cal.h5", "--out",

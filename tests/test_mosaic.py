@@ -309,3 +309,11 @@ def test_a_processed_flight(tmp_path):
     err = np.abs(temp - seen)[views >= 2]
     assert np.median(err) < 0.1 and np.percentile(err, 95) < 0.3  # measured 0.05, 0.18
     assert summary["views"]["rejected_fraction"] < 0.01
+    assert summary["sigma"]["written"] and (out / "mosaic" / "sigma.tiff").is_file()
+    # a map whose σ map the flight wrote and which is now missing is left out, not used
+    # without σ (the whole mosaic was written without one, said in mosaic.json alone)
+    lost = pivots[len(pivots) // 2]
+    (out / "temps" / f"frame_{lost:06d}_sigma.tiff").unlink()
+    again = build_mosaic(out)
+    assert [m["frame"] for m in again["maps_left_out"]] == [lost]
+    assert "σ" in again["maps_left_out"][0]["reason"] and again["sigma"]["written"]

@@ -126,6 +126,9 @@ def simulate_chamber_cmd(
     start, stop, step = parse_range(blackbody_c, "--blackbody-c", step=True)
     amb_low, amb_high = parse_range(ambient_c, "--ambient-c")
     check_output_file(out, HDF5_SUFFIXES)
+    from thermocal.io.replaces import check_replaces_only
+
+    check_replaces_only(out, "chamber session", what="OUT")
     check_number(rate_c_per_min, "--rate-c-per-min", low=0.0, low_open=True)
     check_number(interval_s, "--interval-s", low=0.0, low_open=True)
     if duration_min is not None:
@@ -232,16 +235,32 @@ def _flight_frames_name(fmt: str) -> str:
     return "frames.tiff" if fmt == "tiff" else _FLIGHT_FRAMES.get(fmt, "frames")
 
 
+#: What ``simulate flight`` writes into OUT_DIR, in any format: a folder holding only these
+#: is one of its earlier runs, which a rerun replaces.
+_FLIGHT_OUTPUTS = frozenset({"frames.tiff", "frames.json", "flight.json", "truth.tiff",
+                             "homographies.npy", *_FLIGHT_FRAMES.values(), "frames"})
+
+
 def _check_no_other_recording(out_dir: Path, fmt: str) -> None:
-    """Refuse an OUT_DIR that holds the frames of a flight in another format: writing beside
-    them would leave two recordings in one folder (and the sidecar of one replaced), which a
-    flight then reads as either."""
+    """Refuse an OUT_DIR that holds the frames of a flight in another format (writing beside
+    them would leave two recordings in one folder, and the sidecar of one replaced, which a
+    flight then reads as either), or anything simulate flight does not write (a camera's own
+    recording, a flight's outputs: a rerun replaces only its own earlier run)."""
     ours = _flight_frames_name(fmt)
     for other in sorted({_flight_frames_name(f) for f in FLIGHT_FORMATS} - {ours}):
         if (out_dir / other).exists():
             raise InvalidInputError(
                 f"{out_dir}: holds a recording ({other}); simulate flight --format {fmt} "
                 f"would write {ours} beside it: choose an empty folder or remove it")
+    if out_dir.is_dir():
+        others = sorted(p.name for p in out_dir.iterdir()
+                        if p.name not in _FLIGHT_OUTPUTS and not p.name.startswith("."))
+        if others:
+            shown = ", ".join(others[:3]) + (f", … {len(others)} in all" if len(others) > 3
+                                             else "")
+            raise InvalidInputError(
+                f"{out_dir}: holds files simulate flight does not write ({shown}); it writes "
+                "into an empty folder or one of its own earlier runs: choose another folder")
 
 
 def _check_flight_format(out_dir: Path, fmt: str) -> Path | None:

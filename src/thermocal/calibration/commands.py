@@ -80,6 +80,9 @@ def calibrate(chamber: Path, method: str, out: Path, report_path: Path | None,
 
     check_output_file(out, _CALIBRATION_SUFFIXES)
     check_not_input(out, chamber)
+    from thermocal.io.replaces import check_replaces_only
+
+    check_replaces_only(out, "calibration")
     if report_path is not None:
         check_output_file(report_path, _REPORT_SUFFIXES)
         check_not_input(report_path, chamber, what="--report")

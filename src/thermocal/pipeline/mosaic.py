@@ -227,6 +227,9 @@ def _flight_maps(out: Path) -> tuple[list[_Map], list[dict[str, Any]]]:
             left_out.append({"frame": frame, "reason": f"no map: {path.name} is missing"})
         else:
             sigma = path.with_name(f"frame_{frame:06d}_sigma.tiff")
+            if "sigma_mean_c" in entry and not sigma.is_file():  # the flight wrote one: lost
+                left_out.append({"frame": frame, "reason": f"no σ: {sigma.name} is missing"})
+                continue
             maps.append(_Map(frame, path, sigma if sigma.is_file() else None))
     logged = {entry["frame"] for entry in entries}
     unlogged = sorted(int(m[1]) for m in (_MAP_NAME.fullmatch(p.name)
