@@ -180,6 +180,11 @@ CASES = [
     ("flight-with-a-calibration-without-report",
      ["flight", "{root}/flight", "--out", "{tmp}/out", "--method", "calibration",
       "--calibration", "{root}/cal_unreported.h5"], "no cross-validation report"),
+    # an HDF5 file of the project's given as a recording: which one, and what reads it
+    ("info-on-a-chamber-session", ["info", "{root}/chamber.h5"],
+     "a chamber session (HDF5), not a recording: `thermocal calibrate` reads it"),
+    ("info-on-a-calibration", ["info", "{root}/cal.h5"],
+     "a calibration (HDF5), not a recording: `thermocal correct --calibration` uses it"),
     # data loss: an output that would replace a file of another kind
     ("simulate-chamber-over-a-calibration",
      ["simulate", "chamber", "{root}/cal.h5", "--size", "16x16"], "holds a calibration"),

@@ -642,8 +642,14 @@ def _kind(p: Path, head: bytes) -> str:
     if head[:3] == JPEG_MAGIC:
         return "rjpeg"
     if head[:8] == b"\x89HDF\r\n\x1a\n":
-        raise FileFormatError(f"{p}: an HDF5 file (a chamber session or a calibration?), not a "
-                              "recording: `thermocal calibrate` reads chamber sessions")
+        from thermocal.io.replaces import hdf5_kind
+
+        kind = hdf5_kind(p)
+        reads = {"chamber session": "`thermocal calibrate` reads it",
+                 "calibration": "`thermocal correct --calibration` uses it"}.get(
+                     kind, "`thermocal calibrate` reads chamber sessions")
+        what = f"a {kind}" if kind in ("chamber session", "calibration") else "an HDF5 file"
+        raise FileFormatError(f"{p}: {what} (HDF5), not a recording: {reads}")
     if head[:4] == _ZIP_MAGIC:
         keys = npz_keys(p)
         if "blackbody" in keys:
