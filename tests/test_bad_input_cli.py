@@ -120,6 +120,15 @@ def inputs(tmp_path_factory) -> dict[str, Path]:
     tifffile.imwrite(root / "rec5.tiff", tifffile.imread(rec)[:5], photometric="minisblack")
     (root / "rec5.json").write_text(json.dumps({k: (v[:5] if isinstance(v, list) else v)
                                                 for k, v in sidecar.items()} | {"pivot": 2}))
+    # a measured chamber session (an EnvChamberCtrl conversion says so in its source), and a
+    # camera's own recording in a folder as simulate flight would name it
+    shutil.copy(chamber, root / "measured.h5")
+    with h5py.File(root / "measured.h5", "a") as f:
+        f.attrs["source"] = "EnvChamberCtrl"
+    (root / "capture").mkdir()
+    shutil.copy(rec, root / "capture" / "frames.tiff")
+    own = {k: v for k, v in sidecar.items() if k not in ("scene", "preset", "seed", "motion")}
+    (root / "capture" / "frames.json").write_text(json.dumps(own))
     # a recording whose sidecar is not JSON
     shutil.copy(rec, root / "badjson.tiff")
     (root / "badjson.json").write_text('{"fpa_c": [30, 30,')
@@ -180,6 +189,9 @@ CASES = [
     ("flight-with-a-calibration-without-report",
      ["flight", "{root}/flight", "--out", "{tmp}/out", "--method", "calibration",
       "--calibration", "{root}/cal_unreported.h5"], "no cross-validation report"),
+    ("selfcal-from-a-calibration-without-report",
+     ["flight", "{root}/flight", "--out", "{tmp}/out", "--method", "selfcal",
+      "--calibration", "{root}/cal_unreported.h5"], "no cross-validation report"),
     # an HDF5 file of the project's given as a recording: which one, and what reads it
     ("info-on-a-chamber-session", ["info", "{root}/chamber.h5"],
      "a chamber session (HDF5), not a recording: `thermocal calibrate` reads it"),
@@ -191,6 +203,15 @@ CASES = [
     ("calibrate-over-a-chamber-session",
      ["calibrate", "{root}/chamber.h5", "--method", "two-point", "--out", "{root}/small.h5"],
      "holds a chamber session"),
+    ("simulate-chamber-over-a-measured-session",
+     ["simulate", "chamber", "{root}/measured.h5", "--size", "16x16"],
+     "holds a chamber session from EnvChamberCtrl"),
+    ("simulate-flight-over-a-cameras-recording",
+     ["simulate", "flight", "{root}/capture", "--size", "48x32"],
+     "holds a recording simulate flight did not write"),
+    ("calibrate-report-over-a-recordings-sidecar",
+     ["calibrate", "{root}/chamber.h5", "--method", "two-point", "--out", "{tmp}/c.h5",
+      "--report", "{root}/rec.json"], "not a calibration report"),
     ("simulate-flight-into-a-folder-of-other-files",
      ["simulate", "flight", "{root}", "--size", "48x32"], "simulate flight does not write"),
     # data loss: an output that is an input

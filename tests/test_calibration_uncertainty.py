@@ -297,9 +297,11 @@ def test_a_bursts_pace_sigma_grows_only_at_paces_never_held():
     one = model.sigma(np.full((1, 1), 25.0), 27.5, rate_c_per_min=[1.0],
                       lagged_rate_c_per_min=[1.0])[0, 0]
     assert one == pytest.approx(steady, rel=1e-3)
-    assert model.burst_pace_sigma(FpaPace(1.0, 1.0)) > 0.0
-    assert model.burst_pace_sigma(FpaPace(0.0, 0.0)) == 0.0  # held still
-    assert model.burst_pace_sigma(FpaPace(1.0)) == model.burst_pace_sigma(None) == 0.0
+    x = np.full((1, 1), 25.0)
+    assert model.burst_sigma(x, 27.5, FpaPace(1.0, 1.0))[0, 0] == pytest.approx(one)
+    assert model.burst_sigma(x, 27.5, FpaPace(0.0, 0.0))[0, 0] < one  # held still
+    assert model.burst_sigma(x, 27.5, FpaPace(1.0)) == pytest.approx(
+        model.sigma(x, 27.5, rate_c_per_min=[1.0]))  # no history: its rate alone
 
 
 def test_fpa_pace_keeps_a_change_after_the_rate_stops():
@@ -397,8 +399,9 @@ def test_a_memoryless_sigma_grows_just_after_the_pace_changed():
     # a burst's pace (selfcal's level) and a rate not known take it too
     from thermocal.estimation.base import FpaPace
 
-    assert model.burst_pace_sigma(FpaPace(1.5, 0.2, None)) == pytest.approx(1.2)
-    assert plain.burst_pace_sigma(FpaPace(1.5, 0.2, None)) == 0.0
+    x = np.full((1, 1), 25.0)
+    assert model.burst_sigma(x, 27.5, FpaPace(1.5, 0.2, None))[0, 0] == pytest.approx(1.2)
+    assert plain.burst_sigma(x, 27.5, FpaPace(1.5, 0.2, None))[0, 0] < 1.2
     assert model.change_sigma([np.nan, 0.1]).tolist() == [1.2, 0.0]
 
 
@@ -499,8 +502,10 @@ def test_a_camera_held_still_longer_than_an_unsettled_session_is_outside():
     (bare,) = model.outside_burst(np.full((3, 1, 1), 25.0), None, FpaPace(0.0, 0.0, 900.0))
     assert "(for 15.0 min), 1.50× longer" in bare
     assert model.outside_burst(np.full((3, 1, 1), 25.0), 27.0, FpaPace(0.0, 0.0, 500.0)) == ()
-    assert model.burst_pace_sigma(FpaPace(0.0, 0.0, 900.0)) == pytest.approx(worst * 1.5)
-    assert model.burst_pace_sigma(FpaPace(0.0, 0.0, 500.0)) == 0.0
+    x = np.full((1, 1), 25.0)
+    assert model.burst_sigma(x, 27.0, FpaPace(0.0, 0.0, 900.0))[0, 0] == pytest.approx(
+        worst * 1.5)
+    assert model.burst_sigma(x, 27.0, FpaPace(0.0, 0.0, 500.0))[0, 0] < worst
     np.testing.assert_allclose(model.still_excess([300.0, 1200.0]), [0.5, 2.0])
     np.testing.assert_array_equal(settled.still_excess([1200.0]), [0.0])
 
@@ -640,6 +645,25 @@ def test_the_pipeline_judges_a_bursts_pace_from_its_recording(fitted):
     np.testing.assert_array_equal(no_history.temperature_c, held.temperature_c)
 
 
+def test_a_burst_late_in_its_recording_takes_the_sigma_of_frames_without_history(fitted):
+    """A burst is calibrated without its recording's FPA history (a model remembering the
+    FPA's rates starts steady at it): σ is that of frames taken alone however long the
+    recording had run (it faded with the time since the flight began: σ 0.16 °C for
+    1.7 °C errors of lin-lag bursts late in a flight)."""
+    from dataclasses import replace
+
+    camera, cal, report = fitted
+    scene = 15.0 + 10.0 * np.random.default_rng(0).random((96, 96))
+    burst = simulate_flight(scene, camera, n_frames=5, motion="walk",
+                            fpa_c=0.5 * sum(report.fpa_range_c), seed=1)
+    estimator = PivotCalibration(cal)
+    plain = estimate(burst.frames, estimator, fpa_c=burst.fpa_c, time_since_start_s=3600.0)
+    alone = {"sigma_c": 3.0, "mae_c": 2.5, "lag_s": 480.0, "frames": 10}
+    estimator.sigma_model = CalibrationSigma(replace(report, without_history=alone))
+    late = estimate(burst.frames, estimator, fpa_c=burst.fpa_c, time_since_start_s=3600.0)
+    assert np.median(plain.sigma_c) < 1.0 <= 3.0 <= late.sigma_c.min()
+
+
 def test_the_pipeline_judges_a_bursts_stillness_from_its_recording(fitted):
     """Given how long the FPA had held still (from its recording), a calibration whose session
     had not settled refuses a burst held still longer than the session was, and forced, grows
@@ -669,36 +693,34 @@ def test_the_pipeline_judges_a_bursts_stillness_from_its_recording(fitted):
 
 
 def test_a_flight_lags_the_rate_by_its_calibrations_own_pace_lag(fitted):
-    """The flight's lagged rates use the lag the calibration's paces were binned at (its
-    report's ``lag_s``), not a constant; none without a calibration's σ (a network); its
-    stillness only where the report judges it (a session that had not settled)."""
+    """A recording's lagged rates (flight, estimate) use the lag the calibration's paces were
+    binned at (its report's ``lag_s``), not a constant; none without a calibration's σ (a
+    network); its stillness only where the report judges it (a session that had not
+    settled)."""
     from dataclasses import replace
 
     from thermocal.calibration.dataset import lagged_rate
-    from thermocal.pipeline.flight import _pace_history
+    from thermocal.estimation.paces import recording_paces
 
     _, cal, report = fitted
     t = np.arange(0.0, 1200.0, 10.0)
-    series = {"fpa_rate_c_per_min": np.where(t > 300.0, 0.5, 0.0), "time_s": t,
-              "fpa_c": 30.0 + np.maximum(t - 300.0, 0.0) / 120.0}
+    fpa = 30.0 + np.maximum(t - 300.0, 0.0) / 120.0  # still, then 0.5 °C/min
     estimator = PivotCalibration(cal)
-    history = _pace_history(series, estimator)
-    np.testing.assert_array_equal(
-        history["fpa_lagged_rate_c_per_min"],
-        lagged_rate(series["fpa_rate_c_per_min"], t, report.paces["lag_s"]))
+    history = recording_paces(fpa, t, estimator.fpa_paces)
+    rates = history["fpa_rate_c_per_min"]
+    assert rates[-1] == pytest.approx(0.5, abs=0.01) and rates[10] == pytest.approx(0.0)
+    np.testing.assert_array_equal(history["fpa_lagged_rate_c_per_min"],
+                                  lagged_rate(rates, t, report.paces["lag_s"]))
     assert history["fpa_still_s"] is None and "still" not in report.paces
     estimator.sigma_model = CalibrationSigma(replace(report, paces=report.paces | {
         "lag_s": 60.0, "still": {"band_c": 0.15, "held_s": 120.0, "plateaus": 2}}))
-    history = _pace_history(series, estimator)
+    history = recording_paces(fpa, t, estimator.fpa_paces)
     np.testing.assert_array_equal(history["fpa_lagged_rate_c_per_min"],
-                                  lagged_rate(series["fpa_rate_c_per_min"], t, 60.0))
+                                  lagged_rate(rates, t, 60.0))
     still = history["fpa_still_s"]
     assert still[30] == 300.0 and still[-10] == 10.0  # rising 0.083 °C a frame
-    none = {"fpa_lagged_rate_c_per_min": None, "fpa_still_s": None}
-    from types import SimpleNamespace
-
-    assert _pace_history(series, SimpleNamespace(fpa_paces={})) == none  # a network
-    assert _pace_history(series | {"time_s": t[::-1]}, estimator) == none
+    for none in (recording_paces(fpa, t, {}), recording_paces(fpa, t[::-1], estimator.fpa_paces)):
+        assert none["fpa_lagged_rate_c_per_min"] is None and none["fpa_still_s"] is None
 
 
 def test_the_unmeasured_growth_starts_where_each_end_fold_stopped():
@@ -758,6 +780,9 @@ def test_frames_without_their_history_take_the_sigma_measured_so():
     assert model.sigma(temps, [27.0], time_since_start_s=[0.0]) == pytest.approx(
         np.full_like(without, 2.0))
     assert model.sigma(temps, [27.0], time_since_start_s=[3600.0]) == pytest.approx(without)
+    # a burst an hour into its recording, calibrated without that history: σ in full
+    assert model.sigma(temps, [27.0], time_since_start_s=[3600.0],
+                       history_seen=False) == pytest.approx(np.full_like(without, 2.0))
     back = CalibrationReport.from_dict(model.report.to_dict())
     assert back.without_history == alone
     for bad in ({"sigma_c": -1.0}, {"lag_s": 0.0}, {"frames": 2.5}, {"mae_c": math.inf}):
@@ -793,6 +818,15 @@ def test_a_memoryless_fit_is_inside_only_at_paces_held_near_its_fpa():
     # a pace held nowhere near in pace, but at this FPA: as before (the plane's distance)
     assert "never held" in model.outside(temps, [30.0], rate_c_per_min=[1.0],
                                          lagged_rate_c_per_min=[1.0])[0]
+    # a burst's σ (calibrations and selfcal's level) judges its pace where it was held, as
+    # the check does: a ramp at 30 °C inside and sharp, still at 30 °C refused and grown
+    from thermocal.estimation.base import FpaPace
+
+    ramp = model.burst_sigma(temps, 30.0, FpaPace(2.0, 2.0))
+    still = model.burst_sigma(temps, 30.0, FpaPace(0.0, 0.0))
+    assert model.outside_burst(temps, 30.0, FpaPace(2.0, 2.0)) == ()
+    assert model.outside_burst(temps, 30.0, FpaPace(0.0, 0.0))
+    assert ramp.max() < 1.0 and still.min() > 10 * ramp.max()
     # read back, checked
     again = CalibrationReport.from_dict(model.report.to_dict())
     assert again.paces == model.report.paces

@@ -56,8 +56,8 @@ class Recorder:
         self.seen.append(("calibrate", frames.copy(), fpa_c))
         return frames.astype(np.float32) * 0.5 + np.arange(frames.shape[2], dtype=np.float32)
 
-    def outside(self, calibrated, fpa_c, *, pace=None):
-        self.seen.append(("outside", calibrated.shape, fpa_c))
+    def outside(self, calibrated, fpa_c, *, pace=None, burst=None):
+        self.seen.append(("outside", calibrated.shape, fpa_c, burst))
         return self.reasons
 
     def estimate(self, burst):
@@ -82,6 +82,7 @@ def test_pipeline_stages_in_order_on_the_filled_frames(flight):
     b = rec.burst
     assert np.array_equal(b.warped, want) and np.array_equal(b.valid, valid)  # … warping
     assert np.array_equal(b.frames, filled) and b.pivot == 2
+    assert rec.seen[2][3] is b  # the domain is checked on the registered burst
     assert np.array_equal(est.temperature_c, want[2])
     assert np.array_equal(est.coverage, valid.sum(axis=0))
     with pytest.raises(InvalidInputError, match="as recorded"):
@@ -97,8 +98,33 @@ def test_per_frame_estimator_sees_no_registration(flight):
     est = estimate(flight.frames, rec, fpa_c=30.0, pivot=1)
     assert [s[0] for s in rec.seen] == ["check", "calibrate", "outside"]
     assert np.array_equal(rec.seen[1][1], flight.frames)  # raw, not filled: nothing moves
+    assert rec.seen[2][3] is None  # … and its domain is not checked on a registered burst
+    assert rec.seen[2][1] == (1, *flight.frames.shape[1:])  # … on the pivot alone
     assert np.array_equal(est.temperature_c, rec.calibrate(flight.frames, None, None)[1])
     assert np.all(est.coverage == 1) and np.array_equal(est.homographies[1], np.eye(3))
+
+
+def test_estimate_takes_the_pivots_pace_from_its_whole_recording():
+    """``thermocal estimate`` judges the pivot's pace as a flight does, from the recording
+    (it judged every recording steady, "its pace not known from so short a recording")."""
+    from types import SimpleNamespace
+
+    from thermocal.estimation.commands import _pivot_pace
+
+    t = np.arange(0.0, 1200.0, 10.0)
+    rec = SimpleNamespace(fpa_c=20.0 + np.maximum(t - 400.0, 0.0) / 60.0, time_s=t)  # still,
+    paced = SimpleNamespace(fpa_paces={"lag_s": 480.0})  # then 1 °C/min from 400 s on
+    got = _pivot_pace(rec, paced, slice(0, t.size), None)
+    assert got["fpa_rate_c_per_min"] == pytest.approx(1.0, abs=0.02)
+    assert 0.2 < got["fpa_lagged_rate_c_per_min"] < 0.5  # the lag catching up, 200 s in
+    assert got["time_since_start_s"] == t[t.size // 2] and got["fpa_still_s"] is None
+    late = _pivot_pace(rec, paced, slice(110, 117), 3)
+    assert late["time_since_start_s"] == t[113]
+    plain = _pivot_pace(rec, SimpleNamespace(fpa_paces={}), slice(0, t.size), 80)
+    assert plain["fpa_lagged_rate_c_per_min"] is None and plain["fpa_rate_c_per_min"] > 0.9
+    assert _pivot_pace(rec, paced, slice(0, 7), 9)["fpa_rate_c_per_min"] is None  # bad pivot
+    still = SimpleNamespace(fpa_c=None, time_s=None)
+    assert all(v is None for v in _pivot_pace(still, paced, slice(0, 1), 0).values())
 
 
 def test_calibration_estimators(flight, small_camera):

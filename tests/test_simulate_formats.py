@@ -248,7 +248,7 @@ def test_unit_planck_inverts_the_units_median_response():
     (["{tmp}/f", "--format", "mp4"], "'mp4' is not one of"),
     (["{tmp}/f.seq", "--format", "fff"], "OUT_DIR is a folder, not a .seq file"),
     (["{tmp}/f.npz", "--format", "dualtau"], "OUT_DIR is a folder"),
-    (["{tmp}/full", "--format", "rjpeg"], "not empty"),
+    (["{tmp}/full", "--format", "rjpeg"], "simulate flight did not write"),
 ])
 def test_simulate_flight_bad_format_exits_2_writing_nothing(tmp_path, capsys, args, message):
     from cli_run import run

@@ -14,7 +14,16 @@ from thermocal.errors import OutsideDomainError
 from thermocal.estimation.pipeline import estimate
 from thermocal.metrics import line_patterns
 from thermocal.nn.infer import NetworkEstimator
-from thermocal.nn.validity import LINE_CHECK_MIN_PX, LINE_RATIO_MAX, Domain, outside_domain
+from thermocal.nn.validity import (
+    FIXED_RATIO_MAX,
+    LINE_CHECK_MIN_PX,
+    LINE_RATIO_MAX,
+    Domain,
+    fixed_line_patterns,
+    motion_extent_px,
+    outside_domain,
+)
+from thermocal.registration.warp import warp_to_pivot
 from thermocal.scenes.procedural import procedural_scene
 from thermocal.simulate.flight import simulate_flight
 
@@ -83,6 +92,83 @@ def test_frames_too_small_to_check_the_family_are_refused():
     fit = 20.0 + np.zeros((2, LINE_CHECK_MIN_PX, 160), np.float32) + stripes
     assert outside_domain(d, fit, 30.0) == ()
     assert outside_domain(replace(d, line_fpn=None), small, 30.0) == ()
+
+
+def _sliding(fpn, shifts, *, seed=5):
+    """Frames ``(N, 120, 160)`` of a scene of strong row stripes (crop rows along the flight)
+    slid along x by whole ``shifts`` px over a sensor pattern ``fpn`` (H, W), their frame → pivot
+    homographies (pivot: the middle frame), and those frames warped onto the pivot."""
+    rng = np.random.default_rng(seed)
+    h, w = fpn.shape
+    scene = (20.0 + 3.0 * rng.standard_normal(h)[:, None]
+             + 0.3 * rng.standard_normal((h, w + max(shifts) + 1))).astype(np.float32)
+    frames = np.stack([scene[:, d:d + w] + fpn for d in shifts]).astype(np.float32)
+    p = len(shifts) // 2
+    hs = np.repeat(np.eye(3)[None], len(shifts), axis=0)
+    hs[:, 0, 2] = [d - shifts[p] for d in shifts]  # frame x → pivot x + (d − d_p)
+    warped, valid = warp_to_pivot(frames, hs)
+    return frames, hs, warped, valid
+
+
+def test_a_scene_lined_along_the_flight_is_not_taken_for_a_fixed_pattern():
+    """A ``tau2`` sensor (column pattern) over crop rows along the flight: frame by frame its
+    rows outweigh its columns (refused as another family before 2026-11-28); without the
+    registered scene the column pattern alone stays. A sensor with a row pattern walking both
+    ways is refused; a still burst is read frame by frame."""
+    d = Domain((10.0, 50.0), (-15.0, 60.0), (-40.0, 100.0), "tau2", "column")
+    rng = np.random.default_rng(6)
+    columns = np.broadcast_to(rng.normal(0, 1.0, 160).astype(np.float32), (120, 160))
+    shifts = [0, 3, 7, 10, 14, 17, 21]
+    frames, hs, warped, valid = _sliding(columns, shifts)
+    rows_pf, cols_pf = line_patterns(frames)
+    assert rows_pf > LINE_RATIO_MAX * cols_pf  # the scene's rows, frame by frame
+    assert motion_extent_px(hs, (120, 160)) == pytest.approx((21.0, 0.0))
+    rows, cols = fixed_line_patterns(warped, valid)
+    assert rows < FIXED_RATIO_MAX * cols and cols > 0.7
+    assert "runs along rows" in outside_domain(d, frames, 30.0)[0]
+    assert outside_domain(d, frames, 30.0, warped_c=warped, valid=valid, homographies=hs) == ()
+    # still: nothing to tell the scene from the sensor by; frame by frame, as before
+    still = np.repeat(np.eye(3)[None], 7, axis=0)
+    assert "runs along rows" in outside_domain(d, frames, 30.0, warped_c=frames,
+                                               valid=np.ones(frames.shape, bool),
+                                               homographies=still)[0]
+    # a row pattern, walked along x and y: refused on the fixed pattern
+    row_fpn = np.broadcast_to(rng.normal(0, 1.0, 120).astype(np.float32)[:, None], (120, 160))
+    scene = 20.0 + 0.3 * rng.standard_normal((160, 200)).astype(np.float32)
+    walk = [(0, 0), (3, 2), (6, 5), (9, 7), (12, 9), (15, 12), (18, 14)]
+    frames = np.stack([scene[y:y + 120, x:x + 160] + row_fpn for x, y in walk])
+    hs = np.repeat(np.eye(3)[None], 7, axis=0)
+    hs[:, 0, 2] = [x - walk[3][0] for x, _ in walk]
+    hs[:, 1, 2] = [y - walk[3][1] for _, y in walk]
+    warped, valid = warp_to_pivot(frames, hs)
+    (why,) = outside_domain(d, frames, 30.0, warped_c=warped, valid=valid, homographies=hs)
+    assert "each frame less the burst's scene" in why and "runs along rows" in why
+    assert fixed_line_patterns(warped[:, :50], valid[:, :50]) is None  # too little in common
+
+
+def test_tau2_uav_pass_over_a_lined_scene_accepted_boson_refused(tmp_path, network, capsys):
+    """The audit's false refusals: ``tau2`` groups of a 160×120 UAV pass over a procedural
+    scene refused as another family (its fields' rows along the flight); now accepted, and the
+    same pass of a ``boson`` camera still refused."""
+    import json
+
+    import tifffile
+
+    for preset in ("tau2", "boson"):
+        out = tmp_path / preset
+        code, text, err = run(["simulate", "flight", out, "--frames", "14", "--seed", "0",
+                               "--size", "160x120", "--motion", "uav", "--preset", preset],
+                              capsys)
+        assert code == 0, text + err
+        frames = tifffile.imread(out / "frames.tiff")[7:]
+        fpa = np.asarray(json.loads((out / "frames.json").read_text())["fpa_c"][7:])
+        if preset == "tau2":
+            rows, cols = line_patterns(network.calibrate(frames, fpa, None))
+            assert rows > LINE_RATIO_MAX * cols  # frame by frame, the scene's rows
+            assert estimate(frames, network, fpa_c=fpa).outside == ()
+        else:
+            with pytest.raises(OutsideDomainError, match="less the burst's scene"):
+                estimate(frames, network, fpa_c=fpa)
 
 
 def test_boson_burst_refused_tau2_burst_accepted(network):

@@ -8,6 +8,8 @@ homographies onto the pivot frame (:func:`find_homographies`), its stuck pixels
 
 from __future__ import annotations
 
+import math
+from statistics import NormalDist
 from typing import Any
 
 import numpy as np
@@ -26,8 +28,8 @@ from thermocal.registration.burst import register_burst
 from thermocal.registration.warp import as_homographies
 
 __all__ = [
+    "FROZEN_FALSE_ALARMS",
     "FROZEN_MIN_FRAMES",
-    "FROZEN_MIN_RANGE",
     "MIN_OVERLAP",
     "SATURATED_FRACTION",
     "burst_window",
@@ -177,8 +179,11 @@ def _count_median(d: np.ndarray) -> float:
 
 #: A burst's pixel is frozen when its counts do not change over at least this many frames…
 FROZEN_MIN_FRAMES = 5
-#: …while the burst's median pixel spans at least this many counts (its temporal noise).
-FROZEN_MIN_RANGE = 4.0
+#: …and live pixels would stay at one count by chance so rarely, at the burst's temporal
+#: noise, that at most this many of its pixels are expected to (:func:`frozen_pixels`; a live
+#: pixel so flagged takes its neighbours' median: 7 still frames of the simulator's units,
+#: 2.3–2.6 counts of noise, expect 0.5–0.9 of 86,000).
+FROZEN_FALSE_ALARMS = 1.0
 
 
 def frozen_pixels(low: np.ndarray, high: np.ndarray, n_frames: int) -> np.ndarray:
@@ -188,12 +193,22 @@ def frozen_pixels(low: np.ndarray, high: np.ndarray, n_frames: int) -> np.ndarra
     A live microbolometer's readout always carries temporal noise: over 7 frames of a static
     scene the simulator's ``tau2`` and ``boson`` units span 6–7 counts at the median pixel, and
     0–1 live pixels of 86,000 stayed at one count, where every one of their 17 dead pixels did.
-    So a pixel frozen while the median pixel spans at least :data:`FROZEN_MIN_RANGE` counts is
-    dead or stuck, whether or not the scene moved (which :func:`stuck_pixels` needs: a burst of
-    a camera held still hid them). Bursts of fewer than :data:`FROZEN_MIN_FRAMES` frames, or
-    whose median pixel spans less (a noiseless or averaged recording), give none."""
+    So a frozen pixel is dead or stuck, whether or not the scene moved (which
+    :func:`stuck_pixels` needs: a burst of a camera held still hid them), provided the noise
+    makes a live pixel frozen by chance rare enough: σ from the median pixel's span (a normal
+    sample's expected range), and the chance that ``n_frames`` rounded draws share one count,
+    ``(1 / (σ √(2π)))^(N−1) / √N``, times the pixels, at most :data:`FROZEN_FALSE_ALARMS`
+    (5 frames of 1.6 counts of noise: 140 of 86,000 live pixels were flagged by a fixed
+    span). Bursts of fewer than :data:`FROZEN_MIN_FRAMES` frames, or too quiet (a noiseless
+    or averaged recording), give none."""
     span = np.asarray(high, dtype=np.float64) - np.asarray(low, dtype=np.float64)
-    if n_frames < FROZEN_MIN_FRAMES or span.size == 0 or np.median(span) < FROZEN_MIN_RANGE:
+    if n_frames < FROZEN_MIN_FRAMES or span.size == 0:
+        return np.zeros(span.shape, dtype=bool)
+    # the expected range of N normal draws, in σ (Blom's approximation: 2.36 for 5, 2.73 for 7)
+    spread = 2.0 * NormalDist().inv_cdf((n_frames - 0.375) / (n_frames + 0.25))
+    sigma = float(np.median(span)) / spread
+    same = min(1.0, 1.0 / (sigma * math.sqrt(2.0 * math.pi))) if sigma > 0 else 1.0
+    if span.size * same ** (n_frames - 1) / math.sqrt(n_frames) > FROZEN_FALSE_ALARMS:
         return np.zeros(span.shape, dtype=bool)
     return span == 0
 

@@ -121,14 +121,19 @@ def simulate_chamber_cmd(
     """Simulate an environmental-chamber session into OUT (HDF5 chamber file)."""
     from thermocal._validate import check_number, parse_size
     from thermocal.camera.presets import make_camera
-    from thermocal.simulate.chamber import ChamberPlan, check_chamber_run, write_simulated_chamber
+    from thermocal.simulate.chamber import (
+        SOURCE,
+        ChamberPlan,
+        check_chamber_run,
+        write_simulated_chamber,
+    )
 
     start, stop, step = parse_range(blackbody_c, "--blackbody-c", step=True)
     amb_low, amb_high = parse_range(ambient_c, "--ambient-c")
     check_output_file(out, HDF5_SUFFIXES)
     from thermocal.io.replaces import check_replaces_only
 
-    check_replaces_only(out, "chamber session", what="OUT")
+    check_replaces_only(out, "chamber session", what="OUT", source=SOURCE)
     check_number(rate_c_per_min, "--rate-c-per-min", low=0.0, low_open=True)
     check_number(interval_s, "--interval-s", low=0.0, low_open=True)
     if duration_min is not None:
@@ -235,8 +240,10 @@ def _flight_frames_name(fmt: str) -> str:
     return "frames.tiff" if fmt == "tiff" else _FLIGHT_FRAMES.get(fmt, "frames")
 
 
-#: What ``simulate flight`` writes into OUT_DIR, in any format: a folder holding only these
-#: is one of its earlier runs, which a rerun replaces.
+#: What ``simulate flight`` writes into OUT_DIR, in any format: a folder holding only these,
+#: with the sidecar and truth of a simulation (:func:`_simulated_run`), is one of its earlier
+#: runs, which a rerun replaces (in the file formats: tiff, seq and csq; a folder format's
+#: ``frames`` folder is refused as not empty).
 _FLIGHT_OUTPUTS = frozenset({"frames.tiff", "frames.json", "flight.json", "truth.tiff",
                              "homographies.npy", *_FLIGHT_FRAMES.values(), "frames"})
 
@@ -253,14 +260,36 @@ def _check_no_other_recording(out_dir: Path, fmt: str) -> None:
                 f"{out_dir}: holds a recording ({other}); simulate flight --format {fmt} "
                 f"would write {ours} beside it: choose an empty folder or remove it")
     if out_dir.is_dir():
-        others = sorted(p.name for p in out_dir.iterdir()
-                        if p.name not in _FLIGHT_OUTPUTS and not p.name.startswith("."))
+        names = sorted(p.name for p in out_dir.iterdir() if not p.name.startswith("."))
+        others = [n for n in names if n not in _FLIGHT_OUTPUTS]
         if others:
             shown = ", ".join(others[:3]) + (f", … {len(others)} in all" if len(others) > 3
                                              else "")
             raise InvalidInputError(
                 f"{out_dir}: holds files simulate flight does not write ({shown}); it writes "
                 "into an empty folder or one of its own earlier runs: choose another folder")
+        if names and not _simulated_run(out_dir):
+            raise InvalidInputError(
+                f"{out_dir}: holds a recording simulate flight did not write "
+                f"({', '.join(names[:3])}; no simulation's sidecar and truth.tiff beside it), "
+                "which writing here would lose: choose another folder")
+
+
+def _simulated_run(out_dir: Path) -> bool:
+    """Whether OUT_DIR holds an earlier ``simulate flight`` run: its truth.tiff, and a sidecar
+    (frames.json or flight.json) with the simulation's scene, preset, seed and motion."""
+    import json
+
+    if not (out_dir / "truth.tiff").is_file():
+        return False
+    for name in ("frames.json", "flight.json"):
+        try:
+            side = json.loads((out_dir / name).read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        if isinstance(side, dict) and {"scene", "preset", "seed", "motion"} <= side.keys():
+            return True
+    return False
 
 
 def _check_flight_format(out_dir: Path, fmt: str) -> Path | None:

@@ -33,6 +33,8 @@ from thermocal.errors import (
 
 _CALIBRATION_SUFFIXES = HDF5_SUFFIXES
 _REPORT_SUFFIXES = (".json",)
+#: The keys of an earlier calibration report, which a new --report may replace (no other file).
+_REPORT_KEYS = frozenset({"chamber", "calibration", "version", "method"})
 #: ``--method``'s choice that fits every method the session supports and keeps the best.
 AUTO = "auto"
 
@@ -80,13 +82,15 @@ def calibrate(chamber: Path, method: str, out: Path, report_path: Path | None,
 
     check_output_file(out, _CALIBRATION_SUFFIXES)
     check_not_input(out, chamber)
-    from thermocal.io.replaces import check_replaces_only
+    from thermocal.io.replaces import check_json_replaces_only, check_replaces_only
 
     check_replaces_only(out, "calibration")
     if report_path is not None:
         check_output_file(report_path, _REPORT_SUFFIXES)
         check_not_input(report_path, chamber, what="--report")
         check_outputs_differ(report_path, out, ("--report", "--out"))
+        check_json_replaces_only(report_path, _REPORT_KEYS, kind="calibration report",
+                                 what="--report")
     if radial and method not in ("polynomial", AUTO):
         raise InvalidInputError("--radial applies to --method polynomial only")
     given = click.get_current_context().get_parameter_source("scene_term")

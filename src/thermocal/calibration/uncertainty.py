@@ -98,7 +98,7 @@ from thermocal.calibration.report import (
 )
 
 __all__ = ["FPA_MARGIN_C", "MIN_GROWTH_PER_C", "NO_REPORT", "NO_REPORT_REMEDY", "RATE_MARGIN",
-           "REMEDY", "CalibrationSigma", "older_report_warning"]
+           "REMEDY", "SCENE_MARGIN_C", "CalibrationSigma", "older_report_warning"]
 
 #: The least growth of the error outside the calibrated ranges, °C of MAE per °C outside.
 MIN_GROWTH_PER_C = 0.02
@@ -110,6 +110,11 @@ MIN_GROWTH_PER_C = 0.02
 UNMEASURED_FPA_GROWTH_PER_C = 1.0
 #: FPA temperatures this close outside the session's range are inside (the sensor's noise), °C.
 FPA_MARGIN_C = 0.5
+#: Scene temperatures this close outside the blackbody's range are inside, °C: a blackbody at
+#: an end set point reads within the noise and the fit's own error of it (a recording of the
+#: session's 10 °C plateau through its polynomial: 1st percentile 9.9x °C, refused); σ grows
+#: from the range's end all the same.
+SCENE_MARGIN_C = 0.5
 #: Frames this far from the FPA temperatures a fit used, °C, may read their scene out of range
 #: because of their FPA, which the refusal then says (a two-point at 15.5 °C reads a 20 °C
 #: scene as 7…42 °C at an FPA of 45 °C).
@@ -316,8 +321,8 @@ class CalibrationSigma:
 
     def history_sigma(self, time_since_start_s: Any, n: int) -> np.ndarray:
         """σ of ``n`` frames taken ``time_since_start_s`` after their recording began (s, one
-        or one per frame; None: not known, as a burst's) that a model remembering the FPA's
-        rates cannot see the history of: the report's σ of frames taken alone
+        or one per frame; None: not known, or not seen, as a burst's) that a model remembering
+        the FPA's rates cannot see the history of: the report's σ of frames taken alone
         (``without_history``), fading as ``exp(−t / τ)`` with the model's longest lag ``τ``
         (a first-order lag forgets its start so); 0 for the other methods. ``lin-lag`` on a
         5-frame recording of a camera long settled: −0.14 °C where σ said 0.07, 55 % of the
@@ -463,7 +468,7 @@ class CalibrationSigma:
 
     def sigma(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None,
               time_since_start_s: Any = None, lagged_rate_c_per_min: Any = None,
-              still_s: Any = None) -> np.ndarray:
+              still_s: Any = None, history_seen: bool = True) -> np.ndarray:
         """σ (°C, float32, the shape of ``temps_c``: ``(H, W)`` or ``(N, H, W)``) of
         temperatures at FPA temperature ``fpa_c`` (°C: one, or one per frame) changing at
         ``rate_c_per_min`` (°C/min, one or one per frame; None: not known), taken
@@ -474,7 +479,10 @@ class CalibrationSigma:
         the report's largest rate-bin σ times :meth:`still_excess` (one frame has no pace
         history: give its ``lagged_rate_c_per_min``, °C/min, and ``still_s``, s, one or one
         per frame, taken from its recording); for a memoryless method with a pace history, at
-        least :meth:`change_sigma` of ``|rate − lagged rate|``."""
+        least :meth:`change_sigma` of ``|rate − lagged rate|``. ``history_seen`` False: the
+        calibration was applied to these frames without their recording's FPA history (a
+        burst: a model remembering the FPA's rates started steady at the burst), whatever
+        ``time_since_start_s`` says: :meth:`history_sigma` in full."""
         temps = np.asarray(temps_c, dtype=np.float64)
         frames = temps if temps.ndim == 3 else temps[None]
         fpa = np.broadcast_to(np.asarray(fpa_c, dtype=np.float64).reshape(-1), frames.shape[:1])
@@ -504,7 +512,8 @@ class CalibrationSigma:
         if time_since_start_s is not None:
             level = np.maximum(level, np.broadcast_to(self.start_sigma(time_since_start_s),
                                                       frames.shape[:1]))
-        level = np.maximum(level, self.history_sigma(time_since_start_s, n))
+        level = np.maximum(level, self.history_sigma(
+            time_since_start_s if history_seen else None, n))
         (sx, sm), (fx, fm), k_scene, k_fpa, (step_lo, step_hi) = self._curves
         mean = self.report.expected_mae_c
         m_scene = np.interp(frames, sx, sm) if sx.size else np.full(frames.shape, mean)
@@ -584,22 +593,22 @@ class CalibrationSigma:
         the others)."""
         return np.where(excess > 1.0, self._worst_sigma() * excess, 0.0)
 
-    def burst_pace_sigma(self, pace: Any) -> float:
-        """The σ level a burst changing at ``pace`` (an
-        :class:`~thermocal.estimation.base.FpaPace`, or None) takes at a pace the session never
-        held (:meth:`_pace_sigma`), just after the pace changed (:meth:`change_sigma`) or held
-        still longer than the session's plateaus did (:meth:`sigma`), °C; 0 at a held steady
-        pace, or without the pace's history."""
+    def burst_sigma(self, temps_c: np.ndarray, fpa_c: Any, pace: Any, *,
+                    time_since_start_s: Any = None) -> np.ndarray:
+        """:meth:`sigma` of one burst's temperatures ``(H, W)`` or ``(N, H, W)`` °C at FPA
+        temperature ``fpa_c`` (°C) changing at ``pace`` (an
+        :class:`~thermocal.estimation.base.FpaPace` from its recording, or None: not known,
+        taken as steady), ``time_since_start_s`` after its recording began (s, or None): the
+        pace judged where it was held near the FPA, as :meth:`outside_burst` judges it, and
+        calibrated without its recording's history (``history_seen=False``)."""
+        since = None if time_since_start_s is None else [time_since_start_s]
         if pace is None:
-            return 0.0
-        level = 0.0
-        if pace.lagged_c_per_min is not None:
-            rate, lagged = np.array([pace.rate_c_per_min]), np.array([pace.lagged_c_per_min])
-            level = float(max(self._pace_sigma(self._distance(rate, lagged))[0],
-                              self.change_sigma(np.abs(rate - lagged))[0]))
-        if pace.still_s is not None:
-            level = max(level, float(self._still_sigma(self.still_excess([pace.still_s]))[0]))
-        return level
+            return self.sigma(temps_c, fpa_c, time_since_start_s=since, history_seen=False)
+        return self.sigma(
+            temps_c, fpa_c, rate_c_per_min=[pace.rate_c_per_min], time_since_start_s=since,
+            lagged_rate_c_per_min=(None if pace.lagged_c_per_min is None
+                                   else [pace.lagged_c_per_min]),
+            still_s=None if pace.still_s is None else [pace.still_s], history_seen=False)
 
     def outside_burst(self, temps_c: np.ndarray, fpa_c: float | None, pace: Any
                       ) -> tuple[str, ...]:
@@ -672,7 +681,7 @@ class CalibrationSigma:
                            "was fitted on")
         lo, hi = self.report.scene_range_c
         p1, p99 = (float(v) for v in np.percentile(temps_c, [1, 99]))
-        if p1 < lo or p99 > hi:
+        if p1 < lo - SCENE_MARGIN_C or p99 > hi + SCENE_MARGIN_C:
             reasons.append(f"the scene spans {p1:.1f}…{p99:.1f} °C, beyond the blackbody's "
                            f"{lo:.1f}…{hi:.1f} °C of its chamber session"
                            + self._fitted_fpa_note(fpa))

@@ -179,10 +179,12 @@ class Estimator(Protocol):
         ...
 
     def outside(self, calibrated: np.ndarray, fpa_c: float | None, *,
-                pace: FpaPace | None = None) -> tuple[str, ...]:
+                pace: FpaPace | None = None, burst: PreparedBurst | None = None
+                ) -> tuple[str, ...]:
         """Why a burst lies outside what the estimator was fitted or trained on, from its
         :meth:`calibrate` output ``(N, H, W)``, FPA temperature (°C) and, where known, how the
-        FPA was changing (``pace``): one clause per failed check, ``()`` inside."""
+        FPA was changing (``pace``) and the same frames registered onto the pivot (``burst``):
+        one clause per failed check, ``()`` inside."""
         ...
 
     def estimate(self, burst: PreparedBurst) -> np.ndarray:

@@ -17,7 +17,7 @@ from thermocal.calibration.uncertainty import (
     older_report_warning,
 )
 from thermocal.errors import ResolutionMismatchError
-from thermocal.estimation.base import Estimate, FpaPace, PreparedBurst, view_spread
+from thermocal.estimation.base import Estimate, FpaPace, PreparedBurst, fpa_pace, view_spread
 from thermocal.estimation.pipeline import estimate
 
 __all__ = ["OzMean", "PivotCalibration", "naive_mean"]
@@ -67,7 +67,8 @@ class _ThroughCalibration:
         return {} if self.sigma_model is None else self.sigma_model.report.paces
 
     def outside(self, calibrated: np.ndarray, fpa_c: float | None, *,
-                pace: FpaPace | None = None) -> tuple[str, ...]:
+                pace: FpaPace | None = None, burst: PreparedBurst | None = None
+                ) -> tuple[str, ...]:
         """The FPA and scene ranges of the calibration's chamber session, and where ``pace`` is
         known its FPA rates and (a memoryless method) its paces
         (:meth:`~thermocal.calibration.uncertainty.CalibrationSigma.outside_burst`; the FPA
@@ -83,18 +84,16 @@ class _ThroughCalibration:
         """σ from the calibration's cross-validation report, growing outside its ranges
         (:class:`~thermocal.calibration.uncertainty.CalibrationSigma`), at the burst's FPA rate
         and time since its recording began where known; None without a report or without the
-        burst's FPA temperature."""
+        burst's FPA temperature. A burst is calibrated without its recording's FPA history (a
+        model remembering the FPA's rates starts steady at it): σ takes that in full
+        (``history_seen=False``), however long the recording had run (a ``lin-lag`` burst
+        8 min into a flight of a ``boson`` camera: σ 0.16 °C for a 1.7 °C error before)."""
         if self.sigma_model is None or burst.fpa_c is None:
             return None
-        rate = None if burst.fpa_rate_c_per_min is None else [burst.fpa_rate_c_per_min]
-        since = None if burst.time_since_start_s is None else [burst.time_since_start_s]
-        lagged = (None if rate is None or burst.fpa_lagged_rate_c_per_min is None
-                  else [burst.fpa_lagged_rate_c_per_min])
-        still = (None if rate is None or burst.fpa_still_s is None
-                 else [burst.fpa_still_s])  # judged with its pace, as the domain check does
-        return self.sigma_model.sigma(temperature_c, burst.fpa_c, rate_c_per_min=rate,
-                                      time_since_start_s=since, lagged_rate_c_per_min=lagged,
-                                      still_s=still)
+        pace = fpa_pace(burst.fpa_rate_c_per_min, burst.fpa_lagged_rate_c_per_min,
+                        burst.fpa_still_s)  # its stillness judged with its pace, as checked
+        return self.sigma_model.burst_sigma(temperature_c, burst.fpa_c, pace,
+                                            time_since_start_s=burst.time_since_start_s)
 
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
         shape = tuple(self.calibration.shape)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import Any
 
 import click
 
@@ -107,8 +108,9 @@ def estimate_file(
     times = None if rec.time_s is None else rec.time_s[window]
     try:
         result = run_pipeline(rec.frames[window], estimator, fpa_c=fpa_series, time_s=times,
-                              pivot=pivot,
-                              registered=registered, force=force, bit_depth=rec.bit_depth)
+                              pivot=pivot, registered=registered, force=force,
+                              bit_depth=rec.bit_depth,
+                              **_pivot_pace(rec, estimator, window, pivot))
     except InvalidInputError as exc:  # a burst's fault: name the file it came from
         text = str(exc)
         if text.startswith(str(frames_path)):
@@ -221,3 +223,25 @@ def estimate(
         threads=threads,
     )
     click.echo(f"wrote {out}", err=True)
+
+
+def _pivot_pace(rec: Any, estimator: Any, window: slice, pivot: int | None) -> dict[str, Any]:
+    """How the FPA was changing at the pivot, from the whole recording as ``thermocal flight``
+    takes it (:func:`~thermocal.estimation.paces.recording_paces`): the pipeline's
+    ``fpa_rate_c_per_min``, ``fpa_lagged_rate_c_per_min``, ``fpa_still_s`` and
+    ``time_since_start_s``, each None where not known (a pivot out of range is the pipeline's
+    to refuse)."""
+    from thermocal.burst import pivot_index
+    from thermocal.estimation.paces import recording_paces
+
+    none = dict.fromkeys(("fpa_rate_c_per_min", "fpa_lagged_rate_c_per_min", "fpa_still_s",
+                          "time_since_start_s"))
+    try:
+        k = window.start + pivot_index(pivot, window.stop - window.start)
+    except InvalidInputError:
+        return none
+    paces = recording_paces(rec.fpa_c, rec.time_s, getattr(estimator, "fpa_paces", {}))
+    out = {name: None if series is None else float(series[k]) for name, series in paces.items()}
+    if rec.time_s is not None:
+        out["time_since_start_s"] = float(rec.time_s[k] - rec.time_s[0])
+    return none | out

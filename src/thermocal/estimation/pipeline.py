@@ -8,11 +8,10 @@ One path for every estimator (:mod:`thermocal.estimation.registry`) and every ca
 2. **register** it onto the pivot (homographies given, taken as registered, or found:
    :func:`thermocal.burst.find_homographies`);
 3. **fill** its stuck pixels (:func:`thermocal.burst.fill_stuck_pixels`);
-4. **calibrate** each raw frame where it lies on the sensor (the estimator's per-pixel map),
-   and check that the burst lies inside the estimator's domain (refused otherwise, unless
-   ``force``; the calibration's warnings are given only to a burst not refused: a refusal is
-   one message);
-5. **warp** the calibrated frames onto the pivot and check the overlap;
+4. **calibrate** each raw frame where it lies on the sensor (the estimator's per-pixel map);
+5. **warp** the calibrated frames onto the pivot and check the overlap, then check that the
+   burst lies inside the estimator's domain (refused otherwise, unless ``force``; the
+   calibration's warnings are given only to a burst not refused: a refusal is one message);
 6. **estimate** the pivot's temperature and its uncertainty (the estimator) → :class:`Estimate`.
 """
 
@@ -36,7 +35,8 @@ from thermocal.estimation.base import Estimate, Estimator, FpaPace, PreparedBurs
 from thermocal.registration.warp import warp_to_pivot
 from thermocal.threads import caught_warnings
 
-__all__ = ["calibrate_stage", "domain_stage", "estimate", "refuse_unchecked", "register_stage"]
+__all__ = ["calibrate_stage", "checked_stage", "domain_stage", "estimate", "refuse_unchecked",
+           "register_stage"]
 
 
 def register_stage(
@@ -50,16 +50,19 @@ def register_stage(
 
 
 def domain_stage(estimator: Estimator, calibrated: np.ndarray, fpa_c: float | None, *,
-                 force: bool, pace: FpaPace | None = None) -> tuple[str, ...]:
-    """Stage 4's check: why the burst, at FPA temperature ``fpa_c`` (°C) changing at ``pace``
-    (where known), lies outside ``estimator``'s domain (``()`` inside).
+                 force: bool, pace: FpaPace | None = None,
+                 burst: PreparedBurst | None = None) -> tuple[str, ...]:
+    """Stage 5's check: why the burst, at FPA temperature ``fpa_c`` (°C) changing at ``pace``
+    (where known), lies outside ``estimator``'s domain (``()`` inside). ``calibrated`` is its
+    frames through the estimator's calibration where they lie on the sensor ``(N, H, W)``;
+    ``burst`` the same registered onto the pivot (None for a per-frame estimator).
 
     Raises
     ------
     OutsideDomainError
         Outside, unless ``force``: one line with every reason and the estimator's remedy.
     """
-    reasons = estimator.outside(calibrated, fpa_c, pace=pace)
+    reasons = estimator.outside(calibrated, fpa_c, pace=pace, burst=burst)
     if reasons and not force:
         raise OutsideDomainError(f"{'; '.join(reasons)}; {estimator.remedy}")
     return reasons
@@ -80,18 +83,26 @@ def refuse_unchecked(estimator: Estimator, source: Any, *, force: bool) -> None:
         raise OutsideDomainError(f"{source}: {why}; {estimator.remedy}")
 
 
-def calibrate_stage(estimator: Estimator, frames: np.ndarray, fpa_c: Any, time_s: Any,
-                    fpa: float | None, *, force: bool, pace: FpaPace | None
-                    ) -> tuple[np.ndarray, tuple[str, ...]]:
+def calibrate_stage(estimator: Estimator, frames: np.ndarray, fpa_c: Any, time_s: Any, *,
+                    pace: FpaPace | None) -> tuple[np.ndarray, list[warnings.WarningMessage]]:
     """Stage 4: the frames through ``estimator``'s calibration (``fpa_c`` and ``time_s`` as
-    it takes them) and :func:`domain_stage`'s reasons. The calibration's warnings (e.g. an FPA
-    outside its range) are given only when the burst is not refused: a refusal says it once."""
+    it takes them) and the warnings it raised (e.g. an FPA outside its range), held back for
+    :func:`checked_stage`: a refused burst is told once, by its refusal."""
     with caught_warnings() as raised:
         calibrated = estimator.calibrate(frames, fpa_c, time_s, pace=pace)
-    outside = domain_stage(estimator, calibrated, fpa, force=force, pace=pace)
+    return calibrated, raised
+
+
+def checked_stage(estimator: Estimator, calibrated: np.ndarray, burst: PreparedBurst,
+                  raised: list[warnings.WarningMessage], *, force: bool, pace: FpaPace | None,
+                  registered: bool) -> tuple[str, ...]:
+    """:func:`domain_stage` of a prepared burst (``registered``: seen onto its pivot, not
+    per frame), then the calibration's held-back warnings."""
+    outside = domain_stage(estimator, calibrated, burst.fpa_c, force=force, pace=pace,
+                           burst=burst if registered else None)
     for w in raised:
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    return calibrated, outside
+    return outside
 
 
 def estimate(
@@ -178,10 +189,13 @@ def estimate(
         valid = np.zeros(arr.shape, dtype=bool)
         valid[p] = True
         hs = np.repeat(np.eye(3)[None], arr.shape[0], axis=0)
-        calibrated, outside = calibrate_stage(estimator, arr, fpa_c, time_s, fpa, force=force,
-                                              pace=pace)
+        calibrated, raised = calibrate_stage(estimator, arr, fpa_c, time_s, pace=pace)
         burst = PreparedBurst(arr, calibrated, valid, hs, p, fpa, fpa_rate_c_per_min,
                               time_since_start_s, fpa_lagged_rate_c_per_min, fpa_still_s)
+        # the pivot alone is estimated: the pivot alone is checked (a recording's other frames
+        # may lie anywhere: a chamber session's cycle through its set points)
+        outside = checked_stage(estimator, calibrated[p : p + 1], burst, raised, force=force,
+                                pace=pace, registered=False)
         return _estimate_of(estimator, burst, outside)
     if registered and not estimator.accepts_registered:
         raise InvalidInputError(
@@ -194,9 +208,9 @@ def estimate(
     filled = (fill_stuck_pixels(arr, hs, top=2**bit_depth - 1)[0]
               if fill_defects and not registered else arr)
     # 4. calibrate
-    calibrated, outside = calibrate_stage(estimator, filled, fpa if estimator.needs_fpa else fpa_c,
-                                          time_s, fpa, force=force, pace=pace)
-    # 5. warp
+    calibrated, raised = calibrate_stage(estimator, filled,
+                                         fpa if estimator.needs_fpa else fpa_c, time_s, pace=pace)
+    # 5. warp, and check the domain
     if registered and homographies is None:
         warped = np.asarray(calibrated, dtype=np.float32)
         valid = arr > 0
@@ -204,9 +218,11 @@ def estimate(
     else:
         warped, valid = warp_to_pivot(calibrated, hs)
     check_overlap(valid, p)
-    # 6. estimate
     burst = PreparedBurst(filled, warped, valid, hs, p, fpa, fpa_rate_c_per_min,
                           time_since_start_s, fpa_lagged_rate_c_per_min, fpa_still_s)
+    outside = checked_stage(estimator, calibrated, burst, raised, force=force, pace=pace,
+                            registered=True)
+    # 6. estimate
     return _estimate_of(estimator, burst, outside)
 
 

@@ -112,7 +112,8 @@ def make_estimator(
     if info.needs == "pass":
         from thermocal.estimation.selfcal import SelfCalibration
 
-        return SelfCalibration(_calibration(calibration), family=family)
+        return SelfCalibration(_calibration(calibration), family=family,
+                               report_needed=isinstance(calibration, (str, os.PathLike)))
     if info.needs == "calibration":
         if calibration is None:
             raise InvalidInputError(

@@ -155,6 +155,9 @@ class SelfCalibration:
         :func:`~thermocal.nn.validity.family_pattern_reason`, as the network checks); every
         burst is then outside, and forced, its σ grows by :data:`OTHER_FAMILY_SIGMA_C`. Frames
         under :data:`~thermocal.nn.validity.LINE_CHECK_MIN_PX` a side are not checked.
+    report_needed : bool
+        The start ``calibration`` came from a file, which must carry its cross-validation
+        report (:meth:`unchecked`); a fit in hand is the caller's to vouch for.
     """
 
     calibration: Calibration | None = None
@@ -164,6 +167,7 @@ class SelfCalibration:
     level_sigma_c: float | None = None
     fpa_rates: tuple[np.ndarray, np.ndarray] | None = None
     not_of_family: str | None = None
+    report_needed: bool = False
 
     name = "selfcal"
     n_frames = None
@@ -180,7 +184,20 @@ class SelfCalibration:
             return (f"give --family of the camera's family ({', '.join(PRESETS)}), or start "
                     "from its own calibration (--calibration); --force estimates anyway with "
                     f"σ grown by {OTHER_FAMILY_SIGMA_C:g} °C")
+        if self.unchecked():
+            from thermocal.calibration.uncertainty import NO_REPORT_REMEDY
+
+            return NO_REPORT_REMEDY
         return REMEDY
+
+    def unchecked(self) -> str | None:
+        """Why nothing can be checked against the start calibration (a file without its
+        report, when ``report_needed``: its σ would be the family's, not its own), or None."""
+        if self.report_needed and self.calibration is not None and self.sigma_model is None:
+            from thermocal.calibration.uncertainty import NO_REPORT
+
+            return NO_REPORT
+        return None
 
     def __post_init__(self) -> None:
         from thermocal.camera.presets import PRESETS
@@ -314,7 +331,7 @@ class SelfCalibration:
         return fill_bad_pixels(temps, self.pattern.bad)  # a new array, filled in place
 
     def outside(self, calibrated: np.ndarray, fpa_c: float | None, *,
-                pace: Any = None) -> tuple[str, ...]:
+                pace: Any = None, burst: PreparedBurst | None = None) -> tuple[str, ...]:
         """The start calibration's ranges (FPA, scene; its FPA rates and paces where ``pace``
         is known); the family's average unit has none."""
         family = (self.not_of_family,) if self.not_of_family else ()
@@ -338,8 +355,7 @@ class SelfCalibration:
             return np.full(temperature_c.shape, self.level_sigma_c, np.float32)
         model = self.sigma_model
         if model is not None and fpa_c is not None:
-            return np.maximum(np.asarray(model.sigma(temperature_c, fpa_c), np.float32),
-                              np.float32(model.burst_pace_sigma(pace)))
+            return np.asarray(model.burst_sigma(temperature_c, fpa_c, pace), np.float32)
         return np.full(temperature_c.shape, FAMILY_LEVEL_SIGMA_C, np.float32)
 
     def unseen_sigma(self, temperature_c: np.ndarray, fpa_c: float | None) -> float:

@@ -124,7 +124,7 @@ class VendorCalibration:
         return np.stack([_converted(p, f) for p, f in zip(self.plancks, frames, strict=True)])
 
     def outside(self, calibrated: np.ndarray, fpa_c: float | None, *,
-                pace: Any = None) -> tuple[str, ...]:
+                pace: Any = None, burst: PreparedBurst | None = None) -> tuple[str, ...]:
         """``()``: counts the formula cannot convert are refused by it
         (:meth:`~thermocal.radiometry.FlirPlanck.raw_to_temperature_c`)."""
         return ()

@@ -1,6 +1,7 @@
 """What an output file would replace (h5py only): a command's output may replace an earlier
 output of its own kind, never a file of another kind (a chamber session overwritten by a
-calibration, or a calibration by a simulated session, is lost for good)."""
+calibration, or a calibration by a simulated session, is lost for good), nor one of its kind
+that another source wrote (a measured chamber session overwritten by a simulated one)."""
 
 from __future__ import annotations
 
@@ -9,7 +10,7 @@ from pathlib import Path
 
 from thermocal.errors import InvalidInputError
 
-__all__ = ["check_replaces_only", "hdf5_kind"]
+__all__ = ["check_json_replaces_only", "check_replaces_only", "hdf5_kind"]
 
 _HDF5_MAGIC = b"\x89HDF\r\n\x1a\n"
 #: The ``format`` attribute of each kind of the project's HDF5 files, and its name.
@@ -21,29 +22,37 @@ def hdf5_kind(path: str | os.PathLike[str]) -> str:
     HDF5 files by their ``format`` attribute; a chamber file without one by its ``frames`` and
     ``blackbody_c``), ``"another HDF5 file"``, ``"a file that is not HDF5"``, or ``"an unreadable
     file"``."""
+    return _kind_and_source(Path(path))[0]
+
+
+def _kind_and_source(p: Path) -> tuple[str, str | None]:
+    """:func:`hdf5_kind` and the file's ``source`` attribute (what wrote it), None without."""
     import h5py
 
-    p = Path(path)
+    def text(v: object) -> str | None:
+        return None if v is None else (v.decode("utf-8", "replace") if isinstance(v, bytes)
+                                       else str(v))
     try:
         with open(p, "rb") as fh:
             if fh.read(8) != _HDF5_MAGIC:
-                return "a file that is not HDF5"
+                return "a file that is not HDF5", None
         with h5py.File(p, "r") as f:
-            fmt = f.attrs.get("format")
-            fmt = fmt.decode("ascii", "replace") if isinstance(fmt, bytes) else str(fmt)
+            fmt, source = text(f.attrs.get("format")), text(f.attrs.get("source"))
             if fmt in _KINDS:
-                return _KINDS[fmt]
+                return _KINDS[fmt], source
             if "frames" in f and "blackbody_c" in f:
-                return "chamber session"
-            return "another HDF5 file"
+                return "chamber session", source
+            return "another HDF5 file", source
     except (OSError, ValueError):
-        return "an unreadable file"
+        return "an unreadable file", None
 
 
-def check_replaces_only(path: str | os.PathLike[str], kind: str, *, what: str = "--out"
-                        ) -> None:
+def check_replaces_only(path: str | os.PathLike[str], kind: str, *, what: str = "--out",
+                        source: str | None = None) -> None:
     """Refuse an output ``path`` that exists and holds something other than ``kind`` (a
-    :func:`hdf5_kind` name): it would be lost.
+    :func:`hdf5_kind` name), or, given ``source``, one of that kind its ``source`` attribute
+    says something else wrote (a measured chamber session, which a simulation would replace):
+    it would be lost.
 
     Raises
     ------
@@ -52,9 +61,38 @@ def check_replaces_only(path: str | os.PathLike[str], kind: str, *, what: str = 
     p = Path(path)
     if not p.is_file():
         return
-    found = hdf5_kind(p)
+    found, by = _kind_and_source(p)
     if found != kind:
         article = "a " if found in _KINDS.values() else ""
         raise InvalidInputError(
             f"{what} {p}: exists and holds {article}{found}, not a {kind}, which writing it "
             f"would lose: choose another {what}")
+    if source is not None and by != source:
+        raise InvalidInputError(
+            f"{what} {p}: exists and holds a {kind} from {by or 'an unknown source'}, not one "
+            f"{source} wrote, which writing it would lose: choose another {what}")
+
+
+def check_json_replaces_only(path: str | os.PathLike[str], keys: frozenset[str], *, kind: str,
+                             what: str) -> None:
+    """Refuse an output ``path`` that exists and is not a JSON object with ``keys`` (an
+    earlier ``kind``, e.g. a calibration report, which it may replace): a recording's sidecar
+    or any other file would be lost.
+
+    Raises
+    ------
+    InvalidInputError
+    """
+    import json
+
+    p = Path(path)
+    if not p.is_file():
+        return
+    try:
+        held = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        held = None
+    if not (isinstance(held, dict) and keys <= held.keys()):
+        raise InvalidInputError(
+            f"{what} {p}: exists and is not a {kind}, which writing it would lose: choose "
+            f"another {what}")

@@ -272,13 +272,17 @@ class NetworkEstimator:
         return calibrated_frames(self.model, frames, fpa_c)
 
     def outside(self, calibrated: np.ndarray, fpa_c: float | None, *,
-                pace: Any = None) -> tuple[str, ...]:
+                pace: Any = None, burst: PreparedBurst | None = None) -> tuple[str, ...]:
         """:func:`thermocal.nn.validity.outside_domain` of the network's training domain (the
-        FPA range alone for a network of raw counts; nothing without a ``domain``)."""
+        FPA range alone for a network of raw counts; nothing without a ``domain``); ``burst``,
+        registered, lets the family's fixed pattern be read without the scene."""
         if self.domain is None or fpa_c is None:
             return ()
-        frames_c = calibrated if self.model.config.calibrated else None
-        return outside_domain(self.domain, frames_c, fpa_c)
+        if not self.model.config.calibrated:
+            return outside_domain(self.domain, None, fpa_c)
+        moved = {} if burst is None else {"warped_c": burst.warped, "valid": burst.valid,
+                                          "homographies": burst.homographies}
+        return outside_domain(self.domain, calibrated, fpa_c, **moved)
 
     def uncertainty(self, burst: PreparedBurst, temperature_c: np.ndarray, *, outside: bool
                     ) -> np.ndarray | None:

@@ -86,15 +86,10 @@ import numpy as np
 
 from thermocal._validate import check_output_dir
 from thermocal.burst import check_burst, fpa_value
-from thermocal.calibration.dataset import (
-    lagged_rate,
-    recording_fpa_rates,
-    recording_still_time,
-)
-from thermocal.calibration.report import PACE_LAG_S
 from thermocal.cores import available_cores
 from thermocal.errors import InvalidInputError, OutputError, RegistrationError
 from thermocal.estimation.base import Estimator
+from thermocal.estimation.paces import recording_paces
 from thermocal.estimation.pipeline import estimate, refuse_unchecked
 from thermocal.estimation.registry import (
     ESTIMATORS,
@@ -251,27 +246,6 @@ def _estimator(options: FlightOptions, frame_shape: tuple[int, int]) -> Estimato
     return estimator
 
 
-def _pace_history(series: dict[str, Any], estimator: Estimator
-                  ) -> dict[str, np.ndarray | None]:
-    """The recording's pace history as ``estimator``'s calibration judges it
-    (:class:`~thermocal.estimation.base.FpaPace`), group by group: ``fpa_lagged_rate_c_per_min``,
-    the FPA rate through the lag of the paces its report holds (``lag_s``), °C/min ``(M,)``,
-    and ``fpa_still_s``, how long the FPA had held still in the band of the report's ``still``
-    (:func:`~thermocal.calibration.dataset.recording_still_time`), s ``(M,)``; each None
-    without such a calibration (one with no memory of the FPA's pace; a session that had not
-    settled), without rates or without increasing frame times; the stillness None too for an
-    FPA given as one value (``--fpa-c``: not measured)."""
-    paces = estimator.fpa_paces
-    rates, times = series["fpa_rate_c_per_min"], series["time_s"]
-    if (not paces or rates is None or times is None
-            or np.any(np.diff(np.asarray(times, np.float64)) <= 0)):
-        return {"fpa_lagged_rate_c_per_min": None, "fpa_still_s": None}
-    still = paces.get("still")
-    return {"fpa_lagged_rate_c_per_min": lagged_rate(rates, times, float(paces["lag_s"])),
-            "fpa_still_s": None if not still else recording_still_time(
-                series["fpa_c"], times, band_c=still["band_c"], max_gap_s=PACE_LAG_S)}
-
-
 def _register(estimator: Estimator, frames: np.ndarray, workers: int | None,
               pairs: np.ndarray | None = None) -> SequenceRegistration | None:
     """Frame-to-previous registration of a run of frames (only ``pairs``, when given: see
@@ -353,9 +327,8 @@ def process_flight(
             header.series.get("frame_metadata") or [], header.path)
     else:
         estimator = _estimator(options, header.frame_shape)
-    series = header.series | {"fpa_rate_c_per_min": recording_fpa_rates(
-        header.series["fpa_c"], header.series["time_s"])}
-    series |= _pace_history(series, estimator)
+    series = header.series | recording_paces(header.series["fpa_c"], header.series["time_s"],
+                                             estimator.fpa_paces)
     geo = _pivot_tags(header.series.get("frame_metadata"), pivots, options, header.frame_shape)
     batches = _batches(pivots, stride)
     flight_level = ESTIMATORS[options.method].needs == "pass"

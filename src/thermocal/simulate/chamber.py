@@ -37,6 +37,9 @@ from thermocal.radiometry import BandRadiance
 from thermocal.simulate._memory import frames_per_chunk, working_memory
 
 ORDERS = ("sweep", "sawtooth", "random")
+#: The ``source`` attribute of a simulated chamber session (what ``simulate chamber`` may
+#: replace: never a measured session).
+SOURCE = "thermocal simulate chamber"
 
 
 @dataclass(frozen=True)
@@ -257,7 +260,7 @@ def write_simulated_chamber(
     check_chamber_run(plan, camera.shape, thermal=thermal, folder=Path(path).parent)
 
     attrs = {
-        "source": "thermocal simulate chamber",
+        "source": SOURCE,
         "preset": camera.info.get("preset", ""),
         "unit": int(camera.info.get("unit", -1)),
         "seed": int(seed),

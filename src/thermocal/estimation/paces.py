@@ -1,0 +1,47 @@
+"""A recording's FPA pace at each frame, as an estimator's calibration judges it (numpy only).
+
+A burst's fraction of a second cannot show how the FPA temperature was changing; its recording
+can. ``thermocal flight`` and ``thermocal estimate`` both take a burst's pace
+(:class:`~thermocal.estimation.base.FpaPace`) from here, so that the same frames are judged the
+same way whichever command reads them.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from thermocal.calibration.dataset import lagged_rate, recording_fpa_rates, recording_still_time
+from thermocal.calibration.report import PACE_LAG_S
+
+__all__ = ["recording_paces"]
+
+
+def recording_paces(fpa_c: Any, time_s: Any, paces: dict[str, Any]
+                    ) -> dict[str, np.ndarray | None]:
+    """A recording's pace history, frame by frame ``(M,)``, for a calibration whose report
+    holds ``paces`` (an estimator's ``fpa_paces``; empty: a method with no pace to judge):
+
+    - ``fpa_rate_c_per_min``: the FPA rate, °C/min
+      (:func:`~thermocal.calibration.dataset.recording_fpa_rates`);
+    - ``fpa_lagged_rate_c_per_min``: that rate through the lag of the report's paces
+      (``lag_s``), °C/min;
+    - ``fpa_still_s``: how long the FPA had held still within the band of the report's
+      ``still``, s (:func:`~thermocal.calibration.dataset.recording_still_time`).
+
+    Each None where it cannot be known: without FPA temperatures or frame times, for a recording
+    too short to show its rate, for frame times that do not increase, or without such a
+    calibration."""
+    rates = recording_fpa_rates(fpa_c, time_s)
+    out: dict[str, np.ndarray | None] = {"fpa_rate_c_per_min": rates,
+                                         "fpa_lagged_rate_c_per_min": None, "fpa_still_s": None}
+    if (not paces or rates is None or time_s is None
+            or np.any(np.diff(np.asarray(time_s, np.float64)) <= 0)):
+        return out
+    still = paces.get("still")
+    out["fpa_lagged_rate_c_per_min"] = lagged_rate(rates, time_s, float(paces["lag_s"]))
+    if still:
+        out["fpa_still_s"] = recording_still_time(fpa_c, time_s, band_c=still["band_c"],
+                                                  max_gap_s=PACE_LAG_S)
+    return out
