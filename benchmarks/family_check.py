@@ -8,9 +8,9 @@ photographed scenes (``shared/data/scenes``, skipped when absent). For each burs
 shipped network's nominal calibration: the cross-line to own-line pattern ratio frame by frame
 (:func:`thermocal.metrics.line_patterns`, refused above
 :data:`~thermocal.nn.validity.LINE_RATIO_MAX`) and without the scene
-(:func:`thermocal.nn.validity.family_pattern_reason` given the registered burst, refused above
-:data:`~thermocal.nn.validity.FIXED_RATIO_MAX`). Prints a Markdown table (about 4 minutes on 2
-cores)::
+(:func:`thermocal.nn.validity.family_lines` given the registered burst, refused above
+:data:`~thermocal.nn.validity.FIXED_RATIO_MAX` for a burst that moved). Prints a Markdown
+table (about a minute per 40 seeds on 2 cores)::
 
     .venv/bin/python benchmarks/family_check.py [--seeds 10-29] [--json OUT.json]
 """
@@ -32,13 +32,7 @@ from thermocal.cli import load_scene_or_procedural
 from thermocal.errors import RegistrationError
 from thermocal.metrics import line_patterns
 from thermocal.nn.infer import NetworkEstimator
-from thermocal.nn.validity import (
-    FIXED_RATIO_MAX,
-    LINE_RATIO_MAX,
-    SEPARATING_MOTION_PX,
-    fixed_line_patterns,
-    motion_extent_px,
-)
+from thermocal.nn.validity import FIXED_RATIO_MAX, LINE_RATIO_MAX, family_lines
 from thermocal.registration.warp import warp_to_pivot
 from thermocal.simulate.flight import simulate_flight
 
@@ -49,8 +43,9 @@ PHOTO_SCENES = ("11_ir_moving_car", "05_aqua_tower_thermal_image", "14_kujawy_wi
 
 def ratios(network: NetworkEstimator, frames: np.ndarray, fpa_c: np.ndarray, time_s: np.ndarray
            ) -> tuple[float, float] | None:
-    """A burst's (frame-by-frame, scene-free) cross/own line-pattern ratios for the ``tau2``
-    family (columns), as the check reads them; None when it cannot be registered."""
+    """A burst's cross/own line-pattern ratios for the ``tau2`` family (columns): frame by
+    frame, and as the check reads them (:func:`thermocal.nn.validity.family_lines`); None when
+    it cannot be registered."""
     try:
         hs = find_homographies(frames, N // 2, None)
     except RegistrationError:
@@ -58,13 +53,9 @@ def ratios(network: NetworkEstimator, frames: np.ndarray, fpa_c: np.ndarray, tim
     calibrated = network.calibrate(frames, fpa_c, time_s)
     rows, cols = line_patterns(calibrated)
     warped, valid = warp_to_pivot(calibrated, hs)
-    ex, ey = motion_extent_px(hs, frames.shape[1:])
-    fixed = (fixed_line_patterns(warped, valid) if max(ex, ey) >= SEPARATING_MOTION_PX
-             else None)
-    if fixed is None:
-        return rows / cols, rows / cols
-    own = fixed[1] if ex >= SEPARATING_MOTION_PX else cols
-    return rows / cols, fixed[0] / own
+    own, cross, _, _ = family_lines(calibrated, "column", warped_c=warped, valid=valid,
+                                    homographies=hs)
+    return rows / cols, (cross / own if own > 0 else float("inf"))
 
 
 def main(argv: list[str] | None = None) -> None:

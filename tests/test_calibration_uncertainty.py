@@ -662,6 +662,10 @@ def test_a_burst_late_in_its_recording_takes_the_sigma_of_frames_without_history
     estimator.sigma_model = CalibrationSigma(replace(report, without_history=alone))
     late = estimate(burst.frames, estimator, fpa_c=burst.fpa_c, time_since_start_s=3600.0)
     assert np.median(plain.sigma_c) < 1.0 <= 3.0 <= late.sigma_c.min()
+    # given its recording's lagged rates (its history seen), σ fades with the time since
+    seen = estimate(burst.frames, estimator, fpa_c=burst.fpa_c, time_since_start_s=3600.0,
+                    fpa_rate_c_per_min=0.0, fpa_lag_rates_c_per_min=[0.0, 0.0])
+    assert np.median(seen.sigma_c) < 1.0
 
 
 def test_the_pipeline_judges_a_bursts_stillness_from_its_recording(fitted):

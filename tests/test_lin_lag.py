@@ -187,3 +187,40 @@ def test_repeated_frame_times_leave_the_rate_unknown(runs):
     fpa = np.full(90, ref)
     steady = cal.apply(frames, fpa_c=fpa, time_s=t)
     np.testing.assert_array_equal(steady, cal.apply(frames, fpa_c=fpa, time_s=None))
+
+
+def test_a_lin_lag_burst_takes_its_recordings_lagged_rates(runs):
+    """A burst of lin-lag given the FPA rate through each of its lags from its recording
+    (recording_paces, as flight and estimate give it) reads as the whole recording applied at
+    once does; given its rate alone, the lags start steady at it and it errs by degrees where
+    the rate had changed minutes before (σ then takes frames without their history)."""
+    from thermocal.estimation.base import FpaPace
+    from thermocal.estimation.calibrated import PivotCalibration
+    from thermocal.estimation.paces import recording_paces
+
+    session, held = runs["boson"]
+    cal, _ = _fitted(session, "lin-lag")
+    est = PivotCalibration(cal)
+    assert est.rate_lags_s == cal.rate_lags_s and len(est.rate_lags_s) > 1
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        frames = np.asarray(held.session.frames)
+        fpa, t = held.session.fpa_c, held.session.time_s
+        whole = cal.apply(frames, fpa_c=fpa, time_s=t)
+        paces = recording_paces(fpa, t, est.fpa_paces, est.rate_lags_s)
+        lags, rate = paces["fpa_lag_rates_c_per_min"], paces["fpa_rate_c_per_min"]
+        assert lags.shape == (t.size, len(cal.rate_lags_s))
+        # the burst whose lagged rates differ most from its rate: a turn of the sawtooth
+        k = int(np.argmax(np.abs(lags[:, -1] - rate)))
+        k = min(max(k, 1), t.size - 2)
+        burst = slice(k - 1, k + 2)
+        times = np.arange(3) / 30.0
+        told = est.calibrate(frames[burst], fpa[burst], times,
+                             pace=FpaPace(float(rate[k]), lag_rates=tuple(lags[k])))
+        alone = est.calibrate(frames[burst], fpa[burst], times, pace=FpaPace(float(rate[k])))
+    # the pivot, with its own rate and lags: as the whole recording (0.00 against 5.0 °C)
+    assert np.abs(told[1] - whole[k]).mean() < 0.02
+    assert np.abs(alone[1] - whole[k]).mean() > 0.5
+    with pytest.raises(InvalidInputError, match="one per lag"):
+        cal.apply(frames[burst], fpa_c=fpa[burst], time_s=times, fpa_rate_c_per_min=0.0,
+                  fpa_lag_rates_c_per_min=[0.0])

@@ -144,6 +144,13 @@ def test_a_scene_lined_along_the_flight_is_not_taken_for_a_fixed_pattern():
     (why,) = outside_domain(d, frames, 30.0, warped_c=warped, valid=valid, homographies=hs)
     assert "each frame less the burst's scene" in why and "runs along rows" in why
     assert fixed_line_patterns(warped[:, :50], valid[:, :50]) is None  # too little in common
+    # no fixed pattern at all (a sensor of the scene and its pixels' noise alone): nothing of
+    # the family's columns to vouch for it
+    bare = np.stack([scene[y:y + 120, x:x + 160] + rng.normal(0, 0.2, (120, 160))
+                     for x, y in walk]).astype(np.float32)
+    warped, valid = warp_to_pivot(bare, hs)
+    (why,) = outside_domain(d, bare, 30.0, warped_c=warped, valid=valid, homographies=hs)
+    assert "no column pattern beyond the pixels' noise" in why
 
 
 def test_tau2_uav_pass_over_a_lined_scene_accepted_boson_refused(tmp_path, network, capsys):

@@ -66,15 +66,27 @@ class Calibration(Protocol):
 
 
 def apply_with_rate(calibration: Calibration, frames: Any, *, fpa_c: Any, time_s: Any,
-                    fpa_rate_c_per_min: Any = None) -> np.ndarray:
+                    fpa_rate_c_per_min: Any = None, fpa_lag_rates_c_per_min: Any = None
+                    ) -> np.ndarray:
     """``calibration.apply`` of ``frames`` at ``fpa_c`` and ``time_s``, given also the FPA rate
     their recording measured (°C/min, one or one per frame; None: not known) where the
     calibration takes it (``takes_fpa_rate``: a rate term, which a burst's own second of
-    readings cannot feed)."""
+    readings cannot feed), and that rate through each of its lags (°C/min, ``(K,)`` for its
+    ``rate_lags_s``; None: not known) where it has lags (``lin-lag``: a burst has no history)."""
     if fpa_rate_c_per_min is not None and getattr(calibration, "takes_fpa_rate", False):
+        lags = ({} if fpa_lag_rates_c_per_min is None or not rate_lags_of(calibration)
+                else {"fpa_lag_rates_c_per_min": fpa_lag_rates_c_per_min})
         return calibration.apply(frames, fpa_c=fpa_c, time_s=time_s,
-                                 fpa_rate_c_per_min=fpa_rate_c_per_min)
+                                 fpa_rate_c_per_min=fpa_rate_c_per_min, **lags)
     return calibration.apply(frames, fpa_c=fpa_c, time_s=time_s)
+
+
+def rate_lags_of(calibration: Any) -> tuple[float, ...]:
+    """The lags, s, through which a calibration remembers the FPA's rate (``lin-lag``'s
+    ``rate_lags_s`` when it has lag terms); ``()`` for every other."""
+    if getattr(calibration, "lag", None) is None:
+        return ()
+    return tuple(getattr(calibration, "rate_lags_s", ()))
 
 
 @runtime_checkable

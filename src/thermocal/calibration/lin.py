@@ -249,13 +249,15 @@ class LinCalibration(StoredCalibrationMixin):
         return self.bad.shape  # type: ignore[return-value]
 
     def corrected_counts(self, frames: Any, fpa_c: np.ndarray, rate: np.ndarray,
-                         time_s: np.ndarray | None = None) -> np.ndarray:
+                         time_s: np.ndarray | None = None,
+                         lag_rates: np.ndarray | None = None) -> np.ndarray:
         """``Gf`` of eq. 2 for raw counts ``(N, H, W)``, float32 (``time_s``: the frame times the
-        lagged rates need, s)."""
+        lagged rates need, s; ``lag_rates`` ``(N, K)`` °C/min: those rates as given, from a
+        longer recording)."""
         counts = np.asarray(frames)
         if self.lag is not None:
-            lags = _lagged_rates(rate, np.arange(len(rate)) if time_s is None else time_s,
-                                 self.rate_lags_s)
+            lags = (lag_rates if lag_rates is not None else _lagged_rates(
+                rate, np.arange(len(rate)) if time_s is None else time_s, self.rate_lags_s))
         out = np.empty(counts.shape, dtype=np.float32)
         tr = np.float32(self.t_ref_c)
         for k, frame in enumerate(counts):
@@ -278,7 +280,8 @@ class LinCalibration(StoredCalibrationMixin):
 
     def apply(self, frames: Any, *, fpa_c: Any = None, time_s: Any = None,
               frame_rate_hz: float | None = None,
-              fpa_rate_c_per_min: Any = None) -> np.ndarray:
+              fpa_rate_c_per_min: Any = None, fpa_lag_rates_c_per_min: Any = None
+              ) -> np.ndarray:
         """Scene temperature, °C, float32 ``(N, H, W)``.
 
         ``fpa_c`` (°C per frame) is required; ``time_s`` gives the FPA rate (eq. 3; with the
@@ -288,7 +291,9 @@ class LinCalibration(StoredCalibrationMixin):
         second cannot tell its rate from the sensor's quantisation). ``fpa_rate_c_per_min``
         (°C/min, one or one per frame): the rate the frames' recording measured over a longer
         span (a flight's burst), used instead; the lagged rates (lin-lag) then start steady at
-        it (a burst has no history).
+        it (a burst has no history) unless ``fpa_lag_rates_c_per_min`` gives them: °C/min,
+        ``(K,)`` or ``(N, K)``, the FPA rate through each of the calibration's ``rate_lags_s``
+        from the frames' whole recording (:func:`~thermocal.estimation.paces.recording_paces`).
         """
         counts = check_frames(frames, self.shape)
         nfr = len(counts)
@@ -315,7 +320,15 @@ class LinCalibration(StoredCalibrationMixin):
             # steady, its rate unknown as σ has it (0.01 °C steps over a second said −1.2 °C/min)
             rate = recording_fpa_rates(fpa, t, smooth_s=self.rate_smooth_s)
             rate = np.zeros(nfr) if rate is None else rate
-        gf = self.corrected_counts(counts, fpa, rate, t)
+        lag_rates = None
+        if fpa_lag_rates_c_per_min is not None and self.lag is not None:
+            k = len(self.rate_lags_s)
+            given = np.asarray(fpa_lag_rates_c_per_min, np.float64)
+            if given.shape not in ((k,), (nfr, k)) or not np.all(np.isfinite(given)):
+                raise InvalidInputError(f"lin-lag: fpa_lag_rates_c_per_min must be {k} finite "
+                                        f"rates (one per lag) or {nfr}×{k}, got {given.shape}")
+            lag_rates = np.broadcast_to(given, (nfr, k))
+        gf = self.corrected_counts(counts, fpa, rate, t, lag_rates)
         out = np.empty_like(gf)
         b, f = np.float32(self.planck_b), np.float32(self.planck_f)
         zero_c = np.float32(ZERO_CELSIUS_K)

@@ -594,21 +594,23 @@ class CalibrationSigma:
         return np.where(excess > 1.0, self._worst_sigma() * excess, 0.0)
 
     def burst_sigma(self, temps_c: np.ndarray, fpa_c: Any, pace: Any, *,
-                    time_since_start_s: Any = None) -> np.ndarray:
+                    time_since_start_s: Any = None, history_seen: bool = False) -> np.ndarray:
         """:meth:`sigma` of one burst's temperatures ``(H, W)`` or ``(N, H, W)`` °C at FPA
         temperature ``fpa_c`` (°C) changing at ``pace`` (an
         :class:`~thermocal.estimation.base.FpaPace` from its recording, or None: not known,
         taken as steady), ``time_since_start_s`` after its recording began (s, or None): the
         pace judged where it was held near the FPA, as :meth:`outside_burst` judges it, and
-        calibrated without its recording's history (``history_seen=False``)."""
+        calibrated without its recording's history unless ``history_seen`` (a lin-lag burst
+        given its lagged rates, :attr:`~thermocal.estimation.base.FpaPace.lag_rates`)."""
         since = None if time_since_start_s is None else [time_since_start_s]
         if pace is None:
-            return self.sigma(temps_c, fpa_c, time_since_start_s=since, history_seen=False)
+            return self.sigma(temps_c, fpa_c, time_since_start_s=since,
+                              history_seen=history_seen)
         return self.sigma(
             temps_c, fpa_c, rate_c_per_min=[pace.rate_c_per_min], time_since_start_s=since,
             lagged_rate_c_per_min=(None if pace.lagged_c_per_min is None
                                    else [pace.lagged_c_per_min]),
-            still_s=None if pace.still_s is None else [pace.still_s], history_seen=False)
+            still_s=None if pace.still_s is None else [pace.still_s], history_seen=history_seen)
 
     def outside_burst(self, temps_c: np.ndarray, fpa_c: float | None, pace: Any
                       ) -> tuple[str, ...]:

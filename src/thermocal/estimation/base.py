@@ -30,18 +30,24 @@ class FpaPace(NamedTuple):
         calibration's report judges stillness by
         (:func:`~thermocal.calibration.dataset.still_time`), s; None without the recording's
         history or without a calibration that judges it.
+    lag_rates : tuple of float or None
+        The FPA rate through each lag of a calibration that remembers the rate (``lin-lag``'s
+        ``rate_lags_s``), °C/min, from the recording: the history its lag terms need; None
+        without it (then they start steady at the burst).
     """
 
     rate_c_per_min: float
     lagged_c_per_min: float | None = None
     still_s: float | None = None
+    lag_rates: tuple[float, ...] | None = None
 
 
 def fpa_pace(rate_c_per_min: float | None, lagged_c_per_min: float | None = None,
-             still_s: float | None = None) -> FpaPace | None:
+             still_s: float | None = None, lag_rates: tuple[float, ...] | None = None
+             ) -> FpaPace | None:
     """A burst's :class:`FpaPace`, None without its rate."""
     return (None if rate_c_per_min is None
-            else FpaPace(rate_c_per_min, lagged_c_per_min, still_s))
+            else FpaPace(rate_c_per_min, lagged_c_per_min, still_s, lag_rates))
 
 
 @dataclass(frozen=True)
@@ -104,6 +110,10 @@ class PreparedBurst:
     fpa_still_s : float or None
         How long the FPA had held still at the burst (:class:`FpaPace`), s, where the
         recording's history is known; for the same.
+    fpa_lag_rates_c_per_min : tuple of float or None
+        The FPA rate through each lag of a calibration that remembers it
+        (:attr:`FpaPace.lag_rates`), given to its calibration; None: it started steady at the
+        burst, without the recording's history (σ says so).
     """
 
     frames: np.ndarray
@@ -116,6 +126,7 @@ class PreparedBurst:
     time_since_start_s: float | None = None
     fpa_lagged_rate_c_per_min: float | None = None
     fpa_still_s: float | None = None
+    fpa_lag_rates_c_per_min: tuple[float, ...] | None = None
 
     @property
     def pace(self) -> FpaPace | None:

@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from thermocal.calibration.base import Calibration, ThermocalWarning, apply_with_rate
+from thermocal.calibration.base import Calibration, ThermocalWarning, apply_with_rate, rate_lags_of
 from thermocal.calibration.uncertainty import (
     NO_REPORT,
     NO_REPORT_REMEDY,
@@ -48,7 +48,15 @@ class _ThroughCalibration:
         recording measured (``pace``): a burst of a second cannot tell its own (a lin
         calibration without its rate term errs 1.7–3.6 °C on a 1 °C/min sawtooth)."""
         return apply_with_rate(self.calibration, frames, fpa_c=fpa_c, time_s=time_s,
-                               fpa_rate_c_per_min=None if pace is None else pace.rate_c_per_min)
+                               fpa_rate_c_per_min=None if pace is None else pace.rate_c_per_min,
+                               fpa_lag_rates_c_per_min=None if pace is None else pace.lag_rates)
+
+    @property
+    def rate_lags_s(self) -> tuple[float, ...]:
+        """The lags, s, through which the calibration remembers the FPA's rate (``lin-lag``;
+        ``()`` otherwise): a recording gives it the rates through them
+        (:func:`~thermocal.estimation.paces.recording_paces`)."""
+        return rate_lags_of(self.calibration)
 
     def unchecked(self) -> str | None:
         """Why no burst can be checked against the calibration (a file without its report,
@@ -84,16 +92,18 @@ class _ThroughCalibration:
         """σ from the calibration's cross-validation report, growing outside its ranges
         (:class:`~thermocal.calibration.uncertainty.CalibrationSigma`), at the burst's FPA rate
         and time since its recording began where known; None without a report or without the
-        burst's FPA temperature. A burst is calibrated without its recording's FPA history (a
-        model remembering the FPA's rates starts steady at it): σ takes that in full
-        (``history_seen=False``), however long the recording had run (a ``lin-lag`` burst
-        8 min into a flight of a ``boson`` camera: σ 0.16 °C for a 1.7 °C error before)."""
+        burst's FPA temperature. A burst calibrated without its recording's FPA history (a
+        model remembering the FPA's rates started steady at it: no
+        ``fpa_lag_rates_c_per_min``) takes σ of frames so taken in full, however long the
+        recording had run (a ``lin-lag`` burst 8 min into a flight of a ``boson`` camera:
+        σ 0.16 °C for a 1.7 °C error before)."""
         if self.sigma_model is None or burst.fpa_c is None:
             return None
         pace = fpa_pace(burst.fpa_rate_c_per_min, burst.fpa_lagged_rate_c_per_min,
                         burst.fpa_still_s)  # its stillness judged with its pace, as checked
-        return self.sigma_model.burst_sigma(temperature_c, burst.fpa_c, pace,
-                                            time_since_start_s=burst.time_since_start_s)
+        return self.sigma_model.burst_sigma(
+            temperature_c, burst.fpa_c, pace, time_since_start_s=burst.time_since_start_s,
+            history_seen=burst.fpa_lag_rates_c_per_min is not None)
 
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
         shape = tuple(self.calibration.shape)

@@ -18,26 +18,37 @@ from thermocal.calibration.report import PACE_LAG_S
 __all__ = ["recording_paces"]
 
 
-def recording_paces(fpa_c: Any, time_s: Any, paces: dict[str, Any]
-                    ) -> dict[str, np.ndarray | None]:
+def recording_paces(fpa_c: Any, time_s: Any, paces: dict[str, Any],
+                    rate_lags_s: tuple[float, ...] = ()) -> dict[str, np.ndarray | None]:
     """A recording's pace history, frame by frame ``(M,)``, for a calibration whose report
-    holds ``paces`` (an estimator's ``fpa_paces``; empty: a method with no pace to judge):
+    holds ``paces`` (an estimator's ``fpa_paces``; empty: a method with no pace to judge) and
+    which remembers the FPA's rate through ``rate_lags_s`` (s; an estimator's
+    ``rate_lags_s``, ``()``: none):
 
     - ``fpa_rate_c_per_min``: the FPA rate, °C/min
       (:func:`~thermocal.calibration.dataset.recording_fpa_rates`);
     - ``fpa_lagged_rate_c_per_min``: that rate through the lag of the report's paces
       (``lag_s``), °C/min;
     - ``fpa_still_s``: how long the FPA had held still within the band of the report's
-      ``still``, s (:func:`~thermocal.calibration.dataset.recording_still_time`).
+      ``still``, s (:func:`~thermocal.calibration.dataset.recording_still_time`);
+    - ``fpa_lag_rates_c_per_min``: the rate through each of ``rate_lags_s``, °C/min
+      ``(M, K)``, started steady at the recording's first frame (the history ``lin-lag``'s
+      lag terms need; a burst alone would start them steady at itself).
 
     Each None where it cannot be known: without FPA temperatures or frame times, for a recording
     too short to show its rate, for frame times that do not increase, or without such a
     calibration."""
     rates = recording_fpa_rates(fpa_c, time_s)
     out: dict[str, np.ndarray | None] = {"fpa_rate_c_per_min": rates,
-                                         "fpa_lagged_rate_c_per_min": None, "fpa_still_s": None}
-    if (not paces or rates is None or time_s is None
+                                         "fpa_lagged_rate_c_per_min": None, "fpa_still_s": None,
+                                         "fpa_lag_rates_c_per_min": None}
+    if (rates is None or time_s is None
             or np.any(np.diff(np.asarray(time_s, np.float64)) <= 0)):
+        return out
+    if rate_lags_s:
+        out["fpa_lag_rates_c_per_min"] = np.stack(
+            [lagged_rate(rates, time_s, float(tau)) for tau in rate_lags_s], axis=1)
+    if not paces:
         return out
     still = paces.get("still")
     out["fpa_lagged_rate_c_per_min"] = lagged_rate(rates, time_s, float(paces["lag_s"]))

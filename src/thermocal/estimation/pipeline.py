@@ -120,6 +120,7 @@ def estimate(
     time_since_start_s: float | None = None,
     fpa_lagged_rate_c_per_min: float | None = None,
     fpa_still_s: float | None = None,
+    fpa_lag_rates_c_per_min: Any = None,
     bit_depth: int = 14,
 ) -> Estimate:
     """The pivot frame's temperature of a raw burst through ``estimator``.
@@ -163,6 +164,11 @@ def estimate(
         (:class:`~thermocal.estimation.base.FpaPace`, from the whole recording): such a
         calibration whose session had not settled refuses a camera held still longer than its
         session's plateaus held it (unless ``force``: σ grown).
+    fpa_lag_rates_c_per_min : (K,) array_like, optional
+        The FPA rate through each lag of a calibration that remembers it (``lin-lag``'s
+        ``rate_lags_s``), °C/min, from the whole recording (with ``fpa_rate_c_per_min``):
+        without it, its lag terms start steady at the burst and σ is that of frames without
+        their history.
     bit_depth : int
         The counts' bit depth (14 for a Tau2 core; 16 for FLIR files): saturation is at
         ``2**bit_depth − 1``.
@@ -184,14 +190,18 @@ def estimate(
     # the burst's FPA temperature: required by some estimators, used by all that get one (their
     # domain and uncertainty)
     fpa = fpa_value(fpa_c, arr.shape[0]) if estimator.needs_fpa or fpa_c is not None else None
-    pace = fpa_pace(fpa_rate_c_per_min, fpa_lagged_rate_c_per_min, fpa_still_s)
+    lag_rates = (None if fpa_lag_rates_c_per_min is None
+                 else tuple(float(v) for v in np.asarray(fpa_lag_rates_c_per_min).reshape(-1)))
+    pace = fpa_pace(fpa_rate_c_per_min, fpa_lagged_rate_c_per_min, fpa_still_s, lag_rates)
+    lag_rates = None if pace is None else lag_rates  # given to the calibration with its rate
     if estimator.per_frame:  # the pivot frame alone: its calibration, not registered
         valid = np.zeros(arr.shape, dtype=bool)
         valid[p] = True
         hs = np.repeat(np.eye(3)[None], arr.shape[0], axis=0)
         calibrated, raised = calibrate_stage(estimator, arr, fpa_c, time_s, pace=pace)
         burst = PreparedBurst(arr, calibrated, valid, hs, p, fpa, fpa_rate_c_per_min,
-                              time_since_start_s, fpa_lagged_rate_c_per_min, fpa_still_s)
+                              time_since_start_s, fpa_lagged_rate_c_per_min, fpa_still_s,
+                              lag_rates)
         # the pivot alone is estimated: the pivot alone is checked (a recording's other frames
         # may lie anywhere: a chamber session's cycle through its set points)
         outside = checked_stage(estimator, calibrated[p : p + 1], burst, raised, force=force,
@@ -219,7 +229,7 @@ def estimate(
         warped, valid = warp_to_pivot(calibrated, hs)
     check_overlap(valid, p)
     burst = PreparedBurst(filled, warped, valid, hs, p, fpa, fpa_rate_c_per_min,
-                          time_since_start_s, fpa_lagged_rate_c_per_min, fpa_still_s)
+                          time_since_start_s, fpa_lagged_rate_c_per_min, fpa_still_s, lag_rates)
     outside = checked_stage(estimator, calibrated, burst, raised, force=force, pace=pace,
                             registered=True)
     # 6. estimate

@@ -328,7 +328,8 @@ def process_flight(
     else:
         estimator = _estimator(options, header.frame_shape)
     series = header.series | recording_paces(header.series["fpa_c"], header.series["time_s"],
-                                             estimator.fpa_paces)
+                                             estimator.fpa_paces,
+                                             getattr(estimator, "rate_lags_s", ()))
     geo = _pivot_tags(header.series.get("frame_metadata"), pivots, options, header.frame_shape)
     batches = _batches(pivots, stride)
     flight_level = ESTIMATORS[options.method].needs == "pass"
@@ -809,7 +810,7 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
     t = time.perf_counter()
     group = run.frames[first - run.start : first - run.start + n]
     rates, lagged = series["fpa_rate_c_per_min"], series["fpa_lagged_rate_c_per_min"]
-    still = series["fpa_still_s"]
+    still, lag_rates = series["fpa_still_s"], series["fpa_lag_rates_c_per_min"]
     try:
         _check_decoded(_undecodable_in(run, first, n), first, n)
         _check_group(group, first, bit_depth)
@@ -836,6 +837,7 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
                 fpa_rate_c_per_min=None if rates is None else float(rates[pivot]),
                 fpa_lagged_rate_c_per_min=None if lagged is None else float(lagged[pivot]),
                 fpa_still_s=None if still is None else float(still[pivot]),
+                fpa_lag_rates_c_per_min=None if lag_rates is None else lag_rates[pivot],
                 time_since_start_s=None if time_s is None else float(time_s[pivot] - time_s[0]),
                 bit_depth=bit_depth)
             temp, sigma = result.temperature_c, result.sigma_c
