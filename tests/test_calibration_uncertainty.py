@@ -826,11 +826,13 @@ def test_a_memoryless_fit_is_inside_only_at_paces_held_near_its_fpa():
     # the check does: a ramp at 30 °C inside and sharp, still at 30 °C refused and grown
     from thermocal.estimation.base import FpaPace
 
-    ramp = model.burst_sigma(temps, 30.0, FpaPace(2.0, 2.0))
-    still = model.burst_sigma(temps, 30.0, FpaPace(0.0, 0.0))
+    ramp = model.burst_sigma(temps[0], 30.0, FpaPace(2.0, 2.0))
+    still = model.burst_sigma(temps[0], 30.0, FpaPace(0.0, 0.0))
     assert model.outside_burst(temps, 30.0, FpaPace(2.0, 2.0)) == ()
     assert model.outside_burst(temps, 30.0, FpaPace(0.0, 0.0))
     assert ramp.max() < 1.0 and still.min() > 10 * ramp.max()
+    with pytest.raises(InvalidInputError, match="one frame"):
+        model.burst_sigma(temps, 30.0, FpaPace(2.0, 2.0))  # (N, H, W): a recording's frames
     # read back, checked
     again = CalibrationReport.from_dict(model.report.to_dict())
     assert again.paces == model.report.paces

@@ -100,6 +100,12 @@ def test_per_frame_estimator_sees_no_registration(flight):
     assert np.array_equal(rec.seen[1][1], flight.frames)  # raw, not filled: nothing moves
     assert rec.seen[2][3] is None  # … and its domain is not checked on a registered burst
     assert rec.seen[2][1] == (1, *flight.frames.shape[1:])  # … on the pivot alone
+    # … at its own FPA temperature, not the recording's mean (a warming recording's last frame
+    # at 47 °C was checked at its 36 °C mean)
+    ramp = np.linspace(25.0, 47.0, flight.frames.shape[0])
+    warm = Recorder(per_frame=True)
+    estimate(flight.frames, warm, fpa_c=ramp, pivot=len(ramp) - 1)
+    assert warm.seen[2][2] == pytest.approx(47.0) and warm.burst.fpa_c == pytest.approx(47.0)
     assert np.array_equal(est.temperature_c, rec.calibrate(flight.frames, None, None)[1])
     assert np.all(est.coverage == 1) and np.array_equal(est.homographies[1], np.eye(3))
 
@@ -125,6 +131,14 @@ def test_estimate_takes_the_pivots_pace_from_its_whole_recording():
     assert _pivot_pace(rec, paced, slice(0, 7), 9)["fpa_rate_c_per_min"] is None  # bad pivot
     still = SimpleNamespace(fpa_c=None, time_s=None)
     assert all(v is None for v in _pivot_pace(still, paced, slice(0, 1), 0).values())
+    # one FPA value for the whole recording (--fpa-c): no history measured, none taken (a
+    # lin-lag burst took a steady history it never had: σ 8× too small)
+    given = SimpleNamespace(fpa_c=np.full(t.size, 30.0), time_s=t)
+    lagged = SimpleNamespace(fpa_paces={"lag_s": 480.0}, rate_lags_s=(60.0, 480.0))
+    got = _pivot_pace(given, lagged, slice(0, t.size), None)
+    assert all(got[k] is None for k in got if k != "time_since_start_s")
+    moving = _pivot_pace(rec, lagged, slice(0, t.size), None)["fpa_lag_rates_c_per_min"]
+    assert moving.shape == (2,) and moving[0] > moving[1] > 0  # the shorter lag nearer 1
 
 
 def test_calibration_estimators(flight, small_camera):

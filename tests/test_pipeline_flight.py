@@ -295,6 +295,28 @@ def test_flight_end_to_end_through_the_cli(setup, tmp_path, method, capsys):
         "frame_000003.png", "frame_000017.png"]
 
 
+def test_a_hovering_camera_whose_chain_breaks_is_registered_group_by_group(tmp_path, capsys):
+    """A camera hovering over a 160×120 scene: the recording's fixed-pattern estimate (a
+    temporal median) keeps the scene that hardly moves, and the chain of pairs breaks (every
+    group failed, "ECC correlation 0.32"); each group is then registered on its own, as a
+    burst, and says so."""
+    pytest.importorskip("torch")
+    from thermocal.cli import main
+
+    rec = tmp_path / "hover"
+    main(["simulate", "flight", str(rec), "--frames", "14", "--seed", "0", "--unit", "100",
+          "--size", "160x120", "--motion", "hover"])
+    out = tmp_path / "out"
+    main(["flight", str(rec), "--out", str(out), "--preview-every", "0"])
+    assert "2 temperature maps written" in capsys.readouterr().out
+    log = [json.loads(line) for line in (out / "log.jsonl").read_text().splitlines()]
+    assert all(any(w.startswith("registered as a burst (") for w in e["warnings"]) for e in log)
+    truth = tifffile.imread(rec / "truth.tiff")
+    for pivot in (3, 10):
+        temp = read_temperature_tiff(out / "temps" / f"frame_{pivot:06d}.tiff")
+        assert np.median(np.abs(temp - truth[pivot])) < 1.5
+
+
 def test_fpa_rates_come_from_the_whole_recording_when_it_is_long_enough():
     """A calibration's σ depends on the FPA rate: taken from the recording's series when they
     span the smoothing window, else unknown (None)."""

@@ -18,7 +18,9 @@ from thermocal.nn.validity import (
     FIXED_RATIO_MAX,
     LINE_CHECK_MIN_PX,
     LINE_RATIO_MAX,
+    UNCROSSED_RATIO_MAX,
     Domain,
+    family_lines,
     fixed_line_patterns,
     motion_extent_px,
     outside_domain,
@@ -144,6 +146,17 @@ def test_a_scene_lined_along_the_flight_is_not_taken_for_a_fixed_pattern():
     (why,) = outside_domain(d, frames, 30.0, warped_c=warped, valid=valid, homographies=hs)
     assert "each frame less the burst's scene" in why and "runs along rows" in why
     assert fixed_line_patterns(warped[:, :50], valid[:, :50]) is None  # too little in common
+    # a row pattern under a motion along x alone cancels with the scene's rows: a sensor of
+    # rows, weak columns and a pixel-level pattern is then told by its columns' weakness
+    # against its pixels' scatter (the stricter limit), and refused
+    pixels = rng.normal(0, 1.5, (120, 160)).astype(np.float32)
+    weak = rng.normal(0, 0.1, 160).astype(np.float32)[None, :]
+    slid, along_x, slid_w, slid_v = _sliding(row_fpn + weak + pixels, shifts)
+    own, cross, limit, _ = family_lines(slid, "column", warped_c=slid_w, valid=slid_v,
+                                        homographies=along_x)
+    assert limit == UNCROSSED_RATIO_MAX and cross > limit * own
+    (why,) = outside_domain(d, slid, 30.0, warped_c=slid_w, valid=slid_v, homographies=along_x)
+    assert "its rows not crossed by the motion" in why
     # no fixed pattern at all (a sensor of the scene and its pixels' noise alone): nothing of
     # the family's columns to vouch for it
     bare = np.stack([scene[y:y + 120, x:x + 160] + rng.normal(0, 0.2, (120, 160))
@@ -158,8 +171,13 @@ def test_tau2_uav_pass_over_a_lined_scene_accepted_boson_refused(tmp_path, netwo
     scene refused as another family (its fields' rows along the flight); now accepted, and the
     same pass of a ``boson`` camera still refused."""
     import json
+    from functools import partial
+    from unittest import mock
 
     import tifffile
+
+    from thermocal.cli import load_scene_or_procedural
+    from thermocal.scenes import trajectory
 
     for preset in ("tau2", "boson"):
         out = tmp_path / preset
@@ -169,6 +187,17 @@ def test_tau2_uav_pass_over_a_lined_scene_accepted_boson_refused(tmp_path, netwo
         assert code == 0, text + err
         frames = tifffile.imread(out / "frames.tiff")[7:]
         fpa = np.asarray(json.loads((out / "frames.json").read_text())["fpa_c"][7:])
+        # the same pass flown gimbal-steady: the scene slides along the rows alone
+        steady = partial(trajectory.uav_homographies, attitude_jitter_deg=0.0)
+        scene_c, _ = load_scene_or_procedural("procedural", seed=0)
+        with mock.patch.object(trajectory, "uav_homographies", steady):
+            flat = simulate_flight(scene_c, make_camera(preset, unit=0, size=(160, 120)),
+                                   n_frames=14, motion="uav", seed=0)
+        if preset == "tau2":
+            assert estimate(flat.frames[7:], network, fpa_c=flat.fpa_c[7:]).outside == ()
+        else:
+            with pytest.raises(OutsideDomainError, match="rows not crossed by the motion"):
+                estimate(flat.frames[7:], network, fpa_c=flat.fpa_c[7:])
         if preset == "tau2":
             rows, cols = line_patterns(network.calibrate(frames, fpa, None))
             assert rows > LINE_RATIO_MAX * cols  # frame by frame, the scene's rows

@@ -96,6 +96,7 @@ from thermocal.calibration.report import (
     rate_bin_range,
     report_of,
 )
+from thermocal.errors import InvalidInputError
 
 __all__ = ["FPA_MARGIN_C", "MIN_GROWTH_PER_C", "NO_REPORT", "NO_REPORT_REMEDY", "RATE_MARGIN",
            "REMEDY", "SCENE_MARGIN_C", "CalibrationSigma", "older_report_warning"]
@@ -595,13 +596,15 @@ class CalibrationSigma:
 
     def burst_sigma(self, temps_c: np.ndarray, fpa_c: Any, pace: Any, *,
                     time_since_start_s: Any = None, history_seen: bool = False) -> np.ndarray:
-        """:meth:`sigma` of one burst's temperatures ``(H, W)`` or ``(N, H, W)`` °C at FPA
+        """:meth:`sigma` of one burst's temperatures ``(H, W)`` °C (its pivot's) at FPA
         temperature ``fpa_c`` (°C) changing at ``pace`` (an
         :class:`~thermocal.estimation.base.FpaPace` from its recording, or None: not known,
         taken as steady), ``time_since_start_s`` after its recording began (s, or None): the
         pace judged where it was held near the FPA, as :meth:`outside_burst` judges it, and
         calibrated without its recording's history unless ``history_seen`` (a lin-lag burst
         given its lagged rates, :attr:`~thermocal.estimation.base.FpaPace.lag_rates`)."""
+        if np.ndim(temps_c) != 2:  # frames of one time would be taken for a recording
+            raise InvalidInputError(f"burst_sigma: one frame (H, W), got {np.shape(temps_c)}")
         since = None if time_since_start_s is None else [time_since_start_s]
         if pace is None:
             return self.sigma(temps_c, fpa_c, time_since_start_s=since,

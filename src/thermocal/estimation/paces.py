@@ -36,12 +36,16 @@ def recording_paces(fpa_c: Any, time_s: Any, paces: dict[str, Any],
       lag terms need; a burst alone would start them steady at itself).
 
     Each None where it cannot be known: without FPA temperatures or frame times, for a recording
-    too short to show its rate, for frame times that do not increase, or without such a
-    calibration."""
-    rates = recording_fpa_rates(fpa_c, time_s)
-    out: dict[str, np.ndarray | None] = {"fpa_rate_c_per_min": rates,
+    too short to show its rate, for frame times that do not increase, for a constant FPA series
+    (one value given for the whole recording, ``--fpa-c``: no history measured; a lin-lag
+    burst would otherwise take a steady history it never had, σ 8× too small), or without
+    such a calibration."""
+    out: dict[str, np.ndarray | None] = {"fpa_rate_c_per_min": None,
                                          "fpa_lagged_rate_c_per_min": None, "fpa_still_s": None,
                                          "fpa_lag_rates_c_per_min": None}
+    if fpa_c is None or np.ptp(np.asarray(fpa_c, np.float64)) == 0:
+        return out
+    rates = out["fpa_rate_c_per_min"] = recording_fpa_rates(fpa_c, time_s)
     if (rates is None or time_s is None
             or np.any(np.diff(np.asarray(time_s, np.float64)) <= 0)):
         return out

@@ -195,6 +195,8 @@ def estimate(
     pace = fpa_pace(fpa_rate_c_per_min, fpa_lagged_rate_c_per_min, fpa_still_s, lag_rates)
     lag_rates = None if pace is None else lag_rates  # given to the calibration with its rate
     if estimator.per_frame:  # the pivot frame alone: its calibration, not registered
+        if fpa is not None and np.size(fpa_c) == arr.shape[0] > 1:  # its own FPA, not the mean
+            fpa = float(np.asarray(fpa_c, dtype=np.float64).reshape(-1)[p])
         valid = np.zeros(arr.shape, dtype=bool)
         valid[p] = True
         hs = np.repeat(np.eye(3)[None], arr.shape[0], axis=0)

@@ -818,13 +818,20 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
             fpa_value(None if fpa is None else fpa[first : first + n], n)
         if run.error is not None:
             raise RegistrationError(run.error)
-        homographies = None
+        homographies, fallback = None, None
         if run.sequence is not None:
             local = first - run.start
-            homographies = run.sequence.to_pivot(range(local, local + n), pivot - run.start)
-            if n > 1:  # a group of one frame has no pair to correlate
-                entry["registration_correlation"] = float(
-                    run.sequence.correlation[local + 1 : local + n].min())
+            try:
+                homographies = run.sequence.to_pivot(range(local, local + n),
+                                                     pivot - run.start)
+                if n > 1:  # a group of one frame has no pair to correlate
+                    entry["registration_correlation"] = float(
+                        run.sequence.correlation[local + 1 : local + n].min())
+            except RegistrationError as exc:
+                # the chain broke where the recording's fixed-pattern estimate kept the scene
+                # (a hovering camera: the scene hardly moves through the window): the group is
+                # registered on its own, its fixed pattern fitted with it, as `estimate` does
+                fallback = f"registered as a burst ({exc})"
         # an estimator of the recording's own constants takes those of the group's frames
         group_estimator = (estimator.for_frames(first, n) if hasattr(estimator, "for_frames")
                            else estimator)
@@ -842,6 +849,8 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
                 bit_depth=bit_depth)
             temp, sigma = result.temperature_c, result.sigma_c
         entry["warnings"] = sorted({str(w.message) for w in caught})
+        if fallback is not None:
+            entry["warnings"].append(fallback)
         if result.outside:  # estimated all the same (--force): why it is not validated
             entry["warnings"].append(
                 f"outside the domain (--force): {'; '.join(result.outside)}")
