@@ -622,21 +622,27 @@ def netd(flat_low: Any, flat_high: Any, t_low_c: float, t_high_c: float) -> floa
 
 #: σ of the high-pass that isolates a fixed line pattern from the scene, px.
 LINE_HIGH_PASS_PX = 6.0
+#: :func:`line_patterns` reads the pixels' scatter from every this-many-th row and column.
+NOISE_STRIDE = 3
 
 
-def line_patterns(frames_c: np.ndarray, *, beyond_noise: bool = False) -> tuple[float, float]:
+def line_patterns(frames_c: np.ndarray, *, beyond_noise: bool | tuple[bool, bool] = False
+                  ) -> tuple[float, float]:
     """The row and the column pattern of calibrated frames ``(N, H, W)`` °C: for each frame, the
     spread (std) of the per-row (per-column) medians of its high-pass (the frame less a Gaussian
     blur of σ = 6 px); the median over the frames. Returns ``(rows, columns)`` in °C.
 
     A scene's edges spread over few pixels of a line, so the medians along lines keep the fixed
-    pattern and drop the scene. ``beyond_noise``: less (in quadrature) what the pixels' own
+    pattern and drop the scene. ``beyond_noise`` (or a pair for rows, columns): less (in
+    quadrature) what the pixels' own
     scatter leaves in a line's median, ``1.2533 σ / √L`` for a line of ``L`` pixels (σ the
     high-pass's, from its median absolute deviation): the pattern a line shares, not what
     independent pixels give any line (frames with no scene left in them, whose row and column
     patterns are otherwise floored alike)."""
     import cv2  # its Gaussian blur: scipy's within 2e-5 °C, 3× faster (a check per burst)
 
+    less_rows, less_cols = ((beyond_noise, beyond_noise) if isinstance(beyond_noise, bool)
+                            else beyond_noise)
     rows, cols = [], []
     for frame in np.asarray(frames_c, dtype=np.float32):
         blur = cv2.GaussianBlur(frame, (0, 0), LINE_HIGH_PASS_PX,
@@ -644,12 +650,16 @@ def line_patterns(frames_c: np.ndarray, *, beyond_noise: bool = False) -> tuple[
         high = frame - blur
         r = float(np.std(_line_medians(high)))
         c = float(np.std(_line_medians(np.ascontiguousarray(high.T))))
-        if beyond_noise:
-            sigma = 1.4826 * float(np.median(np.abs(high - np.median(high))))
+        if less_rows or less_cols:  # σ from every NOISE_STRIDE-th row and column: its
+            # median absolute deviation to 2 % over a 336×256 frame's 9,600 samples, 9× faster
+            sample = high[::NOISE_STRIDE, ::NOISE_STRIDE]
+            sigma = 1.4826 * float(np.median(np.abs(sample - np.median(sample))))
             h, w = high.shape
             # a median of L normal draws scatters by √(π/2)·σ/√L (1.2533 σ/√L)
-            r = math.sqrt(max(r * r - math.pi / 2 * sigma * sigma / w, 0.0))
-            c = math.sqrt(max(c * c - math.pi / 2 * sigma * sigma / h, 0.0))
+            if less_rows:
+                r = math.sqrt(max(r * r - math.pi / 2 * sigma * sigma / w, 0.0))
+            if less_cols:
+                c = math.sqrt(max(c * c - math.pi / 2 * sigma * sigma / h, 0.0))
         rows.append(r)
         cols.append(c)
     return float(np.median(rows)), float(np.median(cols))

@@ -305,9 +305,4 @@ def fixed_line_patterns(warped_c: np.ndarray, valid: np.ndarray, *,
     frames = np.asarray(warped_c, dtype=np.float32)[box]
     inside = common[box[1:]]
     residual = np.where(inside, frames - frames.mean(axis=0), np.float32(0))
-    residual = residual.astype(np.float32)
-    if beyond_noise[0] == beyond_noise[1]:
-        return line_patterns(residual, beyond_noise=beyond_noise[0])
-    rows, _ = line_patterns(residual, beyond_noise=beyond_noise[0])
-    _, cols = line_patterns(residual, beyond_noise=beyond_noise[1])
-    return rows, cols
+    return line_patterns(residual.astype(np.float32), beyond_noise=beyond_noise)
