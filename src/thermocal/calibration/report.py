@@ -943,9 +943,12 @@ def _without_history_from(d: Any) -> dict[str, Any]:
     return {"sigma_c": sigma, "mae_c": mae, "lag_s": lag, "frames": int(frames)}
 
 
-#: Edges of the bins of :attr:`CalibrationReport.by_change`, °C/min: steady, settling, just
-#: changed, stepped.
-CHANGE_EDGES = (0.0, 0.2, 0.5, 1.0, math.inf)
+#: Edges of the bins of :attr:`CalibrationReport.by_change`, °C/min: settled, settling,
+#: steady-going, just changed, stepped. The first two part at 0.05 (a plateau's unsettled start
+#: from its settled end: `polynomial` on `boson` read a hold's first minutes after a slow ramp
+#: 1.1–1.3 °C off where σ of one 0–0.2 bin said 0.55–0.62; benchmarks/RESULTS.md, "The change
+#: bins part at 0.05 °C/min").
+CHANGE_EDGES = (0.0, 0.05, 0.2, 0.5, 1.0, math.inf)
 
 #: Edges of the FPA-rate bins of :attr:`CalibrationReport.by_rate`, absolute rates in °C/min.
 RATE_EDGES = (0.0, 0.05, 0.2, 0.5, 1.0, 2.0, math.inf)
