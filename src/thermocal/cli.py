@@ -278,18 +278,11 @@ def _check_no_other_recording(out_dir: Path, fmt: str) -> None:
 def _simulated_run(out_dir: Path) -> bool:
     """Whether OUT_DIR holds an earlier ``simulate flight`` run: its truth.tiff, and a sidecar
     (frames.json or flight.json) with the simulation's scene, preset, seed and motion."""
-    import json
+    from thermocal.io.replaces import json_object_with
 
-    if not (out_dir / "truth.tiff").is_file():
-        return False
-    for name in ("frames.json", "flight.json"):
-        try:
-            side = json.loads((out_dir / name).read_text(encoding="utf-8"))
-        except (OSError, ValueError):
-            continue
-        if isinstance(side, dict) and {"scene", "preset", "seed", "motion"} <= side.keys():
-            return True
-    return False
+    simulation = {"scene", "preset", "seed", "motion"}
+    return (out_dir / "truth.tiff").is_file() and any(
+        json_object_with(out_dir / name, simulation) for name in ("frames.json", "flight.json"))
 
 
 def _check_flight_format(out_dir: Path, fmt: str) -> Path | None:

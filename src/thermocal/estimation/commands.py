@@ -232,18 +232,12 @@ def _pivot_pace(rec: Any, estimator: Any, window: slice, pivot: int | None) -> d
     ``fpa_lag_rates_c_per_min`` and ``time_since_start_s``, each None where not known (a
     pivot out of range is the pipeline's to refuse)."""
     from thermocal.burst import pivot_index
-    from thermocal.estimation.paces import recording_paces
+    from thermocal.estimation.paces import pace_at, recording_paces
 
-    none = dict.fromkeys(("fpa_rate_c_per_min", "fpa_lagged_rate_c_per_min", "fpa_still_s",
-                          "fpa_lag_rates_c_per_min", "time_since_start_s"))
     try:
         k = window.start + pivot_index(pivot, window.stop - window.start)
     except InvalidInputError:
-        return none
+        return pace_at({}, None, 0)
     paces = recording_paces(rec.fpa_c, rec.time_s, getattr(estimator, "fpa_paces", {}),
                             getattr(estimator, "rate_lags_s", ()))
-    out = {name: None if series is None else (series[k] if series.ndim > 1 else float(series[k]))
-           for name, series in paces.items()}
-    if rec.time_s is not None:
-        out["time_since_start_s"] = float(rec.time_s[k] - rec.time_s[0])
-    return none | out
+    return pace_at(paces, rec.time_s, k)

@@ -15,7 +15,12 @@ import numpy as np
 from thermocal.calibration.dataset import lagged_rate, recording_fpa_rates, recording_still_time
 from thermocal.calibration.report import PACE_LAG_S
 
-__all__ = ["recording_paces"]
+__all__ = ["PACE_KEYS", "pace_at", "recording_paces"]
+
+#: The series :func:`recording_paces` gives, each a keyword of
+#: :func:`~thermocal.estimation.pipeline.estimate` (one frame's value, :func:`pace_at`).
+PACE_KEYS = ("fpa_rate_c_per_min", "fpa_lagged_rate_c_per_min", "fpa_still_s",
+             "fpa_lag_rates_c_per_min")
 
 
 def recording_paces(fpa_c: Any, time_s: Any, paces: dict[str, Any],
@@ -40,9 +45,7 @@ def recording_paces(fpa_c: Any, time_s: Any, paces: dict[str, Any],
     (one value given for the whole recording, ``--fpa-c``: no history measured; a lin-lag
     burst would otherwise take a steady history it never had, σ 8× too small), or without
     such a calibration."""
-    out: dict[str, np.ndarray | None] = {"fpa_rate_c_per_min": None,
-                                         "fpa_lagged_rate_c_per_min": None, "fpa_still_s": None,
-                                         "fpa_lag_rates_c_per_min": None}
+    out: dict[str, np.ndarray | None] = dict.fromkeys(PACE_KEYS)
     if fpa_c is None or np.ptp(np.asarray(fpa_c, np.float64)) == 0:
         return out
     rates = out["fpa_rate_c_per_min"] = recording_fpa_rates(fpa_c, time_s)
@@ -59,4 +62,20 @@ def recording_paces(fpa_c: Any, time_s: Any, paces: dict[str, Any],
     if still:
         out["fpa_still_s"] = recording_still_time(fpa_c, time_s, band_c=still["band_c"],
                                                   max_gap_s=PACE_LAG_S)
+    return out
+
+
+def pace_at(paces: dict[str, Any], time_s: Any, k: int) -> dict[str, Any]:
+    """Frame ``k``'s pace from a recording's :func:`recording_paces` (``paces``, its
+    :data:`PACE_KEYS`; a missing or None series: not known) and how long after the recording's
+    first frame it was taken (``time_s``, s; None: not known), as
+    :func:`~thermocal.estimation.pipeline.estimate`'s keywords: ``fpa_rate_c_per_min``,
+    ``fpa_lagged_rate_c_per_min``, ``fpa_still_s`` (floats), ``fpa_lag_rates_c_per_min``
+    (``(K,)``) and ``time_since_start_s``."""
+    out: dict[str, Any] = {}
+    for name in PACE_KEYS:
+        series = paces.get(name)
+        out[name] = (None if series is None
+                     else series[k] if np.ndim(series) > 1 else float(series[k]))
+    out["time_since_start_s"] = None if time_s is None else float(time_s[k] - time_s[0])
     return out

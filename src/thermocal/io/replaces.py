@@ -10,7 +10,7 @@ from pathlib import Path
 
 from thermocal.errors import InvalidInputError
 
-__all__ = ["check_json_replaces_only", "check_replaces_only", "hdf5_kind"]
+__all__ = ["check_json_replaces_only", "check_replaces_only", "hdf5_kind", "json_object_with"]
 
 _HDF5_MAGIC = b"\x89HDF\r\n\x1a\n"
 #: The ``format`` attribute of each kind of the project's HDF5 files, and its name.
@@ -83,16 +83,20 @@ def check_json_replaces_only(path: str | os.PathLike[str], keys: frozenset[str],
     ------
     InvalidInputError
     """
-    import json
-
     p = Path(path)
-    if not p.is_file():
-        return
-    try:
-        held = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        held = None
-    if not (isinstance(held, dict) and keys <= held.keys()):
+    if p.is_file() and not json_object_with(p, keys):
         raise InvalidInputError(
             f"{what} {p}: exists and is not a {kind}, which writing it would lose: choose "
             f"another {what}")
+
+
+def json_object_with(path: str | os.PathLike[str], keys: frozenset[str] | set[str]) -> bool:
+    """Whether ``path`` reads as a JSON object holding every one of ``keys`` (False for a file
+    that cannot be read or is not JSON)."""
+    import json
+
+    try:
+        held = json.loads(Path(path).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return False
+    return isinstance(held, dict) and keys <= held.keys()

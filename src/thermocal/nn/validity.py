@@ -240,31 +240,30 @@ def family_lines(frames_c: np.ndarray, line_fpn: str, *, warped_c: np.ndarray | 
     :data:`UNCROSSED_RATIO_MAX` (scaled with the lines' length). Otherwise frame by frame
     (:func:`~thermocal.metrics.line_patterns`, limit :data:`LINE_RATIO_MAX`)."""
     column = line_fpn == "column"
+
+    def own_cross(rows: Any, cols: Any) -> tuple[Any, Any]:
+        return (cols, rows) if column else (rows, cols)
+
+    fixed, crossed = None, (False, False)  # (rows, columns)
     if warped_c is not None and valid is not None and homographies is not None:
         ex, ey = motion_extent_px(homographies, frames_c.shape[-2:])
-        crossed_rows, crossed_cols = ey >= SEPARATING_MOTION_PX, ex >= SEPARATING_MOTION_PX
-        if crossed_rows or crossed_cols:
-            fixed = fixed_line_patterns(warped_c, valid,
-                                        beyond_noise=(crossed_rows, crossed_cols))
-            if fixed is not None:
-                rows, cols = fixed
-                own, cross = (cols, rows) if column else (rows, cols)
-                own_crossed, cross_crossed = ((crossed_cols, crossed_rows) if column
-                                              else (crossed_rows, crossed_cols))
-                what = "fixed pattern (each frame less the burst's scene)"
-                if not own_crossed:
-                    rows_pf, cols_pf = line_patterns(frames_c)
-                    own = cols_pf if column else rows_pf
-                if own_crossed and not cross_crossed:
-                    other = "row" if column else "column"
-                    length = frames_c.shape[-2] if column else frames_c.shape[-1]
-                    limit = UNCROSSED_RATIO_MAX * math.sqrt(UNCROSSED_LINE_PX / length)
-                    return (own, cross, limit,
-                            f"{what[:-1]}; its {other}s not crossed by the motion)")
-                return own, cross, FIXED_RATIO_MAX, what
-    rows, cols = line_patterns(frames_c)
-    own, cross = (cols, rows) if column else (rows, cols)
-    return own, cross, LINE_RATIO_MAX, "fixed pattern"
+        crossed = (ey >= SEPARATING_MOTION_PX, ex >= SEPARATING_MOTION_PX)
+        if any(crossed):
+            fixed = fixed_line_patterns(warped_c, valid, beyond_noise=crossed)
+    if fixed is None:
+        own, cross = own_cross(*line_patterns(frames_c))
+        return own, cross, LINE_RATIO_MAX, "fixed pattern"
+    own, cross = own_cross(*fixed)
+    own_crossed, cross_crossed = own_cross(*crossed)
+    what = "fixed pattern (each frame less the burst's scene)"
+    if not own_crossed:
+        own = own_cross(*line_patterns(frames_c))[0]
+    if own_crossed and not cross_crossed:
+        length = frames_c.shape[-2] if column else frames_c.shape[-1]
+        limit = UNCROSSED_RATIO_MAX * math.sqrt(UNCROSSED_LINE_PX / length)
+        other = "row" if column else "column"
+        return own, cross, limit, f"{what[:-1]}; its {other}s not crossed by the motion)"
+    return own, cross, FIXED_RATIO_MAX, what
 
 
 def motion_extent_px(homographies: np.ndarray, shape: tuple[int, int]) -> tuple[float, float]:

@@ -89,7 +89,7 @@ from thermocal.burst import check_burst, fpa_value
 from thermocal.cores import available_cores
 from thermocal.errors import InvalidInputError, OutputError, RegistrationError
 from thermocal.estimation.base import Estimator
-from thermocal.estimation.paces import recording_paces
+from thermocal.estimation.paces import pace_at, recording_paces
 from thermocal.estimation.pipeline import estimate, refuse_unchecked
 from thermocal.estimation.registry import (
     ESTIMATORS,
@@ -809,8 +809,6 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
              "fpa_c": None if fpa is None else float(fpa[pivot]), "warnings": []}
     t = time.perf_counter()
     group = run.frames[first - run.start : first - run.start + n]
-    rates, lagged = series["fpa_rate_c_per_min"], series["fpa_lagged_rate_c_per_min"]
-    still, lag_rates = series["fpa_still_s"], series["fpa_lag_rates_c_per_min"]
     try:
         _check_decoded(_undecodable_in(run, first, n), first, n)
         _check_group(group, first, bit_depth)
@@ -841,12 +839,7 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
                 fpa_c=None if fpa is None else fpa[first : first + n],
                 time_s=None if time_s is None else time_s[first : first + n],
                 pivot=n // 2, homographies=homographies, force=options.force,
-                fpa_rate_c_per_min=None if rates is None else float(rates[pivot]),
-                fpa_lagged_rate_c_per_min=None if lagged is None else float(lagged[pivot]),
-                fpa_still_s=None if still is None else float(still[pivot]),
-                fpa_lag_rates_c_per_min=None if lag_rates is None else lag_rates[pivot],
-                time_since_start_s=None if time_s is None else float(time_s[pivot] - time_s[0]),
-                bit_depth=bit_depth)
+                bit_depth=bit_depth, **pace_at(series, time_s, pivot))
             temp, sigma = result.temperature_c, result.sigma_c
         entry["warnings"] = sorted({str(w.message) for w in caught})
         if fallback is not None:
