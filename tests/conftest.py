@@ -29,3 +29,21 @@ def shared_data() -> Path:
     if path is None:
         pytest.skip("no shared/data and no bundled copy")
     return path
+
+
+@pytest.fixture(scope="session")
+def fitted(tmp_path_factory):
+    """Unit 3 of `tau2` (64×48), its chamber session (a slow sawtooth) and its `polynomial`
+    calibration with the cross-validation report: ``(camera, calibration, report)``."""
+    from thermocal.calibration.report import fit_with_report
+    from thermocal.camera.presets import make_camera
+    from thermocal.simulate.chamber import ChamberPlan, write_simulated_chamber
+
+    tmp = tmp_path_factory.mktemp("calsigma")
+    camera = make_camera("tau2", unit=3, size=(64, 48))
+    plan = ChamberPlan(setpoints_c=(0.0, 10.0, 20.0, 30.0, 40.0, 50.0), frames_per_point=2,
+                       profile="sawtooth", ambient_c=(15.0, 35.0), rate_c_per_min=0.25,
+                       interval_s=20.0)
+    write_simulated_chamber(tmp / "c.h5", camera, plan, seed=1)
+    cal, report = fit_with_report(tmp / "c.h5", "polynomial", frames="settled")
+    return camera, cal, report

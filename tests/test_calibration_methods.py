@@ -376,6 +376,25 @@ def test_lin_level_follows_the_scene_dependent_fpa_slope(lin_fit_run, camera):
     np.testing.assert_allclose(errs[1], errs[0], atol=0.03)
 
 
+def test_lin_counts_below_its_planck_offset_read_coldest(lin_fit_run):
+    """Counts at or below the Planck offset O have no temperature: the coldest the formula
+    gives, never the hottest (another camera's dead pixels read 1.5e9 °C before); the counts
+    above it are as before."""
+    session, _ = lin_fit_run
+    lin = fit_calibration(session, "lin")
+    fpa = float(lin.t_ref_c)
+    frame = np.full((1, *lin.shape), 9000, dtype=np.uint16)
+    normal = lin.apply(frame, fpa_c=[fpa])
+    dead = frame.copy()
+    dead[0, 5, 5] = 0  # far below any pixel's offset
+    dead[0, 6, 9] = 1
+    got = lin.apply(dead, fpa_c=[fpa])
+    assert np.all(got[0, [5, 6], [5, 9]] < -200.0)  # near absolute zero, not 1e9
+    mask = np.ones(lin.shape, dtype=bool)
+    mask[4:8, 4:11] = False  # the dead pixels and the neighbours a bad pixel may be filled from
+    np.testing.assert_array_equal(got[0][mask], normal[0][mask])
+
+
 def test_lin_rejects_too_few_setpoints(lin_fit_run):
     session, _ = lin_fit_run
     keep = np.isin(session.blackbody_c, (5.0, 25.0, 45.0))

@@ -12,14 +12,12 @@ import pytest
 
 from thermocal.calibration.base import OutsideCalibrationRangeWarning
 from thermocal.calibration.registry import CALIBRATION_METHODS
-from thermocal.calibration.report import CalibrationReport, fit_with_report
+from thermocal.calibration.report import CalibrationReport
 from thermocal.calibration.uncertainty import MIN_GROWTH_PER_C, CalibrationSigma
 from thermocal.camera.model import render
-from thermocal.camera.presets import make_camera
 from thermocal.errors import InvalidInputError, OutsideDomainError
 from thermocal.estimation.calibrated import OzMean, PivotCalibration
 from thermocal.estimation.pipeline import estimate
-from thermocal.simulate.chamber import ChamberPlan, write_simulated_chamber
 from thermocal.simulate.flight import simulate_flight
 
 G = math.sqrt(math.pi / 2)
@@ -161,18 +159,6 @@ def test_report_survives_json_with_its_rate_bins():
                  [{"pace_c_per_min": [0.0, None], "mae_c": float("nan")}]):
         with pytest.raises(InvalidInputError, match="not a calibration report"):
             CalibrationReport.from_dict(good | {"mae_by_fpa_rate_c": bins})
-
-
-@pytest.fixture(scope="module")
-def fitted(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("calsigma")
-    camera = make_camera("tau2", unit=3, size=(64, 48))
-    plan = ChamberPlan(setpoints_c=(0.0, 10.0, 20.0, 30.0, 40.0, 50.0), frames_per_point=2,
-                       profile="sawtooth", ambient_c=(15.0, 35.0), rate_c_per_min=0.25,
-                       interval_s=20.0)
-    write_simulated_chamber(tmp / "c.h5", camera, plan, seed=1)
-    cal, report = fit_with_report(tmp / "c.h5", "polynomial", frames="settled")
-    return camera, cal, report
 
 
 def test_estimators_refuse_outside_and_give_sigma(fitted):

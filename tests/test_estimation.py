@@ -98,7 +98,11 @@ def test_per_frame_estimator_sees_no_registration(flight):
     est = estimate(flight.frames, rec, fpa_c=30.0, pivot=1)
     assert [s[0] for s in rec.seen] == ["check", "calibrate", "outside"]
     assert np.array_equal(rec.seen[1][1], flight.frames)  # raw, not filled: nothing moves
-    assert rec.seen[2][3] is None  # … and its domain is not checked on a registered burst
+    # … its domain checked on the burst as it lies (its raw pivot: is it the calibration's
+    # camera?), not registered
+    assert rec.seen[2][3] is rec.burst and np.array_equal(rec.burst.frames, flight.frames)
+    assert np.array_equal(rec.burst.homographies,
+                          np.repeat(np.eye(3)[None], len(flight.frames), axis=0))
     assert rec.seen[2][1] == (1, *flight.frames.shape[1:])  # … on the pivot alone
     # … at its own FPA temperature, not the recording's mean (a warming recording's last frame
     # at 47 °C was checked at its 36 °C mean)

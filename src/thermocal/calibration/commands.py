@@ -208,6 +208,7 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
     format `thermocal info` reads; damaged frames are left out with a warning naming them."""
     from thermocal.calibration.base import ThermocalWarning
     from thermocal.calibration.dataset import recording_fpa_rates
+    from thermocal.calibration.imprint import OTHER_CAMERA_SIGMA_C, imprint_reason
     from thermocal.calibration.registry import load_any_calibration
     from thermocal.calibration.uncertainty import (
         NO_REPORT,
@@ -253,6 +254,9 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
     outside = () if model is None else model.outside(
         temps, () if rec.fpa_c is None else rec.fpa_c, rate_c_per_min=rates,
         time_s=None if rates is None else rec.time_s)
+    foreign = None if model is None else imprint_reason(cal, rec.frames, temps,
+                                                        fpa_c=rec.fpa_c, time_s=rec.time_s)
+    outside = outside + ((foreign,) if foreign else ())
     if outside and not force:
         raise OutsideDomainError(f"{frames}: {'; '.join(outside)}; {REMEDY}")
     for w in caught:
@@ -265,8 +269,10 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
                    "same (--force), without an uncertainty", err=True)
     if sigma_out is not None:  # σ first: a failure leaves neither file
         since = None if rec.time_s is None else np.asarray(rec.time_s) - rec.time_s[0]
-        write_sigma_tiff(sigma_out, model.sigma(temps, rec.fpa_c, rate_c_per_min=rates,
-                                                time_since_start_s=since))
+        sigma = model.sigma(temps, rec.fpa_c, rate_c_per_min=rates, time_since_start_s=since)
+        if foreign:  # forced through another camera's calibration
+            sigma = np.hypot(sigma, np.float32(OTHER_CAMERA_SIGMA_C)).astype(np.float32)
+        write_sigma_tiff(sigma_out, sigma)
     try:
         write_temperature_tiff(out, temps)
     except Exception:

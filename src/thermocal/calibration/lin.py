@@ -333,8 +333,11 @@ class LinCalibration(StoredCalibrationMixin):
         b, f = np.float32(self.planck_b), np.float32(self.planck_f)
         zero_c = np.float32(ZERO_CELSIUS_K)
         for k in range(nfr):
-            den = gf[k] - self.o
-            arg = self.r / np.where(np.abs(den) < 1e-3, np.float32(1e-3), den) + f
+            # counts at or below the Planck offset O have no temperature (radiance ≤ 0): the
+            # coldest the formula gives, not the hottest a negative R/(S−O) would clip to
+            # (another camera's dead pixels read 1.5e9 °C before)
+            den = np.maximum(gf[k] - self.o, np.float32(1e-3))
+            arg = self.r / den + f
             out[k] = b / np.log(np.maximum(arg, np.float32(1.0 + 1e-6))) - zero_c
         return fill_bad_pixels(out, self.bad)
 

@@ -194,8 +194,9 @@ class Estimator(Protocol):
                 ) -> tuple[str, ...]:
         """Why a burst lies outside what the estimator was fitted or trained on, from its
         :meth:`calibrate` output ``(N, H, W)``, FPA temperature (°C) and, where known, how the
-        FPA was changing (``pace``) and the same frames registered onto the pivot (``burst``):
-        one clause per failed check, ``()`` inside."""
+        FPA was changing (``pace``) and the prepared burst (``burst``: its raw frames, and
+        the same frames registered onto the pivot, or as they lie for a ``per_frame``
+        estimator): one clause per failed check, ``()`` inside."""
         ...
 
     def estimate(self, burst: PreparedBurst) -> np.ndarray:

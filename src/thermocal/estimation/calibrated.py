@@ -9,6 +9,7 @@ from typing import Any
 import numpy as np
 
 from thermocal.calibration.base import Calibration, ThermocalWarning, apply_with_rate, rate_lags_of
+from thermocal.calibration.imprint import OTHER_CAMERA_SIGMA_C, imprint_reason
 from thermocal.calibration.uncertainty import (
     NO_REPORT,
     NO_REPORT_REMEDY,
@@ -80,12 +81,23 @@ class _ThroughCalibration:
         """The FPA and scene ranges of the calibration's chamber session, and where ``pace`` is
         known its FPA rates and (a memoryless method) its paces
         (:meth:`~thermocal.calibration.uncertainty.CalibrationSigma.outside_burst`; the FPA
-        only when the burst has one). Without a report (an older file, a session too small
-        to cross-validate): that it cannot be checked when ``report_needed``, else ``()``."""
+        only when the burst has one); and, given the prepared ``burst``, that its pivot is of
+        the camera the calibration was made for (:func:`~thermocal.calibration.imprint.
+        imprint_reason`). Without a report (an older file, a session too small to
+        cross-validate): that it cannot be checked when ``report_needed``, else ``()``."""
         if self.sigma_model is None:
             why = self.unchecked()
             return (why,) if why else ()
-        return self.sigma_model.outside_burst(calibrated, fpa_c, pace)
+        foreign = () if burst is None else (self._foreign(burst),)
+        return self.sigma_model.outside_burst(calibrated, fpa_c, pace) + tuple(
+            r for r in foreign if r)
+
+    def _foreign(self, burst: PreparedBurst) -> str | None:
+        """Why the burst's pivot is not of the calibration's camera, or None
+        (:func:`~thermocal.calibration.imprint.imprint_reason` of its raw and calibrated
+        pivot, at the burst's FPA temperature)."""
+        return imprint_reason(self.calibration, burst.frames[burst.pivot],
+                              burst.warped[burst.pivot], fpa_c=burst.fpa_c)
 
     def uncertainty(self, burst: PreparedBurst, temperature_c: np.ndarray, *, outside: bool
                     ) -> np.ndarray | None:
@@ -96,14 +108,19 @@ class _ThroughCalibration:
         model remembering the FPA's rates started steady at it: no
         ``fpa_lag_rates_c_per_min``) takes σ of frames so taken in full, however long the
         recording had run (a ``lin-lag`` burst 8 min into a flight of a ``boson`` camera:
-        σ 0.16 °C for a 1.7 °C error before)."""
+        σ 0.16 °C for a 1.7 °C error before). A burst forced through the calibration of
+        another camera: σ grown by :data:`~thermocal.calibration.imprint.OTHER_CAMERA_SIGMA_C`
+        (in quadrature)."""
         if self.sigma_model is None or burst.fpa_c is None:
             return None
         pace = fpa_pace(burst.fpa_rate_c_per_min, burst.fpa_lagged_rate_c_per_min,
                         burst.fpa_still_s)  # its stillness judged with its pace, as checked
-        return self.sigma_model.burst_sigma(
+        sigma = self.sigma_model.burst_sigma(
             temperature_c, burst.fpa_c, pace, time_since_start_s=burst.time_since_start_s,
             history_seen=burst.fpa_lag_rates_c_per_min is not None)
+        if outside and self._foreign(burst):  # forced through another camera's calibration
+            sigma = np.hypot(sigma, np.float32(OTHER_CAMERA_SIGMA_C)).astype(np.float32)
+        return sigma
 
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
         shape = tuple(self.calibration.shape)

@@ -55,7 +55,8 @@ def domain_stage(estimator: Estimator, calibrated: np.ndarray, fpa_c: float | No
     """Stage 5's check: why the burst, at FPA temperature ``fpa_c`` (°C) changing at ``pace``
     (where known), lies outside ``estimator``'s domain (``()`` inside). ``calibrated`` is its
     frames through the estimator's calibration where they lie on the sensor ``(N, H, W)``;
-    ``burst`` the same registered onto the pivot (None for a per-frame estimator).
+    ``burst`` the prepared burst: the same registered onto the pivot, or for a per-frame
+    estimator (``per_frame``) as they lie, with its raw frames.
 
     Raises
     ------
@@ -94,12 +95,11 @@ def calibrate_stage(estimator: Estimator, frames: np.ndarray, fpa_c: Any, time_s
 
 
 def checked_stage(estimator: Estimator, calibrated: np.ndarray, burst: PreparedBurst,
-                  raised: list[warnings.WarningMessage], *, force: bool, pace: FpaPace | None,
-                  registered: bool) -> tuple[str, ...]:
-    """:func:`domain_stage` of a prepared burst (``registered``: seen onto its pivot, not
-    per frame), then the calibration's held-back warnings."""
+                  raised: list[warnings.WarningMessage], *, force: bool, pace: FpaPace | None
+                  ) -> tuple[str, ...]:
+    """:func:`domain_stage` of a prepared burst, then the calibration's held-back warnings."""
     outside = domain_stage(estimator, calibrated, burst.fpa_c, force=force, pace=pace,
-                           burst=burst if registered else None)
+                           burst=burst)
     for w in raised:
         warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     return outside
@@ -207,7 +207,7 @@ def estimate(
         # the pivot alone is estimated: the pivot alone is checked (a recording's other frames
         # may lie anywhere: a chamber session's cycle through its set points)
         outside = checked_stage(estimator, calibrated[p : p + 1], burst, raised, force=force,
-                                pace=pace, registered=False)
+                                pace=pace)
         return _estimate_of(estimator, burst, outside)
     if registered and not estimator.accepts_registered:
         raise InvalidInputError(
@@ -232,8 +232,7 @@ def estimate(
     check_overlap(valid, p)
     burst = PreparedBurst(filled, warped, valid, hs, p, fpa, fpa_rate_c_per_min,
                           time_since_start_s, fpa_lagged_rate_c_per_min, fpa_still_s, lag_rates)
-    outside = checked_stage(estimator, calibrated, burst, raised, force=force, pace=pace,
-                            registered=True)
+    outside = checked_stage(estimator, calibrated, burst, raised, force=force, pace=pace)
     # 6. estimate
     return _estimate_of(estimator, burst, outside)
 

@@ -1,0 +1,119 @@
+"""Frames of another camera through a calibration: the imprint of its pattern (issue 18,
+item 2: a response inconsistent with the calibration; `thermocal.calibration.imprint`)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from thermocal.calibration.imprint import (
+    IMPRINT_MAX,
+    OTHER_CAMERA_SIGMA_C,
+    Imprint,
+    imprint,
+    imprint_reason,
+)
+from thermocal.camera.presets import make_camera
+from thermocal.errors import OutsideDomainError
+from thermocal.estimation.calibrated import OzMean, PivotCalibration
+from thermocal.estimation.pipeline import estimate
+from thermocal.simulate.flight import simulate_flight
+
+SIZE = (64, 48)  # the `fitted` calibration's
+
+
+def _walk(camera, fpa_c: float, seed: int = 1):
+    scene = 15.0 + 10.0 * np.random.default_rng(0).random((128, 128))
+    return simulate_flight(scene, camera, n_frames=5, motion="walk", fpa_c=fpa_c, seed=seed)
+
+
+@pytest.mark.parametrize("other", [("tau2", 4), ("boson", 3)])
+def test_imprint_tells_the_calibrations_camera_from_another(fitted, other):
+    """On its own camera the pattern a calibration removes is gone from its output (imprint
+    near 0); on another unit of the family, or a camera of the other family, it is printed
+    whole (near 1), beyond doubt; the inputs are left as they were."""
+    camera, cal, report = fitted
+    fpa = 0.5 * sum(report.fpa_range_c)
+    mine = _walk(camera, fpa)
+    theirs = _walk(make_camera(other[0], unit=other[1], size=SIZE), fpa)
+    for flight, want in ((mine, 0.0), (theirs, 1.0)):
+        raw = flight.frames[2].copy()
+        temps = cal.apply(flight.frames, fpa_c=flight.fpa_c)[2]
+        before = temps.copy()
+        got = imprint(cal, raw, temps, fpa_c=fpa)
+        assert got.slope == pytest.approx(want, abs=0.15) and got.se < 0.1
+        assert got.foreign == (want == 1.0)
+        assert np.array_equal(raw, flight.frames[2]) and np.array_equal(temps, before)
+    temps = cal.apply(theirs.frames, fpa_c=theirs.fpa_c)
+    why = imprint_reason(cal, theirs.frames, temps, fpa_c=theirs.fpa_c)
+    assert "not of the camera the polynomial calibration was made for" in why
+    assert "thermocal calibrate" in why
+    assert imprint_reason(cal, mine.frames, cal.apply(mine.frames, fpa_c=mine.fpa_c),
+                          fpa_c=mine.fpa_c) is None
+
+
+def test_a_pattern_too_weak_to_measure_is_never_another_cameras(fitted):
+    """Noise alone where the pattern should be: the slope's standard error is large, so the
+    frame is not called another camera's, whatever the slope."""
+    rng = np.random.default_rng(3)
+    weak = Imprint(slope=0.9, se=0.3)
+    assert not weak.foreign and Imprint(slope=0.9, se=0.1).foreign
+    assert Imprint(slope=IMPRINT_MAX + 0.01, se=0.0).foreign
+    assert not Imprint(slope=IMPRINT_MAX - 0.01, se=0.0).foreign
+    _, cal, report = fitted
+    fpa = 0.5 * sum(report.fpa_range_c)
+    raw = np.full(cal.shape, 8000, dtype=np.uint16)
+    # an output that is noise: uncorrelated with the pattern
+    noise = (20.0 + rng.normal(0.0, 5.0, cal.shape)).astype(np.float32)
+    got = imprint(cal, raw, noise, fpa_c=fpa)
+    assert abs(got.slope) < 3 * got.se and not got.foreign
+    assert imprint(cal, raw[:20, :20], noise[:20, :20], fpa_c=fpa) is None  # too small
+
+
+def test_estimate_refuses_another_cameras_burst_and_forced_grows_sigma(fitted):
+    """Through the pipeline (a per-frame calibration and eq. 9's mean): another unit's burst is
+    refused with the reason and the remedy; forced, its σ is at least
+    OTHER_CAMERA_SIGMA_C, where it erred by degrees; the own unit's burst is not refused."""
+    camera, cal, report = fitted
+    fpa = 0.5 * sum(report.fpa_range_c)
+    theirs = _walk(make_camera("tau2", unit=4, size=SIZE), fpa)
+    for estimator in (PivotCalibration(cal), OzMean(cal)):
+        with pytest.raises(OutsideDomainError, match="not of the camera .* was made for"):
+            estimate(theirs.frames, estimator, fpa_c=theirs.fpa_c)
+        forced = estimate(theirs.frames, estimator, fpa_c=theirs.fpa_c, force=True)
+        error = np.abs(forced.temperature_c - theirs.truth_c[forced.pivot])
+        assert forced.outside and np.all(forced.sigma_c >= OTHER_CAMERA_SIGMA_C)
+        assert float(np.median(error)) > 0.5  # what it guards against
+        mine = estimate(_walk(camera, fpa).frames, estimator, fpa_c=fpa)
+        assert mine.outside == () and float(np.median(mine.sigma_c)) < 2.0
+
+
+def test_correct_refuses_another_cameras_recording(fitted, tmp_path, capsys):
+    """`thermocal correct` of another unit's recording: exit 2, one line, nothing written;
+    --force writes it with σ of at least OTHER_CAMERA_SIGMA_C; the own unit's is corrected."""
+    import tifffile
+
+    from tests.cli_run import run
+    from thermocal.io.recording import Recording, write_recording
+
+    camera, cal, report = fitted
+    cal_path = cal.save(tmp_path / "cal.h5")
+    fpa = 0.5 * sum(report.fpa_range_c)
+    paths = {}
+    for name, cam in (("mine", camera), ("theirs", make_camera("tau2", unit=4, size=SIZE))):
+        fl = _walk(cam, fpa)
+        paths[name], _ = write_recording(tmp_path / f"{name}.tiff",
+                                         Recording(fl.frames, fpa_c=fl.fpa_c, time_s=fl.time_s))
+    args = ["correct", paths["theirs"], "--calibration", cal_path, "--out", tmp_path / "t.tiff",
+            "--sigma-out", tmp_path / "s.tiff"]
+    code, _, err = run(args, capsys)
+    assert code == 2 and len(err.strip().splitlines()) == 1
+    assert "not of the camera the polynomial calibration was made for" in err
+    assert not (tmp_path / "t.tiff").exists() and not (tmp_path / "s.tiff").exists()
+    code, _, err = run(args + ["--force"], capsys)
+    assert code == 0 and "corrected all the same (--force)" in err
+    assert np.all(tifffile.imread(tmp_path / "s.tiff") >= OTHER_CAMERA_SIGMA_C)
+    code, _, err = run(["correct", paths["mine"], "--calibration", cal_path, "--out",
+                        tmp_path / "m.tiff", "--sigma-out", tmp_path / "ms.tiff"], capsys)
+    assert code == 0, err
+    assert float(np.median(tifffile.imread(tmp_path / "ms.tiff"))) < 2.0
