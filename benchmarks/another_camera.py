@@ -29,6 +29,7 @@ import warnings
 
 import numpy as np
 
+from thermocal.bench import machine
 from thermocal.calibration.imprint import imprint
 from thermocal.calibration.registry import CALIBRATION_METHODS
 from thermocal.calibration.report import fit_with_report
@@ -176,7 +177,9 @@ def main() -> None:
         cals = _fitted(session)
         walks += _walk_rows(cals, family, (w, h), fpas)
         held += _held_out_rows(cals, family, (w, h), args.quick)
-    print(f"## Another camera's frames: the imprint of a calibration's pattern\n\n{w}×{h}, "
+    print(f"## Another camera's frames: the imprint of a calibration's pattern\n\n"
+          f"machine: {machine()}; `python benchmarks/another_camera.py"
+          f"{' --quick' if args.quick else ''} --size {w}x{h}`\n\n{w}×{h}, "
           f"walks of 3 frames over aerial, urban and farmland scenes at FPA "
           f"{', '.join(f'{f:g}' for f in fpas)} °C; calibrations of unit {physics.UNIT}.\n")
     print(_table(walks))

@@ -948,15 +948,17 @@ def test_calibrate_says_how_many_frames_it_used_and_why_not_the_others(inputs, t
 
 def test_warnings_are_one_clean_line(inputs, tmp_path, capsys):
     """A calibration used outside its FPA range warns in one line, without Python's source path
-    and line."""
+    and line (forced: the two-point's session never settled, so a burst whose stillness its
+    7 frames cannot show is outside too, and says so in a line of its own)."""
     code, out, err = run(["estimate", inputs["rec"], "--method", "calibration",
-                          "--calibration", inputs["cal2"], "--out", tmp_path / "t.tiff"], capsys)
+                          "--calibration", inputs["cal2"], "--out", tmp_path / "t.tiff",
+                          "--force"], capsys)
     assert code == 0, err
     warnings = [line for line in err.splitlines() if not line.startswith("wrote ")]
     assert warnings, err
     for line in warnings:
         assert line.startswith("thermocal: warning: "), err
-        assert "leave the calibrated range" in line
+    assert any("leave the calibrated range" in line for line in warnings), err
     assert ".py:" not in err and "return " not in err
     assert (tmp_path / "t.tiff").is_file()
 

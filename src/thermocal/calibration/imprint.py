@@ -4,8 +4,8 @@ A per-pixel calibration removes its own camera's fixed pattern. On that camera's
 pattern cancels, and what comes out (the scene) is independent of the correction; on another
 camera's frames (another unit of the family, another family) nothing cancels, and the
 correction itself is printed on the output, where it stays as a pattern the scene does not
-have — and with it an error no report measured (``polynomial`` of one ``tau2`` unit on
-another: 2.5–3.1 °C; on a ``boson`` camera 2.7–11 °C; `benchmarks/another_camera.py`).
+have — and with it an error no report measured (a ``tau2`` unit's ``polynomial`` on another
+unit: 2.5–3.1 °C; on the other family up to 17.8 °C; `benchmarks/another_camera.py`).
 
 The calibration's pattern ``P``: its output for a uniform frame at the frame's median count
 and FPA temperature (all of the correction, none of the scene). The *imprint*: the
@@ -48,8 +48,9 @@ PATTERN_CLIP = 6.0
 #: the calibration cannot invert (another camera's dead ones), the scene's sharpest edges.
 OUTPUT_CLIP = 10.0
 #: The imprint above which frames are another camera's: the slope's lower bound (less twice
-#: its standard error) above this. On the simulator's cameras, own unit −0.02…+0.07, any other
-#: unit or family 0.96…1.06 (`benchmarks/another_camera.py`).
+#: its standard error) above this. On the simulator's cameras, every method: own unit
+#: −0.72…+0.37 (``one-point``; the others −0.17…+0.13), any other unit or family 0.95…1.13
+#: (`benchmarks/another_camera.py`).
 IMPRINT_MAX = 0.5
 #: σ added (in quadrature) to the temperatures of frames forced through another camera's
 #: calibration, °C: the report measured nothing of that camera (another unit's `polynomial`

@@ -88,7 +88,7 @@ from typing import Any
 import numpy as np
 
 from thermocal.calibration.base import Calibration
-from thermocal.calibration.dataset import lagged_rate, recording_still_time
+from thermocal.calibration.dataset import RATE_SMOOTH_S, lagged_rate, recording_still_time
 from thermocal.calibration.report import (
     MIN_BIN_FRAMES,
     PACE_LAG_S,
@@ -128,6 +128,15 @@ FITTED_FPA_NOTE_C = 5.0
 LOCAL_PACE_MARGIN_C_PER_MIN = 0.3
 #: FPA rates up to this many times the session's fastest are inside (the rate estimate's noise).
 RATE_MARGIN = 1.25
+#: How many times longer than the session's plateaus a camera is taken to have held its FPA
+#: still where its recording cannot show how long (still throughout it, or no FPA series), for
+#: σ when forced: a state beyond any the session measured, as after the plateaus' length
+#: twice over (a settled `boson` camera through a 20-min-plateau `lin-level`: 2.1 °C off where
+#: σ said 0.9; the largest rate-bin σ of such reports is 1.5–1.9 °C).
+UNKNOWN_STILL_EXCESS = 2.0
+#: Frames whose stillness reaches back this close to their recording's start (s) were still
+#: throughout it: how long before it began is not known.
+SINCE_START_TOL_S = 1e-6
 #: What to do about frames outside a calibration's ranges.
 REMEDY = ("calibrate over these conditions (a chamber session that covers them: `thermocal "
           "calibrate`); --force gives the temperatures with their uncertainty grown")
@@ -412,7 +421,8 @@ class CalibrationSigma:
         plateaus did (:meth:`still_excess`)."""
         unseen = self.pace_distance(rate_c_per_min, time_s, fpa_c=fpa_c) > self._pace_margin
         if fpa_c is not None:
-            unseen |= self._still(fpa_c, time_s)[1] > 1.0
+            _, excess, unknown = self._still(fpa_c, time_s, rate_c_per_min=rate_c_per_min)
+            unseen |= (excess > 1.0) | unknown
         return unseen
 
     def still_excess(self, still_s: Any) -> np.ndarray:
@@ -424,36 +434,80 @@ class CalibrationSigma:
         still = (self.report.paces or {}).get("still")
         return s / still["held_s"] if still else np.zeros(s.shape)
 
-    def _still(self, fpa_c: Any, time_s: Any, still_s: Any = None
-               ) -> tuple[np.ndarray, np.ndarray]:
-        """How long frames had held their FPA still, s, and its :meth:`still_excess` (both
-        ``(N,)``): the stillness given (``still_s``, one or one per frame, taken from their
-        recording; NaN: not known), or that of the frames of one recording at FPA temperatures
+    def _still(self, fpa_c: Any, time_s: Any, still_s: Any = None, since_s: Any = None,
+               rate_c_per_min: Any = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """How long frames had held their FPA still, s (NaN: not measured), its
+        :meth:`still_excess`, and whether that is not known (all ``(N,)``): the stillness given
+        (``still_s``, one or one per frame, taken from their recording; NaN: not known; with
+        ``since_s``, each frame's time since its recording began, s: a stillness reaching back
+        to it is a lower bound), or that of the frames of one recording at FPA temperatures
         ``fpa_c`` (°C, one per frame) and times ``time_s`` (s, in time order;
         :func:`~thermocal.calibration.dataset.recording_still_time`: none for an FPA given as
-        one value); zeros where neither is known or the report lists no stillness."""
+        one value, nor without times); zeros where the report lists no stillness.
+
+        *Not known* (only where the report lists stillness — a session whose plateaus ended
+        before the camera settled — and the excess is not already above 1): frames still since
+        their recording began, or with no stillness measured, unless their FPA rate
+        (``rate_c_per_min``, °C/min, one or one per frame, where known) says the FPA was moving
+        (:meth:`_moving`): a camera that may have been held still for hours."""
         still = (self.report.paces or {}).get("still")
         if still_s is not None:
-            held = np.nan_to_num(np.asarray(still_s, dtype=np.float64).reshape(-1), nan=0.0)
+            held = np.asarray(still_s, dtype=np.float64).reshape(-1)
+            unknown = ~np.isfinite(held)
+            if since_s is not None:
+                since = np.broadcast_to(np.asarray(since_s, dtype=np.float64).reshape(-1),
+                                        held.shape)
+                unknown |= held >= since - SINCE_START_TOL_S
         else:
             f = np.asarray(fpa_c, dtype=np.float64).reshape(-1)
             t = None if time_s is None else np.asarray(time_s, dtype=np.float64).reshape(-1)
             if t is not None and f.size == 1:
-                f = np.broadcast_to(f, t.shape)  # one value for all: not measured, not judged
+                f = np.broadcast_to(f, t.shape)  # one value for all: not measured
             found = (recording_still_time(f, t, band_c=still["band_c"], max_gap_s=PACE_LAG_S)
                      if still and t is not None and f.shape == t.shape else None)
-            held = np.zeros(f.shape) if found is None else found
-        return held, self.still_excess(held)
+            if found is None:
+                held = np.full(f.shape, np.nan)
+                unknown = np.ones(f.shape, dtype=bool)
+            else:
+                held, unknown = found, found >= (t - t[0]) - SINCE_START_TOL_S
+        excess = self.still_excess(np.nan_to_num(held, nan=0.0))
+        if rate_c_per_min is not None and still:
+            unknown &= ~self._moving(rate_c_per_min, held.shape)
+        return held, excess, unknown & bool(still) & (excess <= 1.0)
+
+    def _moving(self, rate_c_per_min: Any, shape: tuple[int, ...]) -> np.ndarray:
+        """Whether each FPA rate (°C/min, one or one per frame; NaN: not known) says the FPA
+        was moving, not held still: faster than the stillness band over the rate's smoothing
+        window (:data:`~thermocal.calibration.dataset.RATE_SMOOTH_S`), ``shape`` bool."""
+        rate = np.broadcast_to(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1), shape)
+        band = self.report.paces["still"]["band_c"]
+        with np.errstate(invalid="ignore"):
+            return np.abs(rate) > band / (RATE_SMOOTH_S / 60.0)
+
+    def _unknown_still_reason(self, fpa: float | None, held: float, count: str = "") -> str:
+        """The refusal's text for a frame at ``fpa`` °C (None: not known) whose recording was
+        still throughout its ``held`` s (0: no FPA history at all)."""
+        where = "" if fpa is None else f" at {fpa:.1f} °C"
+        what = (f"its FPA was still throughout its recording ({count}{'first ' if count else ''}"
+                f"{held / 60:.1f} min{where})" if np.isfinite(held) else
+                f"no history of its FPA was given ({count}a constant FPA temperature, or a "
+                f"recording too short to measure one{where})")
+        return (f"{what}, so how long the camera had held it still is not known, and the "
+                f"plateaus of the {self.report.method} calibration's chamber session ended "
+                f"before the camera settled ({self.report.paces['still']['held_s'] / 60:.0f} "
+                "min): with no memory of how the FPA changed, it cannot vouch for a camera "
+                "held still longer (give the recording from before the camera last changed "
+                "temperature, or use lin-lag, which follows the settling)")
 
     def _worst_sigma(self) -> float:
         """The largest σ of the report's rate bins (or its overall σ), °C: the level of frames
         in a state no session measured, per unit of how far beyond it they lie."""
         return max([self._overall_sigma()] + [self._bin_sigma(b) for b in self.report.by_rate])
 
-    def _still_reason(self, fpa: float | None, still: float, excess: float, count: str = ""
-                      ) -> str:
+    def _still_reason(self, fpa: float | None, still: float, count: str = "") -> str:
         """The stillness refusal's text for a frame at ``fpa`` °C (None: not known) held still
-        ``still`` s, that is ``excess`` times as long as the session's plateaus held it."""
+        ``still`` s, longer than the session's plateaus held it."""
+        excess = float(self.still_excess([still])[0])
         where = "" if fpa is None else f"at {fpa:.1f} °C "
         return (f"the camera held its FPA still ({count}{'first ' if count else ''}{where}"
                 f"for {still / 60:.1f} min), {excess:.2f}× longer than the plateaus "
@@ -508,8 +562,11 @@ class CalibrationSigma:
         elif self.report.paces.get("fpa_cells"):  # no rate: taken as steady, as applied
             level = np.maximum(level, self._pace_sigma(self._distance(np.zeros(n), np.zeros(n),
                                                                       fpa)))
-        excess = self._still(fpa, time_since_start_s if recording else None, still_s)[1]
-        level = np.maximum(level, self._still_sigma(excess))
+        _, excess, unknown = self._still(fpa, time_since_start_s if recording else None,
+                                         still_s, None if recording else time_since_start_s,
+                                         rate_c_per_min)
+        level = np.maximum(level, self._still_sigma(np.where(
+            unknown, np.maximum(excess, UNKNOWN_STILL_EXCESS), excess)))
         if time_since_start_s is not None:
             level = np.maximum(level, np.broadcast_to(self.start_sigma(time_since_start_s),
                                                       frames.shape[:1]))
@@ -615,23 +672,27 @@ class CalibrationSigma:
                                    else [pace.lagged_c_per_min]),
             still_s=None if pace.still_s is None else [pace.still_s], history_seen=history_seen)
 
-    def outside_burst(self, temps_c: np.ndarray, fpa_c: float | None, pace: Any
-                      ) -> tuple[str, ...]:
+    def outside_burst(self, temps_c: np.ndarray, fpa_c: float | None, pace: Any, *,
+                      time_since_start_s: float | None = None) -> tuple[str, ...]:
         """:meth:`outside` for one burst of calibrated frames ``(N, H, W)`` at FPA temperature
         ``fpa_c`` (°C; None: not known) changing at ``pace`` (a
         :class:`~thermocal.estimation.base.FpaPace` or None: not known): its FPA rate against
         the session's fastest, and for a memoryless method its rate and lagged rate against the
-        paces the session held."""
+        paces the session held, and its stillness (not known without a pace, or where it
+        reaches back to the recording's start, ``time_since_start_s`` s before: refused where
+        the session never settled)."""
         rate = None if pace is None else [pace.rate_c_per_min]
         lagged = (None if pace is None or pace.lagged_c_per_min is None
                   else [pace.lagged_c_per_min])
-        still = None if pace is None or pace.still_s is None else [pace.still_s]
+        still = [math.nan if pace is None or pace.still_s is None else pace.still_s]
         return self.outside(temps_c, () if fpa_c is None else fpa_c, rate_c_per_min=rate,
-                            lagged_rate_c_per_min=lagged, still_s=still)
+                            lagged_rate_c_per_min=lagged, still_s=still,
+                            time_since_start_s=(None if time_since_start_s is None
+                                                else [time_since_start_s]))
 
     def outside(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None,
                 time_s: Any = None, lagged_rate_c_per_min: Any = None,
-                still_s: Any = None) -> tuple[str, ...]:
+                still_s: Any = None, time_since_start_s: Any = None) -> tuple[str, ...]:
         """Why frames lie outside what the calibration was fitted on: their FPA temperatures
         (more than :data:`FPA_MARGIN_C` beyond the session's), their FPA rates (°C/min, where
         known: faster than :data:`RATE_MARGIN` times the session's fastest), their paces (with
@@ -639,7 +700,8 @@ class CalibrationSigma:
         :meth:`unseen_paces`; or, given each frame's ``lagged_rate_c_per_min``, °C/min, taken
         from its recording, by its rate and lagged rate), their stillness (where the session's
         plateaus ended before the camera settled: the FPA held still longer than they held it,
-        :meth:`still_excess`, from ``time_s`` or each frame's ``still_s``, s), or
+        :meth:`still_excess`, from ``time_s`` or each frame's ``still_s``, s; or not known:
+        still since their recording began, ``time_since_start_s`` s before, or NaN), or
         their scene (its 1st–99th percentile beyond the blackbody's range); ``()`` inside."""
         reasons = []
         fpa = np.asarray(fpa_c, dtype=np.float64).reshape(-1)
@@ -672,13 +734,16 @@ class CalibrationSigma:
                                f"{self.max_rate_c_per_min:.2f} °C/min of the "
                                f"{self.report.method} calibration's chamber session")
         if still_s is not None or (time_s is not None and fpa.size):
-            held, excess = self._still(fpa, time_s, still_s)
-            if np.any(excess > 1.0):
-                k = int(np.argmax(excess > 1.0))
-                count = (f"{int(np.sum(excess > 1.0))} of {excess.size} frames; "
-                         if excess.size > 1 else "")
-                at = float(fpa[min(k, fpa.size - 1)]) if fpa.size else None
-                reasons.append(self._still_reason(at, held[k], excess[k], count=count))
+            held, excess, unknown = self._still(fpa, time_s, still_s, time_since_start_s,
+                                                rate_c_per_min)
+            for beyond, reason in ((excess > 1.0, self._still_reason),
+                                   (unknown, self._unknown_still_reason)):
+                if np.any(beyond):
+                    k = int(np.argmax(beyond))
+                    count = (f"{int(np.sum(beyond))} of {beyond.size} frames; "
+                             if beyond.size > 1 else "")
+                    at = float(fpa[min(k, fpa.size - 1)]) if fpa.size else None
+                    reasons.append(reason(at, held[k], count=count))
         flo, fhi = self.report.fpa_range_c
         if fpa.size and (fpa.min() < flo - FPA_MARGIN_C or fpa.max() > fhi + FPA_MARGIN_C):
             reasons.append(f"the FPA temperature {fpa.min():.1f}…{fpa.max():.1f} °C is outside "

@@ -89,7 +89,9 @@ class _ThroughCalibration:
             why = self.unchecked()
             return (why,) if why else ()
         foreign = () if burst is None else (self._foreign(burst),)
-        return self.sigma_model.outside_burst(calibrated, fpa_c, pace) + tuple(
+        since = None if burst is None else burst.time_since_start_s
+        return self.sigma_model.outside_burst(calibrated, fpa_c, pace,
+                                              time_since_start_s=since) + tuple(
             r for r in foreign if r)
 
     def _foreign(self, burst: PreparedBurst) -> str | None:
