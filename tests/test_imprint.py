@@ -17,7 +17,7 @@ from thermocal.camera.presets import make_camera
 from thermocal.errors import OutsideDomainError
 from thermocal.estimation.calibrated import OzMean, PivotCalibration
 from thermocal.estimation.pipeline import estimate
-from thermocal.simulate.flight import simulate_flight
+from thermocal.simulate.flight import flat_field_corrected, simulate_flight
 
 SIZE = (64, 48)  # the `fitted` calibration's
 
@@ -46,10 +46,27 @@ def test_imprint_tells_the_calibrations_camera_from_another(fitted, other):
         assert np.array_equal(raw, flight.frames[2]) and np.array_equal(temps, before)
     temps = cal.apply(theirs.frames, fpa_c=theirs.fpa_c)
     why = imprint_reason(cal, theirs.frames, temps, fpa_c=theirs.fpa_c)
-    assert "not of the camera the polynomial calibration was made for" in why
+    assert "not raw frames of the camera the polynomial calibration was made for" in why
     assert "thermocal calibrate" in why
     assert imprint_reason(cal, mine.frames, cal.apply(mine.frames, fpa_c=mine.fpa_c),
                           fpa_c=mine.fpa_c) is None
+
+
+def test_frames_the_camera_flat_field_corrected_itself_are_refused(fitted):
+    """The calibration's own camera with its flat-field correction on (a closed shutter's
+    pattern removed, as a Tau2's FFC does; the chamber session was raw): the pattern the
+    calibration removes is no longer in the frames, and removing it prints it — degrees off.
+    Refused, naming the FFC; the raw frames of the same walk are not."""
+    camera, cal, report = fitted
+    fpa = 0.5 * sum(report.fpa_range_c)
+    raw = _walk(camera, fpa)
+    ffc = flat_field_corrected(camera, raw)
+    temps = cal.apply(ffc, fpa_c=raw.fpa_c)
+    assert float(np.abs(temps - raw.truth_c).mean()) > 0.5  # what it guards against
+    why = imprint_reason(cal, ffc, temps, fpa_c=raw.fpa_c)
+    assert "flat-field correction (FFC) off" in why
+    assert imprint_reason(cal, raw.frames, cal.apply(raw.frames, fpa_c=raw.fpa_c),
+                          fpa_c=raw.fpa_c) is None
 
 
 def test_a_pattern_too_weak_to_measure_is_never_another_cameras(fitted):
@@ -78,7 +95,7 @@ def test_estimate_refuses_another_cameras_burst_and_forced_grows_sigma(fitted):
     fpa = 0.5 * sum(report.fpa_range_c)
     theirs = _walk(make_camera("tau2", unit=4, size=SIZE), fpa)
     for estimator in (PivotCalibration(cal), OzMean(cal)):
-        with pytest.raises(OutsideDomainError, match="not of the camera .* was made for"):
+        with pytest.raises(OutsideDomainError, match="not raw frames of the camera .* made for"):
             estimate(theirs.frames, estimator, fpa_c=theirs.fpa_c)
         forced = estimate(theirs.frames, estimator, fpa_c=theirs.fpa_c, force=True)
         error = np.abs(forced.temperature_c - theirs.truth_c[forced.pivot])
@@ -108,7 +125,7 @@ def test_correct_refuses_another_cameras_recording(fitted, tmp_path, capsys):
             "--sigma-out", tmp_path / "s.tiff"]
     code, _, err = run(args, capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1
-    assert "not of the camera the polynomial calibration was made for" in err
+    assert "not raw frames of the camera the polynomial calibration was made for" in err
     assert not (tmp_path / "t.tiff").exists() and not (tmp_path / "s.tiff").exists()
     code, _, err = run(args + ["--force"], capsys)
     assert code == 0 and "corrected all the same (--force)" in err

@@ -351,3 +351,16 @@ def write_flight(out_dir: str | Path, flight: Flight, *, extra: dict | None = No
     write_temperature_tiff(out / "truth.tiff", flight.truth_c)
     with atomic_path(out / "homographies.npy") as tmp:
         np.save(tmp, flight.homographies)
+
+
+def flat_field_corrected(camera: CameraModel, flight: Flight) -> np.ndarray:
+    """A simulated flight's raw frames ``(N, H, W)`` as the camera gives them with its own
+    flat-field correction on (a Tau2's FFC, done once before the first frame): less the
+    deviation from its mean of a closed shutter at the housing temperature, rendered by
+    ``camera`` at the first frame's FPA temperature (its fixed pattern and noise); uint16, a
+    new array. A calibration fitted on raw frames does not apply to these."""
+    shutter = render(camera, np.full((1, *camera.shape), float(flight.housing_c[0])),
+                     flight.fpa_true_c[:1], housing_c=flight.housing_c[:1],
+                     rng=np.random.default_rng(flight.frames.shape[0]))[0].astype(np.float64)
+    corrected = flight.frames.astype(np.float64) - (shutter - shutter.mean())[None]
+    return np.clip(np.round(corrected), 0, np.iinfo(np.uint16).max).astype(np.uint16)
