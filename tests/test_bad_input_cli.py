@@ -129,6 +129,11 @@ def inputs(tmp_path_factory) -> dict[str, Path]:
     shutil.copy(rec, root / "capture" / "frames.tiff")
     own = {k: v for k, v in sidecar.items() if k not in ("scene", "preset", "seed", "motion")}
     (root / "capture" / "frames.json").write_text(json.dumps(own))
+    # the same flight by another unit of the family (the calibrations are unit 0's)
+    main_ok(["simulate", "flight", root / "other_unit", "--size", SIZE, "--frames", "7",
+             "--fpa-c", "30", "--unit", "1"])
+    shutil.copy(root / "other_unit" / "frames.tiff", root / "other.tiff")
+    shutil.copy(root / "other_unit" / "frames.json", root / "other.json")
     # a recording whose sidecar is not JSON
     shutil.copy(rec, root / "badjson.tiff")
     (root / "badjson.json").write_text('{"fpa_c": [30, 30,')
@@ -192,6 +197,18 @@ CASES = [
     ("selfcal-from-a-calibration-without-report",
      ["flight", "{root}/flight", "--out", "{tmp}/out", "--method", "selfcal",
       "--calibration", "{root}/cal_unreported.h5"], "no cross-validation report"),
+    # another camera's frames through a calibration (its fixed pattern left printed on them)
+    ("correct-another-units-recording",
+     ["correct", "{root}/other.tiff", "--calibration", "{root}/cal.h5", "--out",
+      "{tmp}/t.tiff"], "not raw frames of the camera the polynomial calibration was made for"),
+    ("estimate-another-units-burst",
+     ["estimate", "{root}/other.tiff", "--method", "mean", "--calibration", "{root}/cal.h5",
+      "--out", "{tmp}/t.tiff"], "not raw frames of the camera the polynomial calibration"),
+    # a camera whose stillness nothing shows, through a session that never settled
+    ("estimate-one-fpa-value-through-an-unsettled-session",
+     ["estimate", "{root}/rec.tiff", "--method", "calibration", "--calibration",
+      "{root}/cal2.h5", "--fpa-c", "30", "--out", "{tmp}/t.tiff"],
+     "how long the camera had held it still is not known"),
     # an HDF5 file of the project's given as a recording: which one, and what reads it
     ("info-on-a-chamber-session", ["info", "{root}/chamber.h5"],
      "a chamber session (HDF5), not a recording: `thermocal calibrate` reads it"),
@@ -772,6 +789,19 @@ def test_bad_input_is_one_line_and_exit_2_and_changes_nothing(inputs, tmp_path, 
     assert_refused(code, out, err, message)
     assert snapshot(root) == before  # no input changed, nothing written beside them
     assert sorted(p.name for p in tmp_path.iterdir()) == ["link.tiff"]  # nothing created
+
+
+def test_a_flight_of_another_unit_makes_no_map_and_says_why(inputs, tmp_path, capsys):
+    """`thermocal flight` of another unit's recording through this unit's calibration: every
+    group refused as another camera's; exit 2, one line naming it, the log kept (where each
+    group's reason is); the inputs unchanged."""
+    root = inputs["root"]
+    before = snapshot(root)
+    code, out, err = run(["flight", root / "other_unit", "--out", tmp_path / "out", "--method",
+                          "calibration", "--calibration", inputs["cal"]], capsys)
+    assert_refused(code, out, err, "no temperature map made")
+    assert "not raw frames of the camera the polynomial calibration was made for" in err
+    assert (tmp_path / "out" / "log.csv").is_file() and snapshot(root) == before
 
 
 def test_an_output_hard_linked_to_the_input_is_refused(inputs, tmp_path, capsys):
