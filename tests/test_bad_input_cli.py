@@ -134,6 +134,10 @@ def inputs(tmp_path_factory) -> dict[str, Path]:
              "--fpa-c", "30", "--unit", "1"])
     shutil.copy(root / "other_unit" / "frames.tiff", root / "other.tiff")
     shutil.copy(root / "other_unit" / "frames.json", root / "other.json")
+    # frames with times but no FPA temperature (a sidecar without fpa_c)
+    shutil.copy(rec, root / "times_only.tiff")
+    (root / "times_only.json").write_text(json.dumps(
+        {k: v for k, v in sidecar.items() if k not in ("fpa_c", "fpa_true_c")}))
     # a recording whose sidecar is not JSON
     shutil.copy(rec, root / "badjson.tiff")
     (root / "badjson.json").write_text('{"fpa_c": [30, 30,')
@@ -209,6 +213,9 @@ CASES = [
      ["estimate", "{root}/rec.tiff", "--method", "calibration", "--calibration",
       "{root}/cal2.h5", "--fpa-c", "30", "--out", "{tmp}/t.tiff"],
      "how long the camera had held it still is not known"),
+    ("correct-times-without-fpa-through-an-unsettled-session",
+     ["correct", "{root}/times_only.tiff", "--calibration", "{root}/cal2.h5", "--out",
+      "{tmp}/t.tiff"], "no history of its FPA was given"),
     # an HDF5 file of the project's given as a recording: which one, and what reads it
     ("info-on-a-chamber-session", ["info", "{root}/chamber.h5"],
      "a chamber session (HDF5), not a recording: `thermocal calibrate` reads it"),

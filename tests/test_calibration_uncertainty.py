@@ -534,6 +534,13 @@ def test_a_stillness_its_recording_cannot_show_is_outside_an_unsettled_sessions(
     # the recording moved before: known, and inside
     assert model.outside_burst(burst, 27.0, FpaPace(0.0, 0.0, 500.0),
                                time_since_start_s=501.0) == ()
+    # one stillness (not known) for frames with rates of their own: those the rate says were
+    # moving are known not to be still
+    moving = np.where(t < 150.0, 0.0, 1.0)
+    (why,) = model.outside(temps, fpa, rate_c_per_min=moving, still_s=[np.nan])
+    assert "(15 of 30 frames; a constant FPA temperature" in why
+    sigma = model.sigma(temps, fpa, rate_c_per_min=moving, still_s=[np.nan])[:, 0, 0]
+    assert np.all(sigma[t < 150.0] == pytest.approx(unknown)) and np.all(sigma[t > 150] < unknown)
 
 
 def test_stillness_survives_json_and_is_checked():
@@ -894,3 +901,30 @@ def test_sigma_outside_an_unmeasured_fpa_range_grows_by_the_distance():
     far = model.sigma(temps, [50.0]).min()  # and 10 °C past the segment
     assert far - near == pytest.approx(G * 0.4 * 12.0 + 10.0 * UNMEASURED_FPA_GROWTH_PER_C,
                                        rel=1e-4)
+
+
+def test_selfcal_judges_its_start_calibrations_stillness_with_the_bursts_start(monkeypatch):
+    """selfcal started from a calibration whose session never settled: a burst still since its
+    recording began (its time since the start given with the burst) is refused, and its
+    level's σ taken as if held UNKNOWN_STILL_EXCESS times the plateaus; one whose recording
+    moved before is not."""
+    from thermocal.calibration.uncertainty import UNKNOWN_STILL_EXCESS
+    from thermocal.estimation.base import FpaPace, PreparedBurst
+    from thermocal.estimation.selfcal import SelfCalibration
+
+    model = _stilled()
+    monkeypatch.setattr(SelfCalibration, "sigma_model", property(lambda self: model))
+    selfcal, temps, pace = SelfCalibration(), np.full((3, 1, 1), 25.0), FpaPace(0.0, 0.0, 500.0)
+
+    def burst(since: float) -> PreparedBurst:
+        return PreparedBurst(np.zeros((3, 1, 1)), temps, np.ones((3, 1, 1), dtype=bool),
+                             np.repeat(np.eye(3)[None], 3, axis=0), 1, 27.0, 0.0, since, 0.0,
+                             500.0)
+
+    (why,) = selfcal.outside(temps, 27.0, pace=pace, burst=burst(500.0))
+    assert "how long the camera had held it still is not known" in why
+    assert selfcal.outside(temps, 27.0, pace=pace, burst=burst(900.0)) == ()
+    worst = G * 0.6
+    assert selfcal.level_sigma(temps[0], 27.0, pace=pace, time_since_start_s=500.0)[0, 0] == \
+        pytest.approx(worst * UNKNOWN_STILL_EXCESS)
+    assert selfcal.level_sigma(temps[0], 27.0, pace=pace, time_since_start_s=900.0)[0, 0] < worst

@@ -134,3 +134,45 @@ def test_correct_refuses_another_cameras_recording(fitted, tmp_path, capsys):
                         tmp_path / "m.tiff", "--sigma-out", tmp_path / "ms.tiff"], capsys)
     assert code == 0, err
     assert float(np.median(tifffile.imread(tmp_path / "ms.tiff"))) < 2.0
+
+
+def test_a_shutter_calibrations_closures_are_checked_at_the_bursts_time(fitted_session,
+                                                                        fitted):
+    """A shutter calibration with closures: its pattern at a burst is that of the closure
+    before the pivot's time, which the pipeline passes on: another unit's burst refused, the
+    own unit's not (without the time no pattern could be made, and nothing was checked)."""
+    from dataclasses import replace
+
+    from thermocal.calibration.registry import fit_calibration
+    from thermocal.calibration.uncertainty import CalibrationSigma
+
+    camera, path = fitted_session
+    _, _, report = fitted
+    fpa = 0.5 * sum(report.fpa_range_c)
+    closed = simulate_flight(np.full((128, 128), fpa), camera, n_frames=1, motion="walk",
+                             fpa_c=fpa, seed=2)
+    cal = fit_calibration(path, "shutter").with_shutter(
+        closed.frames, fpa_c=closed.fpa_c, time_s=[-1.0])
+    estimator = PivotCalibration(cal)
+    estimator.sigma_model = CalibrationSigma(replace(report, method="shutter"))
+    theirs = _walk(make_camera("tau2", unit=4, size=SIZE), fpa)
+    with pytest.raises(OutsideDomainError, match="not raw frames of the camera the shutter"):
+        estimate(theirs.frames, estimator, fpa_c=theirs.fpa_c, time_s=theirs.time_s)
+    mine = _walk(camera, fpa)
+    assert estimate(mine.frames, estimator, fpa_c=mine.fpa_c, time_s=mine.time_s).outside == ()
+
+
+@pytest.mark.parametrize("fraction", [0.02, 0.04])
+def test_dead_pixels_neither_hide_another_camera_nor_make_one(fitted, fraction):
+    """Pixels dead at 0 counts or full scale (up to 4 % of the frame): their output is left
+    out, and their neighbours' median replaces it before the high-pass, so it does not ring
+    around them: another unit's frame is still foreign beyond doubt, the own unit's not."""
+    camera, cal, report = fitted
+    fpa = 0.5 * sum(report.fpa_range_c)
+    for cam, foreign in ((camera, False), (make_camera("tau2", unit=4, size=SIZE), True)):
+        raw = _walk(cam, fpa).frames[2].copy()
+        rng = np.random.default_rng(5)
+        dead = rng.random(raw.shape) < fraction
+        raw[dead] = np.where(rng.random(int(dead.sum())) < 0.5, 0, 2**14 - 1)
+        got = imprint(cal, raw, cal.apply(raw[None], fpa_c=[fpa])[0], fpa_c=fpa)
+        assert got.foreign == foreign and got.se < 0.1, got

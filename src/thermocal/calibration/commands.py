@@ -251,8 +251,10 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
         except InvalidInputError as exc:
             raise _naming_the_input(exc, frames, calibration_path) from None
     rates = recording_fpa_rates(rec.fpa_c, rec.time_s)
-    # its stillness from its FPA series where the frames have times, else not known
-    still = None if rec.time_s is not None else np.full(temps.shape[0], np.nan)
+    # its stillness from its FPA series where the frames have times and FPA temperatures,
+    # else not known
+    still = (None if rec.time_s is not None and rec.fpa_c is not None
+             else np.full(temps.shape[0], np.nan))
     outside = () if model is None else model.outside(
         temps, () if rec.fpa_c is None else rec.fpa_c, rate_c_per_min=rates,
         time_s=rec.time_s, still_s=still)

@@ -5,10 +5,12 @@ pattern cancels, and what comes out (the scene) is independent of the correction
 camera's frames (another unit of the family, another family) nothing cancels, and the
 correction itself is printed on the output, where it stays as a pattern the scene does not
 have — and with it an error no report measured (a ``tau2`` unit's ``polynomial`` on another
-unit: 2.5–3.1 °C; on the other family up to 17.8 °C; `benchmarks/another_camera.py`). So
-does the calibration's own camera when it has flat-field corrected its frames itself (a Tau2's
-FFC on, where the chamber session was recorded with it off): the pattern the calibration
-removes is no longer in them, and removing it prints it (2.1–3.0 °C off).
+unit: 2.5–3.2 °C; any method on another unit or family 2.2–27.9 °C;
+`benchmarks/another_camera.py`). So does the calibration's own camera when it has flat-field
+corrected its frames itself (a Tau2's FFC on, where the chamber session was recorded with it
+off): the pattern the calibration removes is no longer in them, and removing it prints it
+(``polynomial`` 1.4–3.1 °C off, any method up to 18 °C). Pixels stuck in the raw frame (dead
+at 0 counts or full scale) are filled from their neighbours before the high-pass and left out.
 
 The calibration's pattern ``P``: its output for a uniform frame at the frame's median count
 and FPA temperature (all of the correction, none of the scene). The *imprint*: the
@@ -49,6 +51,9 @@ TILES = 4
 #: Pixels of the pattern more than this many of its scatters (MAD) from 0 are left out: the
 #: calibration's bad pixels, filled from their neighbours in the output, and its outliers.
 PATTERN_CLIP = 6.0
+#: Raw pixels whose high-pass is more than this many of its scatters (MAD) from 0 are stuck:
+#: their output is replaced by its neighbours' median before the high-pass, and left out.
+STUCK_CLIP = 20.0
 #: Pixels of the output more than this many of its scatters (MAD) from 0 are left out: pixels
 #: the calibration cannot invert (another camera's dead ones), the scene's sharpest edges.
 OUTPUT_CLIP = 10.0
@@ -59,7 +64,8 @@ OUTPUT_CLIP = 10.0
 IMPRINT_MAX = 0.5
 #: σ added (in quadrature) to the temperatures of frames forced through another camera's
 #: calibration, °C: the report measured nothing of that camera (another unit's `polynomial`
-#: 2.5–3.1 °C off, another family's 2.7–17.8 °C; the same as `selfcal`'s for another family).
+#: 2.5–3.2 °C off, any method on another unit or family 2.2–27.9 °C, within 2σ; the same as
+#: `selfcal`'s for another family).
 OTHER_CAMERA_SIGMA_C = 15.0
 
 
@@ -85,6 +91,24 @@ def _high_pass(image: np.ndarray) -> np.ndarray:
     x = np.asarray(image, dtype=np.float32)
     blur = cv2.GaussianBlur(x, (0, 0), HIGH_PASS_PX, borderType=cv2.BORDER_REPLICATE)
     return (x - blur)[EDGE_PX:-EDGE_PX, EDGE_PX:-EDGE_PX]
+
+
+def _stuck(raw: np.ndarray) -> np.ndarray:
+    """The raw frame's pixels that stand out of their neighbourhood by more than
+    :data:`STUCK_CLIP` of its high-pass's scatters (dead pixels at 0 counts or full scale,
+    another camera's hot ones), bool ``(H, W)``."""
+    hp = np.pad(_high_pass(raw), EDGE_PX, mode="edge")
+    return np.abs(hp) > STUCK_CLIP * _scatter(hp, np.ones(hp.shape, dtype=bool))
+
+
+def _filled(temps: np.ndarray, stuck: np.ndarray) -> np.ndarray:
+    """``temps`` (°C ``(H, W)``) with its ``stuck`` pixels replaced by their 5×5 median, a
+    new float32 array: a dead pixel's output (the coldest or hottest the calibration reads)
+    would otherwise ring through the high-pass around it."""
+    import cv2
+
+    x = np.nan_to_num(np.asarray(temps, dtype=np.float32))
+    return np.where(stuck, cv2.medianBlur(x, 5), x) if stuck.any() else x
 
 
 def _scatter(x: np.ndarray, keep: np.ndarray) -> float:
@@ -139,8 +163,9 @@ def imprint(calibration: Calibration, raw: Any, temps_c: Any, *, fpa_c: float | 
     pattern = pattern_of(calibration, raw, fpa_c=fpa_c, time_s=time_s)
     if pattern is None:
         return None
-    p, t = _high_pass(pattern), _high_pass(temps)
-    keep = np.isfinite(p) & np.isfinite(t)
+    stuck = _stuck(raw)
+    p, t = _high_pass(pattern), _high_pass(_filled(temps, stuck))
+    keep = np.isfinite(p) & np.isfinite(t) & ~stuck[EDGE_PX:-EDGE_PX, EDGE_PX:-EDGE_PX]
     keep &= np.abs(p) <= PATTERN_CLIP * _scatter(p, keep)
     keep &= np.abs(t) <= OUTPUT_CLIP * _scatter(t, keep)
     num, den = _tile_sums(t, p, keep)

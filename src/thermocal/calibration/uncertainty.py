@@ -470,9 +470,12 @@ class CalibrationSigma:
                 unknown = np.ones(f.shape, dtype=bool)
             else:
                 held, unknown = found, found >= (t - t[0]) - SINCE_START_TOL_S
+        if rate_c_per_min is not None and still:  # one stillness for many rates, or the reverse
+            rate = np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)
+            shape = np.broadcast_shapes(held.shape, rate.shape)
+            held = np.broadcast_to(held, shape)
+            unknown = np.broadcast_to(unknown, shape) & ~self._moving(rate, shape)
         excess = self.still_excess(np.nan_to_num(held, nan=0.0))
-        if rate_c_per_min is not None and still:
-            unknown &= ~self._moving(rate_c_per_min, held.shape)
         return held, excess, unknown & bool(still) & (excess <= 1.0)
 
     def _moving(self, rate_c_per_min: Any, shape: tuple[int, ...]) -> np.ndarray:

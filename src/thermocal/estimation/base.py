@@ -114,6 +114,9 @@ class PreparedBurst:
         The FPA rate through each lag of a calibration that remembers it
         (:attr:`FpaPace.lag_rates`), given to its calibration; None: it started steady at the
         burst, without the recording's history (σ says so).
+    pivot_time_s : float or None
+        The pivot frame's time, s, where the frames have times (a shutter calibration's
+        offsets are those of the closure before it).
     """
 
     frames: np.ndarray
@@ -127,6 +130,7 @@ class PreparedBurst:
     fpa_lagged_rate_c_per_min: float | None = None
     fpa_still_s: float | None = None
     fpa_lag_rates_c_per_min: tuple[float, ...] | None = None
+    pivot_time_s: float | None = None
 
     @property
     def pace(self) -> FpaPace | None:

@@ -97,9 +97,10 @@ class _ThroughCalibration:
     def _foreign(self, burst: PreparedBurst) -> str | None:
         """Why the burst's pivot is not of the calibration's camera, or None
         (:func:`~thermocal.calibration.imprint.imprint_reason` of its raw and calibrated
-        pivot, at the burst's FPA temperature)."""
+        pivot, at the burst's FPA temperature and the pivot's time)."""
         return imprint_reason(self.calibration, burst.frames[burst.pivot],
-                              burst.warped[burst.pivot], fpa_c=burst.fpa_c)
+                              burst.warped[burst.pivot], fpa_c=burst.fpa_c,
+                              time_s=burst.pivot_time_s)
 
     def uncertainty(self, burst: PreparedBurst, temperature_c: np.ndarray, *, outside: bool
                     ) -> np.ndarray | None:

@@ -194,6 +194,8 @@ def estimate(
                  else tuple(float(v) for v in np.asarray(fpa_lag_rates_c_per_min).reshape(-1)))
     pace = fpa_pace(fpa_rate_c_per_min, fpa_lagged_rate_c_per_min, fpa_still_s, lag_rates)
     lag_rates = None if pace is None else lag_rates  # given to the calibration with its rate
+    times = None if time_s is None else np.asarray(time_s, dtype=np.float64).reshape(-1)
+    pivot_time = None if times is None or times.size != arr.shape[0] else float(times[p])
     if estimator.per_frame:  # the pivot frame alone: its calibration, not registered
         if fpa is not None and np.size(fpa_c) == arr.shape[0] > 1:  # its own FPA, not the mean
             fpa = float(np.asarray(fpa_c, dtype=np.float64).reshape(-1)[p])
@@ -203,7 +205,7 @@ def estimate(
         calibrated, raised = calibrate_stage(estimator, arr, fpa_c, time_s, pace=pace)
         burst = PreparedBurst(arr, calibrated, valid, hs, p, fpa, fpa_rate_c_per_min,
                               time_since_start_s, fpa_lagged_rate_c_per_min, fpa_still_s,
-                              lag_rates)
+                              lag_rates, pivot_time)
         # the pivot alone is estimated: the pivot alone is checked (a recording's other frames
         # may lie anywhere: a chamber session's cycle through its set points)
         outside = checked_stage(estimator, calibrated[p : p + 1], burst, raised, force=force,
@@ -231,7 +233,8 @@ def estimate(
         warped, valid = warp_to_pivot(calibrated, hs)
     check_overlap(valid, p)
     burst = PreparedBurst(filled, warped, valid, hs, p, fpa, fpa_rate_c_per_min,
-                          time_since_start_s, fpa_lagged_rate_c_per_min, fpa_still_s, lag_rates)
+                          time_since_start_s, fpa_lagged_rate_c_per_min, fpa_still_s, lag_rates,
+                          pivot_time)
     outside = checked_stage(estimator, calibrated, burst, raised, force=force, pace=pace)
     # 6. estimate
     return _estimate_of(estimator, burst, outside)

@@ -338,7 +338,9 @@ class SelfCalibration:
         model = self.sigma_model
         if model is None:
             return family
-        return family + tuple(model.outside_burst(calibrated, fpa_c, pace))
+        since = None if burst is None else burst.time_since_start_s
+        return family + tuple(model.outside_burst(calibrated, fpa_c, pace,
+                                                  time_since_start_s=since))
 
     def estimate(self, burst: PreparedBurst) -> np.ndarray:
         """Oz et al. eq. 9 on the corrected frames: the registered mean."""
@@ -347,15 +349,18 @@ class SelfCalibration:
             np.float32)
 
     def level_sigma(self, temperature_c: np.ndarray, fpa_c: float | None, *,
-                    pace: Any = None) -> np.ndarray:
+                    pace: Any = None, time_since_start_s: float | None = None) -> np.ndarray:
         """σ of the level no motion reveals, °C ``(H, W)``: a start calibration's at least the
         level of a ``pace`` (:class:`~thermocal.estimation.base.FpaPace`) its session never
-        held."""
+        held, or of a stillness not known (still since its recording began,
+        ``time_since_start_s`` s before)."""
         if self.level_sigma_c is not None:
             return np.full(temperature_c.shape, self.level_sigma_c, np.float32)
         model = self.sigma_model
         if model is not None and fpa_c is not None:
-            return np.asarray(model.burst_sigma(temperature_c, fpa_c, pace), np.float32)
+            return np.asarray(model.burst_sigma(temperature_c, fpa_c, pace,
+                                                time_since_start_s=time_since_start_s),
+                              np.float32)
         return np.full(temperature_c.shape, FAMILY_LEVEL_SIGMA_C, np.float32)
 
     def unseen_sigma(self, temperature_c: np.ndarray, fpa_c: float | None) -> float:
@@ -378,7 +383,8 @@ class SelfCalibration:
         float32; the pattern's standard error converted from radiance at each pixel's
         temperature."""
         assert self.pattern is not None
-        level = self.level_sigma(temperature_c, burst.fpa_c, pace=burst.pace).astype(
+        level = self.level_sigma(temperature_c, burst.fpa_c, pace=burst.pace,
+                                 time_since_start_s=burst.time_since_start_s).astype(
             np.float64)
         unseen = self.unseen_sigma(temperature_c, burst.fpa_c)
         t_k = temperature_c.astype(np.float64) + ZERO_CELSIUS_K
