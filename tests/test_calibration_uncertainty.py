@@ -391,6 +391,32 @@ def test_a_memoryless_sigma_grows_just_after_the_pace_changed():
     assert model.change_sigma([np.nan, 0.1]).tolist() == [1.2, 0.0]
 
 
+def test_a_change_near_a_bins_upper_edge_takes_some_of_the_larger_sigma_above():
+    """The change bins sample an error that grows with the change: between a bin's centre and
+    the next's, where that bin's σ is larger by no more than the centres' ratio, a frame's σ
+    is never below the line between the two (the open last bin's centre half the width of the
+    one below above its edge); where σ falls to the next bin (a settling regime's bin), or
+    jumps beyond proportion (another regime), the bins stay as they are; the steady bin is not
+    used, as before."""
+    change = [{"change_c_per_min": [0.0, 0.05], "frames": 20, "sigma_c": 5.0},
+              {"change_c_per_min": [0.05, 0.2], "frames": 20, "sigma_c": 1.0},
+              {"change_c_per_min": [0.2, 0.5], "frames": 20, "sigma_c": 0.4},
+              {"change_c_per_min": [0.5, 1.0], "frames": 20, "sigma_c": 0.8},
+              {"change_c_per_min": [1.0, None], "frames": 20, "sigma_c": 1.2}]
+    model = CalibrationSigma(_report(by_change=change))
+    got = model.change_sigma([0.01, 0.1, 0.2, 0.35, 0.45, 0.6, 0.75, 0.875, 1.0, 1.25, 9.0,
+                              np.nan])
+    # 0.875 lies halfway from the 0.5–1 bin's centre (0.75) to the last's (1.25): 0.8 + 0.4 / 4
+    # and 0.45 a quarter of the way from 0.35 (0.4) to 0.75 (0.8); 0.2, where σ fell: as was
+    np.testing.assert_allclose(got, [0.0, 1.0, 0.4, 0.4, 0.5, 0.8, 0.8, 0.9, 1.2, 1.2, 1.2,
+                                     1.2])
+    jump = [dict(b) for b in change]
+    jump[3]["sigma_c"] = 0.4 * 0.75 / 0.35 + 0.01  # beyond proportion to the change
+    model = CalibrationSigma(_report(by_change=jump))
+    assert model.change_sigma([0.45])[0] == pytest.approx(0.4)
+    assert model.change_sigma([0.875])[0] > jump[3]["sigma_c"]  # 0.87 → 1.2: in proportion
+
+
 @pytest.mark.parametrize("bins, ok", [
     ([{"change_c_per_min": ["0.5", None], "frames": "7", "sigma_c": "1.2"}], True),
     ([{"change_c_per_min": [0.5, 0.2], "frames": 7, "sigma_c": 1.2}], False),

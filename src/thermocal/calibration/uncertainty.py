@@ -191,6 +191,38 @@ def _bins_sigma(values: np.ndarray, bins: list[dict[str, Any]], key: str) -> np.
     return out
 
 
+def _rising_bins_sigma(values: np.ndarray, bins: list[dict[str, Any]], key: str
+                       ) -> np.ndarray:
+    """:func:`_bins_sigma` of an error that grows with ``values``, read as the continuous
+    curve its bins sample: between the centres of a bin and of the next above it, never below
+    the line between their σ (the open last bin's centre half the width of the one below it
+    above its edge), where σ grows to the next bin by no more than the centres' ratio. A lag's
+    error grows with how far the pace changed, at most in proportion, and a bin's σ is its
+    frames' average, so near its upper edge a frame errs as the bin above (`lin` and
+    `lin-level` on `boson`: up to 1.07 × 2σ of the 0.5–1 °C/min bin at 0.85–0.88, where the
+    bin above said 40 % more). Where σ falls to the next bin, or jumps by more than
+    proportion, the bins part regimes, not a curve (a plateau's unsettled start from a steady
+    pace; `polynomial` on `boson`, 1.3 → 6.3 °C from 0.05–0.2 to 0.2–0.5 °C/min, its sawtooth's
+    fast paces in the second: read as a line, its median σ grew by half for no frame), and
+    stay as they are."""
+    out = _bins_sigma(values, bins, key)
+
+    def centre(k: int) -> float:
+        lo, hi = bins[k][key]
+        if hi is None:  # the open last bin: half the width of the one below, above its edge
+            hi = 2 * lo - bins[k - 1][key][0] if k else lo
+        return 0.5 * (float(lo) + float(hi))
+
+    centres = [centre(k) for k in range(len(bins))]
+    for k in range(len(bins) - 1):
+        (c0, c1), (s0, s1) = centres[k : k + 2], (bins[k]["sigma_c"], bins[k + 1]["sigma_c"])
+        between = (values >= c0) & (values < c1)
+        if s0 < s1 <= s0 * c1 / max(c0, 1e-9) and between.any():
+            out[between] = np.maximum(out[between],
+                                      s0 + (s1 - s0) * (values[between] - c0) / (c1 - c0))
+    return out
+
+
 def older_report_warning(what: str) -> str:
     """The warning for a calibration whose report lacks ``what``
     (:meth:`CalibrationSigma.older_report`)."""
@@ -324,7 +356,7 @@ class CalibrationSigma:
         method (``polynomial`` on ``tau2`` 100 % within 2σ; RESULTS.md, 2026-11-28)."""
         d = np.asarray(change_c_per_min, dtype=np.float64).reshape(-1)
         used = [b for b in self.report.by_change if b["change_c_per_min"][0] > 0]
-        out = _bins_sigma(d, used, "change_c_per_min")
+        out = _rising_bins_sigma(d, used, "change_c_per_min")
         if used:  # a rate not known (NaN): how it changed is not known either, the worst bin
             out[np.isnan(d)] = max(b["sigma_c"] for b in used)
         return out
