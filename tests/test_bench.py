@@ -96,3 +96,12 @@ def test_coverage_says_what_sharpening_sigma_would_silence():
     calm = _rescaled(pairs[:-1])
     assert calm["silent_at_factor"] == 0 and calm["safe_factor"] == calm["factor"]
     assert _rescaled([]) is None
+
+
+def test_the_fits_accumulation_rate_is_measured_on_its_own_code():
+    """The chamber suite's ceiling of the numpy fit: bytes of frames per second that
+    `polynomial._accumulate` reads on one core, finite and positive on a small block."""
+    from thermocal.evaluation.suites.chamber_io import accumulate_rate
+
+    rate = accumulate_rate((16, 32), frames=8, rounds=2)
+    assert np.isfinite(rate) and rate > 0

@@ -415,6 +415,12 @@ def test_a_change_near_a_bins_upper_edge_takes_some_of_the_larger_sigma_above():
     model = CalibrationSigma(_report(by_change=jump))
     assert model.change_sigma([0.45])[0] == pytest.approx(0.4)
     assert model.change_sigma([0.875])[0] > jump[3]["sigma_c"]  # 0.87 → 1.2: in proportion
+    # bins with a gap, in any order: the open bin's centre half the width of the one below
+    # (0.15) above its edge, 1.15; σ 1.0 → 3.5 is beyond 1.15 / 0.35: steps
+    gap = [{"change_c_per_min": [1.0, None], "frames": 20, "sigma_c": 3.5},
+           {"change_c_per_min": [0.2, 0.5], "frames": 20, "sigma_c": 1.0}]
+    np.testing.assert_allclose(CalibrationSigma(_report(by_change=gap)).change_sigma(
+        [0.45, 0.7, 1.1]), [1.0, 0.0, 3.5])
 
 
 @pytest.mark.parametrize("bins, ok", [
@@ -567,6 +573,12 @@ def test_a_stillness_its_recording_cannot_show_is_outside_an_unsettled_sessions(
     assert "(15 of 30 frames; a constant FPA temperature" in why
     sigma = model.sigma(temps, fpa, rate_c_per_min=moving, still_s=[np.nan])[:, 0, 0]
     assert np.all(sigma[t < 150.0] == pytest.approx(unknown)) and np.all(sigma[t > 150] < unknown)
+    # and with each frame's time since its recording began: one held 500 s, known where the
+    # recording had run longer
+    (why,) = model.outside(temps, fpa, still_s=[500.0], time_since_start_s=t + 300.0)
+    assert "(21 of 30 frames; first" in why
+    with pytest.raises(InvalidInputError, match="still_s has 3 values and time_since_start_s"):
+        model.outside(temps, fpa, still_s=[1.0, 2.0, 3.0], time_since_start_s=t)
 
 
 def test_stillness_survives_json_and_is_checked():

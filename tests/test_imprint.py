@@ -156,8 +156,9 @@ def test_a_shutter_calibrations_closures_are_checked_at_the_bursts_time(fitted_s
     estimator = PivotCalibration(cal)
     estimator.sigma_model = CalibrationSigma(replace(report, method="shutter"))
     theirs = _walk(make_camera("tau2", unit=4, size=SIZE), fpa)
-    with pytest.raises(OutsideDomainError, match="not raw frames of the camera the shutter"):
-        estimate(theirs.frames, estimator, fpa_c=theirs.fpa_c, time_s=theirs.time_s)
+    for times in (theirs.time_s, float(theirs.time_s[2])):  # one per frame, or one for all
+        with pytest.raises(OutsideDomainError, match="not raw frames of the camera the shutter"):
+            estimate(theirs.frames, estimator, fpa_c=theirs.fpa_c, time_s=times)
     mine = _walk(camera, fpa)
     assert estimate(mine.frames, estimator, fpa_c=mine.fpa_c, time_s=mine.time_s).outside == ()
 
@@ -176,3 +177,17 @@ def test_dead_pixels_neither_hide_another_camera_nor_make_one(fitted, fraction):
         raw[dead] = np.where(rng.random(int(dead.sum())) < 0.5, 0, 2**14 - 1)
         got = imprint(cal, raw, cal.apply(raw[None], fpa_c=[fpa])[0], fpa_c=fpa)
         assert got.foreign == foreign and got.se < 0.1, got
+
+
+def test_stuck_pixels_are_found_at_the_frames_edges_too(fitted):
+    """A dead pixel within the edge the slope leaves out still rings into the pixels it
+    judges: it is found there as anywhere (the high-pass of the whole frame)."""
+    from thermocal.calibration.imprint import EDGE_PX, _stuck
+
+    camera, _, report = fitted
+    raw = _walk(camera, 0.5 * sum(report.fpa_range_c)).frames[2].copy()
+    where = [(1, 1), (EDGE_PX - 2, 20), (30, raw.shape[1] - 3), (25, 25)]
+    for (r, c), value in zip(where, (0, 2**14 - 1, 0, 0), strict=True):
+        raw[r, c] = value
+    stuck = _stuck(raw)
+    assert all(stuck[r, c] for r, c in where) and stuck.sum() < 0.01 * stuck.size

@@ -83,32 +83,36 @@ class Imprint(NamedTuple):
         return self.slope - 2.0 * self.se > IMPRINT_MAX
 
 
-def _high_pass(image: np.ndarray) -> np.ndarray:
-    """``image`` less its Gaussian blur of :data:`HIGH_PASS_PX`, without :data:`EDGE_PX` at
-    each edge, float32 ``(H − 2·EDGE_PX, W − 2·EDGE_PX)``."""
+def _high_pass(image: np.ndarray, *, crop: bool = True) -> np.ndarray:
+    """``image`` less its Gaussian blur of :data:`HIGH_PASS_PX`, float32, without
+    :data:`EDGE_PX` at each edge (``(H − 2·EDGE_PX, W − 2·EDGE_PX)``) unless not ``crop``."""
     import cv2  # its Gaussian blur: the line-pattern checks' too
 
     x = np.asarray(image, dtype=np.float32)
-    blur = cv2.GaussianBlur(x, (0, 0), HIGH_PASS_PX, borderType=cv2.BORDER_REPLICATE)
-    return (x - blur)[EDGE_PX:-EDGE_PX, EDGE_PX:-EDGE_PX]
+    hp = x - cv2.GaussianBlur(x, (0, 0), HIGH_PASS_PX, borderType=cv2.BORDER_REPLICATE)
+    return hp[EDGE_PX:-EDGE_PX, EDGE_PX:-EDGE_PX] if crop else hp
 
 
 def _stuck(raw: np.ndarray) -> np.ndarray:
     """The raw frame's pixels that stand out of their neighbourhood by more than
     :data:`STUCK_CLIP` of its high-pass's scatters (dead pixels at 0 counts or full scale,
-    another camera's hot ones), bool ``(H, W)``."""
-    hp = np.pad(_high_pass(raw), EDGE_PX, mode="edge")
+    another camera's hot ones), bool ``(H, W)``, its edges too (a dead pixel there rings into
+    the pixels judged)."""
+    hp = _high_pass(raw, crop=False)
     return np.abs(hp) > STUCK_CLIP * _scatter(hp, np.ones(hp.shape, dtype=bool))
 
 
 def _filled(temps: np.ndarray, stuck: np.ndarray) -> np.ndarray:
-    """``temps`` (°C ``(H, W)``) with its ``stuck`` pixels replaced by their 5×5 median, a
-    new float32 array: a dead pixel's output (the coldest or hottest the calibration reads)
-    would otherwise ring through the high-pass around it."""
+    """``temps`` (°C ``(H, W)``) with its ``stuck`` pixels replaced by their 5×5 median (of
+    the finite ones' values, NaN taken as 0 there), a new float32 array: a dead pixel's output
+    (the coldest or hottest the calibration reads) would otherwise ring through the high-pass
+    around it. Other pixels as they were, NaN included (left out after)."""
     import cv2
 
-    x = np.nan_to_num(np.asarray(temps, dtype=np.float32))
-    return np.where(stuck, cv2.medianBlur(x, 5), x) if stuck.any() else x
+    x = np.asarray(temps, dtype=np.float32)
+    if not stuck.any():
+        return x
+    return np.where(stuck, cv2.medianBlur(np.nan_to_num(x), 5), x)
 
 
 def _scatter(x: np.ndarray, keep: np.ndarray) -> float:

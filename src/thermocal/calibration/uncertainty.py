@@ -191,6 +191,17 @@ def _bins_sigma(values: np.ndarray, bins: list[dict[str, Any]], key: str) -> np.
     return out
 
 
+def _common_shape(a: np.ndarray, b: np.ndarray, name_a: str, name_b: str
+                  ) -> tuple[int, ...]:
+    """The shape ``(N,)`` two series broadcast to (one value for each of the other's, or as
+    many); :class:`InvalidInputError` naming both otherwise."""
+    try:
+        return np.broadcast_shapes(a.shape, b.shape)
+    except ValueError:
+        raise InvalidInputError(f"{name_a} has {a.size} values and {name_b} {b.size}: give "
+                                "one, or one per frame") from None
+
+
 def _rising_bins_sigma(values: np.ndarray, bins: list[dict[str, Any]], key: str
                        ) -> np.ndarray:
     """:func:`_bins_sigma` of an error that grows with ``values``, read as the continuous
@@ -206,11 +217,13 @@ def _rising_bins_sigma(values: np.ndarray, bins: list[dict[str, Any]], key: str
     fast paces in the second: read as a line, its median σ grew by half for no frame), and
     stay as they are."""
     out = _bins_sigma(values, bins, key)
+    bins = sorted(bins, key=lambda b: float(b[key][0]))
 
     def centre(k: int) -> float:
         lo, hi = bins[k][key]
         if hi is None:  # the open last bin: half the width of the one below, above its edge
-            hi = 2 * lo - bins[k - 1][key][0] if k else lo
+            below = bins[k - 1][key] if k else (lo, lo)
+            hi = lo + (float(below[1]) - float(below[0]))
         return 0.5 * (float(lo) + float(hi))
 
     centres = [centre(k) for k in range(len(bins))]
@@ -486,10 +499,11 @@ class CalibrationSigma:
         if still_s is not None:
             held = np.asarray(still_s, dtype=np.float64).reshape(-1)
             unknown = ~np.isfinite(held)
-            if since_s is not None:
-                since = np.broadcast_to(np.asarray(since_s, dtype=np.float64).reshape(-1),
-                                        held.shape)
-                unknown |= held >= since - SINCE_START_TOL_S
+            if since_s is not None:  # one stillness for many frames, or the reverse
+                since = np.asarray(since_s, dtype=np.float64).reshape(-1)
+                shape = _common_shape(held, since, "still_s", "time_since_start_s")
+                held = np.broadcast_to(held, shape)
+                unknown = np.broadcast_to(unknown, shape) | (held >= since - SINCE_START_TOL_S)
         else:
             f = np.asarray(fpa_c, dtype=np.float64).reshape(-1)
             t = None if time_s is None else np.asarray(time_s, dtype=np.float64).reshape(-1)
@@ -504,7 +518,7 @@ class CalibrationSigma:
                 held, unknown = found, found >= (t - t[0]) - SINCE_START_TOL_S
         if rate_c_per_min is not None and still:  # one stillness for many rates, or the reverse
             rate = np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)
-            shape = np.broadcast_shapes(held.shape, rate.shape)
+            shape = _common_shape(held, rate, "still_s", "rate_c_per_min")
             held = np.broadcast_to(held, shape)
             unknown = np.broadcast_to(unknown, shape) & ~self._moving(rate, shape)
         excess = self.still_excess(np.nan_to_num(held, nan=0.0))

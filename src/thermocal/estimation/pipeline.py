@@ -194,8 +194,12 @@ def estimate(
                  else tuple(float(v) for v in np.asarray(fpa_lag_rates_c_per_min).reshape(-1)))
     pace = fpa_pace(fpa_rate_c_per_min, fpa_lagged_rate_c_per_min, fpa_still_s, lag_rates)
     lag_rates = None if pace is None else lag_rates  # given to the calibration with its rate
+    # the pivot's time, for a calibration whose correction depends on it (a shutter's
+    # closures): one time for every frame, as the calibrations take it, or the pivot's own
     times = None if time_s is None else np.asarray(time_s, dtype=np.float64).reshape(-1)
-    pivot_time = None if times is None or times.size != arr.shape[0] else float(times[p])
+    pivot_time = (float(times[0]) if times is not None and times.size == 1
+                  else float(times[p]) if times is not None and times.size == arr.shape[0]
+                  else None)  # another length: the calibration refuses it
     if estimator.per_frame:  # the pivot frame alone: its calibration, not registered
         if fpa is not None and np.size(fpa_c) == arr.shape[0] > 1:  # its own FPA, not the mean
             fpa = float(np.asarray(fpa_c, dtype=np.float64).reshape(-1)[p])

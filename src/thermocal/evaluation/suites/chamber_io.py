@@ -9,6 +9,8 @@ then, on the same machine in one run:
 - the fit alone (:func:`~thermocal.calibration.registry.fit_calibration`, in this process) and
   the bytes of frames it reads per second, against the rate of a plain memory copy
   (``numpy.copyto`` of :data:`COPY_MB` MB) — the limit a pass over frames can reach;
+- the fit's accumulation alone on one core (:func:`accumulate_rate`): twice its rate is the
+  most this numpy fit can read on two cores, its ceiling against the memory copy;
 - the same frames the fit reads, read through h5py chunk by chunk (how the reader read them
   before) and through :func:`thermocal.io.chamber.frame_offsets` (how it reads them now).
 
@@ -81,6 +83,31 @@ def copy_rate(mb: int = COPY_MB, rounds: int = 5) -> float:
     return src.nbytes / float(np.median(times))
 
 
+def accumulate_rate(shape: tuple[int, int], *, frames: int = 64, rounds: int = 5) -> float:
+    """Bytes of frames per second the fit's accumulation
+    (:func:`thermocal.calibration.polynomial._accumulate`: the counts centred, their product
+    with the 8 design columns, Σy²) reads on one core, BLAS on one thread: a block of
+    ``frames`` random 14-bit frames of ``shape``, its best of ``rounds``. Twice this is the
+    most the numpy fit can read on two cores, whatever else it does."""
+    from threadpoolctl import threadpool_limits
+
+    from thermocal.calibration.polynomial import _accumulate
+
+    rng = np.random.default_rng(0)
+    n = shape[0] * shape[1]
+    counts = rng.integers(3000, 9000, (frames, n)).astype(np.uint16)
+    at = rng.random((8, frames)).astype(np.float32)
+    ref = counts[0].astype(np.float32)
+    aty, yy = np.zeros((8, n)), np.zeros(n)
+    times = []
+    with threadpool_limits(limits=1, user_api="blas"):
+        for _ in range(rounds):
+            t = time.perf_counter()
+            _accumulate(counts, at, ref, aty, yy, slice(0, n))
+            times.append(time.perf_counter() - t)
+    return counts.nbytes / min(times)
+
+
 def _reads(path: Path, index: np.ndarray) -> dict:
     """The frames ``index`` read per frame through h5py and through their file offsets, s."""
     import h5py
@@ -133,7 +160,8 @@ def run(*, quick: bool) -> dict:
     copy = copy_rate()
     return {"size": size, "frames": int(session.n_frames), "fit_frames": int(used.size),
             "calibrate_s": command, "fit_s": fits, "fit_bytes_per_s": reads["bytes"] / fit_s,
-            "copy_bytes_per_s": copy, "reads": reads}
+            "copy_bytes_per_s": copy, "reads": reads,
+            "accumulate_bytes_per_s": accumulate_rate(session.frame_shape)}
 
 
 def report(res: dict, info: dict) -> str:
@@ -150,6 +178,10 @@ def report(res: dict, info: dict) -> str:
          f"{np.median(res['fit_s']):.2f} s: {res['fit_bytes_per_s'] / 1e9:.2f} GB/s, "
          f"{100 * res['fit_bytes_per_s'] / res['copy_bytes_per_s']:.0f} % of a memory copy's "
          f"{res['copy_bytes_per_s'] / 1e9:.1f} GB/s"),
+        ("the fit's accumulation alone (`polynomial._accumulate`), one core",
+         f"{res['accumulate_bytes_per_s'] / 1e9:.2f} GB/s of frames: on both cores at most "
+         f"{200 * res['accumulate_bytes_per_s'] / res['copy_bytes_per_s']:.0f} % of a memory "
+         "copy, the ceiling of this numpy fit"),
         ("the same frames through h5py, a frame at a time",
          f"{r['h5py_s']:.2f} s ({gb / r['h5py_s']:.2f} GB/s)"),
         ("the same frames at their file offsets (`frame_offsets`, `os.preadv`)",
