@@ -191,7 +191,8 @@ CASES = [
       "{tmp}/t.tiff"], "no cross-validation report"),
     ("correct-forced-sigma-of-a-calibration-without-report",
      ["correct", "{root}/rec.tiff", "--calibration", "{root}/cal_unreported.h5", "--out",
-      "{tmp}/t.tiff", "--sigma-out", "{tmp}/s.tiff", "--force"], "no cross-validation report"),
+      "{tmp}/t.tiff", "--sigma-out", "{tmp}/s.tiff", "--force"],
+     "no σ to write to --sigma-out: the calibration has no cross-validation report"),
     ("estimate-with-a-calibration-without-report",
      ["estimate", "{root}/rec.tiff", "--method", "mean", "--calibration",
       "{root}/cal_unreported.h5", "--out", "{tmp}/t.tiff"], "no cross-validation report"),
@@ -998,6 +999,18 @@ def test_warnings_are_one_clean_line(inputs, tmp_path, capsys):
     assert any("leave the calibrated range" in line for line in warnings), err
     assert ".py:" not in err and "return " not in err
     assert (tmp_path / "t.tiff").is_file()
+
+
+def test_a_flight_without_uncertainty_says_so(inputs, tmp_path, capsys):
+    """Maps forced through a calibration without its report have no σ: the flight says so in
+    a warning line with the remedy, not only in its report."""
+    code, out, err = run(["flight", inputs["flight"], "--out", tmp_path / "o", "--method",
+                          "calibration", "--calibration", inputs["root"] / "cal_unreported.h5",
+                          "--force"], capsys)
+    assert code == 0, err
+    (line,) = [w for w in err.splitlines() if "no uncertainty" in w]
+    assert line.startswith("thermocal: warning: the maps have no uncertainty (no σ files)")
+    assert "calibrate again" in line and not list((tmp_path / "o" / "temps").glob("*_sigma*"))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -895,6 +895,9 @@ def test_a_memoryless_fit_is_inside_only_at_paces_held_near_its_fpa():
     (why,) = model.outside(np.full((3, 4, 4), 25.0), [30.0] * 3)  # no rate: a short recording
     assert "pace not known" in why and "3 of 3 frames" in why
     assert model.outside(temps, [16.0]) == ()
+    # an FPA outside the session's range: that plainest cause first, the pace's after it
+    far = model.outside(temps, [50.0])
+    assert len(far) == 2 and far[0].startswith("the FPA temperature 50.0…50.0 °C is outside")
     steady = model.sigma(temps, [30.0])[0].min()
     assert steady > 10 * model.sigma(temps, [16.0])[0].max()  # forced: ~19 cells beyond
     # a pace held nowhere near in pace, but at this FPA: as before (the plane's distance)

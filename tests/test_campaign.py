@@ -262,3 +262,24 @@ def test_the_workers_leave_ctrl_c_to_the_command():
         client.cluster.close()
     assert list(ignored.values()) == [True]
     assert signal.getsignal(signal.SIGINT) is before
+
+
+def test_fpa_c_given_to_a_campaign_is_every_flights_as_flight_takes_it(data, tmp_path,
+                                                                       capsys):
+    """`thermocal campaign --fpa-c T` (for files that carry no FPA temperature, FLIR's) gives
+    each recording's flight that FPA temperature: the bytes of `thermocal flight --fpa-c T`."""
+    from tests.cli_run import run
+
+    sidecar = json.loads((data / "pass0" / "frames.json").read_text())
+    fpa = str(round(float(np.median(sidecar["fpa_c"])) + 0.5, 2))  # not the sidecar's own
+    common = ["--method", "mean", "--calibration", str(data / "cal.h5"), "--stride", "3",
+              "--preview-every", "2", "--fpa-c", fpa]
+    for args in (["flight", str(data / "pass0"), "--out", str(tmp_path / "seq" / "pass0")],
+                 ["campaign", str(data / "pass0"), "--out", str(tmp_path / "campaign"),
+                  "--workers", "1"]):
+        code, _, err = run(args + common, capsys)
+        assert code == 0, err
+    seq, par = _outputs(tmp_path / "seq" / "pass0"), _outputs(tmp_path / "campaign" / "pass0")
+    assert len(seq) > 10 and seq == par
+    options = json.loads((tmp_path / "campaign" / "pass0" / "summary.json").read_text())
+    assert options["options"]["fpa_c"] == float(fpa)

@@ -142,7 +142,7 @@ def test_a_rerun_with_other_options_is_refused_not_mixed(setup, tmp_path):
     shutil.copy(setup / "cal.h5", changed)
     with open(changed, "ab") as f:
         f.write(b"\0")
-    with pytest.raises(InvalidInputError, match="another --calibration file"):
+    with pytest.raises(InvalidInputError, match="another calibration file"):
         process_flight(rec, out, FlightOptions(method="calibration", calibration=str(changed)))
     other_rec = tmp_path / "rec" / "frames.tiff"
     other_rec.parent.mkdir()
@@ -393,3 +393,16 @@ def test_frame_window_returns_each_batch_as_sliced_from_the_recording(chunk):
         got, undecodable = window.frames(a, z)
         np.testing.assert_array_equal(got, frames[a:z])
         assert set(undecodable) == {e for e in bad if a <= e[0] < z}
+
+
+def test_a_resume_refusal_names_the_files_without_options_never_given():
+    """The record keeps a network's weights whether given (--model) or the shipped default: a
+    rerun without them names the file, not an option the user never gave."""
+    from thermocal.pipeline.run_record import _changes
+
+    old = {"recording": "r", "options": {"method": "kpn"}, "files": {"model": "abc",
+                                                                       "calibration": None}}
+    new = {"recording": "r", "options": {"method": "mean"}, "files": {"model": None,
+                                                                        "calibration": "x"}}
+    assert _changes(old, new) == ["--method kpn → mean", "the model file used before, none now",
+                                  "a calibration file used now, none before"]

@@ -237,9 +237,12 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
         click.echo(f"thermocal: warning: {calibration_path}: {older_report_warning(older)}",
                    err=True)
     if model is None and (sigma_out is not None or not force):  # --force cannot give σ
-        remedy = NO_REPORT_REMEDY.split(";")[0] if sigma_out is not None else NO_REPORT_REMEDY
-        error = InvalidInputError if sigma_out is not None else OutsideDomainError
-        raise error(f"{calibration_path}: {NO_REPORT}; {remedy}")
+        if sigma_out is not None:
+            raise InvalidInputError(
+                f"{calibration_path}: no σ to write to --sigma-out: {NO_REPORT}; "
+                f"{NO_REPORT_REMEDY.split(';')[0]} (or leave out --sigma-out and give --force "
+                "for the temperatures alone)")
+        raise OutsideDomainError(f"{calibration_path}: {NO_REPORT}; {NO_REPORT_REMEDY}")
     rec = read_any_recording(frames, fpa_c=fpa_c)
     if sigma_out is not None and rec.fpa_c is None:
         raise InvalidInputError(f"{frames}: no FPA temperature, which σ depends on: give --fpa-c "

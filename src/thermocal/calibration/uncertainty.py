@@ -795,7 +795,7 @@ class CalibrationSigma:
                     reasons.append(reason(at, held[k], count=count))
         flo, fhi = self.report.fpa_range_c
         if fpa.size and (fpa.min() < flo - FPA_MARGIN_C or fpa.max() > fhi + FPA_MARGIN_C):
-            reasons.append(f"the FPA temperature {fpa.min():.1f}…{fpa.max():.1f} °C is outside "
+            reasons.insert(0, f"the FPA temperature {fpa.min():.1f}…{fpa.max():.1f} °C is outside "
                            f"the {flo:.1f}…{fhi:.1f} °C the {self.report.method} calibration "
                            "was fitted on")
         lo, hi = self.report.scene_range_c

@@ -25,6 +25,9 @@ def flight_options(command):
                      "(default: the family's average unit)."),
         click.option("--model", type=click.Path(dir_okay=False), default=None,
                      help="Network weights (default: the shipped model of --method)."),
+        click.option("--fpa-c", type=float, default=None,
+                     help="FPA temperature, °C, for every frame (overrides a sidecar's; FLIR "
+                     "files carry none)."),
         click.option("--frames", "n_frames", type=int, default=7, show_default=True,
                      help="Frames per group (the network's N)."),
         click.option("--stride", type=int, default=7, show_default=True,
@@ -49,7 +52,6 @@ def flight_options(command):
 @click.option("--out", "out_dir", type=click.Path(path_type=Path), required=True,
               help="Output folder (created; a rerun resumes).")
 @flight_options
-@click.option("--fpa-c", type=float, default=None, help="FPA temperature, °C (overrides sidecar).")
 @click.option("--geotiff", is_flag=True,
               help="Also GeoTIFF tags (EPSG:4326, rotated by the yaw) in the maps of nadir "
               "frames with GPS and DJI relative altitude; the maps of frames with GPS always "
@@ -103,6 +105,13 @@ def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
             f"{summary.get('first_error')}; every group's error is in {Path(out_dir) / 'log.csv'} "
             f"and {report}"
         )
+    if summary.get("sigma_c") is None:  # never silently: maps without their uncertainty
+        from thermocal.estimation.commands import NO_SIGMA_REMEDY
+
+        why = NO_SIGMA_REMEDY.get(ESTIMATORS[method].needs, "")
+        click.echo("thermocal: warning: the maps have no uncertainty (no σ files): "
+                   f"--method {method} has no uncertainty model here" + (f": {why}" if why
+                                                                         else ""), err=True)
     click.echo(
         f"{summary['processed']} temperature maps written to {out_dir}/temps "
         f"({summary['skipped_already_done']} already done, {summary['failed']} failed) "
@@ -123,8 +132,8 @@ def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
 @flight_options
 def campaign(inputs: tuple[Path, ...], out_dir: Path, scheduler: str | None,
              workers: int | None, method: str, calibration: str | None, model: str | None,
-             n_frames: int, stride: int, preview_every: int, force: bool, backend: str,
-             threads: int | None) -> None:
+             fpa_c: float | None, n_frames: int, stride: int, preview_every: int,
+             force: bool, backend: str, threads: int | None) -> None:
     """Process many RECORDINGS as `thermocal flight` runs, each a task on a Dask cluster (a
     LocalCluster of this machine by default, or --scheduler): OUT/<name> per recording, the
     same bytes as `thermocal flight`; a failed recording is reported in OUT/campaign.json and
@@ -139,8 +148,9 @@ def campaign(inputs: tuple[Path, ...], out_dir: Path, scheduler: str | None,
                                 "cluster's own workers run the tasks: leave --workers out")
     check_not_input(out_dir, *inputs, calibration, model)
     options = FlightOptions(method=method, calibration=calibration, model=model,
-                            frames=n_frames, stride=stride, preview_every=preview_every,
-                            force=force, backend=backend, threads=threads)
+                            frames=n_frames, stride=stride, fpa_c=fpa_c,
+                            preview_every=preview_every, force=force, backend=backend,
+                            threads=threads)
     tasks = campaign_tasks(list(inputs), out_dir, options)
     with progress_bar() as bar:
         task = bar.add_task("campaign", total=sum(t.frames for t in tasks))

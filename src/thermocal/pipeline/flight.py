@@ -209,7 +209,9 @@ class StageTimes:
 def pivots_of(n_total: int, n: int, stride: int) -> list[int]:
     """Pivot frame indices of the groups ``[p − n//2, p − n//2 + n)`` that fit the recording."""
     if n_total < n:
-        raise InvalidInputError(f"the recording has {n_total} frames, fewer than a group of {n}")
+        raise InvalidInputError(f"the recording has {n_total} frames, fewer than a group of {n}"
+                                f": give --frames {n_total} --stride {n_total} where the method "
+                                "takes so few (--method camera: one map per frame)")
     return [start + n // 2 for start in range(0, n_total - n + 1, stride)]
 
 
@@ -316,7 +318,8 @@ def process_flight(
     header = open_stream(recording, fpa_c=options.fpa_c)
     if header.series["fpa_c"] is None and not ESTIMATORS[options.method].per_frame:
         raise InvalidInputError(
-            f"{header.path}: no FPA temperature (sidecar fpa_c); give --fpa-c"
+            f"{header.path}: no FPA temperature (a sidecar's fpa_c; FLIR files carry none): "
+            "give --fpa-c, or --method camera for the camera's own calibration"
         )
     n, stride = options.frames, options.stride
     pivots = pivots_of(header.n_frames, n, stride)

@@ -118,8 +118,10 @@ def _changes(old: dict[str, Any], new: dict[str, Any]) -> list[str]:
     for name, digest in new["files"].items():
         was = files.get(name)
         if was != digest:
-            out.append(f"--{name} given now" if was is None else
-                       f"no --{name} now" if digest is None else f"another --{name} file")
+            # a network's weights are recorded whether given (--model) or the shipped default
+            out.append(f"a {name} file used now, none before" if was is None else
+                       f"the {name} file used before, none now" if digest is None else
+                       f"another {name} file")
     return out
 
 
