@@ -104,7 +104,8 @@ def _stuck(raw: np.ndarray) -> np.ndarray:
 
 def _filled(temps: np.ndarray, stuck: np.ndarray) -> np.ndarray:
     """``temps`` (°C ``(H, W)``) with its ``stuck`` pixels replaced by their 5×5 median (of
-    the finite ones' values, NaN taken as 0 there), a new float32 array: a dead pixel's output
+    the finite ones' values, NaN taken as 0 there), float32 (a new array where any pixel is
+    stuck; never changed in place): a dead pixel's output
     (the coldest or hottest the calibration reads) would otherwise ring through the high-pass
     around it. Other pixels as they were, NaN included (left out after)."""
     import cv2

@@ -795,9 +795,9 @@ class CalibrationSigma:
                     reasons.append(reason(at, held[k], count=count))
         flo, fhi = self.report.fpa_range_c
         if fpa.size and (fpa.min() < flo - FPA_MARGIN_C or fpa.max() > fhi + FPA_MARGIN_C):
-            reasons.insert(0, f"the FPA temperature {fpa.min():.1f}…{fpa.max():.1f} °C is outside "
-                           f"the {flo:.1f}…{fhi:.1f} °C the {self.report.method} calibration "
-                           "was fitted on")
+            reasons.insert(0, f"the FPA temperature {fpa.min():.1f}…{fpa.max():.1f} °C is "
+                              f"outside the {flo:.1f}…{fhi:.1f} °C the {self.report.method} "
+                              "calibration was fitted on")  # the plainest cause first
         lo, hi = self.report.scene_range_c
         p1, p99 = (float(v) for v in np.percentile(temps_c, [1, 99]))
         if p1 < lo - SCENE_MARGIN_C or p99 > hi + SCENE_MARGIN_C:

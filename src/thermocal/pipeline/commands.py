@@ -14,8 +14,9 @@ from thermocal.progress import progress_bar
 
 def flight_options(command):
     """The options of ``thermocal flight`` that ``thermocal campaign`` passes on to each of its
-    flights: the method and its files, the groups, the previews, ``--force``, and how a network
-    runs (:func:`~thermocal.estimation.commands.backend_options`)."""
+    flights: the method and its files, the FPA temperature, the groups, the previews,
+    ``--force``, and how a network runs
+    (:func:`~thermocal.estimation.commands.backend_options`)."""
     options = [
         click.option("--method", type=click.Choice(list(ESTIMATORS)), default="kpn",
                      show_default=True, help=method_help()),
