@@ -58,6 +58,10 @@ def test_held_out_set_and_references():
     again = eval_bursts(7, quick=True)
     assert all(np.array_equal(a["frames"], b["frames"]) for a, b in zip(bursts, again,
                                                                          strict=True))
+    # one unit per burst (a population of units' levels), as many bursts per scene as asked
+    each = eval_bursts(7, quick=True, units=tuple(range(300, 330)), per_scene=2,
+                       unit_per_burst=True)
+    assert len(each) == 2 * len(EVAL_SCENES) == len({b["unit"] for b in each})
     b = bursts[0]
     refs = {FAMILY_ROW: ExactModel.family((0, 1))}
     from thermocal.burst import fill_stuck_pixels

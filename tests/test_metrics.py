@@ -289,6 +289,31 @@ def test_sigma_coverage_of_gaussian_errors():
 
 
 
+def test_coverage_interval_resamples_whole_groups():
+    from thermocal.metrics import coverage_interval
+
+    rng = np.random.default_rng(2)
+
+    def groups(n: int, offset_sd: float) -> list:
+        # each group's errors share one offset (a unit's level), σ states the total spread
+        sd = np.hypot(offset_sd, 0.2)
+        return [(rng.normal(rng.normal(0.0, offset_sd), 0.2, 500), np.full(500, sd))
+                for _ in range(n)]
+
+    few, many = coverage_interval(groups(40, 1.0)), coverage_interval(groups(400, 1.0))
+    lo, hi = many["within_1sigma"]
+    assert lo < 0.683 < hi and many["groups"] == 400  # a well-stated σ: inside the interval
+    assert many["within_2sigma"][0] < 0.96 and many["within_2sigma"][1] > 0.95
+    # the groups' offsets, not their 200,000 pixels, set the width (a binomial interval of the
+    # pixels: 2 × 1.645 × √(0.68 · 0.32 / 200000) = 0.003); 40 groups: about √10 times wider
+    assert few["within_1sigma"][1] - few["within_1sigma"][0] > 2 * (hi - lo) > 0.02
+    # a σ too small by half: the interval sits well below a Gaussian's share
+    short = coverage_interval([(e, s / 2) for e, s in groups(400, 1.0)])
+    assert short["within_1sigma"][1] < 0.5
+    with pytest.raises(InvalidInputError):
+        coverage_interval(groups(1, 1.0))
+
+
 def test_rescaled_coverage_finds_the_level_of_a_gaussian_and_not_of_a_rectangle():
     from thermocal.metrics import rescaled_coverage
 

@@ -36,21 +36,27 @@ OTHER_UNIT = 7  # the unit whose two-point calibration the calibration-free base
 
 def eval_bursts(n_frames: int, *, quick: bool, register: bool = False,
                 units: tuple[int, ...] = EVAL_UNITS, preset="tau2",
-                scenes: dict[str, np.ndarray] | None = None):
+                scenes: dict[str, np.ndarray] | None = None, per_scene: int | None = None,
+                unit_per_burst: bool = False):
     """The fixed evaluation bursts: list of dicts (frames, truth, valid mask, fpa, unit, …);
     ``units`` replaces the held-out camera units, ``preset`` (a name or a
     :class:`~thermocal.camera.presets.CameraPreset`) the camera family and ``scenes`` (name →
     °C map) the held-out scenes (diagnoses, and the validation bursts of
-    :mod:`thermocal.evaluation.sigma_fit`)."""
+    :mod:`thermocal.evaluation.sigma_fit`).
+
+    ``per_scene`` bursts of each scene (default 4, 1 with ``quick``); the units cycle over
+    scenes, or with ``unit_per_burst`` each burst is of the next unit (as many units as
+    bursts: a unit's own level, the largest part of a calibration-free error, is then sampled
+    as a population, not a few draws repeated)."""
     scenes = evaluation_scenes() if scenes is None else scenes
-    per_scene = 1 if quick else 4
+    per_scene = per_scene or (1 if quick else 4)
     size = (336, 256)  # whole sensor frames: a network with position terms needs them
     out = []
     for si, (name, scene) in enumerate(scenes.items()):
         for k in range(per_scene):
             seed = 1000 * si + k
             rng = np.random.default_rng([2026, seed])
-            unit = units[(si + k) % len(units)]
+            unit = units[(si * per_scene + k if unit_per_burst else si + k) % len(units)]
             cam = make_camera(preset, unit=unit, size=size)
             fpa = float(rng.uniform(15.0, 45.0))
             motion = ("walk", "hover")[(si + k) % 2]

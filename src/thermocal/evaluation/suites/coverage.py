@@ -4,12 +4,14 @@ For each estimate with a σ, the share of scored pixels whose error lies within 
 68 ± 5 %) and within 2σ (95 ± 3 %), and the median σ (sharpness: a σ that covers by being huge
 is no use). Scored pixels: seen by at least half the frames, as in ``benchmarks/kpn.py``.
 
-The network (``kpn``, trained on ``tau2`` units 0–23; its σ model fitted on units 200–219 over
-training scenes) is run through the product's pipeline, domain check included, on
+The network (``kpn``, trained on ``tau2`` units 0–23; its σ model fitted on units of its own,
+one per burst, over training scenes: :mod:`thermocal.evaluation.sigma_fit`) is run through the
+product's pipeline, domain check included, on
 
 1. the held-out set of ``benchmarks/kpn.py``: ``tau2`` units 100–104 over the held-out scenes;
-2. more held-out ``tau2`` units (300–319) over the same scenes: the units' own levels, the
-   largest part of the error, are a draw per unit, so five units sample them poorly;
+2. 200 more held-out ``tau2`` units (300–499), one per burst, over the same scenes: the units'
+   own levels, the largest part of the error, are a draw per unit, so five units sample them
+   poorly (a 90 % bootstrap interval over units says how poorly);
 3. the ``boson`` family (units 100–104, same scenes), which the network never saw: how many
    bursts it refuses, and for those it would estimate with ``--force``, the coverage of the
    inflated σ; a "silent" error is a burst it does not refuse whose MAE exceeds 1 °C.
@@ -50,7 +52,7 @@ from thermocal.evaluation.heldout import eval_bursts
 from thermocal.evaluation.suites import physics
 from thermocal.evaluation.suites.calibration import HELD_OUT
 from thermocal.evaluation.tables import markdown_table
-from thermocal.metrics import rescaled_coverage, sigma_coverage
+from thermocal.metrics import coverage_interval, rescaled_coverage, sigma_coverage
 from thermocal.nn.infer import NetworkEstimator
 from thermocal.simulate.chamber import ChamberPlan
 
@@ -62,8 +64,11 @@ PIXELS_PER_FRAME = 400
 #: An accepted estimate erring by more than this (MAE, °C) and twice its median σ is silent.
 SILENT_MAE_C = 1.0
 
-#: More held-out units of the preset than the five of the held-out set.
-MORE_UNITS = tuple(range(300, 320))
+#: More held-out units of the preset than the five of the held-out set, one per burst.
+MORE_UNITS = tuple(range(300, 500))
+
+#: Bursts per held-out scene on :data:`MORE_UNITS`.
+MORE_PER_SCENE = 40
 
 def other_held_out_run(camera, seed: int, quick: bool) -> physics.Run:
     """A second held-out protocol, at paces neither the calibration session (steps, a
@@ -88,6 +93,7 @@ def _run(network: NetworkEstimator, bursts: list[dict]) -> dict:
     """Each burst through the pipeline: accepted, or refused (and then forced): the coverage of
     the accepted bursts' pixels and of the forced ones', and the silent errors."""
     kept: dict[str, list] = {"accepted": [], "forced": []}
+    by_unit: dict[int, list] = {}  # the accepted bursts' (errors, σ) of each unit
     silent, maes = 0, []
     for b in bursts:
         frames, _ = fill_stuck_pixels(b["frames"], b["hs"])
@@ -101,6 +107,8 @@ def _run(network: NetworkEstimator, bursts: list[dict]) -> dict:
         mae = float(np.abs(err).mean())
         silent += int(not est.outside and _silent(mae, est.sigma_c[b["mask"]]))
         kept["forced" if est.outside else "accepted"].append((err, est.sigma_c[b["mask"]]))
+        if not est.outside:
+            by_unit.setdefault(b["unit"], []).append(kept["accepted"][-1])
         maes.append(mae)
     out = {"bursts": len(bursts), "refused": len(kept["forced"]), "silent_over_1c": silent,
            "mae_c": float(np.mean(maes)), "burst_mae_range_c": [min(maes), max(maes)]}
@@ -108,6 +116,10 @@ def _run(network: NetworkEstimator, bursts: list[dict]) -> dict:
         out[name] = (sigma_coverage(np.concatenate([e for e, _ in pairs]),
                                  np.concatenate([s for _, s in pairs])) if pairs else None)
     out["accepted_rescaled"] = _rescaled(kept["accepted"])
+    # a unit's bursts share its level: the interval resamples units
+    units = [tuple(np.concatenate(part) for part in zip(*pairs, strict=True))
+             for pairs in by_unit.values()]
+    out["accepted_interval"] = coverage_interval(units) if len(units) > 1 else None
     return out
 
 
@@ -220,22 +232,27 @@ def calibration_rows(*, quick: bool, units: tuple[int, ...] = (physics.UNIT,),
 def network_rows(*, quick: bool) -> list[dict]:
     """The shipped network's coverage on each evaluation set."""
     network = NetworkEstimator.from_file("kpn")
-    sets = [("tau2 held-out units 100–104 (kpn benchmark set)", "tau2", None),
-            (f"tau2 units {MORE_UNITS[0]}–{MORE_UNITS[-1]}", "tau2", MORE_UNITS),
-            ("boson units 100–104 (another family)", "boson", None)]
+    more = {"units": MORE_UNITS, "per_scene": 4 if quick else MORE_PER_SCENE,
+            "unit_per_burst": True}
+    sets = [("tau2 held-out units 100–104 (kpn benchmark set)", "tau2", {}),
+            (f"tau2 units {MORE_UNITS[0]}–{MORE_UNITS[-1]}, one per burst", "tau2", more),
+            ("boson units 100–104 (another family)", "boson", {})]
     rows = []
-    for label, preset, units in sets:
-        kwargs = {"units": units} if units else {}
+    for label, preset, kwargs in sets:
         bursts = eval_bursts(network.n_frames, quick=quick, preset=preset, **kwargs)
         rows.append({"method": "kpn", "data": label, "preset": preset, **_run(network, bursts)})
     return rows
 
 
-def _cells(cov: dict | None) -> tuple[str, str, str]:
+def _cells(cov: dict | None, interval: dict | None = None) -> tuple[str, str, str]:
     if cov is None:
         return "–", "–", "–"
-    return (f"{100 * cov['within_1sigma']:.1f} %", f"{100 * cov['within_2sigma']:.1f} %",
-            f"{cov['median_sigma_c']:.2f}")
+    shares = []
+    for key in ("within_1sigma", "within_2sigma"):
+        span = "" if interval is None else " ({:.0f}–{:.0f})".format(
+            *(100 * v for v in interval[key]))
+        shares.append(f"{100 * cov[key]:.1f} %{span}")
+    return (*shares, f"{cov['median_sigma_c']:.2f}")
 
 
 def _rescaled_cell(res: dict | None) -> str:
@@ -270,7 +287,8 @@ def report(rows: list[dict], info: dict) -> str:
             *("–" if v is None else f"{v:.2f}" for v in (r["mae_accepted_c"],
                                                          r["mae_forced_c"])))
         cells.append((r["method"], r["data"], r.get("bursts", r.get("frames")), r["refused"],
-                      f"{r['mae_c']:.2f}{split}", *_cells(r["accepted"]),
+                      f"{r['mae_c']:.2f}{split}",
+                      *_cells(r["accepted"], r.get("accepted_interval")),
                       *_cells(r["forced"]), r["silent_over_1c"],
                       _rescaled_cell(r.get("accepted_rescaled")),
                       _safe_cell(r.get("accepted_rescaled"))))
@@ -286,7 +304,9 @@ def report(rows: list[dict], info: dict) -> str:
             "per family at the physics benchmark's size, its own calibration session and "
             "held-out run (benchmarks/physics.py), 400 pixels of every frame. Accepted: what "
             "the domain check lets through; refused: the rest, scored as `--force` gives it "
-            "(σ grown or inflated); silent: accepted bursts or frames whose MAE exceeds both "
+            "(σ grown or inflated); in brackets, a 90 % bootstrap interval over the units (whose "
+            "bursts share their unit's level); silent: accepted bursts or frames whose "
+            "MAE exceeds both "
             "1 °C and twice their median σ. Targets: 68 ± 5 % within 1σ, 95 ± 3 % within "
             "2σ. Best σ × k: the one factor on every accepted σ that comes closest to those "
             "shares (chosen on the errors it scores: a diagnostic, not a correction); \"no k in "
