@@ -22,8 +22,8 @@ import math
 from typing import Any
 
 import numpy as np
+from scipy import stats
 from scipy.ndimage import gaussian_filter1d
-from scipy.stats import bootstrap
 from skimage.metrics import peak_signal_noise_ratio, structural_similarity
 
 from thermocal._validate import as_float_array
@@ -723,9 +723,10 @@ def coverage_interval(pairs: Any, *, confidence: float = 0.90, n_resamples: int 
 
     out: dict[str, Any] = {"groups": int(k1.size), "confidence": confidence}
     for name, k in (("within_1sigma", k1), ("within_2sigma", k2)):
-        ci = bootstrap((k, n), share, paired=True, vectorized=True, method="percentile",
-                       confidence_level=confidence, n_resamples=n_resamples,
-                       rng=np.random.default_rng(seed)).confidence_interval
+        ci = stats.bootstrap((k, n), share, paired=True, vectorized=True,
+                             method="percentile", confidence_level=confidence,
+                             n_resamples=n_resamples,
+                             rng=np.random.default_rng(seed)).confidence_interval
         out[name] = (float(ci.low), float(ci.high))
     return out
 
