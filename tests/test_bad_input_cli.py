@@ -1013,6 +1013,19 @@ def test_a_flight_without_uncertainty_says_so(inputs, tmp_path, capsys):
     assert "calibrate again" in line and not list((tmp_path / "o" / "temps").glob("*_sigma*"))
 
 
+def test_a_campaign_without_uncertainty_says_so(inputs, tmp_path, capsys):
+    """The same maps made by a campaign: one warning line, naming the recordings."""
+    code, out, err = run(["campaign", inputs["flight"], "--out", tmp_path / "c", "--workers",
+                          "1", "--method", "calibration", "--calibration",
+                          inputs["root"] / "cal_unreported.h5", "--force"], capsys)
+    assert code == 0, err
+    (line,) = [w for w in err.splitlines() if "no uncertainty" in w]
+    assert line.startswith("thermocal: warning: the maps of 1 recording (flight) have no "
+                           "uncertainty (no σ files)"), line
+    assert "calibrate again" in line
+    assert not list((tmp_path / "c").rglob("*_sigma*"))
+
+
 # ---------------------------------------------------------------------------------------------
 # output folders
 # ---------------------------------------------------------------------------------------------

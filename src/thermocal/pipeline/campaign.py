@@ -268,6 +268,7 @@ def _result(task: CampaignTask, summary: dict[str, Any], caught: list, started: 
             "ok": done > 0, "processed": summary["processed"],
             "skipped_already_done": summary["skipped_already_done"],
             "failed_groups": summary["failed"], "groups": summary["groups"],
+            "sigma": summary.get("sigma_c") is not None,
             "warnings": sorted({str(w.message) for w in caught}),
             **({} if done > 0 else {"error": f"every group failed: {summary.get('first_error')}"}),
             **({"segments": summary["segments"]} if "segments" in summary else {}),

@@ -107,12 +107,7 @@ def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
             f"and {report}"
         )
     if summary.get("sigma_c") is None:  # never silently: maps without their uncertainty
-        from thermocal.estimation.commands import NO_SIGMA_REMEDY
-
-        why = NO_SIGMA_REMEDY.get(ESTIMATORS[method].needs, "")
-        click.echo("thermocal: warning: the maps have no uncertainty (no σ files): "
-                   f"--method {method} has no uncertainty model here" + (f": {why}" if why
-                                                                         else ""), err=True)
+        _warn_no_sigma(method)
     click.echo(
         f"{summary['processed']} temperature maps written to {out_dir}/temps "
         f"({summary['skipped_already_done']} already done, {summary['failed']} failed) "
@@ -162,6 +157,9 @@ def campaign(inputs: tuple[Path, ...], out_dir: Path, scheduler: str | None,
                                        f"{r['skipped_already_done']} already done, "
                                        f"{r['failed_groups']} groups failed" if r["ok"]
                                        else f"failed: {r['error']}"))
+    no_sigma = [r["name"] for r in summary["recordings"] if r["ok"] and not r.get("sigma", True)]
+    if no_sigma:  # as a flight says it: never silently
+        _warn_no_sigma(method, of=no_sigma)
     if summary["failed"]:
         total = len(summary["recordings"])
         raise ThermocalError(
@@ -170,6 +168,17 @@ def campaign(inputs: tuple[Path, ...], out_dir: Path, scheduler: str | None,
             + f"; each one's error is in {Path(out_dir) / 'campaign.json'}")
     click.echo(f"{len(summary['recordings'])} recordings processed into {out_dir} in "
                f"{summary['wall_time_s']:.1f} s")
+
+
+def _warn_no_sigma(method: str, *, of: list[str] | None = None) -> None:
+    """Say on stderr that maps were written without their σ, and what to do about it."""
+    from thermocal.estimation.commands import NO_SIGMA_REMEDY
+
+    why = NO_SIGMA_REMEDY.get(ESTIMATORS[method].needs, "")
+    which = "" if of is None else f" of {len(of)} recording{'s' * (len(of) > 1)} ({', '.join(of)})"
+    click.echo(f"thermocal: warning: the maps{which} have no uncertainty (no σ files): "
+               f"--method {method} has no uncertainty model here" + (f": {why}" if why else ""),
+               err=True)
 
 
 def _command_line() -> str:
