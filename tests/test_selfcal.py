@@ -355,6 +355,7 @@ def test_flight_refuses_a_hover_and_says_what_it_needs(capsys, tmp_path):
                        capsys)
     assert code == 2 and "Traceback" not in err and len(err.strip().splitlines()) == 1
     assert "selfcal needs at least" in err or "it needs at least" in err
+    assert "40 px along the rows" in err or "at least 40 px" in err  # half the frame's width
     assert not out.exists()
 
 

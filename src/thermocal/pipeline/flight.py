@@ -715,7 +715,7 @@ def _fit_batch(estimator: Any, run: _Batch, series: dict[str, Any]) -> Any:
     (frames whose chain there failed, or that do not decode, left out), stuck pixels left
     out."""
     from thermocal.burst import stuck_pixels
-    from thermocal.estimation.pass_pattern import MIN_FRAMES
+    from thermocal.estimation.pass_pattern import MIN_FRAMES, MIN_MOTION_FRACTION
 
     if run.sequence is None:
         raise RegistrationError(run.error or "the batch was not registered")
@@ -730,10 +730,13 @@ def _fit_batch(estimator: Any, run: _Batch, series: dict[str, Any]) -> Any:
     for i, _, _ in run.undecodable:
         use[i - run.start] = False
     if MIN_FRAMES <= m and use.sum() < MIN_FRAMES:
+        h, w = run.frames.shape[1:]
         raise InvalidInputError(
             f"only {int(use.sum())} of frames {run.start}-{run.start + m - 1} register onto frame "
             f"{run.start + mid} (a hover, or frames that do not overlap); selfcal needs at least "
-            f"{MIN_FRAMES} of a pass that moves steadily across the scene")
+            f"{MIN_FRAMES} of a pass that moves steadily across the scene, by at least "
+            f"{MIN_MOTION_FRACTION:g} of the frame over them ({MIN_MOTION_FRACTION * w:.0f} px "
+            f"along the rows or {MIN_MOTION_FRACTION * h:.0f} px along the columns)")
     # long batches are fitted on every k-th frame: ample views of each ground point, and
     # bounded memory and time
     use &= np.arange(m) % max(1, -(-int(use.sum()) // MAX_FIT_FRAMES)) == 0
