@@ -174,3 +174,22 @@ def test_cli_nuc_writes_float32_and_rejects_bad_input(flight, tmp_path, capsys):
     code, io = _run(["nuc", str(one), "--method", "ecr", "--out", str(bad_out)], capsys)
     assert code == 2 and "at least 2 frames" in io.err and len(io.err.strip().splitlines()) == 1
     assert not bad_out.exists()
+
+
+def test_hardie2000_registers_a_pass_whose_ends_do_not_overlap_its_pivot():
+    """Registered by itself, a UAV pass whose first frames share no scene with the middle one
+    (onto which a burst is registered) is registered frame to frame and chained, as `thermocal
+    flight` registers it; the correction then halves the error left after an affine map."""
+    from thermocal.errors import RegistrationError
+    from thermocal.nuc.batch import hardie2000
+    from thermocal.registration import register_burst
+
+    cam = make_camera("tau2", unit=4, size=(160, 128))
+    scene = procedural_scene((512, 512), rng=np.random.default_rng(2), kind="mixed")
+    fl = simulate_flight(scene, cam, n_frames=60, motion="uav", seed=0)
+    with pytest.raises(RegistrationError):
+        register_burst(fl.frames)  # onto one pivot: the pass's ends do not overlap it
+    out = hardie2000(fl.frames)
+    mid = slice(20, 40)
+    assert _affine_rmse(out[mid], fl.truth_c[mid]) < 0.5 * _affine_rmse(
+        fl.frames[mid].astype(np.float32), fl.truth_c[mid])

@@ -24,7 +24,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 from scipy import fft as sfft
 from scipy.ndimage import gaussian_filter1d
 
-from thermocal.errors import InvalidInputError
+from thermocal.errors import InvalidInputError, RegistrationError
 from thermocal.nuc._common import GAIN_RANGE, as_nuc_frames, check_int, check_positive
 
 __all__ = ["column_midway", "dct_denoise", "hardie2000", "tendero2012"]
@@ -33,6 +33,36 @@ __all__ = ["column_midway", "dct_denoise", "hardie2000", "tendero2012"]
 # --------------------------------------------------------------------------------------------
 # Hardie et al. 2000
 # --------------------------------------------------------------------------------------------
+
+
+def _registered(frames: np.ndarray) -> np.ndarray:
+    """Frame → pivot homographies of ``frames`` ``(N, H, W)``: each frame registered onto the
+    pivot (:func:`~thermocal.registration.register_burst`); where a frame cannot be (a pass
+    whose ends do not overlap its pivot), every frame onto the one before it
+    (:func:`~thermocal.registration.sequence.register_sequence`, as ``thermocal flight``
+    registers) chained to the middle frame. A frame that shares no scene with the pivot then
+    maps outside it and adds nothing to the scene estimate.
+
+    Raises
+    ------
+    RegistrationError
+        Neither way registers: the burst's error, and where the chain broke.
+    """
+    from thermocal.registration import register_burst
+    from thermocal.registration.sequence import register_sequence
+
+    try:
+        return register_burst(frames).homographies
+    except RegistrationError as direct:
+        if len(frames) < 3:
+            raise
+        seq = register_sequence(frames)
+        hs, reachable = seq.chained_to(len(frames) // 2)
+        if not reachable.all():
+            broken = int(np.flatnonzero(~np.asarray(seq.ok, bool))[0])
+            raise RegistrationError(f"{direct}; frame to frame, frame {broken} does not "
+                                    f"register onto frame {broken - 1} either") from None
+        return hs
 
 
 def hardie2000(
@@ -50,9 +80,9 @@ def hardie2000(
     frames : array_like, shape (N, H, W)
         Raw frames (counts), N ≥ 2. Never modified.
     homographies : array_like, shape (N, 3, 3), optional
-        Frame → pivot homographies; when None they are estimated with
-        :func:`thermocal.registration.register_burst` (which may raise
-        :class:`~thermocal.errors.RegistrationError`).
+        Frame → pivot homographies; when None they are estimated (:func:`_registered`: each
+        frame onto the pivot, or, for a pass whose ends do not overlap it, frame to frame and
+        chained), which may raise :class:`~thermocal.errors.RegistrationError`.
     rounds : int
         Scene / parameter rounds (default 3).
     estimate_gain : bool
@@ -71,9 +101,7 @@ def hardie2000(
     rounds = check_int(rounds, "rounds")
     min_views = check_int(min_views, "min_views", minimum=2)
     if homographies is None:
-        from thermocal.registration import register_burst
-
-        hs = register_burst(x).homographies
+        hs = _registered(x)
     else:
         from thermocal.registration.warp import as_homographies
 
