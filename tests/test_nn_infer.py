@@ -537,6 +537,18 @@ def test_train_from_a_chamber_file(tmp_path, capsys):
     assert code == 2 and "resume it with --chamber" in err
     lo, hi = info["data"]["fpa_range_c"]
     assert 14.0 < lo < hi < 48.0  # the FPA range the chamber covered (not the preset 10-50)
+    # its σ model: fitted on bursts of the camera model fitted on that chamber file
+    from thermocal.evaluation.sigma_fit import fit_network_sigma
+    from thermocal.nn.uncertainty import SigmaModel, sidecar_path
+
+    sigma = SigmaModel.load(sidecar_path(out), weights_sha256=info["sha256"])
+    assert sigma.fitted_on["chamber"] == str(chamber) and "units" not in sigma.fitted_on
+    assert sigma.fitted_on["bursts"] == 44  # 4 per validation scene
+    # what the fitted model misses of the camera's level, in quadrature in the floor
+    misfit = sigma.fitted_on["model_level_misfit_c"]
+    assert 0.0 < misfit <= sigma.floor_c and sigma.floor_c**2 >= misfit**2 + 0.4**2
+    with pytest.raises(InvalidInputError, match="give --chamber"):
+        fit_network_sigma(out)  # the preset's units are not that camera
 
 
 def test_estimate_registered_frames_with_uncovered_borders(tmp_path, flight, tiny_model, capsys):

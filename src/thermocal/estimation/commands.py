@@ -138,7 +138,8 @@ NO_SIGMA_REMEDY = {
                    "calibrate again, from a session of at least 3 set points, to get its "
                    "uncertainty",
     "model": "its weights have no σ model beside them (NAME.sigma.json): fit one with "
-             "`python -m thermocal.evaluation.sigma_fit WEIGHTS.pt`",
+             "`python -m thermocal.evaluation.sigma_fit WEIGHTS.pt` (with --chamber FILE for "
+             "weights trained from a chamber file)",
     "pass": "selfcal fits a whole pass, not one burst: run `thermocal flight --method selfcal` "
             "on the recording (it writes σ beside each map)",
 }

@@ -18,7 +18,7 @@ import numpy as np
 from thermocal.calibration.two_point import fit_two_point
 from thermocal.camera.model import render
 from thermocal.camera.presets import make_camera
-from thermocal.nn.data import EVAL_UNITS, coverage_mask, evaluation_scenes
+from thermocal.nn.data import EVAL_UNITS, coverage_mask, draw_pixel_fpn, evaluation_scenes
 from thermocal.registration.burst import register_burst
 from thermocal.registration.warp import warp_to_pivot
 from thermocal.scenes.trajectory import perturb_homographies
@@ -37,7 +37,7 @@ OTHER_UNIT = 7  # the unit whose two-point calibration the calibration-free base
 def eval_bursts(n_frames: int, *, quick: bool, register: bool = False,
                 units: tuple[int, ...] = EVAL_UNITS, preset="tau2",
                 scenes: dict[str, np.ndarray] | None = None, per_scene: int | None = None,
-                unit_per_burst: bool = False):
+                unit_per_burst: bool = False, camera=None):
     """The fixed evaluation bursts: list of dicts (frames, truth, valid mask, fpa, unit, …);
     ``units`` replaces the held-out camera units, ``preset`` (a name or a
     :class:`~thermocal.camera.presets.CameraPreset`) the camera family and ``scenes`` (name →
@@ -47,17 +47,25 @@ def eval_bursts(n_frames: int, *, quick: bool, register: bool = False,
     ``per_scene`` bursts of each scene (default 4, 1 with ``quick``); the units cycle over
     scenes, or with ``unit_per_burst`` each burst is of the next unit (as many units as
     bursts: a unit's own level, the largest part of a calibration-free error, is then sampled
-    as a population, not a few draws repeated)."""
+    as a population, not a few draws repeated).
+
+    ``camera`` (a :class:`~thermocal.camera.model.CameraModel`, e.g. fitted on a chamber file)
+    replaces the units: every burst is of it, at its size, with a pixel FPN pattern of its own
+    drawn as training draws it (:func:`~thermocal.nn.data.draw_pixel_fpn`); ``unit`` is None."""
     scenes = evaluation_scenes() if scenes is None else scenes
     per_scene = per_scene or (1 if quick else 4)
-    size = (336, 256)  # whole sensor frames: a network with position terms needs them
+    # whole sensor frames: a network with position terms needs them
+    size = (336, 256) if camera is None else (camera.shape[1], camera.shape[0])
     out = []
     for si, (name, scene) in enumerate(scenes.items()):
         for k in range(per_scene):
             seed = 1000 * si + k
             rng = np.random.default_rng([2026, seed])
-            unit = units[(si * per_scene + k if unit_per_burst else si + k) % len(units)]
-            cam = make_camera(preset, unit=unit, size=size)
+            if camera is None:
+                unit = units[(si * per_scene + k if unit_per_burst else si + k) % len(units)]
+                cam = make_camera(preset, unit=unit, size=size)
+            else:
+                unit, cam = None, draw_pixel_fpn(camera, np.random.default_rng([2028, seed]))
             fpa = float(rng.uniform(15.0, 45.0))
             motion = ("walk", "hover")[(si + k) % 2]
             fl = simulate_flight(scene, cam, n_frames=n_frames, motion=motion, fpa_c=fpa, seed=seed)

@@ -334,24 +334,22 @@ def train(**opts: Any) -> None:
         err=True,
     )
     if result.steps > 0:
-        _fit_sigma(opts["out"], chamber=opts["chamber"] is not None)
+        _fit_sigma(opts["out"], chamber=opts["chamber"])
 
 
-def _fit_sigma(weights: Path, *, chamber: bool) -> None:
+def _fit_sigma(weights: Path, *, chamber: Path | None) -> None:
     """Fit the trained network's σ model and write it beside the weights
-    (:mod:`thermocal.evaluation.sigma_fit`), or say why not."""
+    (:mod:`thermocal.evaluation.sigma_fit`): on bursts of units it never saw, or of the camera
+    model fitted on its chamber file."""
+    from thermocal.evaluation.sigma_fit import fit_network_sigma
     from thermocal.nn.uncertainty import sidecar_path
 
-    if chamber:  # its σ needs bursts of that camera's family, which thermocal cannot make
-        click.echo(f"no σ model for {weights}: a network trained on one camera's chamber fit "
-                   "gives estimates without uncertainty (--sigma-out refused)", err=True)
-        return
-    from thermocal.evaluation.sigma_fit import fit_network_sigma
-
-    sigma = fit_network_sigma(weights)
+    sigma = fit_network_sigma(weights, chamber=chamber)
     path = sigma.save(sidecar_path(weights))
+    on = ("units it never saw" if chamber is None else
+          f"the camera model fitted on {chamber} (not what that model misses of the camera)")
     click.echo(f"σ model (floor {sigma.floor_c:.2f} °C, fitted on {sigma.fitted_on['bursts']} "
-               f"bursts of units it never saw) written to {path}", err=True)
+               f"bursts of {on}) written to {path}", err=True)
 
 
 def _apply_preset(ctx: click.Context, opts: dict[str, Any]) -> None:
