@@ -2,8 +2,9 @@
 
 ``thermocal train --chamber FILE`` trains on the camera model fitted on the file, and fits the
 network's σ model on bursts of that same fitted model (:mod:`thermocal.evaluation.sigma_fit`),
-its floor taking in what the fitted model misses of the camera's level on the file's own frames
-(``model_misfit``). This scores it on the camera itself:
+σ taking in what the fitted model misses of the camera's level on the file's own frames at the
+scene's temperature (``model_misfit`` by set point, growing beyond them). This scores it on the
+camera itself:
 the simulated unit the chamber file was recorded from, flown over the held-out scenes (the kpn
 benchmark's bursts: N = 7, FPA 15–45 °C, true homographies + Oz et al.'s registration error),
 through the product's pipeline, domain check included. Prints the MAE, coverage within 1σ and
@@ -61,8 +62,9 @@ def report(rows: list[dict], info: dict) -> str:
             f"machine: {info['machine']}; {info['wall_s']:.0f} s\n\n"
             "Each network trained by `thermocal train --chamber FILE --init shipped "
             "--max-minutes 8` (2 CPU cores), its σ model fitted on 44 bursts of the camera "
-            "model fitted on FILE (4 per validation scene), its floor with the fitted model's "
-            "level misfit on FILE's frames (the last column's third figure) in quadrature; "
+            "model fitted on FILE (4 per validation scene), with the fitted model's level "
+            "misfit on FILE's frames (RMS over them: the last column's third figure) at the "
+            "scene's temperature, by set point and growing beyond them, in quadrature; "
             "scored on 20 bursts of the "
             "simulated unit the file was recorded from, over the held-out scenes (N = 7, "
             "336×256, FPA 15–45 °C). Targets: 68 ± 5 % within 1σ, 95 ± 3 % within 2σ.\n\n"

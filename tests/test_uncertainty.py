@@ -70,6 +70,33 @@ def test_sidecar_round_trip_and_refusals(tmp_path):
     assert sidecar_path(tmp_path / "kpn_n7.pt").name == "kpn_n7.sigma.json"
 
 
+def test_a_chamber_models_misfit_grows_beyond_its_set_points_and_round_trips(tmp_path):
+    """A network trained on a chamber file's camera model: σ takes that model's level misfit
+    at the estimate's temperature, linear between the set points, growing beyond them along
+    the end segments (never below the end's value)."""
+    model = SigmaModel(0.5, (-30.0, 0.0, 0.0, 0.0), "abc",
+                       misfit_c=((10.0, 20.0, 30.0), (1.0, 0.8, 0.9)))
+    t = np.array([0.0, 10.0, 15.0, 30.0, 40.0])
+    np.testing.assert_allclose(model.misfit_at(t), [1.2, 1.0, 0.9, 0.9, 1.0])
+    feats = np.zeros((3, 1, 5))
+    np.testing.assert_allclose(model.sigma_of(feats, temperature_c=t[None])[0],
+                               np.hypot(0.5, [1.2, 1.0, 0.9, 0.9, 1.0]), rtol=1e-6)
+    with pytest.raises(InvalidInputError, match="needs the estimate's temperature"):
+        model.sigma_of(feats)
+    path = model.save(tmp_path / "m.sigma.json")
+    assert SigmaModel.load(path, weights_sha256="abc") == model
+    # falling towards the ends: held there, not shrunk to 0
+    flat = SigmaModel(0.5, (-30.0, 0.0, 0.0, 0.0), misfit_c=((10.0, 20.0), (0.5, 1.0)))
+    assert flat.misfit_at(np.array([-20.0]))[0] == pytest.approx(0.5)
+    for bad in (((10.0,), (1.0,)), ((20.0, 10.0), (1.0, 1.0)), ((10.0, 20.0), (1.0, -1.0)),
+                ((10.0, 20.0), (1.0, float("nan")))):
+        with pytest.raises(InvalidInputError, match="misfit"):
+            SigmaModel(0.5, (0.0, 0.0, 0.0, 0.0), misfit_c=bad)
+    # a model without one keeps the SHA-256 it was saved with before the field existed
+    plain = SigmaModel(0.5, (-1.0, 0.1, 0.2, 0.3), "abc")
+    assert "misfit_c" not in plain.save(tmp_path / "p.sigma.json").read_text()
+
+
 def test_the_shipped_network_has_its_sigma_model():
     from thermocal.nn.infer import NetworkEstimator
 

@@ -11,9 +11,10 @@ coverage measured on them (``benchmarks/coverage.py``) is honest.
 
 A network trained on one camera's chamber file (``thermocal train --chamber``) is fitted on
 bursts of the camera model fitted on that file instead (with a pixel pattern drawn for each, as
-its training draws them), and its floor takes in quadrature what that model misses of the
-camera's level on the file's own frames (:func:`model_misfit`); checked on the cameras the
-files were simulated from (``benchmarks/chamber_sigma.py``).
+its training draws them), and σ takes in quadrature what that model misses of the camera's
+level on the file's own frames at the scene's temperature (:func:`model_misfit` by blackbody
+set point, growing beyond them: :meth:`~thermocal.nn.uncertainty.SigmaModel.misfit_at`);
+checked on the cameras the files were simulated from (``benchmarks/chamber_sigma.py``).
 
 Run: ``python -m thermocal.evaluation.sigma_fit WEIGHTS.pt [--chamber FILE] [--per-scene K]
 [--out PATH]``.
@@ -22,7 +23,6 @@ Run: ``python -m thermocal.evaluation.sigma_fit WEIGHTS.pt [--chamber FILE] [--p
 from __future__ import annotations
 
 import argparse
-import math
 import os
 from dataclasses import replace
 from pathlib import Path
@@ -107,8 +107,9 @@ def model_misfit(chamber: str | os.PathLike[str], camera: Any = None, *,
     Returns the RMS error (°C) of the good pixels (``rms_c``), of their low-passed error
     (Gaussian of :data:`LOW_PASS_PX`, leaving out the pixel pattern a network is trained to
     remove: ``low_pass_rms_c``) and of the frames' mean error (``level_rms_c``, what no view of
-    a burst reveals), and ``frames``. In-sample (the model was fitted on these frames): a lower
-    bound of what it misses elsewhere.
+    a burst reveals), the last also at each blackbody set point (``setpoints_c``,
+    ``level_rms_by_setpoint_c``), and ``frames``. In-sample (the model was fitted on these
+    frames): a lower bound of what it misses elsewhere.
     """
     from scipy.ndimage import gaussian_filter
 
@@ -124,9 +125,14 @@ def model_misfit(chamber: str | os.PathLike[str], camera: Any = None, *,
     good = ~camera.defects
     low = np.stack([gaussian_filter(e, LOW_PASS_PX) for e in err])[:, good]
     level = err[:, good].mean(axis=1)
+    blackbody = np.round(session.blackbody_c[idx], 3)
+    points = np.unique(blackbody)
     return {"frames": int(idx.size), "rms_c": float(np.sqrt(np.mean(err[:, good] ** 2))),
             "low_pass_rms_c": float(np.sqrt(np.mean(low**2))),
-            "level_rms_c": float(np.sqrt(np.mean(level**2)))}
+            "level_rms_c": float(np.sqrt(np.mean(level**2))),
+            "setpoints_c": points.tolist(),
+            "level_rms_by_setpoint_c": [float(np.sqrt(np.mean(level[blackbody == v] ** 2)))
+                                        for v in points]}
 
 
 def fit_network_sigma(weights: str | os.PathLike[str], *, per_scene: int | None = None,
@@ -172,6 +178,9 @@ def fit_network_sigma(weights: str | os.PathLike[str], *, per_scene: int | None 
         bursts = eval_bursts(model.config.n_frames, quick=False, scenes=scenes,
                              per_scene=per_scene, camera=camera)
         misfit = model_misfit(chamber, camera)
+        if len(misfit["setpoints_c"]) < 2:
+            raise InvalidInputError(f"{chamber}: one blackbody set point cannot show how the "
+                                    "fitted camera model errs with the scene's temperature")
         on = {"chamber": str(chamber), "model_level_misfit_c": misfit["level_rms_c"]}
     rng = np.random.default_rng(seed)
     errors, feats = [], []
@@ -187,7 +196,8 @@ def fit_network_sigma(weights: str | os.PathLike[str], *, per_scene: int | None 
         return sigma
     # the bursts are of the fitted model: what it misses of the camera's level, no view shows
     # (without it, a boson unit's network erred 1.09 °C where σ said 0.70: 41 % within 1σ)
-    return replace(sigma, floor_c=math.hypot(sigma.floor_c, on["model_level_misfit_c"]))
+    return replace(sigma, misfit_c=(tuple(misfit["setpoints_c"]),
+                                    tuple(misfit["level_rms_by_setpoint_c"])))
 
 
 def main(argv: list[str] | None = None) -> None:

@@ -347,7 +347,8 @@ def _fit_sigma(weights: Path, *, chamber: Path | None) -> None:
     sigma = fit_network_sigma(weights, chamber=chamber)
     path = sigma.save(sidecar_path(weights))
     on = ("units it never saw" if chamber is None else
-          f"the camera model fitted on {chamber} (not what that model misses of the camera)")
+          f"the camera model fitted on {chamber}, with what that model misses of the camera's "
+          f"level on its frames: {sigma.fitted_on['model_level_misfit_c']:.2f} °C RMS")
     click.echo(f"σ model (floor {sigma.floor_c:.2f} °C, fitted on {sigma.fitted_on['bursts']} "
                f"bursts of {on}) written to {path}", err=True)
 

@@ -11,7 +11,11 @@ Per pivot pixel ``p``::
   registration error costs most;
 - ``n_p``: how many frames see ``p``;
 - ``floor``: what no view reveals, the unit's own level against the family's: fitted, and never
-  below :data:`UNIT_FLOOR_MIN_C`.
+  below :data:`UNIT_FLOOR_MIN_C`;
+- for a network trained on one camera's chamber file, ``m(T)²`` more: what the camera model
+  fitted on that file misses of the camera's level at scene temperature ``T`` (the estimate),
+  measured on the file's frames at its blackbody set points, interpolated between them and
+  growing linearly beyond them (:attr:`SigmaModel.misfit_c`).
 
 The coefficients are fitted by minimising the Gaussian negative log-likelihood of the errors
 (a proper scoring rule) on bursts of the validation units over training scenes, never on the
@@ -83,6 +87,9 @@ class SigmaModel:
         σ added in quadrature outside the domain, °C.
     fitted_on : dict
         What it was fitted on (units, scenes, bursts, pixels, the NLL).
+    misfit_c : ((K,) tuple, (K,) tuple) or None
+        Scene temperatures (°C, increasing) and the camera model's level misfit there (°C RMS):
+        a network trained on a chamber file's camera model (see the module docstring).
     """
 
     floor_c: float
@@ -90,6 +97,7 @@ class SigmaModel:
     weights_sha256: str | None = None
     outside_c: float = OUTSIDE_SIGMA_C
     fitted_on: dict[str, Any] = field(default_factory=dict)
+    misfit_c: tuple[tuple[float, ...], tuple[float, ...]] | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.floor_c) and UNIT_FLOOR_MIN_C - 1e-9 <= self.floor_c <= 10.0
@@ -99,29 +107,63 @@ class SigmaModel:
                 f"σ model: floor {self.floor_c!r:.12} °C (>= {UNIT_FLOOR_MIN_C:.2f}), "
                 f"coefficients {self.coef!r:.60} or outside σ {self.outside_c!r:.12} out of range"
             )
+        if self.misfit_c is not None:
+            t, m = (np.asarray(v, np.float64) for v in self.misfit_c)
+            if not (t.ndim == 1 and t.shape == m.shape and t.size >= 2
+                    and np.all(np.isfinite(t)) and np.all(np.diff(t) > 0)
+                    and np.all(np.isfinite(m)) and np.all((m >= 0) & (m <= 10))):
+                raise InvalidInputError(
+                    f"σ model: misfit {self.misfit_c!r:.80} is not increasing temperatures and "
+                    "their misfits of 0-10 °C")
 
-    def sigma_of(self, feats: np.ndarray, *, outside: bool = False) -> np.ndarray:
-        """σ (°C, ``(H, W)`` float32) from :func:`features`; with ``outside``, inflated."""
+    def sigma_of(self, feats: np.ndarray, *, outside: bool = False,
+                 temperature_c: np.ndarray | None = None) -> np.ndarray:
+        """σ (°C, ``(H, W)`` float32) from :func:`features`; with ``outside``, inflated; with
+        :attr:`misfit_c`, the misfit at ``temperature_c`` (the estimate, °C) added."""
         c = np.asarray(self.coef)
         log_var = c[0] + np.tensordot(c[1:], feats, axes=1)
         var = self.floor_c**2 + np.exp(np.minimum(log_var, 10.0))
+        if self.misfit_c is not None:
+            if temperature_c is None:
+                raise InvalidInputError("σ model: its misfit needs the estimate's temperature")
+            var = var + self.misfit_at(temperature_c) ** 2
         if outside:
             var = var + self.outside_c**2
         return np.sqrt(var).astype(np.float32)
 
+    def misfit_at(self, temperature_c: np.ndarray) -> np.ndarray:
+        """The camera model's level misfit (°C) at scene temperatures ``temperature_c``: linear
+        between the set points of :attr:`misfit_c`, and beyond them growing along the end
+        segment's slope, never below the end's value (0 without a misfit)."""
+        x = np.asarray(temperature_c, np.float64)
+        if self.misfit_c is None:
+            return np.zeros_like(x)
+        t, m = (np.asarray(v, np.float64) for v in self.misfit_c)
+        lo = max((m[0] - m[1]) / (t[1] - t[0]), 0.0)  # growth per °C below the coldest
+        hi = max((m[-1] - m[-2]) / (t[-1] - t[-2]), 0.0)  # and above the hottest
+        return np.interp(x, t, m) + lo * np.maximum(t[0] - x, 0) + hi * np.maximum(x - t[-1], 0)
+
     def sigma(self, warped: np.ndarray, valid: np.ndarray, temperature_c: np.ndarray, *,
               outside: bool = False) -> np.ndarray:
         """σ (°C, ``(H, W)`` float32) of an estimate ``temperature_c`` from its burst."""
-        return self.sigma_of(features(warped, valid, temperature_c), outside=outside)
+        return self.sigma_of(features(warped, valid, temperature_c), outside=outside,
+                             temperature_c=temperature_c)
+
+    def _content(self) -> dict[str, Any]:
+        """Its fields, without a misfit it has not (files from before it keep their SHA-256)."""
+        d = asdict(self)
+        if d["misfit_c"] is None:
+            del d["misfit_c"]
+        return d
 
     def digest(self) -> str:
         """SHA-256 (hex) of its content (the canonical JSON of its fields)."""
-        text = json.dumps(asdict(self), sort_keys=True, allow_nan=False)
+        text = json.dumps(self._content(), sort_keys=True, allow_nan=False)
         return hashlib.sha256(text.encode("utf-8")).hexdigest()
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write it as JSON (atomically), with the SHA-256 of its content."""
-        text = json.dumps({"format": _FORMAT, "version": 1, **asdict(self),
+        text = json.dumps({"format": _FORMAT, "version": 1, **self._content(),
                            "sha256": self.digest()}, indent=1, sort_keys=True)
         with atomic_path(Path(path)) as tmp:
             Path(tmp).write_text(text + "\n", encoding="utf-8")
@@ -143,9 +185,12 @@ class SigmaModel:
                     d.pop("version", None) != 1:
                 raise ValueError("not a thermocal σ model")
             stored = d.pop("sha256", None)
+            misfit = d.get("misfit_c")
             model = cls(float(d["floor_c"]), tuple(float(c) for c in d["coef"]),
                         d.get("weights_sha256"), float(d.get("outside_c", OUTSIDE_SIGMA_C)),
-                        dict(d.get("fitted_on") or {}))
+                        dict(d.get("fitted_on") or {}),
+                        None if misfit is None else tuple(tuple(float(v) for v in part)
+                                                          for part in misfit))
             if stored != model.digest():
                 raise ValueError("its content does not match its SHA-256")
         except (OSError, ValueError, KeyError, TypeError, InvalidInputError) as exc:

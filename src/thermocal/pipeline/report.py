@@ -233,7 +233,8 @@ def _sigma_model(options: dict[str, Any]) -> str | None:
     on = (f"fitted on {fitted.get('bursts')} bursts of {len(units)} camera units it never "
           "trained on" if isinstance(units, list) and fitted.get("bursts") else
           f"fitted on {fitted.get('bursts')} bursts of the camera model fitted on its chamber "
-          "file (not what that model misses of the camera)" if fitted.get("chamber") else
+          "file, with what that model misses of the camera's level on the file's frames"
+          if fitted.get("chamber") else
           "fitted")
     return (f"σ model {path.name}: σ grows where the frames disagree, at edges and where fewer "
             f"frames see a pixel, never below {sigma.floor_c:.2f} °C (the unit's own level, "
