@@ -62,6 +62,16 @@ def test_held_out_set_and_references():
     each = eval_bursts(7, quick=True, units=tuple(range(300, 330)), per_scene=2,
                        unit_per_burst=True)
     assert len(each) == 2 * len(EVAL_SCENES) == len({b["unit"] for b in each})
+    # one camera (fitted on a chamber file) for every burst, within the FPA range it covers
+    from dataclasses import replace
+
+    from thermocal.camera.presets import make_camera
+
+    cam = make_camera("tau2", unit=3, size=(64, 48))
+    fitted = replace(cam, info={**cam.info, "fpa_range_c": [20.0, 35.0]})
+    own = eval_bursts(7, quick=True, camera=fitted)
+    assert all(b["unit"] is None and 20.0 <= b["fpa_c"] <= 35.0 for b in own)
+    assert own[0]["frames"].shape[1:] == (48, 64)
     b = bursts[0]
     refs = {FAMILY_ROW: ExactModel.family((0, 1))}
     from thermocal.burst import fill_stuck_pixels

@@ -312,6 +312,8 @@ def test_coverage_interval_resamples_whole_groups():
     assert short["within_1sigma"][1] < 0.5
     with pytest.raises(InvalidInputError):
         coverage_interval(groups(1, 1.0))
+    with pytest.raises(InvalidInputError, match="must match"):
+        coverage_interval([(np.zeros(3), np.ones(1)), (np.zeros(3), np.ones(3))])
 
 
 def test_rescaled_coverage_finds_the_level_of_a_gaussian_and_not_of_a_rectangle():

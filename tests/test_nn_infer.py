@@ -550,6 +550,19 @@ def test_train_from_a_chamber_file(tmp_path, capsys):
     assert sigma.fitted_on["model_level_misfit_c"] > 0
     with pytest.raises(InvalidInputError, match="give --chamber"):
         fit_network_sigma(out)  # the preset's units are not that camera
+    from thermocal.nn.infer import shipped_model_path
+
+    with pytest.raises(InvalidInputError, match="leave --chamber out"):
+        fit_network_sigma(shipped_model_path("kpn"), chamber=chamber)  # not its camera
+    # the misfit is measured against the scene temperature the model was fitted to (the
+    # blackbody's, its emissivity and reflected ambient taken in), set points increasing
+    from thermocal.calibration.dataset import prepare_chamber
+    from thermocal.evaluation.sigma_fit import model_misfit
+
+    m = model_misfit(chamber)
+    assert np.all(np.diff(m["setpoints_c"]) > 0) and len(m["setpoints_c"]) == len(points)
+    scene = prepare_chamber(chamber).scene_c
+    assert scene.min() - 1e-6 <= m["setpoints_c"][0] and m["setpoints_c"][-1] <= scene.max() + 1e-6
 
 
 def test_estimate_registered_frames_with_uncovered_borders(tmp_path, flight, tiny_model, capsys):

@@ -92,6 +92,13 @@ def test_a_chamber_models_misfit_grows_beyond_its_set_points_and_round_trips(tmp
                 ((10.0, 20.0), (1.0, float("nan")))):
         with pytest.raises(InvalidInputError, match="misfit"):
             SigmaModel(0.5, (0.0, 0.0, 0.0, 0.0), misfit_c=bad)
+    # given as arrays, stored as floats (JSON, the digest); a NaN estimate has a NaN misfit
+    arr = SigmaModel(0.5, (0.0, 0.0, 0.0, 0.0),
+                     misfit_c=(np.array([10.0, 20.0], np.float32), np.array([1.0, 0.5])))
+    assert arr.misfit_c == ((10.0, 20.0), (1.0, 0.5)) and len(arr.digest()) == 64
+    assert np.isnan(arr.misfit_at(np.array([np.nan]))[0])
+    with pytest.raises(InvalidInputError, match="misfit"):
+        SigmaModel(0.5, (0.0, 0.0, 0.0, 0.0), misfit_c=((10.0, 20.0),))
     # a model without one keeps the SHA-256 it was saved with before the field existed
     plain = SigmaModel(0.5, (-1.0, 0.1, 0.2, 0.3), "abc")
     assert "misfit_c" not in plain.save(tmp_path / "p.sigma.json").read_text()

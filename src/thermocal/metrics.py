@@ -712,7 +712,11 @@ def coverage_interval(pairs: Any, *, confidence: float = 0.90, n_resamples: int 
     """
     counts = []
     for errors, sigma in pairs:
-        z = np.abs(np.asarray(errors, np.float64)) / np.asarray(sigma, np.float64)
+        e, s = np.asarray(errors, np.float64), np.asarray(sigma, np.float64)
+        if e.shape != s.shape:
+            raise InvalidInputError(f"coverage_interval: errors {e.shape} and σ {s.shape} "
+                                    "must match")
+        z = np.abs(e) / s
         counts.append((np.sum(z <= 1), np.sum(z <= 2), z.size))
     k1, k2, n = np.asarray(counts, np.float64).reshape(-1, 3).T
     if k1.size < 2 or np.any(n == 0):

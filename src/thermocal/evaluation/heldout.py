@@ -51,9 +51,15 @@ def eval_bursts(n_frames: int, *, quick: bool, register: bool = False,
 
     ``camera`` (a :class:`~thermocal.camera.model.CameraModel`, e.g. fitted on a chamber file)
     replaces the units: every burst is of it, at its size, with a pixel FPN pattern of its own
-    drawn as training draws it (:func:`~thermocal.nn.data.draw_pixel_fpn`); ``unit`` is None."""
+    drawn as training draws it (:func:`~thermocal.nn.data.draw_pixel_fpn`), at FPA temperatures
+    within the range it was fitted on (``info["fpa_range_c"]``); ``unit`` is None."""
+    fpa_lo, fpa_hi = 15.0, 45.0
+    if camera is not None and "fpa_range_c" in camera.info:
+        lo, hi = (float(v) for v in camera.info["fpa_range_c"])
+        fpa_lo, fpa_hi = (max(lo, fpa_lo), min(hi, fpa_hi)) if max(lo, fpa_lo) < min(hi, fpa_hi) \
+            else (lo, hi)
     scenes = evaluation_scenes() if scenes is None else scenes
-    per_scene = per_scene or (1 if quick else 4)
+    per_scene = (1 if quick else 4) if per_scene is None else per_scene
     # whole sensor frames: a network with position terms needs them
     size = (336, 256) if camera is None else (camera.shape[1], camera.shape[0])
     out = []
@@ -66,7 +72,7 @@ def eval_bursts(n_frames: int, *, quick: bool, register: bool = False,
                 cam = make_camera(preset, unit=unit, size=size)
             else:
                 unit, cam = None, draw_pixel_fpn(camera, np.random.default_rng([2028, seed]))
-            fpa = float(rng.uniform(15.0, 45.0))
+            fpa = float(rng.uniform(fpa_lo, fpa_hi))
             motion = ("walk", "hover")[(si + k) % 2]
             fl = simulate_flight(scene, cam, n_frames=n_frames, motion=motion, fpa_c=fpa, seed=seed)
             hs = perturb_homographies(fl.homographies, rng=rng, frame_size=size, pivot=fl.pivot)

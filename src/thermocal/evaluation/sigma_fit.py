@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import sys
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
@@ -31,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from thermocal.burst import fill_stuck_pixels
-from thermocal.errors import InvalidInputError
+from thermocal.errors import InvalidInputError, ThermocalError
 from thermocal.estimation.base import PreparedBurst
 from thermocal.estimation.pipeline import estimate
 from thermocal.evaluation.heldout import eval_bursts
@@ -99,40 +100,43 @@ def scored_features(network: NetworkEstimator, bursts: list[dict]) -> list[tuple
 
 
 def model_misfit(chamber: str | os.PathLike[str], camera: Any = None, *,
-                 stride: int = CHAMBER_STRIDE) -> dict[str, float]:
+                 stride: int = CHAMBER_STRIDE) -> dict[str, Any]:
     """What the camera model fitted on a chamber file misses of its own camera: the model
-    inverted exactly (:func:`~thermocal.camera.model.invert`) on every ``stride``-th frame of
-    the file, against the blackbody.
+    inverted exactly (:func:`~thermocal.camera.model.invert`) on every ``stride``-th usable
+    frame of the file (the blackbody settled), against the scene temperature it was fitted to
+    (the blackbody's, its emissivity and reflected ambient taken in:
+    :func:`~thermocal.calibration.dataset.prepare_chamber`).
 
     Returns the RMS error (°C) of the good pixels (``rms_c``), of their low-passed error
     (Gaussian of :data:`LOW_PASS_PX`, leaving out the pixel pattern a network is trained to
     remove: ``low_pass_rms_c``) and of the frames' mean error (``level_rms_c``, what no view of
-    a burst reveals), the last also at each blackbody set point (``setpoints_c``,
-    ``level_rms_by_setpoint_c``), and ``frames``. In-sample (the model was fitted on these
-    frames): a lower bound of what it misses elsewhere.
+    a burst reveals), the last also at each blackbody set point (``setpoints_c``: the set
+    points' mean scene temperature, increasing; ``level_rms_by_setpoint_c``), and ``frames``.
+    In-sample (the model was fitted on these frames): a lower bound of what it misses elsewhere.
     """
     from scipy.ndimage import gaussian_filter
 
+    from thermocal.calibration.dataset import prepare_chamber
     from thermocal.calibration.polynomial import camera_model_from_chamber
     from thermocal.camera.model import invert
-    from thermocal.io.chamber import read_chamber
 
-    session = read_chamber(chamber)
+    data = prepare_chamber(chamber)
     camera = camera_model_from_chamber(chamber, radial=True) if camera is None else camera
-    idx = np.arange(0, len(session.blackbody_c), stride)
-    err = (invert(camera, np.asarray(session.frames[idx]), session.fpa_c[idx])
-           - session.blackbody_c[idx][:, None, None])
+    idx = np.flatnonzero(data.usable)[::stride]
+    err = (invert(camera, np.asarray(data.session.frames[idx]), data.fpa_c[idx])
+           - data.scene_c[idx][:, None, None])
     good = ~camera.defects
     low = np.stack([gaussian_filter(e, LOW_PASS_PX) for e in err])[:, good]
     level = err[:, good].mean(axis=1)
-    blackbody = np.round(session.blackbody_c[idx], 3)
+    blackbody = np.round(data.session.blackbody_c[idx], 6)
     points = np.unique(blackbody)
+    scene = np.array([data.scene_c[idx][blackbody == v].mean() for v in points])
+    order = np.argsort(scene)
+    rms = [float(np.sqrt(np.mean(level[blackbody == points[i]] ** 2))) for i in order]
     return {"frames": int(idx.size), "rms_c": float(np.sqrt(np.mean(err[:, good] ** 2))),
             "low_pass_rms_c": float(np.sqrt(np.mean(low**2))),
             "level_rms_c": float(np.sqrt(np.mean(level**2))),
-            "setpoints_c": points.tolist(),
-            "level_rms_by_setpoint_c": [float(np.sqrt(np.mean(level[blackbody == v] ** 2)))
-                                        for v in points]}
+            "setpoints_c": scene[order].tolist(), "level_rms_by_setpoint_c": rms}
 
 
 def fit_network_sigma(weights: str | os.PathLike[str], *, per_scene: int | None = None,
@@ -158,6 +162,12 @@ def fit_network_sigma(weights: str | os.PathLike[str], *, per_scene: int | None 
         raise InvalidInputError(
             f"{weights} was trained on the camera model of chamber file {trained_on}: its σ is "
             f"fitted on that camera's bursts: give --chamber {trained_on}")
+    if chamber is not None and (not trained_on or Path(trained_on).name != Path(chamber).name):
+        raise InvalidInputError(
+            f"{weights} was trained from chamber file {trained_on}, not {chamber}: its σ is "
+            f"fitted on bursts of that file's camera: give --chamber {trained_on}" if trained_on
+            else f"{weights} was trained on the simulator's units, not on chamber file "
+            f"{chamber}: its σ is fitted on bursts of units it never saw: leave --chamber out")
     network = NetworkEstimator(model, norm)
     scenes = validation_scenes()
     if chamber is None:
@@ -175,12 +185,12 @@ def fit_network_sigma(weights: str | os.PathLike[str], *, per_scene: int | None 
         if not 1 <= per_scene <= 100:
             raise InvalidInputError(f"--per-scene {per_scene}: 1 to 100")
         camera = camera_model_from_chamber(chamber, radial=True)
-        bursts = eval_bursts(model.config.n_frames, quick=False, scenes=scenes,
-                             per_scene=per_scene, camera=camera)
         misfit = model_misfit(chamber, camera)
         if len(misfit["setpoints_c"]) < 2:
             raise InvalidInputError(f"{chamber}: one blackbody set point cannot show how the "
                                     "fitted camera model errs with the scene's temperature")
+        bursts = eval_bursts(model.config.n_frames, quick=False, scenes=scenes,
+                             per_scene=per_scene, camera=camera)
         on = {"chamber": str(chamber), "model_level_misfit_c": misfit["level_rms_c"]}
     rng = np.random.default_rng(seed)
     errors, feats = [], []
@@ -213,8 +223,12 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--out", type=Path, default=None,
                         help="Default: NAME.sigma.json beside the weights.")
     args = parser.parse_args(argv)
-    sigma = fit_network_sigma(args.weights, per_scene=args.per_scene, chamber=args.chamber)
-    out = sigma.save(args.out or sidecar_path(args.weights))
+    try:
+        sigma = fit_network_sigma(args.weights, per_scene=args.per_scene, chamber=args.chamber)
+        out = sigma.save(args.out or sidecar_path(args.weights))
+    except ThermocalError as exc:  # one line, exit 2, as the commands say it
+        print(f"sigma_fit: error: {exc}", file=sys.stderr)
+        raise SystemExit(2) from None
     print(f"σ model of {args.weights}: floor {sigma.floor_c:.3f} °C, coefficients "
           f"{', '.join(f'{c:.3f}' for c in sigma.coef)}; fitted on {sigma.fitted_on['bursts']} "
           f"bursts ({sigma.fitted_on['pixels']} pixels); written to {out}")

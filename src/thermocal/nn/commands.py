@@ -341,11 +341,17 @@ def _fit_sigma(weights: Path, *, chamber: Path | None) -> None:
     """Fit the trained network's σ model and write it beside the weights
     (:mod:`thermocal.evaluation.sigma_fit`): on bursts of units it never saw, or of the camera
     model fitted on its chamber file."""
+    from thermocal.errors import ThermocalError
     from thermocal.evaluation.sigma_fit import fit_network_sigma
     from thermocal.nn.uncertainty import sidecar_path
 
-    sigma = fit_network_sigma(weights, chamber=chamber)
-    path = sigma.save(sidecar_path(weights))
+    try:
+        sigma = fit_network_sigma(weights, chamber=chamber)
+        path = sigma.save(sidecar_path(weights))
+    except ThermocalError as exc:  # the weights are written: say so, and how to fit σ later
+        click.echo(f"thermocal: warning: no σ model for {weights} (its estimates will have no "
+                   f"uncertainty): {exc}", err=True)
+        return
     on = ("units it never saw" if chamber is None else
           f"the camera model fitted on {chamber}, with what that model misses of the camera's "
           f"level on its frames: {sigma.fitted_on['model_level_misfit_c']:.2f} °C RMS")

@@ -108,7 +108,11 @@ class SigmaModel:
                 f"coefficients {self.coef!r:.60} or outside σ {self.outside_c!r:.12} out of range"
             )
         if self.misfit_c is not None:
-            t, m = (np.asarray(v, np.float64) for v in self.misfit_c)
+            try:  # stored as tuples of floats, whatever it was given as (JSON, the digest)
+                t, m = (np.asarray(v, np.float64) for v in self.misfit_c)
+                object.__setattr__(self, "misfit_c", (tuple(t.tolist()), tuple(m.tolist())))
+            except (TypeError, ValueError):
+                t = m = np.zeros(0)
             if not (t.ndim == 1 and t.shape == m.shape and t.size >= 2
                     and np.all(np.isfinite(t)) and np.all(np.diff(t) > 0)
                     and np.all(np.isfinite(m)) and np.all((m >= 0) & (m <= 10))):
@@ -141,7 +145,13 @@ class SigmaModel:
         t, m = (np.asarray(v, np.float64) for v in self.misfit_c)
         lo = max((m[0] - m[1]) / (t[1] - t[0]), 0.0)  # growth per °C below the coldest
         hi = max((m[-1] - m[-2]) / (t[-1] - t[-2]), 0.0)  # and above the hottest
-        return np.interp(x, t, m) + lo * np.maximum(t[0] - x, 0) + hi * np.maximum(x - t[-1], 0)
+        out = np.interp(x, t, m)
+        with np.errstate(invalid="ignore"):  # NaN stays NaN
+            if lo > 0:
+                out = out + lo * np.maximum(t[0] - x, 0)
+            if hi > 0:
+                out = out + hi * np.maximum(x - t[-1], 0)
+        return out
 
     def sigma(self, warped: np.ndarray, valid: np.ndarray, temperature_c: np.ndarray, *,
               outside: bool = False) -> np.ndarray:
