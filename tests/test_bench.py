@@ -79,6 +79,19 @@ def test_coverage_tables_say_whether_any_level_of_sigma_meets_the_bands():
     assert "(2 of 2)" in spread and "(0 of 2)" in spread
 
 
+def test_the_networks_coverage_is_told_by_condition():
+    from thermocal.evaluation.suites.coverage import _conditions, condition_table
+
+    assert _conditions(40.0, -50.0) == ["FPA 35…45 °C", "scene − FPA -90…-40 °C"]
+    assert _conditions(10.0, 70.0) == []  # outside every bin
+    row = {"data": "tau2 units", "accepted_by_condition": {
+        "FPA 35…45 °C": {"bursts": 3, "within_1sigma": 0.5, "within_2sigma": 0.9,
+                         "median_sigma_c": 0.8, "pixels": 10}}}
+    text = condition_table([row, {"data": "calibration row"}])
+    assert "| tau2 units | FPA 35…45 °C | 3 | 50.0 % | 90.0 % | 0.80 |" in text
+    assert condition_table([{"data": "calibration row"}]) == ""
+
+
 def test_coverage_says_what_sharpening_sigma_would_silence():
     from thermocal.evaluation.suites.coverage import _rescaled
 

@@ -16,6 +16,9 @@ product's pipeline, domain check included, on
    bursts it refuses, and for those it would estimate with ``--force``, the coverage of the
    inflated σ; a "silent" error is a burst it does not refuse whose MAE exceeds 1 °C.
 
+The accepted bursts are also told by condition (:func:`condition_table`): FPA temperature, and
+the scene's mean estimate less the FPA temperature, where the network's σ misses most.
+
 The calibrations (every method ``--method auto`` may choose) are fitted with their
 cross-validation report on one unit's chamber session of each family and scored, frame by frame,
 on a held-out run of the same unit (``benchmarks/physics.py``'s sessions: its own physics): a
@@ -94,6 +97,7 @@ def _run(network: NetworkEstimator, bursts: list[dict]) -> dict:
     the accepted bursts' pixels and of the forced ones', and the silent errors."""
     kept: dict[str, list] = {"accepted": [], "forced": []}
     by_unit: dict[int, list] = {}  # the accepted bursts' (errors, σ) of each unit
+    by_condition: dict[str, list] = {}  # and of each FPA and scene-less-FPA bin
     silent, maes = 0, []
     for b in bursts:
         frames, _ = fill_stuck_pixels(b["frames"], b["hs"])
@@ -109,6 +113,9 @@ def _run(network: NetworkEstimator, bursts: list[dict]) -> dict:
         kept["forced" if est.outside else "accepted"].append((err, est.sigma_c[b["mask"]]))
         if not est.outside:
             by_unit.setdefault(b["unit"], []).append(kept["accepted"][-1])
+            scene_c = float(np.mean(est.temperature_c[b["mask"]]))
+            for key in _conditions(b["fpa_c"], scene_c - b["fpa_c"]):
+                by_condition.setdefault(key, []).append(kept["accepted"][-1])
         maes.append(mae)
     out = {"bursts": len(bursts), "refused": len(kept["forced"]), "silent_over_1c": silent,
            "mae_c": float(np.mean(maes)), "burst_mae_range_c": [min(maes), max(maes)]}
@@ -120,7 +127,41 @@ def _run(network: NetworkEstimator, bursts: list[dict]) -> dict:
     units = [tuple(np.concatenate(part) for part in zip(*pairs, strict=True))
              for pairs in by_unit.values()]
     out["accepted_interval"] = coverage_interval(units) if len(units) > 1 else None
+    out["accepted_by_condition"] = {
+        key: {"bursts": len(pairs), **sigma_coverage(np.concatenate([e for e, _ in pairs]),
+                                                     np.concatenate([s for _, s in pairs]))}
+        for key, pairs in sorted(by_condition.items())}
     return out
+
+
+#: The bins of the network's accepted bursts: FPA temperature, and the scene's mean estimate
+#: less the FPA temperature (°C).
+FPA_BINS_C = (15.0, 25.0, 35.0, 45.0)
+SCENE_LESS_FPA_BINS_C = (-90.0, -40.0, -20.0, 0.0, 60.0)
+
+
+def _conditions(fpa_c: float, scene_less_fpa_c: float) -> list[str]:
+    """The bins (:data:`FPA_BINS_C`, :data:`SCENE_LESS_FPA_BINS_C`) a burst falls in."""
+    out = []
+    for name, edges, v in (("FPA", FPA_BINS_C, fpa_c),
+                           ("scene − FPA", SCENE_LESS_FPA_BINS_C, scene_less_fpa_c)):
+        k = int(np.searchsorted(edges, v, side="right")) - 1
+        if 0 <= k < len(edges) - 1:
+            out.append(f"{name} {edges[k]:g}…{edges[k + 1]:g} °C")
+    return out
+
+
+def condition_table(rows: list[dict]) -> str:
+    """The network rows' coverage by FPA and by scene less FPA (accepted bursts)."""
+    cells = [(r["data"], key, c["bursts"], f"{100 * c['within_1sigma']:.1f} %",
+              f"{100 * c['within_2sigma']:.1f} %", f"{c['median_sigma_c']:.2f}")
+             for r in rows for key, c in (r.get("accepted_by_condition") or {}).items()]
+    if not cells:
+        return ""
+    header = ("data", "bursts where", "bursts", "within 1σ", "within 2σ", "median σ °C")
+    return ("\n### The network's accepted bursts by condition\n\nFPA temperature, and the "
+            "scene's mean estimate less the FPA temperature.\n\n"
+            + markdown_table(header, cells) + "\n")
 
 
 def _rescaled(pairs: list[tuple[np.ndarray, np.ndarray]]) -> dict | None:
@@ -392,7 +433,7 @@ def main(argv: list[str] | None = None) -> None:
             + (network_rows(quick=args.quick) if args.held_out == "ramp" else []))
     info = {"machine": machine(), "wall_s": time.perf_counter() - start, "quick": args.quick,
             "units": list(args.units), "held_out": args.held_out}
-    print(report(rows, info) + unit_spread(rows))
+    print(report(rows, info) + unit_spread(rows) + condition_table(rows))
     if args.json:
         with open(args.json, "w", encoding="utf-8") as f:
             json.dump({**info, "rows": rows}, f, indent=1)
