@@ -54,10 +54,10 @@ def eval_bursts(n_frames: int, *, quick: bool, register: bool = False,
     drawn as training draws it (:func:`~thermocal.nn.data.draw_pixel_fpn`), at FPA temperatures
     within the range it was fitted on (``info["fpa_range_c"]``); ``unit`` is None."""
     fpa_lo, fpa_hi = 15.0, 45.0
-    if camera is not None and "fpa_range_c" in camera.info:
+    if camera is not None and "fpa_range_c" in camera.info:  # 15-45 °C within it, or all of it
         lo, hi = (float(v) for v in camera.info["fpa_range_c"])
-        fpa_lo, fpa_hi = (max(lo, fpa_lo), min(hi, fpa_hi)) if max(lo, fpa_lo) < min(hi, fpa_hi) \
-            else (lo, hi)
+        inner = (max(lo, fpa_lo), min(hi, fpa_hi))
+        fpa_lo, fpa_hi = inner if inner[0] < inner[1] else (lo, hi)
     scenes = evaluation_scenes() if scenes is None else scenes
     per_scene = (1 if quick else 4) if per_scene is None else per_scene
     # whole sensor frames: a network with position terms needs them

@@ -99,7 +99,7 @@ def scored_features(network: NetworkEstimator, bursts: list[dict]) -> list[tuple
     return out
 
 
-def model_misfit(chamber: str | os.PathLike[str], camera: Any = None, *,
+def model_misfit(chamber: Any, camera: Any = None, *,
                  stride: int = CHAMBER_STRIDE) -> dict[str, Any]:
     """What the camera model fitted on a chamber file misses of its own camera: the model
     inverted exactly (:func:`~thermocal.camera.model.invert`) on every ``stride``-th usable
@@ -113,6 +113,9 @@ def model_misfit(chamber: str | os.PathLike[str], camera: Any = None, *,
     a burst reveals), the last also at each blackbody set point (``setpoints_c``: the set
     points' mean scene temperature, increasing; ``level_rms_by_setpoint_c``), and ``frames``.
     In-sample (the model was fitted on these frames): a lower bound of what it misses elsewhere.
+    ``chamber``: a path, or the file already prepared
+    (:class:`~thermocal.calibration.dataset.ChamberData`); ``camera``: the model fitted on it,
+    if already fitted.
     """
     from scipy.ndimage import gaussian_filter
 
@@ -121,7 +124,7 @@ def model_misfit(chamber: str | os.PathLike[str], camera: Any = None, *,
     from thermocal.camera.model import invert
 
     data = prepare_chamber(chamber)
-    camera = camera_model_from_chamber(chamber, radial=True) if camera is None else camera
+    camera = camera_model_from_chamber(data, radial=True) if camera is None else camera
     idx = np.flatnonzero(data.usable)[::stride]
     err = (invert(camera, np.asarray(data.session.frames[idx]), data.fpa_c[idx])
            - data.scene_c[idx][:, None, None])
@@ -179,13 +182,15 @@ def fit_network_sigma(weights: str | os.PathLike[str], *, per_scene: int | None 
                              scenes=scenes, per_scene=per_scene, unit_per_burst=True)
         on: dict = {"units": sorted({int(b["unit"]) for b in bursts})}
     else:
+        from thermocal.calibration.dataset import prepare_chamber
         from thermocal.calibration.polynomial import camera_model_from_chamber
 
         per_scene = CHAMBER_PER_SCENE if per_scene is None else per_scene
         if not 1 <= per_scene <= 100:
             raise InvalidInputError(f"--per-scene {per_scene}: 1 to 100")
-        camera = camera_model_from_chamber(chamber, radial=True)
-        misfit = model_misfit(chamber, camera)
+        data = prepare_chamber(chamber)  # once, for the model and its misfit
+        camera = camera_model_from_chamber(data, radial=True)
+        misfit = model_misfit(data, camera)
         if len(misfit["setpoints_c"]) < 2:
             raise InvalidInputError(f"{chamber}: one blackbody set point cannot show how the "
                                     "fitted camera model errs with the scene's temperature")

@@ -120,18 +120,20 @@ def _run(network: NetworkEstimator, bursts: list[dict]) -> dict:
     out = {"bursts": len(bursts), "refused": len(kept["forced"]), "silent_over_1c": silent,
            "mae_c": float(np.mean(maes)), "burst_mae_range_c": [min(maes), max(maes)]}
     for name, pairs in kept.items():
-        out[name] = (sigma_coverage(np.concatenate([e for e, _ in pairs]),
-                                 np.concatenate([s for _, s in pairs])) if pairs else None)
+        out[name] = sigma_coverage(*_pooled(pairs)) if pairs else None
     out["accepted_rescaled"] = _rescaled(kept["accepted"])
     # a unit's bursts share its level: the interval resamples units
-    units = [tuple(np.concatenate(part) for part in zip(*pairs, strict=True))
-             for pairs in by_unit.values()]
+    units = [_pooled(pairs) for pairs in by_unit.values()]
     out["accepted_interval"] = coverage_interval(units) if len(units) > 1 else None
     out["accepted_by_condition"] = {
-        key: {"bursts": len(pairs), **sigma_coverage(np.concatenate([e for e, _ in pairs]),
-                                                     np.concatenate([s for _, s in pairs]))}
+        key: {"bursts": len(pairs), **sigma_coverage(*_pooled(pairs))}
         for key, pairs in sorted(by_condition.items())}
     return out
+
+
+def _pooled(pairs: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
+    """The errors and σ of ``(errors, σ)`` pairs (bursts, frames), each concatenated."""
+    return (np.concatenate([e for e, _ in pairs]), np.concatenate([s for _, s in pairs]))
 
 
 #: The bins of the network's accepted bursts: FPA temperature, and the scene's mean estimate
@@ -173,8 +175,7 @@ def _rescaled(pairs: list[tuple[np.ndarray, np.ndarray]]) -> dict | None:
     made without a silent error."""
     if not pairs:
         return None
-    errors = np.concatenate([e for e, _ in pairs])
-    sigmas = np.concatenate([s for _, s in pairs])
+    errors, sigmas = _pooled(pairs)
     out = rescaled_coverage(errors, sigmas)
     # a frame is silent at factor k (:func:`_silent` of σ × k) when its MAE exceeds
     # SILENT_MAE_C and 2·k·median σ: below k_f = MAE / (2·median σ); the frames not silent at
@@ -227,10 +228,9 @@ def _run_calibration(cal, model: CalibrationSigma, run: physics.Run, rng) -> dic
                                          - run.truth_c[:, None]))),
            "expected_mae_c": model.report.expected_mae_c}
     for name, pairs in kept.items():  # the sample's MAE and coverage, accepted and refused
-        errors = np.concatenate([e for e, _ in pairs]) if pairs else None
+        errors, sigmas = _pooled(pairs) if pairs else (None, None)
         out[f"mae_{name}_c"] = None if errors is None else float(np.mean(np.abs(errors)))
-        out[name] = (None if errors is None else
-                     sigma_coverage(errors, np.concatenate([s_ for _, s_ in pairs])))
+        out[name] = None if errors is None else sigma_coverage(errors, sigmas)
     out["accepted_rescaled"] = _rescaled(kept["accepted"])
     return out
 
