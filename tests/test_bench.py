@@ -79,6 +79,40 @@ def test_coverage_tables_say_whether_any_level_of_sigma_meets_the_bands():
     assert "(2 of 2)" in spread and "(0 of 2)" in spread
 
 
+def test_one_factor_per_method_is_found_only_where_every_cases_factors_meet():
+    from thermocal.evaluation.suites.coverage import method_factors
+    from thermocal.metrics import rescaled_coverage
+
+    rng = np.random.default_rng(2)
+    sigma = np.full(20_000, 0.5)
+
+    def row(method, preset, held_out, err):
+        return {"method": method, "preset": preset, "unit": 101, "held_out": held_out,
+                "accepted_rescaled": rescaled_coverage(err, sigma)}
+
+    # lin: every case's errors Gaussian of σ 1 under a stated 0.5 (each needs ×2);
+    # wolf2016: one case needs ×2, the other ×3; two-point: a rectangle in one case
+    rows = [row("lin", p, h, rng.normal(0.0, 1.0, sigma.size))
+            for p in ("tau2", "boson") for h in ("ramp", "other")]
+    rows += [row("wolf2016", "tau2", "ramp", rng.normal(0.0, 1.0, sigma.size)),
+             row("wolf2016", "boson", "ramp", rng.normal(0.0, 1.5, sigma.size)),
+             row("two-point", "tau2", "ramp", rng.normal(0.0, 1.0, sigma.size)),
+             row("two-point", "boson", "ramp", rng.uniform(-1.0, 1.0, sigma.size))]
+    lines = {ln.split("|")[1].strip(): ln for ln in method_factors(rows).splitlines()
+             if ln.startswith("| ") and "method" not in ln}
+    lo, hi = (float(v) for v in lines["lin"].split("|")[5].strip(" ×").split("–"))
+    assert lo < 2.0 < hi and hi / lo < 1.3
+    assert "none: tau2 101 ramp needs ≤" in lines["wolf2016"]
+    needs = float(lines["wolf2016"].split("boson 101 ramp ≥ ")[1].split()[0])
+    assert 2.5 < needs < 3.0  # a Gaussian of 1.5 °C under a stated 0.5
+    # each family alone has one case: its own interval
+    assert lines["wolf2016"].split("|")[6].strip().startswith("×")
+    assert "no factor in band for 1 of 2 (boson 101 ramp" in lines["two-point"]
+    rect = rescaled_coverage(rng.uniform(-1.0, 1.0, sigma.size), sigma)
+    assert rect["band_factors"] is None
+    assert method_factors(rows[:1]) == ""
+
+
 def test_the_networks_coverage_is_told_by_condition():
     from thermocal.evaluation.suites.coverage import _conditions, condition_table
 
@@ -90,6 +124,19 @@ def test_the_networks_coverage_is_told_by_condition():
     text = condition_table([row, {"data": "calibration row"}])
     assert "| tau2 units | FPA 35…45 °C | 3 | 50.0 % | 90.0 % | 0.80 |" in text
     assert condition_table([{"data": "calibration row"}]) == ""
+    # bursts of several units: the share with its interval over units, which spans it
+    from thermocal.evaluation.suites.coverage import _condition_cell
+
+    rng = np.random.default_rng(0)
+    sigma = np.full(100, 1.0)
+    cell = _condition_cell({u: [(rng.normal(rng.normal(0.0, 0.7), 0.7, 100), sigma)]
+                            for u in range(30)})
+    assert cell["bursts"] == 30 and cell["units"] == 30
+    lo, hi = cell["interval"]["within_1sigma"]
+    assert lo < cell["within_1sigma"] < hi and hi - lo > 0.03
+    text = condition_table([{"data": "u", "accepted_by_condition": {"FPA 15…25 °C": cell}}])
+    assert f"{100 * cell['within_1sigma']:.1f} % ({100 * lo:.0f}–{100 * hi:.0f})" in text
+    assert _condition_cell({1: [(np.zeros(3), np.ones(3))]})["interval"] is None
 
 
 def test_coverage_says_what_sharpening_sigma_would_silence():

@@ -35,6 +35,45 @@ def test_the_fit_recovers_a_known_sigma():
     assert model.floor_c == pytest.approx(floor, abs=0.08)
 
 
+def test_the_two_stage_fit_recovers_a_level_growing_with_the_contrast(tmp_path):
+    """Bursts of a population of units: each burst's level one draw of σ² = floor² +
+    (k·contrast)², shared by its pixels, plus a pixel part exp(c0 + c·f): the level is fitted on
+    the bursts' means (400 draws, not 400 × 200 pixels), the pixel part on the pixels."""
+    rng = np.random.default_rng(4)
+    n_b, n_p = 400, 200
+    floor, k, coef = 0.5, 0.012, np.array([-1.5, 0.4, 0.0, 0.0])
+    contrast_b = rng.uniform(-80.0, 20.0, n_b)
+    level = rng.normal(0.0, np.sqrt(floor**2 + (k * contrast_b) ** 2))
+    f = rng.normal(0.0, 1.0, (3, n_b * n_p))
+    labels = np.repeat(np.arange(n_b), n_p)
+    contrast = contrast_b[labels] + rng.normal(0.0, 3.0, labels.size)
+    errors = level[labels] + rng.normal(0.0, np.sqrt(np.exp(coef[0] + coef[1:] @ f)))
+    model = fit_sigma_model(errors, f, weights_sha256="x", bursts=labels, contrast_c=contrast)
+    assert model.floor_c == pytest.approx(floor, abs=0.06)
+    assert model.contrast_per_c == pytest.approx(k, abs=0.004)
+    assert model.coef[1] == pytest.approx(0.4, abs=0.08)
+    # σ grows with the contrast; it needs the FPA temperature to say so
+    feats = np.zeros((3, 1, 2))
+    s = model.sigma_of(feats, temperature_c=np.array([[20.0, -40.0]]), fpa_c=20.0)[0]
+    assert s[1] > s[0] and s[0] == pytest.approx(np.hypot(floor, np.exp(coef[0] / 2)), abs=0.08)
+    with pytest.raises(InvalidInputError, match="FPA temperature"):
+        model.sigma_of(feats, temperature_c=np.zeros((1, 2)))
+    # one stage, as before, where the bursts are not given: no contrast term
+    assert fit_sigma_model(errors, f, weights_sha256="x").contrast_per_c is None
+    with pytest.raises(InvalidInputError, match="both"):
+        fit_sigma_model(errors, f, weights_sha256="x", bursts=labels)
+    with pytest.raises(InvalidInputError, match="need >= 10"):
+        fit_sigma_model(errors[:900], f[:, :900], weights_sha256="x", bursts=labels[:900],
+                        contrast_c=contrast[:900])
+    # round trip; a contrast term out of range is refused; a model without one keeps its digest
+    path = model.save(tmp_path / "m.sigma.json")
+    assert SigmaModel.load(path, weights_sha256="x") == model
+    with pytest.raises(InvalidInputError, match="contrast"):
+        SigmaModel(0.5, (0.0, 0.0, 0.0, 0.0), contrast_per_c=0.5)
+    assert "contrast_per_c" not in SigmaModel(0.5, (0.0,) * 4).save(tmp_path / "p.json"
+                                                                   ).read_text()
+
+
 def test_the_floor_is_never_below_the_unit_spread():
     rng = np.random.default_rng(1)
     f = rng.normal(0, 1, (3, 5000))
@@ -199,7 +238,7 @@ def test_fuzzed_sigma_models_are_refused_or_sane(tmp_path):
             assert len(str(exc).splitlines()) == 1
             outcomes["refused"] += 1
             continue
-        sigma = model.sigma_of(feats)
+        sigma = model.sigma_of(feats, temperature_c=np.zeros((4, 4)), fpa_c=20.0)
         assert model == same and np.all(np.isfinite(sigma))
         outcomes["read"] += 1
     assert outcomes["refused"] > 150

@@ -749,7 +749,9 @@ def rescaled_coverage(errors: Any, sigma: Any, *,
     A diagnostic, not a correction (``k`` is chosen on the errors it scores): ``in_band`` False
     means no overall level of this σ can meet the bands, because the errors divided by σ are
     not spread as a Gaussian's (a systematic error of nearly constant size, frame after frame,
-    covers ~58 % at 1σ and 100 % at 2σ whatever the level: a rectangular distribution's)."""
+    covers ~58 % at 1σ and 100 % at 2σ whatever the level: a rectangular distribution's).
+    ``band_factors``: ``[k_low, k_high]``, the factors that put both shares in ``bands`` (None
+    where none does)."""
     e = np.abs(np.asarray(errors, dtype=np.float64))
     s = np.asarray(sigma, dtype=np.float64)
     if e.shape != s.shape or e.size == 0:
@@ -769,5 +771,7 @@ def rescaled_coverage(errors: Any, sigma: Any, *,
     best = int(np.argmin((one - 0.6827) ** 2 + (two - 0.9545) ** 2))
     (lo1, hi1), (lo2, hi2) = bands
     ok = (one >= lo1) & (one <= hi1) & (two >= lo2) & (two <= hi2)
+    # both shares grow with k, so the factors in band are one interval: its ends
+    span = [float(k[ok].min()), float(k[ok].max())] if ok.any() else None
     return {"factor": float(k[best]), "within_1sigma": float(one[best]),
-            "within_2sigma": float(two[best]), "in_band": bool(ok.any())}
+            "within_2sigma": float(two[best]), "in_band": bool(ok.any()), "band_factors": span}

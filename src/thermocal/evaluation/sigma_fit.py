@@ -81,13 +81,15 @@ class _Recording(NetworkEstimator):
     def uncertainty(self, burst: PreparedBurst, temperature_c: np.ndarray, *, outside: bool
                     ) -> None:
         self.feats = features(burst.warped, burst.valid, temperature_c)
+        self.fpa_c = burst.fpa_c
         return None
 
 
 def scored_features(network: NetworkEstimator, bursts: list[dict]) -> list[tuple]:
     """Per burst of :func:`~thermocal.evaluation.heldout.eval_bursts`: ``(error, features,
-    estimate)`` over its scored pixels (seen by at least half the frames): ``(M,)`` °C,
-    ``(3, M)`` and the :class:`~thermocal.estimation.base.Estimate`."""
+    estimate, contrast)`` over its scored pixels (seen by at least half the frames): ``(M,)``
+    °C, ``(3, M)``, the :class:`~thermocal.estimation.base.Estimate` and ``(M,)`` the estimate
+    less the burst's FPA temperature as the pipeline gives it, °C."""
     rec = _Recording(network.model, network.norm)
     out = []
     for b in bursts:
@@ -95,7 +97,8 @@ def scored_features(network: NetworkEstimator, bursts: list[dict]) -> list[tuple
         est = estimate(frames, rec, fpa_c=b["fpa_read"], homographies=b["hs"],
                        pivot=b["pivot"], fill_defects=False)
         mask = b["mask"]
-        out.append(((est.temperature_c - b["truth"])[mask], rec.feats[:, mask], est))
+        out.append(((est.temperature_c - b["truth"])[mask], rec.feats[:, mask], est,
+                    est.temperature_c[mask].astype(np.float64) - rec.fpa_c))
     return out
 
 
@@ -198,15 +201,21 @@ def fit_network_sigma(weights: str | os.PathLike[str], *, per_scene: int | None 
                              per_scene=per_scene, camera=camera)
         on = {"chamber": str(chamber), "model_level_misfit_c": misfit["level_rms_c"]}
     rng = np.random.default_rng(seed)
-    errors, feats = [], []
-    for err, f, _ in scored_features(network, bursts):
+    errors, feats, labels, contrast = [], [], [], []
+    for i, (err, f, _, x) in enumerate(scored_features(network, bursts)):
         pick = rng.choice(err.size, size=min(PIXELS_PER_BURST, err.size), replace=False)
         errors.append(err[pick])
         feats.append(f[:, pick])
+        labels.append(np.full(pick.size, i))
+        contrast.append(x[pick])
     fitted_on = {**on, "scenes": sorted(scenes), "bursts": len(bursts),
                  "frames_per_burst": model.config.n_frames}
+    # units of the preset, one per burst: the level in two stages, with its contrast term;
+    # one camera (a chamber file's model): one stage, its level is the misfit's
+    population = ({"bursts": np.concatenate(labels), "contrast_c": np.concatenate(contrast)}
+                  if chamber is None else {})
     sigma = fit_sigma_model(np.concatenate(errors), np.concatenate(feats, axis=1),
-                            weights_sha256=content["sha256"], fitted_on=fitted_on)
+                            weights_sha256=content["sha256"], fitted_on=fitted_on, **population)
     if chamber is None:
         return sigma
     # the bursts are of the fitted model: what it misses of the camera's level, no view shows
@@ -234,7 +243,9 @@ def main(argv: list[str] | None = None) -> None:
     except ThermocalError as exc:  # one line, exit 2, as the commands say it
         print(f"sigma_fit: error: {exc}", file=sys.stderr)
         raise SystemExit(2) from None
-    print(f"σ model of {args.weights}: floor {sigma.floor_c:.3f} °C, coefficients "
+    contrast = ("" if sigma.contrast_per_c is None
+                else f", {sigma.contrast_per_c:.4f} °C per °C of contrast with the FPA")
+    print(f"σ model of {args.weights}: floor {sigma.floor_c:.3f} °C{contrast}, coefficients "
           f"{', '.join(f'{c:.3f}' for c in sigma.coef)}; fitted on {sigma.fitted_on['bursts']} "
           f"bursts ({sigma.fitted_on['pixels']} pixels); written to {out}")
 

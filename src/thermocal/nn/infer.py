@@ -292,7 +292,8 @@ class NetworkEstimator:
         beyond_training_c`)."""
         if self.sigma_model is None:
             return None
-        sigma = self.sigma_model.sigma(burst.warped, burst.valid, temperature_c, outside=outside)
+        sigma = self.sigma_model.sigma(burst.warped, burst.valid, temperature_c, outside=outside,
+                                       fpa_c=burst.fpa_c)
         if not outside or self.domain is None:
             return sigma
         frame_c = burst.warped[burst.pivot] if self.model.config.calibrated else None

@@ -2,7 +2,8 @@
 
 Per pivot pixel ``p``::
 
-    σ²(p) = floor² + exp(c0 + c1·ln(s_p + 0.05) + c2·ln(g_p + 0.05) + c3·ln(1 / n_p))
+    σ²(p) = floor² + (k·(T_p − t))² + exp(c0 + c1·ln(s_p + 0.05) + c2·ln(g_p + 0.05)
+                                          + c3·ln(1 / n_p))
 
 - ``s_p``: how much the views disagree, the standard deviation over the frames that see ``p`` of
   the calibrated, warped frames (°C): the fixed pattern the nominal calibration leaves,
@@ -12,6 +13,12 @@ Per pivot pixel ``p``::
 - ``n_p``: how many frames see ``p``;
 - ``floor``: what no view reveals, the unit's own level against the family's: fitted, and never
   below :data:`UNIT_FLOOR_MIN_C`;
+- ``k·(T_p − t)``: the part of the unit's level that grows with the contrast between the
+  estimate ``T_p`` and the FPA temperature ``t`` (°C; ``k`` per °C): a unit's responsivity
+  differs from its family's by a share of the signal, and the signal is that contrast. On the
+  preset's units the level's RMS grows from 0.47–0.66 °C where the scene is within 40 °C of
+  the FPA to 0.73–0.83 °C where it is 40–90 °C colder, in the units σ is fitted on and in two
+  held-out sets of 200 units alike (``coverage.py``'s and another);
 - for a network trained on one camera's chamber file, ``m(T)²`` more: what the camera model
   fitted on that file misses of the camera's level at scene temperature ``T`` (the estimate),
   measured on the file's frames at its blackbody set points, interpolated between them and
@@ -19,7 +26,11 @@ Per pivot pixel ``p``::
 
 The coefficients are fitted by minimising the Gaussian negative log-likelihood of the errors
 (a proper scoring rule) on bursts of the validation units over training scenes, never on the
-evaluation set, and stored in a JSON file beside the weights (``NAME.sigma.json``) with the
+evaluation set, in two stages where the bursts are of a population of units: the level's
+(``floor``, ``k``) on the bursts' mean errors, one draw per unit, against their mean contrast
+(the pixels of a burst share their unit's level: pooled as if independent, they would count
+one unit thousands of times); then ``c0 … c3`` on the pixels' errors, the level's variance
+held. The coefficients are stored in a JSON file beside the weights (``NAME.sigma.json``) with the
 SHA-256 of the weights they were fitted for. Outside the network's domain (``--force``) σ gains
 :attr:`SigmaModel.outside_c` in quadrature.
 """
@@ -42,13 +53,16 @@ from thermocal.errors import FileFormatError, InvalidInputError
 from thermocal.estimation.base import view_spread
 from thermocal.io.atomic import atomic_path
 
-__all__ = ["OUTSIDE_SIGMA_C", "UNIT_FLOOR_MIN_C", "SigmaModel", "features", "fit_sigma_model",
-           "sidecar_path"]
+__all__ = ["MAX_CONTRAST_PER_C", "OUTSIDE_SIGMA_C", "UNIT_FLOOR_MIN_C", "SigmaModel",
+           "features", "fit_sigma_model", "sidecar_path"]
 
 #: The smallest σ of a calibration-free estimate, °C: the unit's own scalars (gain, offset, FPA
 #: coefficients) alone leave 0.34 °C mean absolute error on the most typical unit of the
 #: preset (``benchmarks/unit_spread.py``: 0.34–0.69 °C over 200 units), σ = MAE·√(π/2).
 UNIT_FLOOR_MIN_C = 0.34 * math.sqrt(math.pi / 2)
+
+#: The largest contrast term a σ model may hold, °C of σ per °C between estimate and FPA.
+MAX_CONTRAST_PER_C = 0.2
 
 #: σ added in quadrature to an estimate outside the network's domain (``--force``), °C: the
 #: scale of the errors of the tau2-trained network on bursts of the ``boson`` family (1.1–11.4
@@ -90,6 +104,9 @@ class SigmaModel:
     misfit_c : ((K,) tuple, (K,) tuple) or None
         Scene temperatures (°C, increasing) and the camera model's level misfit there (°C RMS):
         a network trained on a chamber file's camera model (see the module docstring).
+    contrast_per_c : float or None
+        ``k``: the level's σ per °C of contrast between the estimate and the FPA temperature
+        (0 to :data:`MAX_CONTRAST_PER_C`); None for a model fitted without it.
     """
 
     floor_c: float
@@ -98,6 +115,7 @@ class SigmaModel:
     outside_c: float = OUTSIDE_SIGMA_C
     fitted_on: dict[str, Any] = field(default_factory=dict)
     misfit_c: tuple[tuple[float, ...], tuple[float, ...]] | None = None
+    contrast_per_c: float | None = None
 
     def __post_init__(self) -> None:
         if not (math.isfinite(self.floor_c) and UNIT_FLOOR_MIN_C - 1e-9 <= self.floor_c <= 10.0
@@ -107,6 +125,10 @@ class SigmaModel:
                 f"σ model: floor {self.floor_c!r:.12} °C (>= {UNIT_FLOOR_MIN_C:.2f}), "
                 f"coefficients {self.coef!r:.60} or outside σ {self.outside_c!r:.12} out of range"
             )
+        k = self.contrast_per_c
+        if k is not None and not (isinstance(k, float) and 0.0 <= k <= MAX_CONTRAST_PER_C):
+            raise InvalidInputError(f"σ model: contrast term {k!r:.12} per °C is not a number "
+                                    f"of 0-{MAX_CONTRAST_PER_C}")
         if self.misfit_c is not None:
             try:  # stored as tuples of floats, whatever it was given as (JSON, the digest)
                 t, m = (np.asarray(v, np.float64) for v in self.misfit_c)
@@ -121,9 +143,11 @@ class SigmaModel:
                     "their misfits of 0-10 °C")
 
     def sigma_of(self, feats: np.ndarray, *, outside: bool = False,
-                 temperature_c: np.ndarray | None = None) -> np.ndarray:
+                 temperature_c: np.ndarray | None = None, fpa_c: float | None = None
+                 ) -> np.ndarray:
         """σ (°C, ``(H, W)`` float32) from :func:`features`; with ``outside``, inflated; with
-        :attr:`misfit_c`, the misfit at ``temperature_c`` (the estimate, °C) added."""
+        :attr:`misfit_c`, the misfit at ``temperature_c`` (the estimate, °C) added; with
+        :attr:`contrast_per_c`, the level's part that grows with ``temperature_c − fpa_c``."""
         c = np.asarray(self.coef)
         log_var = c[0] + np.tensordot(c[1:], feats, axes=1)
         var = self.floor_c**2 + np.exp(np.minimum(log_var, 10.0))
@@ -131,6 +155,12 @@ class SigmaModel:
             if temperature_c is None:
                 raise InvalidInputError("σ model: its misfit needs the estimate's temperature")
             var = var + self.misfit_at(temperature_c) ** 2
+        if self.contrast_per_c is not None:
+            if temperature_c is None or fpa_c is None:
+                raise InvalidInputError("σ model: its contrast term needs the estimate's "
+                                        "temperature and the FPA temperature")
+            var = var + (self.contrast_per_c
+                         * (np.asarray(temperature_c, np.float64) - float(fpa_c))) ** 2
         if outside:
             var = var + self.outside_c**2
         return np.sqrt(var).astype(np.float32)
@@ -154,16 +184,19 @@ class SigmaModel:
         return out
 
     def sigma(self, warped: np.ndarray, valid: np.ndarray, temperature_c: np.ndarray, *,
-              outside: bool = False) -> np.ndarray:
-        """σ (°C, ``(H, W)`` float32) of an estimate ``temperature_c`` from its burst."""
+              outside: bool = False, fpa_c: float | None = None) -> np.ndarray:
+        """σ (°C, ``(H, W)`` float32) of an estimate ``temperature_c`` from its burst, whose
+        FPA temperature is ``fpa_c`` (°C)."""
         return self.sigma_of(features(warped, valid, temperature_c), outside=outside,
-                             temperature_c=temperature_c)
+                             temperature_c=temperature_c, fpa_c=fpa_c)
 
     def _content(self) -> dict[str, Any]:
-        """Its fields, without a misfit it has not (files from before it keep their SHA-256)."""
+        """Its fields, without a misfit or contrast term it has not (files from before them
+        keep their SHA-256)."""
         d = asdict(self)
-        if d["misfit_c"] is None:
-            del d["misfit_c"]
+        for key in ("misfit_c", "contrast_per_c"):
+            if d[key] is None:
+                del d[key]
         return d
 
     def digest(self) -> str:
@@ -195,12 +228,13 @@ class SigmaModel:
                     d.pop("version", None) != 1:
                 raise ValueError("not a thermocal σ model")
             stored = d.pop("sha256", None)
-            misfit = d.get("misfit_c")
+            misfit, k = d.get("misfit_c"), d.get("contrast_per_c")
             model = cls(float(d["floor_c"]), tuple(float(c) for c in d["coef"]),
                         d.get("weights_sha256"), float(d.get("outside_c", OUTSIDE_SIGMA_C)),
                         dict(d.get("fitted_on") or {}),
                         None if misfit is None else tuple(tuple(float(v) for v in part)
-                                                          for part in misfit))
+                                                          for part in misfit),
+                        None if k is None else float(k))
             if stored != model.digest():
                 raise ValueError("its content does not match its SHA-256")
         except (OSError, ValueError, KeyError, TypeError, InvalidInputError) as exc:
@@ -220,7 +254,8 @@ def sidecar_path(weights: str | os.PathLike[str]) -> Path:
 
 
 def fit_sigma_model(errors: np.ndarray, feats: np.ndarray, *, weights_sha256: str | None,
-                    fitted_on: dict[str, Any] | None = None) -> SigmaModel:
+                    fitted_on: dict[str, Any] | None = None, bursts: np.ndarray | None = None,
+                    contrast_c: np.ndarray | None = None) -> SigmaModel:
     """Fit σ by minimising the mean Gaussian negative log-likelihood of ``errors``.
 
     Parameters
@@ -231,21 +266,73 @@ def fit_sigma_model(errors: np.ndarray, feats: np.ndarray, *, weights_sha256: st
         Their :func:`features`.
     weights_sha256, fitted_on
         Recorded in the model.
+    bursts, contrast_c : (M,) arrays, optional
+        The burst of each pixel (labels), and its estimate less the burst's FPA temperature,
+        °C: given both, bursts of a population of units, one each, and the fit is in two stages
+        (see the module docstring) with the contrast term; without, one stage, no contrast term
+        (bursts of one camera).
     """
-    e2 = np.asarray(errors, np.float64) ** 2
+    e = np.asarray(errors, np.float64)
     f = np.asarray(feats, np.float64)
-    if e2.ndim != 1 or f.shape != (3, e2.size) or e2.size < 100 or not np.all(np.isfinite(e2)):
+    if e.ndim != 1 or f.shape != (3, e.size) or e.size < 100 or not np.all(np.isfinite(e)):
         raise InvalidInputError("fit_sigma_model: need >= 100 finite errors and (3, M) features")
+    if (bursts is None) != (contrast_c is None):
+        raise InvalidInputError("fit_sigma_model: give both bursts and contrast_c, or neither")
+    level = None
+    if bursts is not None:
+        labels, x = np.asarray(bursts), np.asarray(contrast_c, np.float64)
+        if labels.shape != e.shape or x.shape != e.shape or not np.all(np.isfinite(x)):
+            raise InvalidInputError("fit_sigma_model: bursts and contrast_c must be finite, "
+                                    f"one per error ({e.size})")
+        level = _fit_level(e, x, labels)
+    e2 = e**2
+    opts = {"maxiter": 4000, "xatol": 1e-4, "fatol": 1e-7}
+    if level is None:
+        def nll(theta: np.ndarray) -> float:
+            floor2 = UNIT_FLOOR_MIN_C**2 + math.exp(theta[0])
+            var = floor2 + np.exp(np.minimum(theta[1] + theta[2:] @ f, 10.0))
+            return float(np.mean(np.log(var) + e2 / var))
+
+        start = np.array([math.log(0.05), math.log(max(float(e2.mean()), 1e-4)), 0.0, 0.0, 0.0])
+        best = minimize(nll, start, method="Nelder-Mead", options=opts)
+        floor, k, coef = math.sqrt(UNIT_FLOOR_MIN_C**2 + math.exp(best.x[0])), None, best.x[1:]
+    else:
+        floor, k = level
+        held = floor**2 + (k * x) ** 2  # the level's variance, held in the second stage
+
+        def nll(theta: np.ndarray) -> float:
+            var = held + np.exp(np.minimum(theta[0] + theta[1:] @ f, 10.0))
+            return float(np.mean(np.log(var) + e2 / var))
+
+        start = np.array([math.log(max(float(e2.mean()) - float(held.mean()), 1e-4)),
+                          0.0, 0.0, 0.0])
+        best = minimize(nll, start, method="Nelder-Mead", options=opts)
+        coef = best.x
+    info = dict(fitted_on or {}) | {"pixels": int(e.size), "mean_nll": float(best.fun)}
+    return SigmaModel(floor, tuple(float(c) for c in coef), weights_sha256, fitted_on=info,
+                      contrast_per_c=k)
+
+
+def _fit_level(errors: np.ndarray, contrast_c: np.ndarray, bursts: np.ndarray
+               ) -> tuple[float, float]:
+    """The level's ``(floor, k)`` (°C, per °C): the Gaussian NLL of the bursts' mean errors,
+    variance ``floor² + (k · mean contrast)²``, floor never below :data:`UNIT_FLOOR_MIN_C`
+    and ``k`` at most :data:`MAX_CONTRAST_PER_C`."""
+    _, idx = np.unique(bursts, return_inverse=True)
+    count = np.bincount(idx)
+    if count.size < 10:
+        raise InvalidInputError(f"fit_sigma_model: {count.size} bursts cannot show how the "
+                                "units' level spreads: need >= 10")
+    lev = np.bincount(idx, errors) / count
+    c2 = (np.bincount(idx, contrast_c) / count) ** 2
 
     def nll(theta: np.ndarray) -> float:
-        floor2 = UNIT_FLOOR_MIN_C**2 + math.exp(theta[0])
-        var = floor2 + np.exp(np.minimum(theta[1] + theta[2:] @ f, 10.0))
-        return float(np.mean(np.log(var) + e2 / var))
+        var = UNIT_FLOOR_MIN_C**2 + math.exp(theta[0]) + math.exp(theta[1]) * c2
+        return float(np.sum(np.log(var) + lev**2 / var))
 
-    start = np.array([math.log(0.05), math.log(max(float(e2.mean()), 1e-4)), 0.0, 0.0, 0.0])
+    start = np.array([math.log(max(float(np.mean(lev**2)) - UNIT_FLOOR_MIN_C**2, 1e-3)),
+                      math.log(1e-5)])
     best = minimize(nll, start, method="Nelder-Mead",
-                    options={"maxiter": 4000, "xatol": 1e-4, "fatol": 1e-7})
-    floor = math.sqrt(UNIT_FLOOR_MIN_C**2 + math.exp(best.x[0]))
-    info = dict(fitted_on or {}) | {"pixels": int(e2.size), "mean_nll": float(best.fun)}
-    return SigmaModel(floor, tuple(float(c) for c in best.x[1:]), weights_sha256,
-                      fitted_on=info)
+                    options={"maxiter": 4000, "xatol": 1e-6, "fatol": 1e-9})
+    return (math.sqrt(UNIT_FLOOR_MIN_C**2 + math.exp(best.x[0])),
+            min(math.sqrt(math.exp(best.x[1])), MAX_CONTRAST_PER_C))

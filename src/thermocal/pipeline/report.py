@@ -236,9 +236,12 @@ def _sigma_model(options: dict[str, Any]) -> str | None:
           "file, with what that model misses of the camera's level on the file's frames"
           if fitted.get("chamber") else
           "fitted")
+    contrast = ("" if sigma.contrast_per_c is None else
+                f", and by {sigma.contrast_per_c:.3f} °C per °C the scene lies from the FPA "
+                "temperature")
     return (f"σ model {path.name}: σ grows where the frames disagree, at edges and where fewer "
             f"frames see a pixel, never below {sigma.floor_c:.2f} °C (the unit's own level, "
-            f"which no view reveals); {on}; outside the network's domain (--force) "
+            f"which no view reveals{contrast}); {on}; outside the network's domain (--force) "
             f"{sigma.outside_c:.0f} °C more in quadrature, and the whole distance beyond its "
             "training scenes")
 
