@@ -100,13 +100,13 @@ def test_one_factor_per_method_is_found_only_where_every_cases_factors_meet():
              row("two-point", "boson", "ramp", rng.uniform(-1.0, 1.0, sigma.size))]
     lines = {ln.split("|")[1].strip(): ln for ln in method_factors(rows).splitlines()
              if ln.startswith("| ") and "method" not in ln}
-    lo, hi = (float(v) for v in lines["lin"].split("|")[5].strip(" ×").split("–"))
+    lo, hi = (float(v) for v in lines["lin"].split("|")[6].strip(" ×").split("–"))
     assert lo < 2.0 < hi and hi / lo < 1.3
     assert "none: tau2 101 ramp needs ≤" in lines["wolf2016"]
     needs = float(lines["wolf2016"].split("boson 101 ramp ≥ ")[1].split()[0])
     assert 2.5 < needs < 3.0  # a Gaussian of 1.5 °C under a stated 0.5
     # each family alone has one case: its own interval
-    assert lines["wolf2016"].split("|")[6].strip().startswith("×")
+    assert lines["wolf2016"].split("|")[7].strip().startswith("×")
     assert "no factor in band for 1 of 2 (boson 101 ramp" in lines["two-point"]
     rect = rescaled_coverage(rng.uniform(-1.0, 1.0, sigma.size), sigma)
     assert rect["band_factors"] is None
@@ -165,3 +165,13 @@ def test_the_fits_accumulation_rate_is_measured_on_its_own_code():
 
     rate = accumulate_rate((16, 32), frames=8, rounds=2)
     assert np.isfinite(rate) and rate > 0
+
+
+def test_a_frames_silent_share_is_a_gaussians_beyond_both_1c_and_2_sigma():
+    from scipy import stats
+
+    from thermocal.evaluation.suites.coverage import _silent_share
+
+    assert _silent_share(np.full(5, 1.0)) == pytest.approx(2 * stats.norm.sf(2.0))  # 2σ binds
+    assert _silent_share(np.full(5, 0.25)) == pytest.approx(2 * stats.norm.sf(4.0))  # 1 °C binds
+    assert _silent_share(np.zeros(3)) == 0.0

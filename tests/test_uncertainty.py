@@ -12,6 +12,7 @@ from cli_run import run
 
 from thermocal.errors import FileFormatError, InvalidInputError
 from thermocal.nn.uncertainty import (
+    MAX_CONTRAST_PER_C,
     OUTSIDE_SIGMA_C,
     UNIT_FLOOR_MIN_C,
     SigmaModel,
@@ -70,8 +71,38 @@ def test_the_two_stage_fit_recovers_a_level_growing_with_the_contrast(tmp_path):
     assert SigmaModel.load(path, weights_sha256="x") == model
     with pytest.raises(InvalidInputError, match="contrast"):
         SigmaModel(0.5, (0.0, 0.0, 0.0, 0.0), contrast_per_c=0.5)
-    assert "contrast_per_c" not in SigmaModel(0.5, (0.0,) * 4).save(tmp_path / "p.json"
-                                                                   ).read_text()
+    plain = SigmaModel(0.5, (0.0,) * 4)
+    text = plain.save(tmp_path / "p.json").read_text()
+    assert "contrast_per_c" not in text and '"version": 1' in text
+    # a model without the term needs no FPA temperature (as before it existed)
+    assert plain.sigma_of(np.zeros((3, 2, 2))).shape == (2, 2)
+    # written as version 2, which a reader of version 1 would refuse rather than misapply
+    assert '"version": 2' in path.read_text()
+    for old, new in (('"version": 2', '"version": 1'), ('"version": 2', '"version": 3')):
+        (tmp_path / "v.json").write_text(path.read_text().replace(old, new))
+        with pytest.raises(FileFormatError, match="contrast term|format version 3"):
+            SigmaModel.load(tmp_path / "v.json", weights_sha256="x")
+    assert SigmaModel(0.5, (0.0,) * 4, contrast_per_c=0).contrast_per_c == 0.0
+    with pytest.raises(InvalidInputError, match="contrast"):
+        SigmaModel(0.5, (0.0,) * 4, contrast_per_c=True)
+    # a contrast beyond the bound is held there, and the floor refitted with it (not left to
+    # the pixel term)
+    wide = rng.normal(0.0, np.sqrt(floor**2 + (0.3 * contrast_b) ** 2))
+    capped = fit_sigma_model(wide[labels] + errors - level[labels], f, weights_sha256="x",
+                             bursts=labels, contrast_c=contrast)
+    assert capped.contrast_per_c == MAX_CONTRAST_PER_C and capped.floor_c > floor + 0.3
+
+
+def test_the_shipped_fit_of_sigma_takes_its_units_one_per_burst():
+    """fit_network_sigma on the preset's units (one scene-pass each, 11 bursts): the level's
+    contrast term fitted on the bursts, each of its own unit."""
+    from thermocal.evaluation.sigma_fit import fit_network_sigma
+    from thermocal.nn.infer import shipped_model_path
+
+    sigma = fit_network_sigma(shipped_model_path("kpn"), per_scene=1)
+    assert sigma.fitted_on["bursts"] == len(sigma.fitted_on["units"]) >= 10
+    assert sigma.contrast_per_c is not None and 0.0 <= sigma.contrast_per_c <= 0.2
+    assert sigma.floor_c >= UNIT_FLOOR_MIN_C - 1e-9
 
 
 def test_the_floor_is_never_below_the_unit_spread():

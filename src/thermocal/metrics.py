@@ -741,7 +741,7 @@ COVERAGE_BANDS = ((0.63, 0.73), (0.92, 0.98))
 
 def rescaled_coverage(errors: Any, sigma: Any, *,
                       bands: tuple[tuple[float, float], tuple[float, float]] = COVERAGE_BANDS
-                      ) -> dict[str, float | bool]:
+                      ) -> dict[str, float | bool | list[float] | None]:
     """What the stated σ's *shape* allows: the one factor ``k`` on every σ (°C, the shape of
     ``errors``) whose coverage comes closest (least squares) to a Gaussian's 68.3 % within 1σ
     and 95.4 % within 2σ, its coverage, and whether any ``k`` puts both shares in ``bands``.

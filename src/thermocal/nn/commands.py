@@ -355,7 +355,10 @@ def _fit_sigma(weights: Path, *, chamber: Path | None) -> None:
     on = ("units it never saw" if chamber is None else
           f"the camera model fitted on {chamber}, with what that model misses of the camera's "
           f"level on its frames: {sigma.fitted_on['model_level_misfit_c']:.2f} °C RMS")
-    click.echo(f"σ model (floor {sigma.floor_c:.2f} °C, fitted on {sigma.fitted_on['bursts']} "
+    contrast = ("" if sigma.contrast_per_c is None else
+                f" + {sigma.contrast_per_c:.3f} °C per °C between scene and FPA")
+    click.echo(f"σ model (floor {sigma.floor_c:.2f} °C{contrast}, fitted on "
+               f"{sigma.fitted_on['bursts']} "
                f"bursts of {on}) written to {path}", err=True)
 
 

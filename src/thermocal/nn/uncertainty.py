@@ -92,7 +92,8 @@ class SigmaModel:
     Attributes
     ----------
     floor_c : float
-        σ of the unit's own level, °C (>= :data:`UNIT_FLOOR_MIN_C`).
+        σ of the unit's own level where the scene is at the FPA temperature (no contrast), °C
+        (>= :data:`UNIT_FLOOR_MIN_C`).
     coef : (4,) tuple of float
         ``c0 … c3``.
     weights_sha256 : str or None
@@ -126,9 +127,12 @@ class SigmaModel:
                 f"coefficients {self.coef!r:.60} or outside σ {self.outside_c!r:.12} out of range"
             )
         k = self.contrast_per_c
-        if k is not None and not (isinstance(k, float) and 0.0 <= k <= MAX_CONTRAST_PER_C):
-            raise InvalidInputError(f"σ model: contrast term {k!r:.12} per °C is not a number "
-                                    f"of 0-{MAX_CONTRAST_PER_C}")
+        if k is not None:
+            if isinstance(k, (int, float)) and not isinstance(k, bool):
+                object.__setattr__(self, "contrast_per_c", k := float(k))  # JSON, the digest
+            if not (isinstance(k, float) and 0.0 <= k <= MAX_CONTRAST_PER_C):
+                raise InvalidInputError(f"σ model: contrast term {k!r:.12} per °C is not a "
+                                        f"number of 0-{MAX_CONTRAST_PER_C}")
         if self.misfit_c is not None:
             try:  # stored as tuples of floats, whatever it was given as (JSON, the digest)
                 t, m = (np.asarray(v, np.float64) for v in self.misfit_c)
@@ -206,7 +210,9 @@ class SigmaModel:
 
     def save(self, path: str | os.PathLike[str]) -> Path:
         """Write it as JSON (atomically), with the SHA-256 of its content."""
-        text = json.dumps({"format": _FORMAT, "version": 1, **self._content(),
+        # version 2: with a contrast term, which a reader of version 1 would not apply
+        version = 1 if self.contrast_per_c is None else 2
+        text = json.dumps({"format": _FORMAT, "version": version, **self._content(),
                            "sha256": self.digest()}, indent=1, sort_keys=True)
         with atomic_path(Path(path)) as tmp:
             Path(tmp).write_text(text + "\n", encoding="utf-8")
@@ -224,9 +230,14 @@ class SigmaModel:
         p = Path(path)
         try:
             d = json.loads(p.read_text(encoding="utf-8"))
-            if not isinstance(d, dict) or d.pop("format", None) != _FORMAT or \
-                    d.pop("version", None) != 1:
+            if not isinstance(d, dict) or d.pop("format", None) != _FORMAT:
                 raise ValueError("not a thermocal σ model")
+            version = d.pop("version", None)
+            if version not in (1, 2):
+                raise ValueError(f"format version {version!r:.20}, this thermocal reads 1 and 2")
+            if (version == 2) != (d.get("contrast_per_c") is not None):
+                raise ValueError(f"version {version} with{'out' if version == 2 else ''} a "
+                                 "contrast term")
             stored = d.pop("sha256", None)
             misfit, k = d.get("misfit_c"), d.get("contrast_per_c")
             model = cls(float(d["floor_c"]), tuple(float(c) for c in d["coef"]),
@@ -332,7 +343,11 @@ def _fit_level(errors: np.ndarray, contrast_c: np.ndarray, bursts: np.ndarray
 
     start = np.array([math.log(max(float(np.mean(lev**2)) - UNIT_FLOOR_MIN_C**2, 1e-3)),
                       math.log(1e-5)])
-    best = minimize(nll, start, method="Nelder-Mead",
-                    options={"maxiter": 4000, "xatol": 1e-6, "fatol": 1e-9})
-    return (math.sqrt(UNIT_FLOOR_MIN_C**2 + math.exp(best.x[0])),
-            min(math.sqrt(math.exp(best.x[1])), MAX_CONTRAST_PER_C))
+    opts = {"maxiter": 4000, "xatol": 1e-6, "fatol": 1e-9}
+    best = minimize(nll, start, method="Nelder-Mead", options=opts)
+    k = math.sqrt(math.exp(best.x[1]))
+    if k > MAX_CONTRAST_PER_C:  # held at the bound: the floor refitted with it
+        k = MAX_CONTRAST_PER_C
+        best = minimize(lambda t: nll(np.array([t[0], 2 * math.log(k)])), best.x[:1],
+                        method="Nelder-Mead", options=opts)
+    return math.sqrt(UNIT_FLOOR_MIN_C**2 + math.exp(best.x[0])), k
