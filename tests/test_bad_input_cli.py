@@ -502,6 +502,13 @@ CASES = [
     ("nuc-recording-missing",
      ["nuc", "{root}/nope.tiff", "--method", "admire", "--out", "{tmp}/t.tiff"],
      "nope.tiff: no such file"),
+    ("nuc-method-missing",  # click lists the choices a line each: one line here
+     ["nuc", "{root}/rec.tiff", "--out", "{tmp}/t.tiff"],
+     "Missing option '--method'. Choose from: harris1999, scribner"),
+    ("report-of-a-folder-that-is-not-a-flights-output",
+     ["report", "{root}/emptydir"], "summary.json: missing"),
+    ("report-of-no-folder",
+     ["report", "{root}/nope"], "not a folder"),
     ("nuc-method-unknown",
      ["nuc", "{root}/rec.tiff", "--method", "nope", "--out", "{tmp}/t.tiff"],
      "Invalid value for '--method': 'nope'"),

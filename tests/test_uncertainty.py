@@ -200,6 +200,7 @@ def test_estimate_writes_sigma_and_inflates_it_outside(tmp_path, capsys):
         code, _, err = run(["estimate", path, "--out", out, "--sigma-out", sig, "--force"],
                            capsys)
         assert code == 0, err
+        assert f"and its σ to {sig}" in err  # the console names both files
         sigma = tifffile.imread(sig)
         assert sigma.shape == (256, 336) and sigma.dtype == np.float32
         if preset == "tau2":

@@ -394,7 +394,8 @@ def main(argv: list[str] | None = None) -> None:
         sys.exit(130)
     except click.exceptions.ClickException as exc:
         # one line, like every other bad input (click's own form prints the usage too)
-        click.echo(f"thermocal: error: {exc.format_message()}", err=True)
+        # (a missing choice option lists its choices a line each: joined)
+        click.echo(f"thermocal: error: {' '.join(exc.format_message().split())}", err=True)
         sys.exit(exc.exit_code)
     except ThermocalError as exc:
         click.echo(f"thermocal: error: {_one_line(exc)}", err=True)

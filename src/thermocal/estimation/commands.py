@@ -223,7 +223,8 @@ def estimate(
         backend=backend,
         threads=threads,
     )
-    click.echo(f"wrote {out}", err=True)
+    click.echo(f"wrote {out}" + (f" and its σ to {sigma_out}" if sigma_out is not None else ""),
+               err=True)
 
 
 def _pivot_pace(rec: Any, estimator: Any, window: slice, pivot: int | None) -> dict[str, Any]:
