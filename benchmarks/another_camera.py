@@ -18,8 +18,9 @@ it, and each walk frame goes through the product's pipeline as ``thermocal estim
 calibration`` takes frame k of a recording (its FPA pace from the recording). Prints a Markdown
 table per part: the imprint's range (slope; :func:`~thermocal.calibration.imprint.imprint`),
 how many frames are refused and how many of those as another camera's (the imprint among the
-reasons), what those would have given forced (their MAE, and how many lay inside every other
-range: accepted before the imprint was checked), the MAE of the frames accepted and how many
+reasons), what those would have given forced (their MAE, how many of their errors lie within
+the σ stated forced and twice it, and how many lay inside every other range: accepted before
+the imprint was checked), the MAE of the frames accepted and how many
 of those are silent (error above 1 °C and twice the median σ).
 
     .venv/bin/python benchmarks/another_camera.py [--size 96x72] [--quick]
@@ -43,6 +44,7 @@ from thermocal.estimation.calibrated import PivotCalibration
 from thermocal.estimation.paces import pace_at, recording_paces
 from thermocal.estimation.pipeline import estimate
 from thermocal.evaluation.suites import physics
+from thermocal.metrics import sigma_coverage
 from thermocal.scenes.builtin import load_builtin_scene
 from thermocal.scenes.procedural import procedural_scene
 from thermocal.simulate.flight import flat_field_corrected, simulate_flight
@@ -93,7 +95,7 @@ def _walk_rows(cals: dict, family: str, size: tuple[int, int], fpas: tuple[float
             flights = [replace(fl, frames=flat_field_corrected(camera, fl)) for fl in flights]
         for name, cal in cals.items():
             estimator = PivotCalibration(cal, report_needed=True)
-            slopes, accepted_err, forced_err = [], [], []
+            slopes, accepted_err, forced_err, forced_pairs = [], [], [], []
             refused = foreign = silent = before = 0
             for fl in flights:
                 temps = _quiet(cal.apply, fl.frames, fpa_c=fl.fpa_c, time_s=fl.time_s)
@@ -113,6 +115,9 @@ def _walk_rows(cals: dict, family: str, size: tuple[int, int], fpas: tuple[float
                             forced = _quiet(estimate, fl.frames, estimator, force=True, **args)
                             forced_err.append(float(np.abs(forced.temperature_c
                                                            - fl.truth_c[k]).mean()))
+                            if forced.sigma_c is not None:  # the σ it states, grown
+                                forced_pairs.append((forced.temperature_c - fl.truth_c[k],
+                                                     forced.sigma_c))
                             before += all(FOREIGN in r for r in forced.outside)
                         continue
                     err = np.abs(est.temperature_c - fl.truth_c[k])
@@ -122,6 +127,10 @@ def _walk_rows(cals: dict, family: str, size: tuple[int, int], fpas: tuple[float
                          f"{unit})", "slopes": slopes, "refused": refused, "foreign": foreign,
                          "silent": silent, "frames": len(slopes),
                          "accepted_mae": accepted_err, "forced_mae": forced_err,
+                         "forced_coverage": (sigma_coverage(
+                             np.concatenate([e.ravel() for e, _ in forced_pairs]),
+                             np.concatenate([v.ravel() for _, v in forced_pairs]))
+                             if forced_pairs else None),
                          "before": before})
     return rows
 
@@ -158,14 +167,19 @@ def _span(slopes: list[float]) -> tuple[str, int]:
 def _table(rows: list[dict]) -> str:
     out = ["| calibration | frames of | imprint (min … median … max) | not judged | "
            "refused | of which as another camera's | those forced: MAE °C (min … max) | "
+           "within 1σ / 2σ of the σ stated forced (median σ °C) | "
            "of those, inside every other range | accepted: MAE °C (max) | silent |",
-           "|---|---|---|---|---|---|---|---|---|---|"]
+           "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         span, unjudged = _span(r["slopes"])
         mae, forced = r["accepted_mae"], r["forced_mae"]
         mae_cell = f"{np.mean(mae):.2f} ({np.max(mae):.2f})" if mae else "–"
         forced_cell = (f"{np.mean(forced):.2f} ({np.min(forced):.2f} … {np.max(forced):.2f})"
                        if forced else "–")
+        cov = r.get("forced_coverage")
+        forced_cell += (" | –" if cov is None else
+                        f" | {100 * cov['within_1sigma']:.0f} / {100 * cov['within_2sigma']:.0f}"
+                        f" % ({cov['median_sigma_c']:.1f})")
         out.append(f"| {r['calibration']} | {r['frames of']} | {span} | {unjudged} | "
                    f"{r['refused']} of {r['frames']} | {r['foreign']} | {forced_cell} | "
                    f"{r['before']} | {mae_cell} | {r['silent']} |")
