@@ -134,6 +134,22 @@ def test_summaries_are_means_over_maps_then_passes():
     assert rows["x"]["mae_c"] == pytest.approx(0.3)  # the mean of the passes' means
     assert rows["x"]["pass_mae_range_c"] == pytest.approx([0.2, 0.4])
     assert rows["y"]["passes"] == 1 and rows["y"]["passes_without_maps"] == 1
+    assert rows["x"]["within_1sigma_interval"] is None  # no units named
+
+
+def test_the_sigma_shares_carry_an_interval_over_units():
+    """Passes of six units, each unit's maps covering its own share: the interval is the
+    bootstrap's over the units' means, and spans the mean."""
+    results = [{"pass": {"unit": u},
+                "methods": {"x": {"summary": {"maps": 3, **dict.fromkeys(SCORES, 0.1),
+                                              "mean_abs_bias_c": 0.1, "within_1sigma": share,
+                                              "within_2sigma": 0.95, "median_sigma_c": 0.2}}}}
+               for u, share in zip((1, 1, 2, 3, 4, 5, 6), (0.5, 0.5, 0.6, 0.7, 0.8, 0.9, 0.6),
+                                   strict=True)]
+    row = summarise_passes(results)[0]
+    lo, hi = row["within_1sigma_interval"]
+    assert lo < 0.65 < hi and hi - lo > 0.05
+    assert row["within_2sigma_interval"] is None  # the same in every unit
 
 
 def test_only_held_out_scenes():
