@@ -16,8 +16,8 @@ Per pivot pixel ``p``::
 - ``k·(T_p − t)``: the part of the unit's level that grows with the contrast between the
   estimate ``T_p`` and the FPA temperature ``t`` (°C; ``k`` per °C): a unit's responsivity
   differs from its family's by a share of the signal, and the signal is that contrast. On the
-  preset's units the level's RMS grows from 0.47–0.66 °C where the scene is within 40 °C of
-  the FPA to 0.73–0.83 °C where it is 40–90 °C colder, in the units σ is fitted on and in two
+  preset's units the level's RMS grows from 0.47–0.66 °C where the scene is 0–40 °C colder
+  than the FPA to 0.73–0.83 °C where it is 40–90 °C colder, in the units σ is fitted on and in two
   held-out sets of 200 units alike (``coverage.py``'s and another);
 - for a network trained on one camera's chamber file, ``m(T)²`` more: what the camera model
   fitted on that file misses of the camera's level at scene temperature ``T`` (the estimate),

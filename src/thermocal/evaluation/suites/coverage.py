@@ -129,21 +129,25 @@ def _run(network: NetworkEstimator, bursts: list[dict]) -> dict:
     for name, pairs in kept.items():
         out[name] = sigma_coverage(*_pooled(pairs)) if pairs else None
     out["accepted_rescaled"] = _rescaled(kept["accepted"])
-    # a unit's bursts share its level: the interval resamples units
-    units = [_pooled(pairs) for pairs in by_unit.values()]
-    out["accepted_interval"] = coverage_interval(units) if len(units) > 1 else None
+    out["accepted_interval"] = _unit_interval(by_unit)
     out["accepted_by_condition"] = {key: _condition_cell(cell)
                                     for key, cell in sorted(by_condition.items())}
     return out
+
+
+def _unit_interval(by_unit: dict[int, list]) -> dict | None:
+    """:func:`~thermocal.metrics.coverage_interval` of ``(errors, σ)`` pairs by unit, resampling
+    whole units (a unit's bursts share its level); None for fewer than two units."""
+    units = [_pooled(pairs) for pairs in by_unit.values()]
+    return coverage_interval(units) if len(units) > 1 else None
 
 
 def _condition_cell(by_unit: dict[int, list]) -> dict:
     """The coverage of one condition's accepted bursts (``(errors, σ)`` pairs by unit), with
     its interval over units where there are two or more."""
     pairs = [p for unit in by_unit.values() for p in unit]
-    units = [_pooled(unit) for unit in by_unit.values()]
-    return {"bursts": len(pairs), "units": len(units), **sigma_coverage(*_pooled(pairs)),
-            "interval": coverage_interval(units) if len(units) > 1 else None}
+    return {"bursts": len(pairs), "units": len(by_unit), **sigma_coverage(*_pooled(pairs)),
+            "interval": _unit_interval(by_unit)}
 
 
 def _pooled(pairs: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.ndarray]:
