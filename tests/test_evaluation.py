@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
+from thermocal.errors import InvalidInputError
 from thermocal.evaluation.heldout import eval_bursts, other_unit_calibration
 from thermocal.evaluation.references import FAMILY_ROW, ExactModel, reference_scores
 from thermocal.evaluation.scoring import scores, split_error, summarise
@@ -82,3 +83,36 @@ def test_held_out_set_and_references():
     own = out["(reference) own two-point at the burst FPA (eq. 9 mean)"]
     other = out["two-point, other unit, FPA 30 °C (pivot frame)"]
     assert own["mae"] < 0.3 < other["mae"]  # the unit's own calibration is the best reference
+
+
+def test_level_rows_recover_a_known_spread_of_units_levels():
+    """Levels drawn from the stated Gaussian cover it as a Gaussian does; levels twice as wide
+    are told (RMS twice the stated, fewer within 1σ); the interval resamples whole units."""
+    from thermocal.evaluation.suites.level_contrast import level_rows
+
+    rng = np.random.default_rng(3)
+    n = 4000
+    contrast = rng.uniform(-80.0, 20.0, n)
+    unit = np.arange(n)
+    stated = np.sqrt(0.5**2 + (0.01 * contrast) ** 2)
+    rows = level_rows(rng.normal(0.0, stated), contrast, unit, floor_c=0.5, contrast_per_c=0.01)
+    assert [r["bin"] for r in rows] == [(-90.0, -40.0), (-40.0, -20.0), (-20.0, 0.0),
+                                        (0.0, 60.0), None]
+    assert sum(r["bursts"] for r in rows[:-1]) == rows[-1]["bursts"] == n
+    for r in rows:
+        assert r["rms_c"] == pytest.approx(r["stated_c"], rel=0.12)
+        assert r["interval_c"][0] < r["rms_c"] < r["interval_c"][1]
+        assert 0.60 < r["within_1sigma"] < 0.76 and 0.90 < r["within_2sigma"] < 0.99
+    cold = rows[0]  # the stated level grows with the contrast
+    assert cold["stated_c"] > rows[3]["stated_c"] + 0.15
+    wide = level_rows(rng.normal(0.0, 2 * stated), contrast, unit, floor_c=0.5,
+                      contrast_per_c=0.01)[-1]
+    assert wide["rms_c"] == pytest.approx(2 * wide["stated_c"], rel=0.1)
+    assert wide["within_1sigma"] < 0.45
+    # one unit's many bursts are one draw: no interval over one unit
+    one = level_rows(np.full(5, 0.3), np.full(5, -10.0), np.zeros(5), floor_c=0.5,
+                     contrast_per_c=None)
+    assert one[0]["interval_c"] is None and one[0]["stated_c"] == pytest.approx(0.5)
+    with pytest.raises(InvalidInputError):
+        level_rows(np.array([np.nan]), np.zeros(1), np.zeros(1), floor_c=0.5,
+                   contrast_per_c=None)
