@@ -387,3 +387,27 @@ def test_a_pass_of_another_family_is_refused_and_forced_with_sigma_grown(capsys,
     assert code == 0, err
     sigma = tifffile.imread(tmp_path / "c" / "temps" / f"{maps[0].stem}_sigma.tiff")
     assert sigma.min() >= OTHER_FAMILY_SIGMA_C
+
+
+def test_family_level_sigma_covers_other_units_levels_and_grows_with_the_fpa():
+    """The level σ of a calibration-free pass is the family's unit-to-unit spread at the pass's
+    FPA and scene: other units' frame-mean shifts from the family (computed apart, by the
+    unit-spread benchmark's route: the exact family model, whole 336×256 frames) lie within it
+    about as often as a Gaussian's do, and it grows with the FPA as the units' spread does."""
+    from thermocal.estimation.selfcal import LEVEL_UNITS, family_level_sigma
+    from thermocal.evaluation.references import ExactModel
+    from thermocal.evaluation.suites import unit_spread
+    from thermocal.nn.data import TRAIN_UNITS
+
+    others = tuple(range(2000, 2060))
+    assert not set(others) & (set(LEVEL_UNITS) | set(TRAIN_UNITS))
+    family = ExactModel.family(TRAIN_UNITS).model
+    shifts = unit_spread.shifts_c(others, family)  # (units, FPA 15/30/45, scene −20/5/30)
+    for i, fpa in enumerate(unit_spread.FPAS_C):
+        for j, scene in enumerate(unit_spread.SCENES_C):
+            sigma = family_level_sigma("tau2", fpa, scene)
+            rms = float(np.sqrt(np.mean(shifts[:, i, j] ** 2)))
+            assert 0.8 * rms < sigma < 1.35 * rms, (fpa, scene, sigma, rms)
+            assert 0.55 < np.mean(np.abs(shifts[:, i, j]) <= sigma) < 0.9
+    assert family_level_sigma("tau2", 45.0, 5.0) > 1.25 * family_level_sigma("tau2", 30.0, 5.0)
+    assert family_level_sigma("tau2", 31.0, 19.0) == family_level_sigma("tau2", 30.0, 20.0)

@@ -16,8 +16,8 @@ frames (:data:`~thermocal.pipeline.flight.BATCH_FRAMES`: long flights in segment
 level that no motion reveals (:meth:`SelfCalibration.with_level`).
 
 Uncertainty (1σ, °C): ``√(level² + unseen² + pattern² + spread²/n)`` — the level the start
-model leaves (calibration-free: the family's unit-to-unit spread,
-:data:`~thermocal.nn.uncertainty.UNIT_FLOOR_MIN_C`; from a chamber calibration, its own
+model leaves (calibration-free: the family's unit-to-unit spread at the pass's FPA and scene
+temperatures, :func:`family_level_sigma`; from a chamber calibration, its own
 cross-validated σ; from references, theirs), the line pattern the pass's motion could not show
 (calibration-free: how much the family's units differ from their average along those lines,
 :func:`unseen_line_sigma`; from a calibration, inside its σ), the offset's standard error over
@@ -44,12 +44,16 @@ from thermocal.estimation.pass_pattern import (
 )
 from thermocal.radiometry import TAU2, BandRadiance
 
-__all__ = ["FAMILY_LEVEL_SIGMA_C", "OTHER_FAMILY_SIGMA_C", "SelfCalibration", "start_band",
-           "unseen_line_sigma"]
+__all__ = ["LEVEL_UNITS", "OTHER_FAMILY_SIGMA_C", "SelfCalibration", "family_level_sigma",
+           "start_band", "unseen_line_sigma"]
 
-#: The level no motion reveals when starting from the family's average unit: its unit-to-unit
-#: spread (:data:`thermocal.nn.uncertainty.UNIT_FLOOR_MIN_C`, the same floor as the network's).
-FAMILY_LEVEL_SIGMA_C = 0.34 * float(np.sqrt(np.pi / 2))
+#: The camera units whose spread about their family's average unit is the level's σ
+#: (:func:`family_level_sigma`): neither the family's training units (the average's own) nor
+#: any unit a benchmark scores ``selfcal`` on.
+LEVEL_UNITS: tuple[int, ...] = tuple(range(1000, 1100))
+
+#: The frame size, ``(H, W)``, at which :func:`family_level_sigma` takes a unit's frame mean.
+LEVEL_SHAPE = (128, 160)
 
 REMEDY = ("selfcal fits a whole pass: run `thermocal flight --method selfcal` on a recording of "
           "at least 30 frames that moves across the scene")
@@ -73,6 +77,42 @@ def start_band(calibration: Calibration | None, family: str) -> BandRadiance:
     return band_for(tuple(PRESETS[family].band_m))
 
 
+def _through_average_unit(family: str, shape: tuple[int, int], fpa_c: float,
+                          levels_c: np.ndarray, units: tuple[int, ...]):
+    """Uniform scenes at ``levels_c`` (°C, ``(L,)``) seen by each unit of ``family`` in
+    ``units`` at FPA ``fpa_c`` (°C; the housing settled below it) and read back through the
+    family's average unit: yields ``(unit camera, temperatures °C (L, H, W))``, frames of
+    ``shape`` ``(H, W)``."""
+    from thermocal.camera.model import expected_counts
+    from thermocal.camera.presets import make_camera
+    from thermocal.nn.inputs import calibrate_frames
+
+    nominal = _nominal(family, shape)
+    housing = fpa_c - nominal.thermal.fpa_self_heating_c
+    n = len(levels_c)
+    scenes = np.broadcast_to(np.asarray(levels_c, np.float32)[:, None, None],
+                             (n, *shape)).astype(np.float32)
+    for u in units:
+        unit = make_camera(family, unit=u, size=(shape[1], shape[0]))
+        counts = expected_counts(unit, scenes, [fpa_c] * n, housing_c=[housing] * n)
+        yield unit, calibrate_frames(nominal, counts, np.full(n, fpa_c))
+
+
+@functools.lru_cache(maxsize=256)
+def family_level_sigma(family: str, fpa_c: float, scene_c: float) -> float:
+    """The level no motion reveals when starting from the family's average unit, °C: the RMS
+    over :data:`LEVEL_UNITS` of how far a unit's frame mean, read through the average unit,
+    lies from a uniform scene at ``scene_c`` (°C) with the FPA at ``fpa_c`` (°C); no view of a
+    pass shows it. It grows with the FPA temperature and the scene's contrast with it (``tau2``:
+    0.47 °C at an FPA of 30 °C and scenes of 10–40 °C, 0.7–0.9 at 45 °C). Both rounded to
+    5 °C (cached; :data:`LEVEL_SHAPE` frames: a frame mean, not a pattern)."""
+    fpa, scene = (5.0 * round(float(v) / 5.0) for v in (fpa_c, scene_c))
+    means = [float(np.mean(temps[0][~unit.defects])) - scene
+             for unit, temps in _through_average_unit(family, LEVEL_SHAPE, fpa,
+                                                      np.array([scene]), LEVEL_UNITS)]
+    return float(np.sqrt(np.mean(np.square(means))))
+
+
 @functools.lru_cache(maxsize=16)
 def unseen_line_sigma(family: str, shape: tuple[int, int], fpa_c: float, scene_c: float,
                       lines: str, *, radial: bool = True) -> float:
@@ -87,26 +127,18 @@ def unseen_line_sigma(family: str, shape: tuple[int, int], fpa_c: float, scene_c
     quadratic was not given back (a pass that moved across the lines, but too little to show
     their slow part). The σ of the line pattern a pass that never moves across those lines
     leaves; FPA and scene rounded to 5 °C (cached)."""
-    from thermocal.camera.model import expected_counts
-    from thermocal.camera.presets import PRESETS, make_camera
+    from thermocal.camera.presets import PRESETS
     from thermocal.nn.data import TRAIN_UNITS
-    from thermocal.nn.inputs import calibrate_frames
 
-    nominal = _nominal(family, shape)
     band = start_band(None, family)
-    housing = fpa_c - nominal.thermal.fpa_self_heating_c
     levels = np.array([scene_c, scene_c + 10.0])
     true = band.radiance(levels + ZERO_CELSIUS_K)
     per_c = float(band.radiance(scene_c + 0.5 + ZERO_CELSIUS_K)
                   - band.radiance(scene_c - 0.5 + ZERO_CELSIUS_K))
-    scenes = np.broadcast_to(levels[:, None, None], (2, *shape)).astype(np.float32)
     axis = 1 if lines == "rows" else 0
     profiles = []
-    for u in TRAIN_UNITS:
-        unit = make_camera(family, unit=u, size=(shape[1], shape[0]))
-        counts = expected_counts(unit, scenes, [fpa_c] * 2, housing_c=[housing] * 2)
-        seen = band.radiance(calibrate_frames(nominal, counts, np.full(2, fpa_c))
-                             + np.float32(ZERO_CELSIUS_K))
+    for unit, temps in _through_average_unit(family, shape, fpa_c, levels, TRAIN_UNITS):
+        seen = band.radiance(temps + np.float32(ZERO_CELSIUS_K))
         gain = (seen[1] - seen[0]) / (true[1] - true[0])
         offset = seen[0] - gain * true[0]
         err = (seen[0] - true[0]) / per_c  # °C at scene_c
@@ -361,7 +393,12 @@ class SelfCalibration:
             return np.asarray(model.burst_sigma(temperature_c, fpa_c, pace,
                                                 time_since_start_s=time_since_start_s),
                               np.float32)
-        return np.full(temperature_c.shape, FAMILY_LEVEL_SIGMA_C, np.float32)
+        # the family's spread at this FPA and scene; at an FPA not known, the largest over
+        # the FPA temperatures it is trained at
+        scene = float(np.median(temperature_c))
+        level = max(family_level_sigma(self.family, f, scene)
+                    for f in ((fpa_c,) if fpa_c is not None else (10.0, 30.0, 50.0)))
+        return np.full(temperature_c.shape, level, np.float32)
 
     def unseen_sigma(self, temperature_c: np.ndarray, fpa_c: float | None) -> float:
         """σ of the line pattern the pass did not show (°C; 0 from a calibration, whose σ holds

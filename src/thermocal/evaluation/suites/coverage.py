@@ -19,7 +19,8 @@ product's pipeline, domain check included, on
 The accepted bursts are also told by condition (:func:`condition_table`): FPA temperature, and
 the scene's mean estimate less the FPA temperature, where the network's σ misses most.
 
-The calibrations (every method ``--method auto`` may choose) are fitted with their
+The calibrations (every method; ``shutter`` re-reads its offsets on the held-out run's shutter
+closures, every 180 s, which its chamber report never saw) are fitted with their
 cross-validation report on one unit's chamber session of each family and scored, frame by frame,
 on a held-out run of the same unit (``benchmarks/physics.py``'s sessions: its own physics): a
 frame outside the session's FPA or scene range, or (a memoryless method) at an FPA pace the
@@ -35,8 +36,11 @@ method's σ could meet the bands in every case (:func:`method_factors`). ``--mor
 draws the network's population of held-out units elsewhere (a check that its figures are not
 those units' luck).
 
+``--model`` scores a network trained with ``thermocal train`` (any variant: ``e2e``,
+``kpn-no-offset``) instead, with the σ model fitted beside it.
+
 Run: ``python -m thermocal.evaluation.suites.coverage [--quick] [--units U] [--held-out
-{ramp,other,both}] [--more-units U] [--json OUT]``.
+{ramp,other,both}] [--more-units U] [--model W.pt] [--json OUT]``.
 """
 
 from __future__ import annotations
@@ -265,7 +269,7 @@ def _run_calibration(cal, model: CalibrationSigma, run: physics.Run, rng) -> dic
 
 def calibration_rows(*, quick: bool, units: tuple[int, ...] = (physics.UNIT,),
                      held_out: str | tuple[str, ...] = "ramp") -> list[dict]:
-    """Every calibration ``auto`` may choose, fitted with its report on each family's session
+    """Every calibration method, fitted with its report on each family's session
     of each of ``units`` and scored on the same unit's held-out run (``held_out``, one or more
     of :data:`HELD_OUT_RUNS`, a row each; unit ``u``'s sessions take the seeds of unit
     :data:`~thermocal.evaluation.suites.physics.UNIT`'s plus ``u − UNIT``: other noise, other
@@ -284,8 +288,9 @@ def calibration_rows(*, quick: bool, units: tuple[int, ...] = (physics.UNIT,),
                 for p in protocols}
         ref = physics.plateau_fpa_c(session.session)
         for name, info in CALIBRATION_METHODS.items():
-            if not info.auto:
-                continue
+            # a method auto leaves out (``shutter``) draws its pixels from a stream of its own,
+            # so that scoring it leaves the other methods' samples as they were
+            draw = rng if info.auto else np.random.default_rng([1, unit])
             try:
                 cal, report = fit_with_report(session.session, name,
                                               **({"fpa_ref_c": ref} if info.takes_fpa_ref
@@ -296,16 +301,22 @@ def calibration_rows(*, quick: bool, units: tuple[int, ...] = (physics.UNIT,),
             for protocol, held in runs.items():
                 label = (f"{family} unit {unit} (own session → held-out run"
                          + ("" if protocol == "ramp" else ", other protocol") + ")")
-                scored = refused if cal is None else _run_calibration(cal, model, held, rng)
+                scored = refused if cal is None else _run_calibration(cal, model, held, draw)
                 rows.append({"method": name, "data": label, "preset": family, "unit": unit,
                              "held_out": protocol, **scored})
     return rows
 
 
-def network_rows(*, quick: bool, more_units: tuple[int, ...] = MORE_UNITS) -> list[dict]:
-    """The shipped network's coverage on each evaluation set (``more_units``: the population
-    of held-out units, one per burst; none the σ model was fitted on)."""
-    network = NetworkEstimator.from_file("kpn")
+def network_rows(*, quick: bool, more_units: tuple[int, ...] = MORE_UNITS,
+                 model: str | None = None) -> list[dict]:
+    """A network's coverage on each evaluation set (``more_units``: the population of held-out
+    units, one per burst; none the σ model was fitted on): the shipped one, or the weights
+    file ``model`` (any variant, with its σ model beside it, as ``thermocal train`` writes)."""
+    variant = "kpn" if model is None else _variant_of(model)
+    network = NetworkEstimator.from_file(variant, model)
+    if network.sigma_model is None:
+        raise InvalidInputError(f"{model}: no σ model beside it: fit one with `python -m "
+                                "thermocal.evaluation.sigma_fit`")
     fitted = set((network.sigma_model.fitted_on if network.sigma_model else {}).get("units", []))
     if fitted & set(more_units):
         raise InvalidInputError(f"units {sorted(fitted & set(more_units))[:3]}… are among those "
@@ -320,8 +331,16 @@ def network_rows(*, quick: bool, more_units: tuple[int, ...] = MORE_UNITS) -> li
         bursts = eval_bursts(network.n_frames, quick=quick, preset=preset, **kwargs)
         if kwargs and len({b["unit"] for b in bursts}) < len(bursts):  # fewer units than bursts
             label = label.replace("one per burst", "cycled over the bursts")
-        rows.append({"method": "kpn", "data": label, "preset": preset, **_run(network, bursts)})
+        rows.append({"method": variant if model is None else f"{variant} ({model})",
+                     "data": label, "preset": preset, **_run(network, bursts)})
     return rows
+
+
+def _variant_of(path: str) -> str:
+    """The network variant a weights file holds (checked as it is loaded)."""
+    from thermocal.nn.store import load_model
+
+    return load_model(path)[0].config.variant
 
 
 def _cells(cov: dict | None, interval: dict | None = None) -> tuple[str, str, str]:
@@ -533,12 +552,16 @@ def main(argv: list[str] | None = None) -> None:
     parser.add_argument("--more-units", type=_units, default=MORE_UNITS,
                         help="The network's population of held-out units, one per burst "
                         f"(default {MORE_UNITS[0]}-{MORE_UNITS[-1]}; 200 are drawn).")
+    parser.add_argument("--model", default=None,
+                        help="Score this weights file (any variant, its σ model beside it) "
+                        "instead of the shipped network, and no calibration.")
     args = parser.parse_args(argv)
     start = time.perf_counter()
     held_out = tuple(HELD_OUT_RUNS) if args.held_out == "both" else args.held_out
-    rows = (calibration_rows(quick=args.quick, units=args.units, held_out=held_out)
-            + (network_rows(quick=args.quick, more_units=args.more_units)
-               if args.held_out == "ramp" else []))
+    rows = ([] if args.model else
+            calibration_rows(quick=args.quick, units=args.units, held_out=held_out))
+    rows += (network_rows(quick=args.quick, more_units=args.more_units, model=args.model)
+             if args.held_out == "ramp" else [])
     info = {"machine": machine(), "wall_s": time.perf_counter() - start, "quick": args.quick,
             "units": list(args.units), "held_out": args.held_out}
     print(report(rows, info) + unit_spread(rows) + method_factors(rows) + condition_table(rows))
