@@ -109,6 +109,14 @@ def test_level_rows_recover_a_known_spread_of_units_levels():
                       contrast_per_c=0.01)[-1]
     assert wide["rms_c"] == pytest.approx(2 * wide["stated_c"], rel=0.1)
     assert wide["within_1sigma"] < 0.45
+    # twenty units of twenty bursts each, every burst its unit's level: twenty draws, not 400,
+    # and the interval over units says so
+    levels = np.repeat(rng.normal(0.0, 0.5, 20), 20)
+    grouped = level_rows(levels, np.full(400, -10.0), np.repeat(np.arange(20), 20),
+                         floor_c=0.5, contrast_per_c=None)[-1]["interval_c"]
+    apart = level_rows(levels, np.full(400, -10.0), np.arange(400), floor_c=0.5,
+                       contrast_per_c=None)[-1]["interval_c"]
+    assert grouped[1] - grouped[0] > 2.5 * (apart[1] - apart[0])
     # one unit's many bursts are one draw: no interval over one unit
     one = level_rows(np.full(5, 0.3), np.full(5, -10.0), np.zeros(5), floor_c=0.5,
                      contrast_per_c=None)

@@ -98,18 +98,27 @@ def _through_average_unit(family: str, shape: tuple[int, int], fpa_c: float,
         yield unit, calibrate_frames(nominal, counts, np.full(n, fpa_c))
 
 
-@functools.lru_cache(maxsize=256)
+def _cell_c(value_c: float) -> float:
+    """``value_c`` (°C) rounded to its 5 °C cell (halves up)."""
+    return 5.0 * float(np.floor(float(value_c) / 5.0 + 0.5))
+
+
 def family_level_sigma(family: str, fpa_c: float, scene_c: float) -> float:
     """The level no motion reveals when starting from the family's average unit, °C: the RMS
     over :data:`LEVEL_UNITS` of how far a unit's frame mean, read through the average unit,
     lies from a uniform scene at ``scene_c`` (°C) with the FPA at ``fpa_c`` (°C); no view of a
     pass shows it. It grows with the FPA temperature and the scene's contrast with it (``tau2``:
-    0.47 °C at an FPA of 30 °C and scenes of 10–40 °C, 0.7–0.9 at 45 °C). Both rounded to
-    5 °C (cached; :data:`LEVEL_SHAPE` frames: a frame mean, not a pattern)."""
-    fpa, scene = (5.0 * round(float(v) / 5.0) for v in (fpa_c, scene_c))
-    means = [float(np.mean(temps[0][~unit.defects])) - scene
-             for unit, temps in _through_average_unit(family, LEVEL_SHAPE, fpa,
-                                                      np.array([scene]), LEVEL_UNITS)]
+    0.50–0.52 °C at an FPA of 30 °C and scenes of 10–40 °C, 0.64 at −20 °C; 0.67–0.72 at
+    45 °C, 0.89 at −20 °C). Both rounded to their 5 °C cell, computed once per cell
+    (:data:`LEVEL_SHAPE` frames: a frame mean, not a pattern)."""
+    return _family_level_sigma(family, _cell_c(fpa_c), _cell_c(scene_c))
+
+
+@functools.lru_cache(maxsize=256)
+def _family_level_sigma(family: str, fpa_c: float, scene_c: float) -> float:
+    means = [float(np.mean(temps[0][~unit.defects])) - scene_c
+             for unit, temps in _through_average_unit(family, LEVEL_SHAPE, fpa_c,
+                                                      np.array([scene_c]), LEVEL_UNITS)]
     return float(np.sqrt(np.mean(np.square(means))))
 
 
@@ -409,7 +418,7 @@ class SelfCalibration:
         missing = self.pattern.lines_not_identified()
         if self.calibration is not None or not missing or fpa_c is None:
             return 0.0
-        fpa, scene = (5.0 * round(v / 5.0) for v in (fpa_c, float(np.median(temperature_c))))
+        fpa, scene = (_cell_c(v) for v in (fpa_c, float(np.median(temperature_c))))
         return float(np.hypot.reduce([
             unseen_line_sigma(self.family, temperature_c.shape, fpa, scene, lines,
                               radial=kind == "all") for lines, kind in missing.items()]))

@@ -290,7 +290,8 @@ def calibration_rows(*, quick: bool, units: tuple[int, ...] = (physics.UNIT,),
         for name, info in CALIBRATION_METHODS.items():
             # a method auto leaves out (``shutter``) draws its pixels from a stream of its own,
             # so that scoring it leaves the other methods' samples as they were
-            draw = rng if info.auto else np.random.default_rng([1, unit])
+            draw = rng if info.auto else np.random.default_rng(
+                [1, list(PRESETS).index(family), unit, list(CALIBRATION_METHODS).index(name)])
             try:
                 cal, report = fit_with_report(session.session, name,
                                               **({"fpa_ref_c": ref} if info.takes_fpa_ref
@@ -315,7 +316,8 @@ def network_rows(*, quick: bool, more_units: tuple[int, ...] = MORE_UNITS,
     variant = "kpn" if model is None else _variant_of(model)
     network = NetworkEstimator.from_file(variant, model)
     if network.sigma_model is None:
-        raise InvalidInputError(f"{model}: no σ model beside it: fit one with `python -m "
+        raise InvalidInputError(f"{model or 'the shipped ' + variant + ' network'}: no σ model "
+                                "beside it: fit one with `python -m "
                                 "thermocal.evaluation.sigma_fit`")
     fitted = set((network.sigma_model.fitted_on if network.sigma_model else {}).get("units", []))
     if fitted & set(more_units):
@@ -556,6 +558,9 @@ def main(argv: list[str] | None = None) -> None:
                         help="Score this weights file (any variant, its σ model beside it) "
                         "instead of the shipped network, and no calibration.")
     args = parser.parse_args(argv)
+    if args.model and args.held_out != "ramp":
+        parser.error("--model scores a network, which runs on the ramp protocol's sets only: "
+                     "leave --held-out out")
     start = time.perf_counter()
     held_out = tuple(HELD_OUT_RUNS) if args.held_out == "both" else args.held_out
     rows = ([] if args.model else

@@ -94,7 +94,7 @@ def level_rows(level: np.ndarray, contrast: np.ndarray, unit: np.ndarray, *, flo
         Per bin with bursts: ``bin`` ``(lo, hi)`` (°C; None for all), ``bursts``, ``units``,
         ``rms_c`` and its 90 % ``interval_c`` over units (None for one unit), ``stated_c``
         (RMS of the stated level σ), ``within_1sigma`` and ``within_2sigma`` (shares of bursts
-        whose |level| lies within 1 and 2 stated σ).
+        whose level lies within ±1 and ±2 stated σ).
     """
     level, contrast, unit = (np.asarray(a, np.float64) for a in (level, contrast, unit))
     if not (level.ndim == 1 and level.shape == contrast.shape == unit.shape and level.size
