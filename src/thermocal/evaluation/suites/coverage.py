@@ -319,7 +319,7 @@ def network_rows(*, quick: bool, more_units: tuple[int, ...] = MORE_UNITS,
         raise InvalidInputError(f"{model or 'the shipped ' + variant + ' network'}: no σ model "
                                 "beside it: fit one with `python -m "
                                 "thermocal.evaluation.sigma_fit`")
-    fitted = set((network.sigma_model.fitted_on if network.sigma_model else {}).get("units", []))
+    fitted = set(network.sigma_model.fitted_on.get("units", []))
     if fitted & set(more_units):
         raise InvalidInputError(f"units {sorted(fitted & set(more_units))[:3]}… are among those "
                                 "the network's σ model was fitted on: choose held-out units")

@@ -26,6 +26,7 @@ import json
 import time
 
 import numpy as np
+from scipy import stats
 
 from thermocal._validate import parse_units
 from thermocal.bench import machine
@@ -37,13 +38,14 @@ from thermocal.evaluation.sigma_fit import (
     scored_features,
     validation_scenes,
 )
+from thermocal.evaluation.suites.coverage import SCENE_LESS_FPA_BINS_C
 from thermocal.evaluation.tables import markdown_table
 from thermocal.nn.infer import NetworkEstimator
 
 __all__ = ["CONTRAST_BINS_C", "burst_levels", "level_rows", "main"]
 
 #: The bins of a burst's mean estimate less its FPA temperature, °C (the coverage suite's).
-CONTRAST_BINS_C = (-90.0, -40.0, -20.0, 0.0, 60.0)
+CONTRAST_BINS_C = SCENE_LESS_FPA_BINS_C
 
 #: The sets scored by default: the σ model's own bursts, then three held-out populations.
 DEFAULT_SETS = "validation,300-499,2000-2199,3000-3199"
@@ -64,15 +66,18 @@ def burst_levels(network: NetworkEstimator, bursts: list[dict]) -> dict[str, np.
 def _rms_interval(level: np.ndarray, unit: np.ndarray, *, confidence: float = 0.90,
                   n_resamples: int = 2000, seed: int = 0) -> tuple[float, float]:
     """A percentile bootstrap interval of the RMS of ``level``, resampling whole units (a
-    unit's bursts share its level)."""
+    unit's bursts share its level): scipy's, paired over each unit's sum of squares and count,
+    as :func:`~thermocal.metrics.coverage_interval` resamples its groups."""
     _, idx = np.unique(unit, return_inverse=True)
     ss, n = np.bincount(idx, level**2), np.bincount(idx).astype(np.float64)
-    rng = np.random.default_rng(seed)
-    draws = rng.multinomial(ss.size, np.full(ss.size, 1.0 / ss.size), size=n_resamples)
-    rms = np.sqrt((draws @ ss) / (draws @ n))
-    tail = 100.0 * (1.0 - confidence) / 2.0
-    lo, hi = np.percentile(rms, [tail, 100.0 - tail])
-    return float(lo), float(hi)
+
+    def rms(s: np.ndarray, m: np.ndarray, axis: int = -1) -> np.ndarray:
+        return np.sqrt(np.sum(s, axis=axis) / np.sum(m, axis=axis))
+
+    ci = stats.bootstrap((ss, n), rms, paired=True, vectorized=True, method="percentile",
+                         confidence_level=confidence, n_resamples=n_resamples,
+                         rng=np.random.default_rng(seed)).confidence_interval
+    return float(ci.low), float(ci.high)
 
 
 def level_rows(level: np.ndarray, contrast: np.ndarray, unit: np.ndarray, *, floor_c: float,
