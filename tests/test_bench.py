@@ -139,6 +139,36 @@ def test_the_networks_coverage_is_told_by_condition():
     assert _condition_cell({1: [(np.zeros(3), np.ones(3))]})["interval"] is None
 
 
+def test_the_networks_pixels_are_told_by_their_temperature():
+    """A σ right on the whole but wrong on the cold pixels: the pixel bins show it."""
+    from thermocal.evaluation.suites.coverage import (
+        _condition_keys,
+        _pixel_conditions,
+        condition_table,
+    )
+
+    temps = np.array([-30.0, -10.0, 0.0, 10.0, 40.0, 200.0])
+    bins = _pixel_conditions(temps)
+    assert [k for k, _ in bins] == ["pixels at -90…-20 °C", "pixels at -20…-5 °C",
+                                    "pixels at -5…5 °C", "pixels at 5…15 °C",
+                                    "pixels at 15…60 °C"]
+    assert all(sel.sum() == 1 for _, sel in bins) and not any(sel[-1] for _, sel in bins)
+    keys = _condition_keys()  # the table's order: FPA, scene − FPA, then the pixels, rising
+    assert keys.index("FPA 35…45 °C") < keys.index("scene − FPA -90…-40 °C") < keys.index(
+        "scene − FPA 0…60 °C") < keys.index("pixels at -90…-20 °C")
+    from thermocal.evaluation.suites.coverage import _condition_cell
+
+    rng = np.random.default_rng(2)
+    t = rng.uniform(-40.0, 30.0, 20000)
+    err = rng.normal(0.0, np.where(t < -5.0, 3.0, 0.5))  # cold pixels err 6 times more
+    sigma = np.full(t.size, 1.0)
+    cells = {k: _condition_cell({0: [(err[sel], sigma[sel])]}) for k, sel in _pixel_conditions(t)}
+    assert cells["pixels at -90…-20 °C"]["within_1sigma"] < 0.35
+    assert cells["pixels at 5…15 °C"]["within_1sigma"] > 0.9
+    text = condition_table([{"data": "u", "accepted_by_condition": cells}])
+    assert "| u | pixels at -20…-5 °C | 1 |" in text
+
+
 def test_coverage_says_what_sharpening_sigma_would_silence():
     from thermocal.evaluation.suites.coverage import _rescaled
 

@@ -718,6 +718,24 @@ def test_e2e_runs_in_tiles_of_its_training_crop(tmp_path):
     run_network(kpn_back, norm, warped, valid, 30.0)
     run_network(e2e_back, norm, warped, valid, 30.0, tile=512)
     assert seen == [(48, 72), (48, 72)]  # the KPN variants run whole frames
+    # its σ is known not to carry over to scenes unlike its training ones: said where it is
+    # used (a kpn's σ has no such caveat)
+    import warnings
+
+    from thermocal.calibration.base import ThermocalWarning
+    from thermocal.nn.uncertainty import SigmaModel, sidecar_path
+
+    for path in (e2e_path, kpn_path):
+        sha = load_model(path)[2]["sha256"]
+        SigmaModel(0.6, (0.0,) * 4, weights_sha256=sha).save(sidecar_path(path))
+    with pytest.warns(ThermocalWarning, match="e2e: its σ is fitted on bursts of the scenes "
+                      "it was trained on.*use kpn"):
+        assert infer.NetworkEstimator.from_file("e2e", e2e_path).sigma_model is not None
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        infer.NetworkEstimator.from_file("kpn", kpn_path)
+        sidecar_path(e2e_path).unlink()  # no σ: nothing to warn of
+        assert infer.NetworkEstimator.from_file("e2e", e2e_path).sigma_model is None
 
 
 def test_train_and_estimate_with_each_frames_sensor_position(tmp_path, capsys, flight):

@@ -59,6 +59,11 @@ def test_the_two_stage_fit_recovers_a_level_growing_with_the_contrast(tmp_path):
     assert s[1] > s[0] and s[0] == pytest.approx(np.hypot(floor, np.exp(coef[0] / 2)), abs=0.08)
     with pytest.raises(InvalidInputError, match="FPA temperature"):
         model.sigma_of(feats, temperature_c=np.zeros((1, 2)))
+    # the level alone is the part σ states where the views reveal nothing, by hand
+    lev = model.level_sigma(np.array([20.0, -40.0]), 20.0)
+    assert lev == pytest.approx(np.hypot(model.floor_c, model.contrast_per_c * np.array([0, 60])))
+    assert np.all(s**2 > lev**2) and s[0] ** 2 - lev[0] ** 2 == pytest.approx(
+        np.exp(model.coef[0]), rel=1e-4)
     # one stage, as before, where the bursts are not given: no contrast term
     assert fit_sigma_model(errors, f, weights_sha256="x").contrast_per_c is None
     with pytest.raises(InvalidInputError, match="both"):
@@ -76,6 +81,7 @@ def test_the_two_stage_fit_recovers_a_level_growing_with_the_contrast(tmp_path):
     assert "contrast_per_c" not in text and '"version": 1' in text
     # a model without the term needs no FPA temperature (as before it existed)
     assert plain.sigma_of(np.zeros((3, 2, 2))).shape == (2, 2)
+    assert plain.level_sigma() == 0.5 and plain.level_sigma(np.zeros(3)).shape == (3,)
     # written as version 2, which a reader of version 1 would refuse rather than misapply
     assert '"version": 2' in path.read_text()
     for old, new in (('"version": 2', '"version": 1'), ('"version": 2', '"version": 3')):

@@ -334,10 +334,10 @@ def train(**opts: Any) -> None:
         err=True,
     )
     if result.steps > 0:
-        _fit_sigma(opts["out"], chamber=opts["chamber"])
+        _fit_sigma(opts["out"], chamber=opts["chamber"], variant=opts["variant"])
 
 
-def _fit_sigma(weights: Path, *, chamber: Path | None) -> None:
+def _fit_sigma(weights: Path, *, chamber: Path | None, variant: str) -> None:
     """Fit the trained network's σ model and write it beside the weights
     (:mod:`thermocal.evaluation.sigma_fit`): on bursts of units it never saw, or of the camera
     model fitted on its chamber file."""
@@ -360,6 +360,8 @@ def _fit_sigma(weights: Path, *, chamber: Path | None) -> None:
     click.echo(f"σ model (floor {sigma.floor_c:.2f} °C{contrast}, fitted on "
                f"{sigma.fitted_on['bursts']} "
                f"bursts of {on}) written to {path}", err=True)
+    if VARIANTS[variant].sigma_caveat:
+        click.echo(f"thermocal: warning: {variant}: {VARIANTS[variant].sigma_caveat}", err=True)
 
 
 def _apply_preset(ctx: click.Context, opts: dict[str, Any]) -> None:

@@ -9,6 +9,7 @@ overlapping tiles (:func:`run_network`). :func:`estimate_burst` is the pipeline 
 from __future__ import annotations
 
 import os
+import warnings
 from importlib.resources import files
 from pathlib import Path
 from typing import Any
@@ -16,6 +17,7 @@ from typing import Any
 import numpy as np
 import torch
 
+from thermocal.calibration.base import ThermocalWarning
 from thermocal.errors import InvalidInputError
 from thermocal.estimation.base import Estimate, PreparedBurst
 from thermocal.estimation.pipeline import estimate
@@ -249,6 +251,9 @@ class NetworkEstimator:
         sidecar = sidecar_path(path)
         sigma = (SigmaModel.load(sidecar, weights_sha256=content["sha256"])
                  if sidecar.is_file() else None)
+        if sigma is not None and VARIANTS[method].sigma_caveat:
+            warnings.warn(f"{method}: {VARIANTS[method].sigma_caveat}", ThermocalWarning,
+                          stacklevel=2)
         return cls(model, norm, Domain.of_network(content["data"], nominal), sigma,
                    backend=backend, threads=threads, concurrent=concurrent)
 

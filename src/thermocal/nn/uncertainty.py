@@ -54,7 +54,7 @@ from thermocal.estimation.base import view_spread
 from thermocal.io.atomic import atomic_path
 
 __all__ = ["MAX_CONTRAST_PER_C", "OUTSIDE_SIGMA_C", "UNIT_FLOOR_MIN_C", "SigmaModel",
-           "features", "fit_sigma_model", "sidecar_path"]
+           "features", "fit_sigma_model", "level_variance", "sidecar_path"]
 
 #: The smallest σ of a calibration-free estimate, °C: the unit's own scalars (gain, offset, FPA
 #: coefficients) alone leave 0.34 °C mean absolute error on the most typical unit of the
@@ -83,6 +83,15 @@ def features(warped: np.ndarray, valid: np.ndarray, temperature_c: np.ndarray
     grad = gaussian_gradient_magnitude(np.asarray(temperature_c, np.float64), 1.0,
                                        mode="nearest")
     return np.stack([np.log(spread + _EPS), np.log(grad + _EPS), -np.log(n)])
+
+
+def level_variance(floor_c: float, contrast_per_c: float | None, contrast_c: Any) -> np.ndarray:
+    """The variance of the unit's level, °C², ``floor_c² + (contrast_per_c · contrast_c)²``
+    (float64, the shape of ``contrast_c``: the estimate less the FPA temperature, °C;
+    ``contrast_per_c`` None: no contrast term). The one formula the fit holds, :class:`SigmaModel`
+    states and the level benchmark checks."""
+    x = np.asarray(contrast_c, np.float64)
+    return floor_c**2 + ((contrast_per_c or 0.0) * x) ** 2
 
 
 @dataclass(frozen=True)
@@ -154,20 +163,28 @@ class SigmaModel:
         :attr:`contrast_per_c`, the level's part that grows with ``temperature_c − fpa_c``."""
         c = np.asarray(self.coef)
         log_var = c[0] + np.tensordot(c[1:], feats, axes=1)
-        var = self.floor_c**2 + np.exp(np.minimum(log_var, 10.0))
+        var = self.level_sigma(temperature_c, fpa_c) ** 2 + np.exp(np.minimum(log_var, 10.0))
         if self.misfit_c is not None:
             if temperature_c is None:
                 raise InvalidInputError("σ model: its misfit needs the estimate's temperature")
             var = var + self.misfit_at(temperature_c) ** 2
-        if self.contrast_per_c is not None:
-            if temperature_c is None or fpa_c is None:
-                raise InvalidInputError("σ model: its contrast term needs the estimate's "
-                                        "temperature and the FPA temperature")
-            var = var + (self.contrast_per_c
-                         * (np.asarray(temperature_c, np.float64) - float(fpa_c))) ** 2
         if outside:
             var = var + self.outside_c**2
         return np.sqrt(var).astype(np.float32)
+
+    def level_sigma(self, temperature_c: Any = None, fpa_c: float | None = None) -> np.ndarray:
+        """σ of the unit's level (°C, float64, the shape of ``temperature_c``; a scalar without
+        a contrast term and without ``temperature_c``): :func:`level_variance` at the estimate
+        ``temperature_c`` less the FPA temperature ``fpa_c`` (°C), what no view reveals."""
+        if self.contrast_per_c is None:
+            x = np.zeros_like(np.asarray(0.0 if temperature_c is None else temperature_c,
+                                         np.float64))
+        elif temperature_c is None or fpa_c is None:
+            raise InvalidInputError("σ model: its contrast term needs the estimate's "
+                                    "temperature and the FPA temperature")
+        else:
+            x = np.asarray(temperature_c, np.float64) - float(fpa_c)
+        return np.sqrt(level_variance(self.floor_c, self.contrast_per_c, x))
 
     def misfit_at(self, temperature_c: np.ndarray) -> np.ndarray:
         """The camera model's level misfit (°C) at scene temperatures ``temperature_c``: linear
@@ -309,7 +326,7 @@ def fit_sigma_model(errors: np.ndarray, feats: np.ndarray, *, weights_sha256: st
         floor, k, coef = math.sqrt(UNIT_FLOOR_MIN_C**2 + math.exp(best.x[0])), None, best.x[1:]
     else:
         floor, k = level
-        held = floor**2 + (k * x) ** 2  # the level's variance, held in the second stage
+        held = level_variance(floor, k, x)  # the level's variance, held in the second stage
 
         def nll(theta: np.ndarray) -> float:
             var = held + np.exp(np.minimum(theta[0] + theta[1:] @ f, 10.0))

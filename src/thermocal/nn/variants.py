@@ -1,7 +1,9 @@
 """The network variants, by name (numpy- and torch-free: the estimator registry reads it).
 
 Each variant is Oz et al.'s network or one of their ablations (§V-C, Fig. 7); ``weights`` names
-the file shipped in ``thermocal/nn/weights/`` for it, where one is shipped.
+the file shipped in ``thermocal/nn/weights/`` for it, where one is shipped; ``sigma_caveat``
+what its σ model (:mod:`thermocal.nn.uncertainty`) is known not to hold for, said wherever it is
+fitted or used.
 """
 
 from __future__ import annotations
@@ -13,11 +15,13 @@ __all__ = ["VARIANTS", "Variant"]
 
 @dataclass(frozen=True)
 class Variant:
-    """One network variant: its name, what it is, and its shipped weights file."""
+    """One network variant: its name, what it is, its shipped weights file, and where its σ
+    is known not to hold ("" where none is known)."""
 
     name: str
     summary: str
     weights: str
+    sigma_caveat: str = ""
 
 
 #: Name → variant; the first is the default network.
@@ -29,6 +33,14 @@ VARIANTS: dict[str, Variant] = {
         Variant("kpn-no-offset", "the KPN without the offset block (ablation)",
                 "kpn_no_offset_n7.pt"),
         Variant("e2e", "an end-to-end UNet predicting the temperature itself (ablation)",
-                "e2e_n7.pt"),
+                "e2e_n7.pt",
+                # benchmarks/coverage.py --model (results/coverage_e2e_2026-11-29b.md); no
+                # feature added to the σ model (the estimate's contrast with the FPA, its
+                # distance from the burst's median) mends it: benchmarks/RESULTS.md
+                "its σ is fitted on bursts of the scenes it was trained on, and an end-to-end "
+                "network's error does not carry over to scenes unlike them: one trained for "
+                "20 min had 21-26 % of the held-out scenes' pixels below -5 °C within 1σ "
+                "(98-100 % above 0 °C): check it on scenes of your own before trusting its σ, "
+                "or use kpn"),
     )
 }

@@ -41,6 +41,7 @@ from thermocal.evaluation.sigma_fit import (
 from thermocal.evaluation.suites.coverage import SCENE_LESS_FPA_BINS_C
 from thermocal.evaluation.tables import markdown_table
 from thermocal.nn.infer import NetworkEstimator
+from thermocal.nn.uncertainty import level_variance
 
 __all__ = ["CONTRAST_BINS_C", "burst_levels", "level_rows", "main"]
 
@@ -105,7 +106,7 @@ def level_rows(level: np.ndarray, contrast: np.ndarray, unit: np.ndarray, *, flo
     if not (level.ndim == 1 and level.shape == contrast.shape == unit.shape and level.size
             and np.all(np.isfinite(level)) and np.all(np.isfinite(contrast))):
         raise InvalidInputError("level_rows: need finite (B,) levels, contrasts and units")
-    stated = np.sqrt(floor_c**2 + ((contrast_per_c or 0.0) * contrast) ** 2)
+    stated = np.sqrt(level_variance(floor_c, contrast_per_c, contrast))
     z = np.abs(level) / stated
     k = np.searchsorted(np.asarray(bins_c), contrast, side="right") - 1
     cells = [((bins_c[i], bins_c[i + 1]), k == i) for i in range(len(bins_c) - 1)]
