@@ -192,6 +192,35 @@ def test_a_long_recording_runs_in_segments_and_gives_the_bytes_of_one_flight(tmp
     assert (tmp_path / "out" / rec.name / "report.html").is_file()
 
 
+def test_a_segments_warnings_reach_its_recordings_result_once(tmp_path, monkeypatch):
+    """A recording in segments: what its flight warns (an e2e σ's caveat, say) is kept by each
+    segment task, not shown there, and warned once by the finishing task, into the
+    recording's result (it was dropped)."""
+    import warnings
+    from dataclasses import replace
+
+    from thermocal.pipeline import flight, report
+
+    said = "e2e: its σ is fitted on bursts of the scenes it was trained on"
+
+    def segment_flight(recording, out_dir, options, *, segment):
+        warnings.warn(said, UserWarning, stacklevel=2)
+        return {"segment": list(segment), "wall_time_s": 1.0}
+
+    monkeypatch.setattr(flight, "process_flight", segment_flight)
+    tasks = [campaign.CampaignTask("a", "a.tiff", str(tmp_path), 10, FlightOptions(),
+                                   segment=span) for span in ((0, 1), (1, 2))]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # kept, not shown: it would raise here
+        done = [campaign._run_task(t)["segment"] for t in tasks]
+    assert [d["warnings"] for d in done] == [[said], [said]]
+    counts = {"processed": 2, "skipped_already_done": 0, "failed": 0, "groups": 2}
+    monkeypatch.setattr(flight, "finish_segments", lambda *args: counts)
+    monkeypatch.setattr(report, "write_report", lambda out: None)
+    result = campaign._finish_task(replace(tasks[0], segment=None), done)
+    assert result["ok"] and result["warnings"] == [said]
+
+
 def test_task_keys_cannot_collide_and_a_short_recording_is_one_task(data, tmp_path):
     """Keys put the kind of task first (a recording named ``a-finish`` and ``a``'s finishing
     task differ); a recording too short for a group is left to its task to report."""

@@ -543,6 +543,7 @@ def test_train_from_a_chamber_file(tmp_path, capsys):
 
     sigma = SigmaModel.load(sidecar_path(out), weights_sha256=info["sha256"])
     assert sigma.fitted_on["chamber"] == str(chamber) and "units" not in sigma.fitted_on
+    assert sigma.fitted_on["variant"] == "kpn"
     assert sigma.fitted_on["bursts"] == 44  # 4 per validation scene
     # what the fitted model misses of the camera's level, by the file's blackbody set points
     points, misfit = sigma.misfit_c
@@ -736,6 +737,23 @@ def test_e2e_runs_in_tiles_of_its_training_crop(tmp_path):
         infer.NetworkEstimator.from_file("kpn", kpn_path)
         sidecar_path(e2e_path).unlink()  # no σ: nothing to warn of
         assert infer.NetworkEstimator.from_file("e2e", e2e_path).sigma_model is None
+
+
+@pytest.mark.parametrize("variant", ["e2e", "kpn"])
+def test_train_says_the_caveat_of_the_variant_its_sigma_was_fitted_for(tmp_path, capsys,
+                                                                      monkeypatch, variant):
+    """`thermocal train` names the caveat of the variant the σ was fitted on, the weights'
+    own (a resumed run's is its checkpoint's, whatever --variant says)."""
+    from thermocal.evaluation import sigma_fit
+    from thermocal.nn.commands import _fit_sigma
+    from thermocal.nn.uncertainty import SigmaModel
+
+    fitted = SigmaModel(0.6, (0.0,) * 4, fitted_on={"variant": variant, "bursts": 3})
+    monkeypatch.setattr(sigma_fit, "fit_network_sigma", lambda weights, chamber: fitted)
+    _fit_sigma(tmp_path / "m.pt", chamber=None)
+    err = capsys.readouterr().err
+    assert "σ model (floor 0.60 °C" in err and (tmp_path / "m.sigma.json").is_file()
+    assert ("warning: e2e: its σ is fitted on bursts of the scenes" in err) == (variant == "e2e")
 
 
 def test_train_and_estimate_with_each_frames_sensor_position(tmp_path, capsys, flight):

@@ -208,8 +208,8 @@ def fit_network_sigma(weights: str | os.PathLike[str], *, per_scene: int | None 
         feats.append(f[:, pick])
         labels.append(np.full(pick.size, i))
         contrast.append(x[pick])
-    fitted_on = {**on, "scenes": sorted(scenes), "bursts": len(bursts),
-                 "frames_per_burst": model.config.n_frames}
+    fitted_on = {**on, "variant": model.config.variant, "scenes": sorted(scenes),
+                 "bursts": len(bursts), "frames_per_burst": model.config.n_frames}
     # units of the preset, one per burst: the level in two stages, with its contrast term;
     # one camera (a chamber file's model): one stage, its level is the misfit's
     population = ({"bursts": np.concatenate(labels), "contrast_c": np.concatenate(contrast)}

@@ -334,10 +334,10 @@ def train(**opts: Any) -> None:
         err=True,
     )
     if result.steps > 0:
-        _fit_sigma(opts["out"], chamber=opts["chamber"], variant=opts["variant"])
+        _fit_sigma(opts["out"], chamber=opts["chamber"])
 
 
-def _fit_sigma(weights: Path, *, chamber: Path | None, variant: str) -> None:
+def _fit_sigma(weights: Path, *, chamber: Path | None) -> None:
     """Fit the trained network's σ model and write it beside the weights
     (:mod:`thermocal.evaluation.sigma_fit`): on bursts of units it never saw, or of the camera
     model fitted on its chamber file."""
@@ -360,6 +360,7 @@ def _fit_sigma(weights: Path, *, chamber: Path | None, variant: str) -> None:
     click.echo(f"σ model (floor {sigma.floor_c:.2f} °C{contrast}, fitted on "
                f"{sigma.fitted_on['bursts']} "
                f"bursts of {on}) written to {path}", err=True)
+    variant = sigma.fitted_on["variant"]  # the weights' (a resumed run's is its checkpoint's)
     if VARIANTS[variant].sigma_caveat:
         click.echo(f"thermocal: warning: {variant}: {VARIANTS[variant].sigma_caveat}", err=True)
 

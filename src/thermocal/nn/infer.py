@@ -239,7 +239,9 @@ class NetworkEstimator:
                   ) -> NetworkEstimator:
         """The network ``method`` from weights file ``path`` (default: the shipped one),
         refused when the file holds another variant; run on ``backend`` with ``threads``
-        threads for ``concurrent`` callers (:func:`~thermocal.nn.runners.make_runner`)."""
+        threads for ``concurrent`` callers (:func:`~thermocal.nn.runners.make_runner`). A
+        variant whose σ is known not to hold somewhere
+        (:attr:`~thermocal.nn.variants.Variant.sigma_caveat`) warns so when it has one."""
         path = Path(path) if path is not None else shipped_model_path(method)
         model, norm, content = load_model(path)
         if model.config.variant != method:

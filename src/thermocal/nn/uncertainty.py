@@ -91,7 +91,9 @@ def level_variance(floor_c: float, contrast_per_c: float | None, contrast_c: Any
     ``contrast_per_c`` None: no contrast term). The one formula the fit holds, :class:`SigmaModel`
     states and the level benchmark checks."""
     x = np.asarray(contrast_c, np.float64)
-    return floor_c**2 + ((contrast_per_c or 0.0) * x) ** 2
+    if contrast_per_c is None:
+        return np.full_like(x, floor_c**2)
+    return floor_c**2 + (contrast_per_c * x) ** 2
 
 
 @dataclass(frozen=True)

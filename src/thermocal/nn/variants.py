@@ -40,7 +40,7 @@ VARIANTS: dict[str, Variant] = {
                 "its σ is fitted on bursts of the scenes it was trained on, and an end-to-end "
                 "network's error does not carry over to scenes unlike them: one trained for "
                 "20 min had 21-26 % of the held-out scenes' pixels below -5 °C within 1σ "
-                "(98-100 % above 0 °C): check it on scenes of your own before trusting its σ, "
+                "(98-100 % above -5 °C): check it on scenes of your own before trusting its σ, "
                 "or use kpn"),
     )
 }

@@ -41,6 +41,7 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from thermocal.calibration.base import ThermocalWarning
 from thermocal.errors import InvalidInputError, ThermocalError
 from thermocal.pipeline.flight import FlightOptions
 from thermocal.pipeline.run_record import check_not_a_recording_folder
@@ -216,24 +217,33 @@ def _run_task(task: CampaignTask) -> dict[str, Any]:
 
         started = time.perf_counter()
         try:
-            with warnings.catch_warnings():  # the finishing task warns for the recording
-                warnings.simplefilter("ignore")
-                return {"name": task.name, "ok": True, "segment": process_flight(
-                    task.recording, task.out_dir, task.options, segment=task.segment)}
+            # kept for the finishing task, which warns them once for the recording
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                segment = process_flight(task.recording, task.out_dir, task.options,
+                                         segment=task.segment)
         except ThermocalError as exc:
             return _failed(task, str(exc), started)
+        return {"name": task.name, "ok": True,
+                "segment": segment | {"warnings": sorted({str(w.message) for w in caught})}}
     return _reported(task, lambda: process_flight(task.recording, task.out_dir, task.options))
 
 
 def _finish_task(task: CampaignTask, segments: list[dict[str, Any]]) -> dict[str, Any]:
-    """The last task of a recording run in segments, on a worker: its log and summary
+    """The last task of a recording run in segments, on a worker: the segments' warnings, once
+    each, its log and summary
     (:func:`~thermocal.pipeline.flight.finish_segments`) and report; the recording's result,
     its counts summed over the segments."""
+    import warnings
+
     from thermocal.pipeline.flight import finish_segments
 
-    return _reported(task, lambda: finish_segments(task.recording, task.out_dir, task.options,
-                                                   segments),
-                     earlier_s=sum(r["wall_time_s"] for r in segments))
+    def finish() -> dict[str, Any]:
+        for text in sorted({t for r in segments for t in r.get("warnings", ())}):
+            warnings.warn(text, ThermocalWarning, stacklevel=2)  # the segments', once each
+        return finish_segments(task.recording, task.out_dir, task.options, segments)
+
+    return _reported(task, finish, earlier_s=sum(r["wall_time_s"] for r in segments))
 
 
 def _reported(task: CampaignTask, flight: Callable[[], dict[str, Any]], *,

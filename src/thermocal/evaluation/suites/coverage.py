@@ -109,7 +109,7 @@ def _run(network: NetworkEstimator, bursts: list[dict]) -> dict:
     the accepted bursts' pixels and of the forced ones', and the silent errors."""
     kept: dict[str, list] = {"accepted": [], "forced": []}
     by_unit: dict[int, list] = {}  # the accepted bursts' (errors, σ) of each unit
-    by_condition: dict[str, dict[int, list]] = {}  # and of each FPA and scene-less-FPA bin
+    by_condition: dict[str, dict[int, list]] = {}  # and of each condition's bin
     silent, maes = 0, []
     for b in bursts:
         frames, _ = fill_stuck_pixels(b["frames"], b["hs"])
@@ -173,8 +173,8 @@ SCENE_LESS_FPA_BINS_C = (-90.0, -40.0, -20.0, 0.0, 60.0)
 
 #: The bins of the accepted bursts' pixels by their estimate's temperature (°C): a σ that
 #: covers the pixels as a whole may miss a part of the scenes (an ``e2e`` network trained
-#: 20 min erred 7–9 °C on the held-out scenes' pixels below −5 °C, σ 5.4, 24–39 % within 1σ,
-#: and 0.9–1.9 °C on those above 0 °C, 98–100 %: 86 % overall).
+#: 20 min: 95.1 % within 1σ overall, 20.6–25.7 % of the held-out scenes' pixels below −5 °C,
+#: 98–100 % of those above, σ 5.2–5.9 °C throughout: results/coverage_e2e_2026-11-29b.md).
 PIXEL_TEMPERATURE_BINS_C = (-90.0, -20.0, -5.0, 5.0, 15.0, 60.0)
 
 _BINS = (("FPA", FPA_BINS_C), ("scene − FPA", SCENE_LESS_FPA_BINS_C),
@@ -211,7 +211,8 @@ def _pixel_conditions(temps_c: np.ndarray) -> list[tuple[str, np.ndarray]]:
 
 
 def condition_table(rows: list[dict]) -> str:
-    """The network rows' coverage by FPA and by scene less FPA (accepted bursts)."""
+    """The network rows' coverage by FPA and by scene less FPA (accepted bursts), and by
+    their pixels' estimate's temperature."""
     cells = [(r["data"], key, c["bursts"], *_cells(c, c.get("interval")))
              for r in rows for key, c in (r.get("accepted_by_condition") or {}).items()]
     if not cells:
