@@ -115,6 +115,31 @@ def test_a_runner_for_callers_at_once_gives_the_numbers_of_one_caller(backend, s
         make_runner(model, backend, concurrent=0)
 
 
+@pytest.mark.parametrize("backend", GRAPH_BACKENDS)
+@pytest.mark.parametrize("variant", ["kpn-no-offset", "e2e"])
+def test_every_variant_runs_on_the_graph_backends_as_pytorch(backend, variant):
+    """The ablations' graphs lack inputs they do not use (``valid``; ``kpn-no-offset`` also
+    ``means``): a backend is fed only its graph's own (both crashed with a traceback on
+    ``--backend onnxruntime|openvino``)."""
+    from thermocal.nn.inputs import Normalisation
+    from thermocal.nn.model import KPN, ModelConfig
+
+    torch.manual_seed(0)
+    model = KPN(ModelConfig(n_frames=3, mu=4, levels=1, kernel=3, variant=variant)).eval()
+    with torch.no_grad():  # an untrained head is zero: a constant map would prove nothing
+        for param in model.parameters():
+            param.add_(0.15 * torch.randn_like(param))
+    norm = Normalisation()
+    rng = np.random.default_rng(2)
+    warped = rng.uniform(10.0, 40.0, (3, 32, 48)).astype(np.float32)
+    valid = rng.uniform(size=warped.shape) > 0.05
+    ref = run_network(model, norm, warped, valid, 30.0)
+    got = run_network(model, norm, warped, valid, 30.0, runner=make_runner(model, backend,
+                                                                           threads=1))
+    assert np.isfinite(got).all() and np.abs(got - ref).max() <= 1e-3
+    assert np.ptp(ref) > 0.05  # not a constant map
+
+
 def test_the_exported_graph_must_be_a_multiple_of_the_networks_size(shipped):
     with pytest.raises(InvalidInputError, match="multiples of 8"):
         onnx_graph(shipped[0], 60, 64)

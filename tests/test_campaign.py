@@ -115,6 +115,24 @@ def test_bad_campaign_input_is_one_line_exit_2_and_writes_nothing(data, tmp_path
     assert not out.exists()
 
 
+@pytest.mark.parametrize("method, warned", [("e2e", True), ("kpn", False)])
+def test_a_campaign_says_the_caveat_of_a_sigma_on_its_console(data, tmp_path, capsys,
+                                                              monkeypatch, method, warned):
+    """The workers' warnings stay in campaign.json: a method whose σ is known not to hold
+    somewhere (e2e) is said on the console too, as a flight says it."""
+    from thermocal.cli import main
+
+    done = {"recordings": [{"name": "pass0", "ok": True, "processed": 3, "sigma": True,
+                            "skipped_already_done": 0, "failed_groups": 0}],
+            "failed": 0, "wall_time_s": 1.0}
+    monkeypatch.setattr(campaign, "campaign_tasks", lambda *args, **kwargs: [])
+    monkeypatch.setattr(campaign, "run_campaign", lambda *args, **kwargs: done)
+    main(["campaign", str(data / "pass0"), "--out", str(tmp_path / "out"), "--method",
+          method])
+    err = capsys.readouterr().err
+    assert (f"warning: {method}: its σ is fitted on bursts of the scenes" in err) == warned
+
+
 def test_a_recording_made_with_other_options_fails_alone_in_one_line(data, tmp_path, capsys):
     """A campaign rerun into a folder whose first recording was made at another stride: that
     recording is refused (resuming would mix two runs' maps), the other is made; the results

@@ -156,6 +156,18 @@ def test_a_rerun_with_other_options_is_refused_not_mixed(setup, tmp_path):
     (out / "run.json").unlink()
     with pytest.raises(InvalidInputError, match="whose recording and options were not recorded"):
         process_flight(rec, out, options)
+    # a run that failed before its first map (its record written, no log line) is no run to
+    # resume: another run takes the folder (it blocked every rerun with other options)
+    fresh = tmp_path / "fresh"
+    fresh.mkdir()
+    (fresh / "run.json").write_text(json.dumps(record | {"options": record["options"] | {
+        "backend": "onnxruntime"}}))
+    (fresh / "log.jsonl").write_text("")
+    assert process_flight(rec, fresh, options)["processed"] == 3
+    assert json.loads((fresh / "run.json").read_text()) == record
+    (fresh / "run.json").write_text("{damaged")  # and a damaged record with maps is refused
+    with pytest.raises(InvalidInputError, match="not a run record"):
+        process_flight(rec, fresh, options)
 
 
 def _outputs(out) -> dict[str, bytes]:

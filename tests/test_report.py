@@ -128,6 +128,28 @@ def test_failures_and_warnings_grouped_by_reason(tmp_path):
     assert "2 with warnings" in page
 
 
+def test_a_sigma_known_not_to_hold_somewhere_says_so(tmp_path):
+    """An e2e flight's summary carries its σ's caveat (the flight writes it from the variant's
+    registry entry), and the report shows it as a warning beside the stated accuracy."""
+    from thermocal.nn.variants import VARIANTS
+    from thermocal.pipeline.flight import _sigma_summary
+
+    entries = [{"sigma_median_c": 5.0, "sigma_p95_c": 6.0}]
+    assert _sigma_summary(entries, "e2e")["caveat"] == VARIANTS["e2e"].sigma_caveat
+    assert "caveat" not in _sigma_summary(entries, "kpn")  # its σ holds where measured
+    assert "caveat" not in _sigma_summary(entries, "calibration")
+    assert _sigma_summary([{}], "e2e") is None  # no σ, no caveat
+    out = _fake_flight(tmp_path / "out", method="e2e")
+    summary = json.loads((out / "summary.json").read_text())
+    summary["sigma_c"]["caveat"] = VARIANTS["e2e"].sigma_caveat
+    (out / "summary.json").write_text(json.dumps(summary))
+    page = write_report(out).read_text(encoding="utf-8")
+    assert ('<span class="warn">e2e: its σ is fitted on bursts of the scenes it was trained '
+            "on") in page
+    plain = write_report(_fake_flight(tmp_path / "kpn")).read_text(encoding="utf-8")
+    assert "it was trained on" not in plain
+
+
 def test_without_sigma_says_so_plainly(tmp_path):
     out = _fake_flight(tmp_path / "out", method="calibration", sigma=False)
     page = write_report(out).read_text(encoding="utf-8")

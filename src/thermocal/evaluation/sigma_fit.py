@@ -248,6 +248,11 @@ def main(argv: list[str] | None = None) -> None:
     print(f"σ model of {args.weights}: floor {sigma.floor_c:.3f} °C{contrast}, coefficients "
           f"{', '.join(f'{c:.3f}' for c in sigma.coef)}; fitted on {sigma.fitted_on['bursts']} "
           f"bursts ({sigma.fitted_on['pixels']} pixels); written to {out}")
+    from thermocal.nn.variants import VARIANTS
+
+    caveat = VARIANTS[sigma.fitted_on["variant"]].sigma_caveat
+    if caveat:  # as `thermocal train` says it
+        print(f"sigma_fit: warning: {sigma.fitted_on['variant']}: {caveat}", file=sys.stderr)
 
 
 if __name__ == "__main__":

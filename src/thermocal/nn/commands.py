@@ -150,8 +150,9 @@ def _experiment(*decls: str, **kwargs: Any):
     type=float,
     default=SHIPPED["max_minutes"],
     show_default=True,
-    help="Wall-clock budget; the run saves and stops cleanly when it runs out "
-    "(--preset paper: none).",
+    help="Wall-clock budget of the training; the run saves and stops cleanly when it runs out "
+    "(--preset paper: none). The σ model is fitted after it, outside the budget (about 5 "
+    "minutes on 2 CPU cores; 1 with --chamber).",
 )
 @click.option(
     "--steps", type=int, default=None,
@@ -345,6 +346,9 @@ def _fit_sigma(weights: Path, *, chamber: Path | None) -> None:
     from thermocal.evaluation.sigma_fit import fit_network_sigma
     from thermocal.nn.uncertainty import sidecar_path
 
+    click.echo(f"fitting the σ model of {weights} on bursts of "
+               + ("units it never saw (about 5 minutes on 2 CPU cores)…" if chamber is None
+                  else f"the camera model of {chamber} (about a minute)…"), err=True)
     try:
         sigma = fit_network_sigma(weights, chamber=chamber)
         path = sigma.save(sidecar_path(weights))

@@ -246,7 +246,7 @@ class NetworkEstimator:
         model, norm, content = load_model(path)
         if model.config.variant != method:
             raise InvalidInputError(
-                f"{path} holds a {model.config.variant} model, not {method}; pass the right "
+                f"{path} holds the variant {model.config.variant}, not {method}; pass the right "
                 "--model or --method"
             )
         nominal = model.nominal.info if model.config.calibrated else None

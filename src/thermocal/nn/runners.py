@@ -92,7 +92,10 @@ def onnx_graph(model: KPN, height: int, width: int) -> bytes:
 
 class _Graphs:
     """An exported graph per tile size, compiled by ``compile_graph(bytes) → run(feeds)``
-    when first met; the radiance → temperature step through the model's table in numpy."""
+    when first met; the radiance → temperature step through the model's table in numpy.
+    ``run`` takes the feeds of every input and gives its graph those it has: the exporter
+    leaves out what a variant does not use (``valid`` for ``e2e``, ``valid`` and ``means`` for
+    ``kpn-no-offset``), and a backend refuses a feed its graph has not."""
 
     def __init__(self, model: KPN, compile_graph: Callable[[bytes], Callable]) -> None:
         self.model = model
@@ -134,7 +137,8 @@ def _onnxruntime(threads: int, concurrent: int) -> Callable[[bytes], Callable]:
         options.intra_op_num_threads = threads
         options.inter_op_num_threads = 1
         session = ort.InferenceSession(graph, options, providers=["CPUExecutionProvider"])
-        return lambda feeds: session.run(None, feeds)[0]
+        names = [i.name for i in session.get_inputs()]  # the graph's own: see _Graphs
+        return lambda feeds: session.run(None, {k: feeds[k] for k in names})[0]
 
     return compile_graph
 
@@ -156,12 +160,14 @@ def _openvino(threads: int, concurrent: int) -> Callable[[bytes], Callable]:
             "INFERENCE_PRECISION_HINT": "f32", "INFERENCE_NUM_THREADS": threads * concurrent,
             "ENABLE_CPU_PINNING": False, **streams})
         requests = threading.local()  # a request serves one caller at a time
+        # the graph's own (see _Graphs), by any of a port's names (``valid``'s has its cast's)
+        names = {n for port in compiled.inputs for n in port.get_names()} & set(INPUT_NAMES)
 
         def run(feeds: dict[str, np.ndarray]) -> np.ndarray:
             request = getattr(requests, "request", None)
             if request is None:
                 request = requests.request = compiled.create_infer_request()
-            return request.infer(feeds)[0]
+            return request.infer({k: v for k, v in feeds.items() if k in names})[0]
 
         return run
 

@@ -930,7 +930,7 @@ def _finish(out: Path, recording: Path, options: FlightOptions, groups: int, tal
         "skipped_already_done": tally.skipped,
         "failed": tally.failed,
         **({"first_error": tally.first_error} if tally.first_error is not None else {}),
-        "sigma_c": _sigma_summary(read_log(out / "log.jsonl")),
+        "sigma_c": _sigma_summary(read_log(out / "log.jsonl"), options.method),
         "wall_time_s": elapsed,
         "frames_per_second": {
             stage: (frames_done / s if s > 0 else None) for stage, s in tally.times.seconds.items()
@@ -941,14 +941,20 @@ def _finish(out: Path, recording: Path, options: FlightOptions, groups: int, tal
     return summary
 
 
-def _sigma_summary(entries: list[dict[str, Any]]) -> dict[str, Any] | None:
+def _sigma_summary(entries: list[dict[str, Any]], method: str) -> dict[str, Any] | None:
     """The maps' uncertainty: the median over the pivots of each map's median σ, and the
-    largest 95th percentile (°C); None when the estimator gives no σ."""
+    largest 95th percentile (°C), and where ``method``'s σ is known not to hold, the
+    ``caveat`` (:attr:`~thermocal.nn.variants.Variant.sigma_caveat`); None when the
+    estimator gives no σ."""
+    from thermocal.nn.variants import VARIANTS
+
     done = [e for e in entries if isinstance(e.get("sigma_median_c"), int | float)]
     if not done:
         return None
+    caveat = VARIANTS[method].sigma_caveat if method in VARIANTS else ""
     return {"median_of_medians": float(np.median([e["sigma_median_c"] for e in done])),
-            "max_p95": float(max(e["sigma_p95_c"] for e in done)), "maps": len(done)}
+            "max_p95": float(max(e["sigma_p95_c"] for e in done)), "maps": len(done),
+            **({"caveat": caveat} if caveat else {})}
 
 
 class _FrameWindow:

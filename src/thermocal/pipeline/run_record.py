@@ -76,7 +76,9 @@ def check_not_a_recording_folder(out: Path) -> None:
 def check_run_record(out: Path, record: dict[str, Any]) -> None:
     """Refuse to resume ``out`` when its ``run.json`` says its maps came from another run than
     ``record``, or when it has a run's log but no record (an older thermocal); refuse an
-    ``out`` holding a recording (:func:`check_not_a_recording_folder`)."""
+    ``out`` holding a recording (:func:`check_not_a_recording_folder`). A record with no map
+    finished under it (no log line: a run that failed or was stopped before its first pivot)
+    is no run to resume: the new one takes its place."""
     check_not_a_recording_folder(out)
     path = out / RUN_FILE
     remedy = f"give a new --out, or remove {out} to redo the run"
@@ -89,9 +91,11 @@ def check_run_record(out: Path, record: dict[str, Any]) -> None:
     try:
         old = json.loads(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError, ValueError) as exc:
+        if not _has_log_lines(out):
+            return  # a damaged record with nothing under it: replaced
         raise InvalidInputError(f"{path}: not a run record ({exc}); {remedy}") from None
     changed = _changes(old if isinstance(old, dict) else {}, record)
-    if changed:
+    if changed and _has_log_lines(out):
         raise InvalidInputError(
             f"{out}: holds maps of another run ({'; '.join(changed)}); resuming would mix the "
             f"two runs' maps: {remedy}")
