@@ -727,7 +727,7 @@ CASES = [
      "files of mixed formats"),
     ("estimate-folder-of-mixed-sizes",
      ["estimate", "{root}/sizes", "--method", "camera", "--out", "{tmp}/t.tiff"],
-     "b.fff: frames of 4x4 in a folder of 6x8"),
+     "b.fff: frames of 4x4 in a folder of 8x6"),
     ("correct-npz-missing-keys",
      ["correct", "{root}/nokeys.npz", "--calibration", "{root}/cal.h5", "--out",
       "{tmp}/t.tiff"], "nokeys.npz: missing array(s) ['fpa']"),

@@ -460,13 +460,13 @@ def test_folders_mixed_empty_and_of_mixed_sizes(tmp_path):
     sizes.mkdir()
     (sizes / "a.fff").write_bytes(_fff(_frames(1)[0]))
     (sizes / "b.fff").write_bytes(_fff(_frames(1, 4, 4)[0]))
-    with pytest.raises(FileFormatError, match=r"b\.fff: frames of 4x4 in a folder of 6x8"):
+    with pytest.raises(FileFormatError, match=r"b\.fff: frames of 4x4 in a folder of 8x6"):
         open_recording(sizes)
     npz = tmp_path / "npz"
     npz.mkdir()
     _dualtau_file(npz / "a.npz", _frames(2), np.full(2, 3000), 0)
     _dualtau_file(npz / "b.npz", _frames(2, 4, 4), np.full(2, 3000), 10**9)
-    with pytest.raises(FileFormatError, match=r"b\.npz: frames of 4x4 in a flight of 6x8"):
+    with pytest.raises(FileFormatError, match=r"b\.npz: frames of 4x4 in a flight of 8x6"):
         open_recording(npz)
 
 

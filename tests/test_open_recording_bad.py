@@ -134,7 +134,7 @@ BAD = [
      "photo.jpg: JPEG without FLIR radiometric data"),
     ("rjpeg-raw-does-not-decode", _rjpeg_raw_does_not_decode,
      "bad.jpg: raw image does not decode"),
-    ("folder-mixed-sizes", _folder_mixed_sizes, "b.fff: frames of 4x4 in a folder of 6x8"),
+    ("folder-mixed-sizes", _folder_mixed_sizes, "b.fff: frames of 4x4 in a folder of 8x6"),
     ("folder-mixed-formats", _folder_mixed_formats, "files of mixed formats"),
     ("folder-without-recording", _folder_empty, "no recording in the folder"),
     ("folder-of-empty-files", _folder_of_unreadable_files,

@@ -250,8 +250,8 @@ def index_dualtau_folder(folder: Path, files: list[Path] | None = None) -> DualT
             shape, first = shp, p
         elif shp != shape:
             raise FileFormatError(
-                f"{p}: frames of {shp[0]}x{shp[1]} in a flight of {shape[0]}x{shape[1]} "
-                f"frames (first file {first.name if first else ''})"
+                f"{p}: frames of {shp[1]}x{shp[0]} in a flight of {shape[1]}x{shape[0]} "
+                f"frames (first file {first.name if first else ''}; width x height)"
             )
         if n == 0:
             continue

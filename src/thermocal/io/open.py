@@ -298,8 +298,8 @@ class RecordingSource:
             if raw.shape != self.frame_shape:
                 where = item[4].get("source", self.path)
                 raise FileFormatError(
-                    f"{where}: frame of {raw.shape[0]}x{raw.shape[1]} in a recording of "
-                    f"{self.frame_shape[0]}x{self.frame_shape[1]} frames"
+                    f"{where}: frame of {raw.shape[1]}x{raw.shape[0]} in a recording of "
+                    f"{self.frame_shape[1]}x{self.frame_shape[0]} frames (width x height)"
                 )
             buf.append(item)
             if len(buf) == chunk:
@@ -475,8 +475,8 @@ class _FolderSource(RecordingSource):
                 first = (f, shape, meta)
             elif shape != first[1]:
                 raise FileFormatError(
-                    f"{f}: frames of {shape[0]}x{shape[1]} in a folder of {first[1][0]}x"
-                    f"{first[1][1]} frames (first file {first[0].name})"
+                    f"{f}: frames of {shape[1]}x{shape[0]} in a folder of {first[1][1]}x"
+                    f"{first[1][0]} frames (first file {first[0].name}; width x height)"
                 )
             elif (first[2].get("core_c") is None) != (meta.get("core_c") is None):
                 raise FileFormatError(
