@@ -133,6 +133,23 @@ def test_a_campaign_says_the_caveat_of_a_sigma_on_its_console(data, tmp_path, ca
     assert (f"warning: {method}: its σ is fitted on bursts of the scenes" in err) == warned
 
 
+def test_a_campaign_gives_selfcal_its_family(data, tmp_path, monkeypatch):
+    """--family reaches every flight of a campaign (a boson campaign's selfcal started from
+    tau2's average unit: a campaign had no --family)."""
+    from thermocal.cli import main
+
+    given = []
+    monkeypatch.setattr(campaign, "campaign_tasks",
+                        lambda inputs, out, options: given.append(options) or [])
+    monkeypatch.setattr(campaign, "run_campaign", lambda *args, **kwargs: {
+        "recordings": [], "failed": 0, "wall_time_s": 0.0})
+    main(["campaign", str(data / "pass0"), "--out", str(tmp_path / "out"), "--method",
+          "selfcal", "--family", "boson"])
+    main(["campaign", str(data / "pass0"), "--out", str(tmp_path / "out"), "--method",
+          "selfcal"])
+    assert [o.family for o in given] == ["boson", "tau2"]
+
+
 def test_a_recording_made_with_other_options_fails_alone_in_one_line(data, tmp_path, capsys):
     """A campaign rerun into a folder whose first recording was made at another stride: that
     recording is refused (resuming would mix two runs' maps), the other is made; the results

@@ -16,7 +16,7 @@ from thermocal.progress import progress_bar
 def flight_options(command):
     """The options of ``thermocal flight`` that ``thermocal campaign`` passes on to each of its
     flights: the method and its files, the FPA temperature, the groups, the previews,
-    ``--force``, and how a network runs
+    ``--force``, ``selfcal``'s family, and how a network runs
     (:func:`~thermocal.estimation.commands.backend_options`)."""
     options = [
         click.option("--method", type=click.Choice(list(ESTIMATORS)), default="kpn",
@@ -40,6 +40,10 @@ def flight_options(command):
                      help="Estimate groups outside the method's domain (FPA or scene range, "
                      "camera family) instead of failing them; the log says why each is not "
                      "validated."),
+        click.option("--family", type=click.Choice(["tau2", "boson"]), default="tau2",
+                     show_default=True,
+                     help="Camera family whose average unit --method selfcal starts from "
+                     "(without --calibration)."),
     ]
     command = backend_options(command, threads_help=(
         "Threads the network runs on, one group at a time (default: a group per CPU core at "
@@ -63,10 +67,6 @@ def flight_options(command):
 @click.option("--hfov-deg", type=float, default=None,
               help="Horizontal field of view, degrees, for --geotiff (default: the file's, "
               "else the camera's: DJI XT/XT-R/XT2 with the 13 mm lens, 45° at 640 px).")
-@click.option("--family", type=click.Choice(["tau2", "boson"]), default="tau2",
-              show_default=True,
-              help="Camera family whose average unit --method selfcal starts from (without "
-              "--calibration).")
 @click.option("--reference", "reference", type=click.Path(dir_okay=False), default=None,
               help="Ground references for --method selfcal: a CSV with columns frame,x,y,"
               "radius_px,temperature_c (optional emissivity, reflected_c, sigma_c); they fix "
@@ -130,7 +130,7 @@ def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
 def campaign(inputs: tuple[Path, ...], out_dir: Path, scheduler: str | None,
              workers: int | None, method: str, calibration: str | None, model: str | None,
              fpa_c: float | None, n_frames: int, stride: int, preview_every: int,
-             force: bool, backend: str, threads: int | None) -> None:
+             force: bool, family: str, backend: str, threads: int | None) -> None:
     """Process many RECORDINGS as `thermocal flight` runs, each a task on a Dask cluster (a
     LocalCluster of this machine by default, or --scheduler): OUT/<name> per recording, the
     same bytes as `thermocal flight`; a failed recording is reported in OUT/campaign.json and
@@ -146,8 +146,8 @@ def campaign(inputs: tuple[Path, ...], out_dir: Path, scheduler: str | None,
     check_not_input(out_dir, *inputs, calibration, model)
     options = FlightOptions(method=method, calibration=calibration, model=model,
                             frames=n_frames, stride=stride, fpa_c=fpa_c,
-                            preview_every=preview_every, force=force, backend=backend,
-                            threads=threads)
+                            preview_every=preview_every, force=force, family=family,
+                            backend=backend, threads=threads)
     tasks = campaign_tasks(list(inputs), out_dir, options)
     with progress_bar() as bar:
         task = bar.add_task("campaign", total=sum(t.frames for t in tasks))
