@@ -169,6 +169,37 @@ def test_the_networks_pixels_are_told_by_their_temperature():
     assert "| u | pixels at -20…-5 °C | 1 |" in text
 
 
+def test_the_suites_pixel_bins_pair_each_pixels_error_with_its_own_sigma():
+    """The shipped network on three quick bursts through the suite (`_run`): the pixel bins
+    hold every accepted pixel once, each with its own error and σ (the coverage of a bin
+    computed again from the estimates, by hand)."""
+    from thermocal.burst import fill_stuck_pixels
+    from thermocal.estimation.pipeline import estimate
+    from thermocal.evaluation.heldout import eval_bursts
+    from thermocal.evaluation.suites.coverage import _pixel_conditions, _run
+    from thermocal.nn.infer import NetworkEstimator
+
+    net = NetworkEstimator.from_file("kpn")
+    bursts = eval_bursts(7, quick=True, units=(300, 301), per_scene=1, unit_per_burst=True)[:3]
+    res = _run(net, bursts)
+    pixel_cells = {k: c for k, c in res["accepted_by_condition"].items()
+                   if k.startswith("pixels at")}
+    assert sum(c["pixels"] for c in pixel_cells.values()) == res["accepted"]["pixels"]
+    errors, sigmas, temps = [], [], []
+    for b in bursts:
+        frames, _ = fill_stuck_pixels(b["frames"], b["hs"])
+        est = estimate(frames, net, fpa_c=b["fpa_read"], homographies=b["hs"],
+                       pivot=b["pivot"], fill_defects=False)
+        assert not est.outside
+        errors.append((est.temperature_c - b["truth"])[b["mask"]])
+        sigmas.append(est.sigma_c[b["mask"]])
+        temps.append(est.temperature_c[b["mask"]])
+    e, s, t = (np.concatenate(a) for a in (errors, sigmas, temps))
+    for key, sel in _pixel_conditions(t):
+        assert pixel_cells[key]["within_1sigma"] == pytest.approx(
+            np.mean(np.abs(e[sel]) <= s[sel]), abs=1e-12)
+
+
 def test_coverage_says_what_sharpening_sigma_would_silence():
     from thermocal.evaluation.suites.coverage import _rescaled
 
