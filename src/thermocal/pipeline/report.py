@@ -387,11 +387,11 @@ def _accuracy(summary: dict[str, Any]) -> str:
             f"(largest 95th percentile of a map), over {_e(sigma.get('maps', '?'))} maps")
     if model:
         text += f"<br><span class=\"note\">{_e(model)}</span>"
-    if isinstance(sigma.get("caveat"), str):  # where the method's σ is known not to hold
-        text += f"<br><span class=\"warn\">{_e(options['method'])}: {_e(sigma['caveat'])}</span>"
     elif options.get("calibration"):
         text += ('<br><span class="note">σ from the cross-validation of the calibration '
                  f"{_e(options['calibration'])}</span>")
+    if isinstance(sigma.get("caveat"), str):  # where the method's σ is known not to hold
+        text += f"<br><span class=\"warn\">{_e(options['method'])}: {_e(sigma['caveat'])}</span>"
     return text
 
 
