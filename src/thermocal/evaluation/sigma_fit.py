@@ -248,11 +248,10 @@ def main(argv: list[str] | None = None) -> None:
     print(f"σ model of {args.weights}: floor {sigma.floor_c:.3f} °C{contrast}, coefficients "
           f"{', '.join(f'{c:.3f}' for c in sigma.coef)}; fitted on {sigma.fitted_on['bursts']} "
           f"bursts ({sigma.fitted_on['pixels']} pixels); written to {out}")
-    from thermocal.nn.variants import VARIANTS
+    from thermocal.nn.variants import sigma_warning
 
-    caveat = VARIANTS[sigma.fitted_on["variant"]].sigma_caveat
-    if caveat:  # as `thermocal train` says it
-        print(f"sigma_fit: warning: {sigma.fitted_on['variant']}: {caveat}", file=sys.stderr)
+    if said := sigma_warning(sigma.fitted_on["variant"]):  # as `thermocal train` says it
+        print(f"sigma_fit: warning: {said}", file=sys.stderr)
 
 
 if __name__ == "__main__":

@@ -19,7 +19,7 @@ from click.core import ParameterSource
 
 from thermocal._validate import parse_range, parse_units
 from thermocal.errors import InvalidInputError
-from thermocal.nn.variants import VARIANTS
+from thermocal.nn.variants import VARIANTS, sigma_warning
 
 #: The configuration of the shipped network, ``nn/weights/kpn_n7.pt`` (trained by ``--device
 #: cuda --workers 14 --max-minutes 8.2``: 20100 steps on an H100), by option name.
@@ -365,8 +365,8 @@ def _fit_sigma(weights: Path, *, chamber: Path | None) -> None:
                f"{sigma.fitted_on['bursts']} "
                f"bursts of {on}) written to {path}", err=True)
     variant = sigma.fitted_on["variant"]  # the weights' (a resumed run's is its checkpoint's)
-    if VARIANTS[variant].sigma_caveat:
-        click.echo(f"thermocal: warning: {variant}: {VARIANTS[variant].sigma_caveat}", err=True)
+    if said := sigma_warning(variant):
+        click.echo(f"thermocal: warning: {said}", err=True)
 
 
 def _apply_preset(ctx: click.Context, opts: dict[str, Any]) -> None:

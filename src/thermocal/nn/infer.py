@@ -33,7 +33,7 @@ from thermocal.nn.runners import Runner, make_runner
 from thermocal.nn.store import load_model, nominal_for
 from thermocal.nn.uncertainty import SigmaModel, sidecar_path
 from thermocal.nn.validity import REMEDY, Domain, beyond_training_c, outside_domain
-from thermocal.nn.variants import VARIANTS
+from thermocal.nn.variants import VARIANTS, sigma_warning
 from thermocal.registration.warp import warp_to_pivot
 
 __all__ = [
@@ -241,7 +241,7 @@ class NetworkEstimator:
         refused when the file holds another variant; run on ``backend`` with ``threads``
         threads for ``concurrent`` callers (:func:`~thermocal.nn.runners.make_runner`). A
         variant whose σ is known not to hold somewhere
-        (:attr:`~thermocal.nn.variants.Variant.sigma_caveat`) warns so when it has one."""
+        (:func:`~thermocal.nn.variants.sigma_warning`) warns so when it has one."""
         path = Path(path) if path is not None else shipped_model_path(method)
         model, norm, content = load_model(path)
         if model.config.variant != method:
@@ -253,9 +253,8 @@ class NetworkEstimator:
         sidecar = sidecar_path(path)
         sigma = (SigmaModel.load(sidecar, weights_sha256=content["sha256"])
                  if sidecar.is_file() else None)
-        if sigma is not None and VARIANTS[method].sigma_caveat:
-            warnings.warn(f"{method}: {VARIANTS[method].sigma_caveat}", ThermocalWarning,
-                          stacklevel=2)
+        if sigma is not None and (said := sigma_warning(method)):
+            warnings.warn(said, ThermocalWarning, stacklevel=2)
         return cls(model, norm, Domain.of_network(content["data"], nominal), sigma,
                    backend=backend, threads=threads, concurrent=concurrent)
 

@@ -165,7 +165,7 @@ class SigmaModel:
         :attr:`contrast_per_c`, the level's part that grows with ``temperature_c − fpa_c``."""
         c = np.asarray(self.coef)
         log_var = c[0] + np.tensordot(c[1:], feats, axes=1)
-        var = self.level_sigma(temperature_c, fpa_c) ** 2 + np.exp(np.minimum(log_var, 10.0))
+        var = self._level_variance(temperature_c, fpa_c) + np.exp(np.minimum(log_var, 10.0))
         if self.misfit_c is not None:
             if temperature_c is None:
                 raise InvalidInputError("σ model: its misfit needs the estimate's temperature")
@@ -178,15 +178,18 @@ class SigmaModel:
         """σ of the unit's level (°C, float64, the shape of ``temperature_c``; a scalar without
         a contrast term and without ``temperature_c``): :func:`level_variance` at the estimate
         ``temperature_c`` less the FPA temperature ``fpa_c`` (°C), what no view reveals."""
-        if self.contrast_per_c is None:
-            x = np.zeros_like(np.asarray(0.0 if temperature_c is None else temperature_c,
-                                         np.float64))
-        elif temperature_c is None or fpa_c is None:
+        return np.sqrt(self._level_variance(temperature_c, fpa_c))
+
+    def _level_variance(self, temperature_c: Any, fpa_c: float | None) -> np.ndarray:
+        """:func:`level_variance` of this model at ``temperature_c`` less ``fpa_c``."""
+        if self.contrast_per_c is None:  # no contrast term: the shape alone counts
+            return level_variance(self.floor_c, None, 0.0 if temperature_c is None
+                                  else temperature_c)
+        if temperature_c is None or fpa_c is None:
             raise InvalidInputError("σ model: its contrast term needs the estimate's "
                                     "temperature and the FPA temperature")
-        else:
-            x = np.asarray(temperature_c, np.float64) - float(fpa_c)
-        return np.sqrt(level_variance(self.floor_c, self.contrast_per_c, x))
+        return level_variance(self.floor_c, self.contrast_per_c,
+                              np.asarray(temperature_c, np.float64) - float(fpa_c))
 
     def misfit_at(self, temperature_c: np.ndarray) -> np.ndarray:
         """The camera model's level misfit (°C) at scene temperatures ``temperature_c``: linear

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-__all__ = ["VARIANTS", "Variant"]
+__all__ = ["VARIANTS", "Variant", "sigma_warning"]
 
 
 @dataclass(frozen=True)
@@ -44,3 +44,11 @@ VARIANTS: dict[str, Variant] = {
                 "or use kpn"),
     )
 }
+
+
+def sigma_warning(method: str) -> str:
+    """The warning that ``method``'s σ is known not to hold somewhere (``"NAME: caveat"``), as
+    every place that fits or uses it says it; "" for a method that is no variant or whose σ
+    has no caveat."""
+    variant = VARIANTS.get(method)
+    return f"{variant.name}: {variant.sigma_caveat}" if variant and variant.sigma_caveat else ""

@@ -9,7 +9,7 @@ import click
 
 from thermocal.estimation.commands import backend_options
 from thermocal.estimation.registry import ESTIMATORS, method_help
-from thermocal.nn.variants import VARIANTS
+from thermocal.nn.variants import sigma_warning
 from thermocal.progress import progress_bar
 
 
@@ -161,9 +161,9 @@ def campaign(inputs: tuple[Path, ...], out_dir: Path, scheduler: str | None,
     no_sigma = [r["name"] for r in summary["recordings"] if r["ok"] and not r.get("sigma", True)]
     if no_sigma:  # as a flight says it: never silently
         _warn_no_sigma(method, of=no_sigma)
-    if method in VARIANTS and VARIANTS[method].sigma_caveat and len(no_sigma) < sum(
-            r["ok"] for r in summary["recordings"]):  # said on the workers, not here
-        click.echo(f"thermocal: warning: {method}: {VARIANTS[method].sigma_caveat}", err=True)
+    said = sigma_warning(method)
+    if said and len(no_sigma) < sum(r["ok"] for r in summary["recordings"]):
+        click.echo(f"thermocal: warning: {said}", err=True)  # said on the workers, not here
     if summary["failed"]:
         total = len(summary["recordings"])
         raise ThermocalError(
