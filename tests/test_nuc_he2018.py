@@ -177,3 +177,12 @@ def test_package_imports_without_torch():
     code = ("import sys; import thermocal.nuc.he2018; "
             "assert 'torch' not in sys.modules, 'torch imported'")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def test_training_command_runs_the_module_once():
+    """``python -m thermocal.nuc.he2018`` without runpy's warning that the package had
+    already loaded the module (the registry imports it when first called, not at import)."""
+    run = subprocess.run([sys.executable, "-W", "error::RuntimeWarning", "-m",
+                          "thermocal.nuc.he2018", "--help"], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    assert "RuntimeWarning" not in run.stderr

@@ -13,7 +13,6 @@ import numpy as np
 
 from thermocal.nuc.batch import hardie2000, tendero2012
 from thermocal.nuc.deepir import deepir
-from thermocal.nuc.he2018 import he2018
 from thermocal.nuc.streaming import (
     Harris1999,
     Pezoa2004,
@@ -29,6 +28,15 @@ from thermocal.nuc.streaming import (
 )
 
 __all__ = ["NUC_METHODS", "NucInfo", "method_help"]
+
+
+def _he2018(frames: np.ndarray, **options: object) -> np.ndarray:
+    """:func:`thermocal.nuc.he2018.he2018`, imported when first called: importing the
+    package then leaves that module unloaded, so ``python -m thermocal.nuc.he2018`` (its
+    training command) runs it once, without runpy's warning of a module loaded twice."""
+    from thermocal.nuc.he2018 import he2018
+
+    return he2018(frames, **options)  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True)
@@ -76,7 +84,7 @@ NUC_METHODS: dict[str, NucInfo] = {
                 "one frame at a time: column equalisation, DCT denoising"),
         NucInfo("deepir", deepir, None, "Saragadam et al. 2021 (DeepIR)",
                 "burst: untrained-network scene prior, joint gain/offset/motion fit"),
-        NucInfo("he2018", he2018, None, "He et al. 2018 (single-image CNN)",
+        NucInfo("he2018", _he2018, None, "He et al. 2018 (single-image CNN)",
                 "one frame at a time: a residual CNN estimates and subtracts the FPN"),
     )
 }
