@@ -133,6 +133,31 @@ def test_a_campaign_says_the_caveat_of_a_sigma_on_its_console(data, tmp_path, ca
     assert (f"warning: {method}: its σ is fitted on bursts of the scenes" in err) == warned
 
 
+def test_a_campaign_says_its_workers_warnings_on_its_console(data, tmp_path, capsys,
+                                                            monkeypatch):
+    """What the workers warned (kept in campaign.json) reaches the console too, as a flight
+    says it: each text once with the recordings that raised it; the σ caveat once."""
+    from thermocal.cli import main
+    from thermocal.nn.variants import sigma_warning
+
+    said = sigma_warning("e2e")
+    done = {"recordings": [
+        {"name": "a", "ok": True, "processed": 3, "sigma": True, "skipped_already_done": 0,
+         "failed_groups": 0, "warnings": ["2 damaged frames left out", said]},
+        {"name": "b", "ok": True, "processed": 3, "sigma": True, "skipped_already_done": 0,
+         "failed_groups": 0, "warnings": ["2 damaged frames left out"]},
+        {"name": "c", "ok": True, "processed": 3, "sigma": True, "skipped_already_done": 0,
+         "failed_groups": 0, "warnings": []}],
+        "failed": 0, "wall_time_s": 1.0}
+    monkeypatch.setattr(campaign, "campaign_tasks", lambda *args, **kwargs: [])
+    monkeypatch.setattr(campaign, "run_campaign", lambda *args, **kwargs: done)
+    main(["campaign", str(data / "pass0"), "--out", str(tmp_path / "out"), "--method", "e2e"])
+    err = capsys.readouterr().err.splitlines()
+    assert err.count("thermocal: warning: a, b: 2 damaged frames left out") == 1, err
+    assert sum(said in line for line in err) == 1, err
+    assert len(err) == 2, err
+
+
 def test_a_campaign_gives_selfcal_its_family(data, tmp_path, monkeypatch):
     """--family reaches every flight of a campaign (a boson campaign's selfcal started from
     tau2's average unit: a campaign had no --family)."""

@@ -164,6 +164,7 @@ def campaign(inputs: tuple[Path, ...], out_dir: Path, scheduler: str | None,
     said = sigma_warning(method)
     if said and len(no_sigma) < sum(r["ok"] for r in summary["recordings"]):
         click.echo(f"thermocal: warning: {said}", err=True)  # said on the workers, not here
+    _echo_workers_warnings(summary["recordings"], said=said)
     if summary["failed"]:
         total = len(summary["recordings"])
         raise ThermocalError(
@@ -172,6 +173,19 @@ def campaign(inputs: tuple[Path, ...], out_dir: Path, scheduler: str | None,
             + f"; each one's error is in {Path(out_dir) / 'campaign.json'}")
     click.echo(f"{len(summary['recordings'])} recordings processed into {out_dir} in "
                f"{summary['wall_time_s']:.1f} s")
+
+
+def _echo_workers_warnings(recordings: list[dict], *, said: str = "") -> None:
+    """Say on stderr what the workers warned while processing ``recordings`` (each result's
+    ``warnings``, kept in campaign.json), as a flight says its own: each text once, with the
+    recordings that raised it (``said``, already said, left out)."""
+    raised: dict[str, list[str]] = {}
+    for r in recordings:
+        for text in r.get("warnings", ()):
+            raised.setdefault(text, []).append(r["name"])
+    for text, names in raised.items():
+        if text != said:
+            click.echo(f"thermocal: warning: {', '.join(names)}: {text}", err=True)
 
 
 def _warn_no_sigma(method: str, *, of: list[str] | None = None) -> None:
