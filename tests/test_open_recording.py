@@ -128,11 +128,11 @@ def _rjpeg(record: bytes, *, parts: int = 2, xmp: str | None = None) -> bytes:
     return jpeg[:2] + segs + jpeg[2:]
 
 
-def _dji_xmp(core_c: int) -> str:
+def _dji_xmp(spot_c: int) -> str:
     return ('<x:xmpmeta xmlns:x="adobe:ns:meta/"><rdf:RDF><rdf:Description '
             'drone-dji:AbsoluteAltitude="100.5" drone-dji:RelativeAltitude="50.25" '
             'drone-dji:GimbalPitchDegree="-90.0" drone-dji:FlightYawDegree="12.5" '
-            f'FLIR:CentralTemperature="{core_c}"/></rdf:RDF></x:xmpmeta>')
+            f'FLIR:CentralTemperature="{spot_c}"/></rdf:RDF></x:xmpmeta>')
 
 
 def _frames(n: int, h: int = 6, w: int = 8, seed: int = 0) -> np.ndarray:
@@ -170,10 +170,14 @@ def test_rjpeg_dji_tau2_equals_exiftool(shared_data):
     meta = rec.extra["frame_metadata"][0]
     _check_against_dump(meta, rec.frames[0], dump)
     assert meta["make"] == dump["Make"] and meta["model"] == dump["Camera Model Name"]
-    # the Tau2 core's temperature, whole °C: the FPA series, flagged as coarse
-    assert meta["core_c"] == _num(dump["Central Temperature"]) == 26.0
-    assert rec.fpa_c.tolist() == [26.0] and rec.extra["fpa_measured"] == [True]
-    assert src.fpa_resolution_c == 1.0
+    # FLIR:CentralTemperature is the Tau2's spot meter, whole °C: the camera's own temperature
+    # of the 4x4 centre pixels (25.9 °C; the frame's median 27.7), not its FPA's: no FPA series
+    assert meta["spot_c"] == _num(dump["Central Temperature"]) == 26.0
+    temps = FlirPlanck.from_exiftool_text(path.with_suffix(".txt")).raw_to_temperature_c(
+        rec.frames[0].astype(np.float64))
+    assert round(float(temps[254:258, 318:322].mean())) == 26
+    assert round(float(np.median(temps))) != 26
+    assert rec.fpa_c is None and src.fpa_resolution_c is None and not src.has_fpa
     assert meta["absolute_altitude_m"] == pytest.approx(_num(dump["Absolute Altitude"]))
     assert meta["relative_altitude_m"] == pytest.approx(_num(dump["Relative Altitude"]))
     for key, name in (("gimbal_roll_deg", "Gimbal Roll Degree"),
@@ -322,7 +326,8 @@ def test_rjpeg_synthetic_and_folder_series(tmp_path):
     assert src.header["files"] == ["DJI_0000.jpg", "DJI_0001.jpg", "DJI_0002.jpg"]
     rec = src.read_all()
     np.testing.assert_array_equal(rec.frames, frames)
-    assert rec.fpa_c.tolist() == [30.0, 31.0, 32.0]
+    assert rec.fpa_c is None  # the spot meter is a scene temperature
+    assert [m["spot_c"] for m in rec.extra["frame_metadata"]] == [30.0, 31.0, 32.0]
     np.testing.assert_allclose(rec.time_s, [0.0, 0.1, 0.2])
     meta = rec.extra["frame_metadata"][1]
     assert meta["relative_altitude_m"] == 50.25 and meta["attitude"]["gimbal_pitch_deg"] == -90.0
@@ -512,7 +517,9 @@ def test_info_says_what_a_recording_holds(shared_data, tmp_path, capsys):
     dump = _dump(dji.with_suffix(".txt"))
     assert "rjpeg, 1 frame(s) of 640x512" in out and "GPS in 1 of 1 frames" in out
     assert "attitude in 1" in out and "camera model: DJI FLIR" in out
-    assert f"R1 {_num(dump['Planck R1']):g}" in out and "FPA 26.00…26.00 °C" in out
+    assert f"R1 {_num(dump['Planck R1']):g}" in out and "no FPA temperature" in out
+    assert "spot meter (the centre pixels' temperature, whole °C; FLIR:CentralTemperature) " \
+           "26…26 °C in 1 of 1 frames" in out
     code, out, err = run(["info", tmp_path / "nothing.seq"], capsys)
     assert code == 2 and len(err.strip().splitlines()) == 1 and "no such file" in err
 

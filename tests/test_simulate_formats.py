@@ -62,11 +62,8 @@ def test_round_trip(tmp_path, fmt, name, reported):
     np.testing.assert_array_equal(back.frames, rec.frames)
     # times: the FLIR clock has ms resolution, DualTauUAV ns
     np.testing.assert_allclose(back.time_s, rec.time_s, atol=0.5e-3 if fmt in FLIR else 1e-9)
-    if fmt in ("seq", "csq", "fff", "rjpeg"):
+    if fmt in FLIR:
         assert back.fpa_c is None  # the camera has no place for it
-    elif fmt == "dji-rjpeg":  # FLIR:CentralTemperature, whole °C
-        assert src.fpa_resolution_c == 1.0
-        np.testing.assert_allclose(back.fpa_c, rec.fpa_c, atol=0.5)
     elif fmt == "dualtau":  # one reading (12 frames < 30 s), rounded to 0.1 °C, held
         assert src.fpa_resolution_c == 0.1
         np.testing.assert_allclose(back.fpa_c, round(rec.fpa_c[0], 1), atol=1e-9)
@@ -76,7 +73,7 @@ def test_round_trip(tmp_path, fmt, name, reported):
     if fmt not in FLIR:
         return
     metas = back.extra["frame_metadata"]
-    for meta, (lat, lon, alt), t in zip(metas, gps, rec.time_s, strict=True):
+    for meta, (lat, lon, alt), t, frame in zip(metas, gps, rec.time_s, rec.frames, strict=True):
         planck = planck_from_metadata(meta)
         for key in ("r1", "r2", "b", "f", "o"):  # float32-exact constants: equal
             assert getattr(planck, key) == getattr(PLANCK, key), key
@@ -93,6 +90,9 @@ def test_round_trip(tmp_path, fmt, name, reported):
             assert meta["absolute_altitude_m"] == pytest.approx(alt, abs=1e-5)
             assert meta["relative_altitude_m"] == pytest.approx(alt - 850.0, abs=1e-5)
             assert meta["attitude"]["gimbal_pitch_deg"] == -90.0
+            # the spot meter: the camera's own reading of the 4x4 centre pixels, whole °C
+            centre = frame[H // 2 - 2 : H // 2 + 2, W // 2 - 2 : W // 2 + 2].astype(float)
+            assert meta["spot_c"] == round(PLANCK.raw_to_temperature_c(centre.mean()))
         else:
             assert 0.0 <= g["track_deg"] < 360.0
             assert meta["frame_rate_hz"] == 30

@@ -24,6 +24,7 @@ def recording_summary(path: str | Path) -> dict[str, Any]:
 
     source = open_recording(path)
     fpa, measured, times, first_meta, gps, attitude, n = [], [], [], None, 0, 0, 0
+    spots: list[float] = []
     top, beyond, count_max = 2**source.bit_depth - 1, None, 0
     for chunk in source.iter_frames(skip_undecodable=True):
         k = first_frame_outside(chunk.frames, top) if beyond is None else None
@@ -41,6 +42,7 @@ def recording_summary(path: str | Path) -> dict[str, Any]:
         metas = chunk.metadata or []
         if first_meta is None and metas:
             first_meta = metas[0]
+        spots += [float(m["spot_c"]) for m in metas if m.get("spot_c") is not None]
         gps += sum(1 for m in metas if m.get("gps"))
         attitude += sum(1 for m in metas if m.get("attitude"))
     out: dict[str, Any] = {
@@ -61,6 +63,8 @@ def recording_summary(path: str | Path) -> dict[str, Any]:
         read = int(np.concatenate(measured).sum()) if measured else int(f.size)
         out["fpa_c"] = {"min": float(np.nanmin(f)), "max": float(np.nanmax(f)),
                         "frames_read": read, "resolution_c": source.fpa_resolution_c}
+    if spots:  # a DJI XT2/XT-R's FLIR:CentralTemperature: a scene temperature, not the FPA's
+        out["spot_c"] = {"min": min(spots), "max": max(spots), "frames": len(spots)}
     if times:
         t = np.concatenate(times)
         out["time_span_s"] = float(t.max() - t.min()) if t.size else 0.0
@@ -99,6 +103,11 @@ def info(path: Path) -> None:
                    f"{s['frames']} frames{res}")
     else:
         click.echo("  no FPA temperature (give --fpa-c to the commands that need it)")
+    if "spot_c" in s:
+        sp = s["spot_c"]
+        click.echo(f"  the camera's spot meter (the centre pixels' temperature, whole °C; "
+                   f"FLIR:CentralTemperature) {sp['min']:g}…{sp['max']:g} °C in {sp['frames']} "
+                   f"of {s['frames']} frames")
     if "time_span_s" in s:
         click.echo(f"  time span {s['time_span_s']:.3f} s")
     click.echo(f"  GPS in {s['frames_with_gps']} of {s['frames']} frames, attitude in "

@@ -27,10 +27,10 @@ per-frame metadata — so that a flight larger than memory can be processed.
 
 **Per-frame series.** ``fpa_c`` is the FPA temperature in °C: the sidecar's series for a TIFF
 recording, the chamber's for EnvChamberCtrl, the rig's sparse readings interpolated for
-DualTauUAV, and the core temperature (``FLIR:CentralTemperature``, whole °C) for DJI R-JPEGs.
-``fpa_measured`` flags the frames whose value was read rather than interpolated, and
-:attr:`RecordingSource.fpa_resolution_c` says how coarse a reading is (0.1 °C for DualTauUAV,
-1 °C for DJI). FLIR FFF/SEQ/CSQ frames have no FPA temperature (``fpa_c`` is None). ``time_s``
+DualTauUAV. ``fpa_measured`` flags the frames whose value was read rather than interpolated,
+and :attr:`RecordingSource.fpa_resolution_c` says how coarse a reading is (0.1 °C for
+DualTauUAV). FLIR FFF/SEQ/CSQ and R-JPEG frames have no FPA temperature (``fpa_c`` is None; a
+DJI XT2/XT-R's ``FLIR:CentralTemperature`` is its spot meter, kept as ``spot_c``). ``time_s``
 is the time since the first frame, s (for FLIR files from the camera's clock, ms resolution).
 
 **Per-frame metadata** (JSON-serialisable dicts): ``source`` (the file), ``index`` (the
@@ -478,10 +478,6 @@ class _FolderSource(RecordingSource):
                     f"{f}: frames of {shape[1]}x{shape[0]} in a folder of {first[1][1]}x"
                     f"{first[1][0]} frames (first file {first[0].name}; width x height)"
                 )
-            elif (first[2].get("core_c") is None) != (meta.get("core_c") is None):
-                raise FileFormatError(
-                    f"{f}: {'no' if meta.get('core_c') is None else 'a'} core temperature "
-                    f"(FLIR:CentralTemperature), unlike {first[0].name}: a folder of one camera")
             good.append(f)
             times.append(meta.get("time_epoch_s"))
         self.damaged.sort()
@@ -490,10 +486,10 @@ class _FolderSource(RecordingSource):
         check_time_order(times, [f.name for f in good], path)
         self._files = good
         self._t0 = times[0]
-        core = first[2].get("core_c")
+        # no FPA temperature: a FLIR file records none (a DJI XT2/XT-R's
+        # FLIR:CentralTemperature is its spot meter, a scene temperature: rjpeg)
         super().__init__(path, f"{kind}-folder", len(good), first[1],
-                         bit_depth=16, has_fpa=core is not None, has_time=self._t0 is not None,
-                         fpa_resolution_c=1.0 if core is not None else None,
+                         bit_depth=16, has_fpa=False, has_time=self._t0 is not None,
                          header={"files": [f.name for f in good],
                                  **_camera_header(self._check(good[0])[1])})
 
@@ -519,7 +515,7 @@ class _FolderSource(RecordingSource):
                 continue
             raw, metadata = (frame.raw, frame.metadata) if decode else frame
             meta = {"source": str(f), "index": 0, **metadata}
-            yield raw, meta.get("core_c"), True, _rel_time(meta, self._t0, str(f)), meta
+            yield raw, None, None, _rel_time(meta, self._t0, str(f)), meta
 
 
 class _RjpegSource(_FolderSource):

@@ -4,7 +4,10 @@ An R-JPEG is a visible JPEG whose APP1 segments starting ``"FLIR\\0"`` carry, sp
 (byte 6 the part's index, byte 7 the last index), one FFF record: raw counts and the camera's
 Planck constants (:mod:`thermocal.io.fff` decodes it). The camera adds EXIF (make, model, time,
 GPS) and, on DJI drones, XMP (``drone-dji:`` altitudes and gimbal/flight attitude;
-``FLIR:CentralTemperature``, the Tau2 core's temperature in whole °C on the XT2/XT-R).
+``FLIR:CentralTemperature``, the Tau2's spot meter: the centre pixels' scene temperature in
+whole °C, not the core's; on the real XT-R sample it reads 26 where the camera's own formula
+gives 25.9 °C over the 4×4 centre pixels and 27.7 °C over the frame, so no FPA temperature is
+taken from an R-JPEG).
 
 The FLIR segments are joined by hand because ``flyr`` 5.1 raises ``KeyError`` on the DJI
 layout (a 2-entry record directory with a raw-data record of subtype 2); EXIF is read with
@@ -39,7 +42,7 @@ _XMP_ATTRS = {
     "FlightRollDegree": "flight_roll_deg",
     "FlightYawDegree": "flight_yaw_deg",
     "FlightPitchDegree": "flight_pitch_deg",
-    "CentralTemperature": "core_c",
+    "CentralTemperature": "spot_c",
 }
 
 
@@ -104,7 +107,8 @@ def read_rjpeg(path: str | Path) -> FffFrame:
     (``latitude``, ``longitude`` in signed degrees, ``altitude_m``, ``map_datum``), the DJI
     XMP values ``absolute_altitude_m``, ``relative_altitude_m``, ``attitude`` (a dict of
     ``gimbal_roll_deg``, ``gimbal_yaw_deg``, ``gimbal_pitch_deg``, ``flight_roll_deg``,
-    ``flight_yaw_deg``, ``flight_pitch_deg``) and ``core_c`` (``FLIR:CentralTemperature``, °C).
+    ``flight_yaw_deg``, ``flight_pitch_deg``) and ``spot_c`` (``FLIR:CentralTemperature``, °C:
+    the camera's spot meter at the frame's centre, a scene temperature, not the FPA's).
 
     Raises
     ------
@@ -196,7 +200,7 @@ _XMP_ATTR = re.compile(rb'(?:drone-dji|FLIR):(\w+)="([^"]*)"')
 
 
 def _xmp(data: bytes) -> dict[str, Any]:
-    """DJI altitudes, attitude and the core temperature from the XMP packet."""
+    """DJI altitudes, attitude and the spot meter's reading from the XMP packet."""
     start = data.find(b"<x:xmpmeta")
     end = data.find(b"</x:xmpmeta>", start)
     if start == -1 or end == -1:
@@ -214,7 +218,7 @@ def _xmp(data: bytes) -> dict[str, Any]:
     attitude = {k: v for k, v in values.items() if k.startswith(("gimbal_", "flight_"))}
     if attitude:
         out["attitude"] = attitude
-    for key in ("absolute_altitude_m", "relative_altitude_m", "core_c"):
+    for key in ("absolute_altitude_m", "relative_altitude_m", "spot_c"):
         if key in values:
             out[key] = values[key]
     return out

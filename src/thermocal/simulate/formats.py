@@ -18,7 +18,8 @@ as :func:`thermocal.io.open_recording` reads them:
 ``"dji-rjpeg"``  a folder of DJI Zenmuse XT2/XT-R R-JPEGs: the Tau2 core's 2-entry record (raw
                  counts as a TIFF, creator ``ATAU_RBFO``), EXIF make/model/GPS and DJI XMP
                  (``AbsoluteAltitude``, nadir gimbal, flight yaw, ``FLIR:CentralTemperature``:
-                 the FPA temperature in whole °C)
+                 the Tau2's spot meter, its own reading of the 4×4 centre pixels in whole °C;
+                 no FPA temperature, as the real camera)
 ``"dualtau"``    a DualTauUAV flight: a folder of ``np.savez`` files, one per 2 s, with
                  ``frames``, ``fpa`` (hundredths of °C, read every 30 s and rounded to 0.1 °C,
                  repeated on every frame), ``time_ns_start`` and ``time_ns_end``
@@ -27,8 +28,8 @@ as :func:`thermocal.io.open_recording` reads them:
 Every FLIR record holds the Planck constants (``planck``, stored as float32 with O an int32, as
 the cameras store them), the frame's time (epoch s, ms resolution, UTC) and frame rate, and,
 where ``gps`` is given, a GPS record (latitude, longitude, altitude, track). What a format has no
-place for is lost, as with the real camera: FLIR SEQ/CSQ/FFF and plain R-JPEGs carry no FPA
-temperature; DualTauUAV files carry no GPS and no Planck constants (``gps`` is refused there).
+place for is lost, as with the real camera: FLIR SEQ/CSQ/FFF and R-JPEGs, DJI's too, carry no
+FPA temperature; DualTauUAV files carry no GPS and no Planck constants (``gps`` is refused there).
 
 The FFF records are assembled by hand (:func:`fff_record`, the byte layout of exiftool's
 ``FLIR.pm`` that :mod:`thermocal.io.fff` reads) because no library writes them: exiftool can
@@ -402,8 +403,8 @@ def _preview(raw: np.ndarray) -> np.ndarray:
 
 
 def _dji_xmp(altitude_m: float | None, relative_m: float | None, yaw_deg: float | None,
-             core_c: float | None) -> bytes:
-    """The DJI XMP packet: altitudes, nadir gimbal, flight yaw and the core's temperature."""
+             spot_c: float | None) -> bytes:
+    """The DJI XMP packet: altitudes, nadir gimbal, flight yaw and the spot meter's reading."""
     attrs = ['drone-dji:GimbalPitchDegree="-90.0"', 'drone-dji:GimbalRollDegree="0.0"']
     if altitude_m is not None:
         attrs.append(f'drone-dji:AbsoluteAltitude="{altitude_m:.6f}"')
@@ -412,8 +413,8 @@ def _dji_xmp(altitude_m: float | None, relative_m: float | None, yaw_deg: float 
     if yaw_deg is not None:
         yaw = (yaw_deg + 180.0) % 360.0 - 180.0  # DJI writes -180..180
         attrs += [f'drone-dji:{key}YawDegree="{yaw:.6f}"' for key in ("Flight", "Gimbal")]
-    if core_c is not None:
-        attrs.append(f'FLIR:CentralTemperature="{int(round(core_c))}"')  # whole °C, as the XT-R
+    if spot_c is not None and math.isfinite(spot_c):
+        attrs.append(f'FLIR:CentralTemperature="{int(round(spot_c))}"')  # whole °C, as the XT-R
     return ('<?xpacket begin="\ufeff" id="W5M0MpCehiHzreSzNTczkc9d"?>'
             '<x:xmpmeta xmlns:x="adobe:ns:meta/"><rdf:RDF '
             'xmlns:rdf="http://www.w3.org/1999/02/22-rdf-syntax-ns#"><rdf:Description '
@@ -523,27 +524,35 @@ def _write_flir(out: Path, fmt: str, chunks: Iterable[Recording], ctx: _Frames,
                 if fmt in ("seq", "csq"):
                     series.write(record)
                 else:
-                    core = None if chunk.fpa_c is None else float(chunk.fpa_c[k])
-                    data = _frame_file(fmt, record, chunk.frames[k], position, track, core,
+                    spot = _spot_meter_c(chunk.frames[k], ctx.planck) if dji else None
+                    data = _frame_file(fmt, record, chunk.frames[k], position, track, spot,
                                        ctx.ground_m)
                     (folder / f"frame_{n:06d}{_FRAME_SUFFIX[fmt]}").write_bytes(data)
                 n += 1
     return n
 
 
+def _spot_meter_c(raw: np.ndarray, planck: FlirPlanck) -> float:
+    """A Tau2's spot meter: the camera's own temperature (``planck``) of the mean counts of the
+    4×4 pixels at the frame's centre, °C."""
+    h, w = raw.shape
+    centre = raw[h // 2 - 2 : h // 2 + 2, w // 2 - 2 : w // 2 + 2].astype(np.float64)
+    return float(planck.raw_to_temperature_c(float(centre.mean())))
+
+
 def _frame_file(fmt: str, record: bytes, raw: np.ndarray,
                 position: tuple[float, float, float] | None, track: float,
-                core_c: float | None, ground_m: float | None) -> bytes:
+                spot_c: float | None, ground_m: float | None) -> bytes:
     """The bytes of one frame's file: the FFF record itself, or an R-JPEG around it."""
     if fmt == "fff":
         return record
     if fmt == "rjpeg":
         return rjpeg_bytes(record, _preview(raw), gps=position)
     if position is None:
-        xmp = _dji_xmp(None, None, None, core_c)
+        xmp = _dji_xmp(None, None, None, spot_c)
     else:
         relative = None if ground_m is None else position[2] - ground_m
-        xmp = _dji_xmp(position[2], relative, track, core_c)
+        xmp = _dji_xmp(position[2], relative, track, spot_c)
     return rjpeg_bytes(record, _preview(raw), make="DJI", model="FLIR", gps=position, xmp=xmp)
 
 
