@@ -566,7 +566,8 @@ def test_the_commands_read_any_format(shared_data):
 def test_method_camera_is_the_flir_formula_by_hand(shared_data, tmp_path, capsys, parts, dump):
     """``--method camera``: the temperatures of the FLIR formula with the constants of the
     file's exiftool dump, applied by hand to the raw counts, to 0.01 °C; σ is the vendor's
-    stated accuracy as 2σ."""
+    stated accuracy as 2σ: both files are of Tau2 cameras (a DJI XT-R, a FLIR Duo Pro R),
+    ±5 °C or 5 % of the reading (the Duo Pro R was given FLIR's ±2 °C before)."""
     import tifffile
     from cli_run import run
 
@@ -581,7 +582,8 @@ def test_method_camera_is_the_flir_formula_by_hand(shared_data, tmp_path, capsys
     temps = tifffile.imread(out)
     assert float(np.abs(temps - by_hand).max()) < 0.01
     sigma = tifffile.imread(sig)
-    assert sigma.shape == temps.shape and float(sigma.min()) >= 1.0
+    assert sigma.shape == temps.shape
+    np.testing.assert_allclose(sigma, np.maximum(5.0, 0.05 * np.abs(temps)) / 2, rtol=1e-6)
 
 
 def test_method_camera_refuses_a_recording_without_constants(tmp_path, capsys):

@@ -10,7 +10,8 @@ thermographer compares with, and the check of the readers against the camera.
 Its uncertainty is the vendor's stated accuracy, taken as 2σ (a data sheet's "±2 °C or ±2 %"
 bounds most readings, not one in three): ±2 °C or 2 % of the reading, whichever is larger, for
 FLIR's own cameras (T, A, E series); ±5 °C or 5 % for radiometric Tau2 cores, as in the DJI
-Zenmuse XT, XT2 and XT-R (FLIR's Tau2 and XT data sheets, high-gain mode).
+Zenmuse XT, XT2 and XT-R and FLIR's Duo Pro R and Vue Pro R (their data sheets, high-gain
+mode). The camera is told by the names its file gives (:data:`TAU2_CAMERAS`).
 """
 
 from __future__ import annotations
@@ -25,7 +26,12 @@ from thermocal.estimation.base import PreparedBurst
 from thermocal.io.recording import Recording
 from thermocal.radiometry import FlirPlanck
 
-__all__ = ["MAX_UNDEFINED_FRACTION", "VendorCalibration", "vendor_accuracy"]
+__all__ = ["MAX_UNDEFINED_FRACTION", "TAU2_CAMERAS", "VendorCalibration", "vendor_accuracy"]
+
+#: Words of a file's make and model (upper case) that name a radiometric Tau2 camera: DJI's
+#: Zenmuse XT series (EXIF make "DJI", model "FLIR"), FLIR's Duo Pro R and Vue Pro R, a bare
+#: Tau2 core. Not "XT" alone: FLIR's E8-XT is a handheld of ±2 °C.
+TAU2_CAMERAS = ("DJI", "ZENMUSE", "TAU", "DUO PRO", "VUE PRO")
 
 #: Pixels of a frame whose counts its constants give no temperature (below the count of a
 #: blackbody at 0 K: dead pixels) filled from their neighbours, at most this fraction of them.
@@ -52,7 +58,7 @@ def vendor_accuracy(metadata: dict[str, Any]) -> tuple[float, float]:
     """The stated accuracy of the camera a frame's metadata names: ``(°C, fraction of the
     reading)``, whichever is larger bounds the error (see the module docstring)."""
     names = " ".join(str(metadata.get(k, "")) for k in ("make", "model", "camera_model"))
-    if any(tag in names.upper() for tag in ("DJI", "XT", "TAU")):
+    if any(tag in names.upper() for tag in TAU2_CAMERAS):
         return 5.0, 0.05
     return 2.0, 0.02
 
