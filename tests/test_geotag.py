@@ -296,17 +296,27 @@ def test_footprint_refusals():
 # --------------------------------------------------------------------------------------------
 # without GPS; bad input; resume
 # --------------------------------------------------------------------------------------------
-def test_frames_without_gps_unchanged(tmp_path, capsys):
-    """No GPS: the maps are the bytes of the plain writer, without any EXIF."""
+def test_frames_without_gps_keep_their_time_make_and_model(tmp_path, capsys):
+    """No GPS: the maps keep the frame's capture time, make and model (EXIF) and its XMP, with
+    no GPS IFD (they were written without any tag, against README); a frame with none of
+    them (the project's TIFF) gives the bytes of the plain writer."""
     rec = _series(tmp_path / "flight", None)
     code, err = _flight(rec, tmp_path / "out", capsys)
     assert code == 0, err
-    for path in sorted((tmp_path / "out" / "temps").glob("*.tiff")):
-        plain = write_temperature_tiff(tmp_path / "plain.tiff", read_temperature_tiff(path))
-        assert path.read_bytes() == plain.read_bytes()
+    maps = sorted((tmp_path / "out" / "temps").glob("frame_*[0-9].tiff"))
+    assert len(maps) == 3
+    for k, path in enumerate(maps):
+        tags = _exifread(path)
+        assert not any(name.startswith("GPS") for name in tags)
+        assert (str(tags["Image Make"]), str(tags["Image Model"])) == ("FLIR", "Synthetic Tau2")
+        local = dt.datetime.fromtimestamp(EPOCH + 0.1 * k, dt.timezone(dt.timedelta(hours=1)))
+        assert str(tags["EXIF DateTimeOriginal"]) == local.strftime("%Y:%m:%d %H:%M:%S")
+        assert float(_xmp(path)["RelativeAltitude"]) == 50.25
         with tifffile.TiffFile(path) as tif:
-            assert "GPSTag" not in tif.pages[0].tags and 700 not in tif.pages[0].tags
+            assert "GPSTag" not in tif.pages[0].tags and tif.geotiff_metadata is None
+        np.testing.assert_array_equal(read_temperature_tiff(path), tifffile.imread(path))
     assert map_tags(None) is None and map_tags({"gps": None}) is None
+    assert map_tags({"source": "frames.tiff", "index": 3}) is None  # nothing to keep: plain
 
 
 def test_geotiff_refused_without_gps_or_nadir(tmp_path, capsys, shared_data):

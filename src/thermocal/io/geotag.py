@@ -269,7 +269,7 @@ class MapTags:
     exif : tuple
         Entries of the EXIF IFD, (code, TIFF type, values).
     gps : tuple
-        Entries of the GPS IFD, (code, TIFF type, values).
+        Entries of the GPS IFD, (code, TIFF type, values); none: no GPS IFD.
     """
 
     extratags: tuple[tuple[Any, ...], ...]
@@ -285,15 +285,17 @@ class MapTags:
 
         def tiff(exif_at: int, gps_at: int) -> bytes:
             buf = io.BytesIO()
+            pointers = [("ExifTag", _LONG, 1, exif_at, True)]
+            if self.gps:
+                pointers.append(("GPSTag", _LONG, 1, gps_at, True))
             tifffile.imwrite(buf, image, photometric="minisblack", byteorder="<", bigtiff=False,
-                             extratags=[*self.extratags, ("ExifTag", _LONG, 1, exif_at, True),
-                                        ("GPSTag", _LONG, 1, gps_at, True)])
+                             extratags=[*self.extratags, *pointers])
             return buf.getvalue()
 
         end = len(tiff(0, 0))
         end += end % 2  # IFDs start on a word boundary
         exif = _ifd_bytes(self.exif, end)
-        gps = _ifd_bytes(self.gps, end + len(exif))
+        gps = _ifd_bytes(self.gps, end + len(exif)) if self.gps else b""
         head = tiff(end, end + len(exif))
         return head + bytes(end - len(head)) + exif + gps
 
@@ -423,19 +425,24 @@ def map_tags(metadata: Mapping[str, Any] | None, *,
     Returns
     -------
     MapTags or None
-        None when the frame has no GPS position: its map is written without tags.
+        None when the frame has no GPS position, capture time, make or model: its map is
+        written without tags. Without a position, the capture time, make, model and XMP alone
+        (no GPS IFD).
     """
     where = _gps(metadata)
-    if where is None:
-        return None
     meta: Mapping[str, Any] = metadata or {}
-    exif, gps = _time_entries(_when(meta))
+    when = _when(meta)
     make, model = _make_model(meta)
+    if where is None and when is None and make is None and model is None:
+        return None
+    exif, gps = _time_entries(when)
     extratags: list[tuple[Any, ...]] = [
         (code, _ASCII, 0, text.encode("ascii", "replace"), True)
         for code, text in ((271, make), (272, model)) if text is not None]
     xmp = _xmp(meta, make, model)
     extratags.append((700, _BYTE, len(xmp), xmp, True))
+    if where is None:
+        return MapTags(tuple(extratags), tuple(exif), ())
     if footprint is not None:
         extratags += _geotiff_tags(footprint)
     return MapTags(tuple(extratags), tuple(exif),

@@ -522,8 +522,9 @@ def _undecodable_warning(path: Path, undecodable: dict[int, tuple[str, str]],
 
 def _pivot_tags(metadata: list[Any] | None, pivots: list[int], options: FlightOptions,
                 shape: tuple[int, int]) -> dict[int, tuple[geotag.MapTags | None, str | None]]:
-    """Each pivot's map tags (None: its frame has no GPS) and, with ``--geotiff``, why its maps
-    have no GeoTIFF tags (None when they have); refused when no pivot can have them."""
+    """Each pivot's map tags (None: its frame has no GPS, time, make or model) and, with
+    ``--geotiff``, why its maps have no GeoTIFF tags (None when they have); refused when no
+    pivot can have them."""
     geo: dict[int, tuple[geotag.MapTags | None, str | None]] = {}
     for pivot in pivots:
         meta = metadata[pivot] if metadata is not None and pivot < len(metadata) else None
