@@ -26,7 +26,7 @@ from PIL import Image
 from test_open_recording import _dji_xmp, _fff, _frames, _rjpeg
 
 from thermocal.errors import InvalidInputError
-from thermocal.io.geotag import footprint, map_tags
+from thermocal.io.geotag import default_hfov_deg, footprint, map_tags
 from thermocal.io.recording import read_temperature_tiff, write_temperature_tiff
 
 DJI_NS = "{http://www.dji.com/drone-dji/1.0/}"
@@ -266,12 +266,40 @@ def test_flight_geotiff_corners(tmp_path, capsys):
             got, want = _corners(path), _hand_corners(lat, lon, 50.25, 24.0, 12.5, (6, 8))
             for corner in want:
                 assert got[corner] == pytest.approx(want[corner], abs=1e-9)
+    log = [json.loads(line) for line in (tmp_path / "out" / "log.jsonl").read_text().splitlines()]
+    assert [e["ground"]["hfov_deg"] for e in log] == [24.0] * 3  # what the tags came from
+    assert log[0]["ground"]["gsd_m"] == pytest.approx(2 * 50.25 * math.tan(math.radians(12)) / 8)
     # --hfov-deg overrides the file's field of view
     code, err = _flight(rec, tmp_path / "wide", capsys, "--geotiff", "--hfov-deg", 48)
     assert code == 0, err
     got = _corners(tmp_path / "wide" / "temps" / "frame_000000.tiff")
     assert got[0, 0] == pytest.approx(
         _hand_corners(*GPS[0][:2], 50.25, 48.0, 12.5, (6, 8))[0, 0], abs=1e-9)
+
+
+def test_real_dji_lens_gives_the_field_of_view(shared_data):
+    """The XT-R frame's EXIF FocalLength (19.0 mm, as exiftool reads it) and the Tau2's 17 µm
+    pixels: 2·atan(640·0.017 / 38) = 31.96°, not the 13 mm lens's 45° assumed before (a
+    footprint 1.45 times too wide; a new-user audit found it)."""
+    from thermocal.io.rjpeg import read_rjpeg
+
+    source = _real(shared_data, "recordings", "dji_xtr_tau2.jpg")
+    dump = _dump(_real(shared_data, "recordings", "dji_xtr_tau2.txt"))
+    meta = read_rjpeg(source).metadata
+    assert meta["focal_length_mm"] == _num_mm(dump["Focal Length"]) == 19.0
+    assert default_hfov_deg(meta, 640) == pytest.approx(
+        math.degrees(2 * math.atan(640 * 0.017 / 38.0)))
+    nadir = dict(meta, relative_altitude_m=100.0,
+                 attitude={**meta["attitude"], "gimbal_pitch_deg": -90.0})
+    where = footprint(nadir, shape=(512, 640))
+    assert where.hfov_deg == pytest.approx(31.96, abs=0.01)
+    assert where.gsd_m * 640 == pytest.approx(2 * 100 * 640 * 0.017 / 38.0)  # 57.3 m wide
+    assert footprint(nadir, shape=(512, 640), hfov_deg=45.0).gsd_m * 640 == pytest.approx(
+        82.84, abs=0.01)  # --hfov-deg still overrides
+
+
+def _num_mm(text: str) -> float:
+    return float(text.removesuffix(" mm"))
 
 
 def test_footprint_refusals():

@@ -47,6 +47,7 @@ __all__ = [
     "Footprint",
     "MapTags",
     "NADIR_TOLERANCE_DEG",
+    "PIXEL_PITCH_UM",
     "default_hfov_deg",
     "dms",
     "footprint",
@@ -58,15 +59,25 @@ __all__ = [
 NADIR_TOLERANCE_DEG = 10.0
 
 #: Horizontal field of view by (make, model, frame width in pixels), lower case, degrees, for
-#: cameras whose files do not say it. DJI Zenmuse XT / XT-R (a FLIR Tau2 core; EXIF
-#: ``Make=DJI``, ``Model=FLIR``) and XT2: DJI's specifications (dji.com/zenmuse-xt/info,
+#: cameras whose files say neither it nor their lens. DJI Zenmuse XT / XT-R (a FLIR Tau2 core;
+#: EXIF ``Make=DJI``, ``Model=FLIR``) and XT2: DJI's specifications (dji.com/zenmuse-xt/info,
 #: dji.com/zenmuse-xt2/info) give, for the 13 mm lens assumed here, 45° x 37° at 640 x 512 and
-#: 25° x 19° at 336 x 256 (9 mm: 69°, 19 mm: 32° at 640: give ``--hfov-deg`` for those).
+#: 25° x 19° at 336 x 256 (9 mm: 69°, 19 mm: 32° at 640: their files state the lens, EXIF
+#: ``FocalLength``, which :data:`PIXEL_PITCH_UM` turns into the field of view).
 DEFAULT_HFOV_DEG: dict[tuple[str, str, int], float] = {
     ("dji", "flir", 640): 45.0,
     ("dji", "flir", 336): 25.0,
     ("dji", "xt2", 640): 45.0,
     ("dji", "xt2", 336): 25.0,
+}
+
+#: Pixel pitch by (make, model), lower case, µm: with a file's EXIF ``FocalLength`` f it gives
+#: the field of view, 2·atan(W·pitch / 2f). The Zenmuse XT, XT-R and XT2 carry FLIR Tau2 cores
+#: of 17 µm pixels (FLIR's Tau2 data sheet; DJI's 45° for 13 mm at 640 px is this formula's
+#: 45.4°).
+PIXEL_PITCH_UM: dict[tuple[str, str], float] = {
+    ("dji", "flir"): 17.0,
+    ("dji", "xt2"): 17.0,
 }
 
 # WGS 84 ellipsoid (EPSG:7030): semi-major axis, m, and first eccentricity squared
@@ -142,6 +153,8 @@ class Footprint:
         Azimuth of the image's top edge, degrees clockwise from north.
     shape : tuple of int
         The frame's (H, W), pixels.
+    hfov_deg : float or None
+        The horizontal field of view the ground size was computed with, degrees.
     """
 
     latitude: float
@@ -149,6 +162,7 @@ class Footprint:
     gsd_m: float
     yaw_deg: float
     shape: tuple[int, int]
+    hfov_deg: float | None = None
 
     def model_transformation(self) -> np.ndarray:
         """GeoTIFF's ``ModelTransformationTag``: the 4x4 matrix mapping a pixel corner
@@ -181,13 +195,18 @@ class Footprint:
 
 def default_hfov_deg(metadata: Mapping[str, Any] | None, width: int) -> float | None:
     """The horizontal field of view of a frame's camera, degrees: the file's own (a FLIR
-    record's ``field_of_view_deg``), else :data:`DEFAULT_HFOV_DEG`'s; None when unknown."""
+    record's ``field_of_view_deg``), else its lens's (EXIF ``focal_length_mm`` and the camera's
+    :data:`PIXEL_PITCH_UM`), else :data:`DEFAULT_HFOV_DEG`'s; None when unknown."""
     meta = metadata or {}
     own = _number(meta.get("field_of_view_deg"))
     if own is not None and 0 < own < 180:
         return own
     make = str(meta.get("make") or "").strip().lower()
     model = str(meta.get("model") or meta.get("camera_model") or "").strip().lower()
+    focal = _number(meta.get("focal_length_mm"))
+    pitch = PIXEL_PITCH_UM.get((make, model))
+    if focal is not None and focal > 0 and pitch is not None:
+        return math.degrees(2.0 * math.atan(int(width) * pitch * 1e-3 / (2.0 * focal)))
     return DEFAULT_HFOV_DEG.get((make, model, int(width)))
 
 
@@ -249,7 +268,7 @@ def footprint(metadata: Mapping[str, Any] | None, *, shape: tuple[int, int],
             f"{meta.get('model') or meta.get('camera_model') or ''} ({w} px wide); "
             "give --hfov-deg".replace("  ", " "))
     gsd = 2.0 * height * math.tan(math.radians(fov) / 2.0) / w
-    return Footprint(where[0], where[1], gsd, yaw, (int(h), int(w)))
+    return Footprint(where[0], where[1], gsd, yaw, (int(h), int(w)), float(fov))
 
 
 # --------------------------------------------------------------------------------------------

@@ -18,6 +18,7 @@ expression (no XMP library is a dependency).
 from __future__ import annotations
 
 import io
+import math
 import re
 import struct
 import warnings
@@ -103,7 +104,8 @@ def read_rjpeg(path: str | Path) -> FffFrame:
     """Read an R-JPEG: raw counts, Planck constants and metadata.
 
     The metadata are those of :class:`~thermocal.io.fff.FffFrame` plus, where the file has
-    them, ``make`` and ``model`` (EXIF), ``gps`` from EXIF when the FLIR record has none
+    them, ``make``, ``model`` and ``focal_length_mm`` (EXIF), ``gps`` from EXIF when the FLIR
+    record has none
     (``latitude``, ``longitude`` in signed degrees, ``altitude_m``, ``map_datum``), the DJI
     XMP values ``absolute_altitude_m``, ``relative_altitude_m``, ``attitude`` (a dict of
     ``gimbal_roll_deg``, ``gimbal_yaw_deg``, ``gimbal_pitch_deg``, ``flight_roll_deg``,
@@ -158,7 +160,8 @@ def _dms(values: Any, ref: str) -> float:
 
 
 def _exif(data: bytes, name: str = "the R-JPEG") -> dict[str, Any]:
-    """Make, model and GPS from the EXIF segment (Pillow); {} when there is none. Pillow's
+    """Make, model, the lens's focal length (``focal_length_mm``) and GPS from the EXIF
+    segment (Pillow); {} when there is none. Pillow's
     complaints about a damaged segment (one warning per tag) become one warning naming
     ``name``."""
     from PIL import Image
@@ -170,6 +173,7 @@ def _exif(data: bytes, name: str = "the R-JPEG") -> dict[str, Any]:
         with caught_warnings() as said, Image.open(io.BytesIO(data)) as im:
             exif = im.getexif()
             gps = exif.get_ifd(0x8825)
+            sub = exif.get_ifd(0x8769)  # the Exif IFD: FocalLength
     except Exception:  # a JPEG whose EXIF Pillow cannot read: the FLIR record still counts
         return out
     if said:
@@ -179,6 +183,12 @@ def _exif(data: bytes, name: str = "the R-JPEG") -> dict[str, Any]:
     for tag, key in ((0x010F, "make"), (0x0110, "model")):
         if tag in exif:
             out[key] = str(exif[tag]).strip("\x00 ")
+    try:
+        focal = _rational(sub[0x920A]) if 0x920A in sub else None
+    except (TypeError, ValueError, ZeroDivisionError):
+        focal = None
+    if focal is not None and math.isfinite(focal) and focal > 0:
+        out["focal_length_mm"] = focal
     try:
         if 2 in gps and 4 in gps:
             g: dict[str, Any] = {

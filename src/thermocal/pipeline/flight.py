@@ -32,8 +32,9 @@ way.
 A pivot whose frame has a GPS position (a drone's R-JPEGs, FLIR files with GPS) gets it in its
 maps, with the frame's time, camera and attitude, as EXIF and XMP that OpenDroneMap, Metashape
 and Pix4D read; ``geotiff=True`` adds GeoTIFF tags to the same files where the frame's ground
-footprint can be computed (:mod:`thermocal.io.geotag`). A frame without GPS gives the same bytes
-as ever.
+footprint can be computed (:mod:`thermocal.io.geotag`; the log line gives the ground size of
+a pixel and the field of view it came from). A frame without GPS keeps its time and camera
+(EXIF) and attitude (XMP); one with none of them gives the plain writer's bytes.
 
 The groups of a batch are estimated several at once, one per CPU core by default
 (:func:`pivot_workers`: each network call on its share of the cores), their log lines written
@@ -520,12 +521,17 @@ def _undecodable_warning(path: Path, undecodable: dict[int, tuple[str, str]],
             f"{groups} group{'s' if groups > 1 else ''} skipped: {listed}{more}")
 
 
+#: A pivot's map tags, why its maps have no GeoTIFF tags, and their footprint
+#: (:func:`_pivot_tags`).
+_PivotGeo = tuple[geotag.MapTags | None, str | None, geotag.Footprint | None]
+
+
 def _pivot_tags(metadata: list[Any] | None, pivots: list[int], options: FlightOptions,
-                shape: tuple[int, int]) -> dict[int, tuple[geotag.MapTags | None, str | None]]:
+                shape: tuple[int, int]) -> dict[int, _PivotGeo]:
     """Each pivot's map tags (None: its frame has no GPS, time, make or model) and, with
-    ``--geotiff``, why its maps have no GeoTIFF tags (None when they have); refused when no
-    pivot can have them."""
-    geo: dict[int, tuple[geotag.MapTags | None, str | None]] = {}
+    ``--geotiff``, why its maps have no GeoTIFF tags (None when they have) and their footprint
+    (None when they have none); refused when no pivot can have them."""
+    geo: dict[int, _PivotGeo] = {}
     for pivot in pivots:
         meta = metadata[pivot] if metadata is not None and pivot < len(metadata) else None
         where, why = None, None
@@ -534,8 +540,8 @@ def _pivot_tags(metadata: list[Any] | None, pivots: list[int], options: FlightOp
                 where = geotag.footprint(meta, shape=shape, hfov_deg=options.hfov_deg)
             except InvalidInputError as exc:
                 why = f"frame {pivot}: {exc}"
-        geo[pivot] = (geotag.map_tags(meta, footprint=where), why)
-    reasons = [why for _, why in geo.values()]
+        geo[pivot] = (geotag.map_tags(meta, footprint=where), why, where)
+    reasons = [why for _, why, _ in geo.values()]
     if options.geotiff and reasons and all(reasons):
         raise InvalidInputError(f"--geotiff: no pivot can be georeferenced (the first, "
                                 f"{reasons[0]}); leave out --geotiff")
@@ -798,7 +804,7 @@ def _register_batch(reader: _FrameWindow, estimator: Estimator, batch: list[int]
 def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: Estimator,
                    options: FlightOptions, out: Path, *,
                    preview: TemperaturePreviews | None, bit_depth: int,
-                   geo: tuple[geotag.MapTags | None, str | None] = (None, None)) -> _Pivot:
+                   geo: _PivotGeo = (None, None, None)) -> _Pivot:
     """Estimate one pivot's map from its group of ``run``, write it (and its preview, drawn by
     ``preview`` when given) with its tags and reason for no GeoTIFF ``geo``
     (:func:`_pivot_tags`) and return its log entry and stage times; a group that cannot be
@@ -862,6 +868,8 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
                  previews=preview)
     if geo[1] is not None:
         entry["warnings"].append(f"no GeoTIFF tags: {geo[1]}")
+    if geo[2] is not None:  # what the GeoTIFF tags were computed with
+        entry["ground"] = {"gsd_m": geo[2].gsd_m, "hfov_deg": geo[2].hfov_deg}
     entry["mean_c"] = float(temp.mean())
     if sigma is not None:
         entry["sigma_mean_c"] = float(sigma.mean())
