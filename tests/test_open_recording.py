@@ -21,7 +21,7 @@ from thermocal.io.chamber import import_envchamberctrl_npz
 from thermocal.io.dualtau import interpolate_fpa_readings
 from thermocal.io.fff import parse_fff_record, planck_from_metadata
 from thermocal.io.open import FORMATS, open_recording
-from thermocal.io.recording import Recording, write_recording
+from thermocal.io.recording import Recording, read_temperature_tiff, write_recording
 from thermocal.radiometry import FlirPlanck
 from thermocal.simulate.formats import fff_record
 
@@ -313,6 +313,40 @@ def test_csq_corrupt_frame_is_found_while_streaming(tmp_path):
         next(chunks)
 
 
+def test_a_frame_that_does_not_decode_keeps_the_others_numbers(tmp_path, capsys):
+    """A CSQ frame whose image does not decode is left out of ``read_all`` with a warning, and
+    the others keep their numbers (``frame_positions``): ``estimate --pivot K`` is frame K of
+    the file, as ``flight`` and ``info`` number it (it was the K-th frame that decoded: --pivot 3
+    gave frame 4, and the last frame's number was refused); a pivot or burst holding the
+    undecodable frame is refused, naming it."""
+    import tifffile
+    from cli_run import run
+
+    frames = (_frames(6, 16, 20) // 2 + 4000).astype(np.uint16)  # counts the constants convert
+    records = [_fff(fr, codec="jpegls", ms=100 * k) for k, fr in enumerate(frames)]
+    bad = bytearray(records[2])
+    end = bad.rfind(b"\xff\xd9")
+    bad[end - 40 : end] = b"\x00" * 40
+    good, damaged = tmp_path / "good.csq", tmp_path / "damaged.csq"
+    good.write_bytes(b"".join(records))
+    damaged.write_bytes(b"".join(records[:2]) + bytes(bad) + b"".join(records[3:]))
+    rec = open_recording(damaged).read_all()
+    assert rec.extra["frame_positions"] == [0, 1, 3, 4, 5] and rec.extra["frames_at_open"] == 6
+    np.testing.assert_array_equal(rec.frames, frames[[0, 1, 3, 4, 5]])
+    for pivot in (3, 5):
+        outs = []
+        for src in (good, damaged):
+            out = tmp_path / f"{src.stem}{pivot}.tiff"
+            code, _, err = run(["estimate", src, "--method", "camera", "--pivot", pivot,
+                                "--out", out], capsys)
+            assert code == 0, err
+            outs.append(tifffile.imread(out))
+        np.testing.assert_array_equal(*outs)
+    code, _, err = run(["estimate", damaged, "--method", "camera", "--pivot", 2, "--out",
+                        tmp_path / "two.tiff"], capsys)
+    assert code == 2 and "frame 2 does not decode" in err and not (tmp_path / "two.tiff").exists()
+
+
 def test_rjpeg_synthetic_and_folder_series(tmp_path):
     frames = _frames(3)
     folder = tmp_path / "flight"
@@ -598,6 +632,8 @@ def test_method_camera_refuses_a_recording_without_constants(tmp_path, capsys):
 def test_flight_runs_on_a_seq(tmp_path):
     """``thermocal flight`` streams a SEQ as it streams the project's TIFF: the same maps from
     the same frames (FPA from ``--fpa-c``; a SEQ has none)."""
+    import tifffile
+
     from thermocal.calibration.report import fit_with_report
     from thermocal.camera.presets import make_camera
     from thermocal.pipeline.flight import FlightOptions, process_flight
@@ -626,8 +662,10 @@ def test_flight_runs_on_a_seq(tmp_path):
         assert summary["processed"] == 2, summary
         maps[name] = sorted((out / "temps").glob("frame_*.tiff"))
     assert [p.name for p in maps["f.seq"]] == [p.name for p in maps["f.tiff"]]
-    for a, b in zip(maps["f.seq"], maps["f.tiff"], strict=True):
-        assert a.read_bytes() == b.read_bytes()
+    for a, b in zip(maps["f.seq"], maps["f.tiff"], strict=True):  # the SEQ's maps also keep
+        np.testing.assert_array_equal(read_temperature_tiff(a), read_temperature_tiff(b))
+        with tifffile.TiffFile(a) as tif:  # the camera's model and time (EXIF)
+            assert tif.pages[0].tags["Model"].value == "Synthetic Tau2"
 
 
 def test_flight_method_camera_uses_each_frames_constants(tmp_path):

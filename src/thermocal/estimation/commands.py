@@ -70,7 +70,6 @@ def estimate_file(
     A recording longer than a network's bursts gives it the frames around ``pivot``
     (:func:`~thermocal.burst.burst_window`); ``pivot`` indexes the recording.
     """
-    from thermocal.burst import burst_window
     from thermocal.io.open import check_outside_recording, read_any_recording
     from thermocal.io.recording import write_sigma_tiff, write_temperature_tiff
 
@@ -103,7 +102,7 @@ def estimate_file(
 
         estimator = VendorCalibration.from_recording(rec, frames_path)
     # a network takes bursts of its own length: the frames around --pivot (or the middle)
-    window, pivot = burst_window(rec.n_frames, getattr(estimator, "n_frames", None), pivot)
+    window, pivot = _burst_of(rec, getattr(estimator, "n_frames", None), pivot, frames_path)
     fpa_series = None if rec.fpa_c is None else rec.fpa_c[window]
     times = None if rec.time_s is None else rec.time_s[window]
     try:
@@ -225,6 +224,38 @@ def estimate(
     )
     click.echo(f"wrote {out}" + (f" and its σ to {sigma_out}" if sigma_out is not None else ""),
                err=True)
+
+
+def _burst_of(rec: Any, n: int | None, pivot: int | None, path: Any
+              ) -> tuple[slice, int | None]:
+    """:func:`~thermocal.burst.burst_window` with ``pivot`` numbered as the recording's frames
+    were at open, as ``thermocal flight`` and ``info`` number them: a frame that does not decode
+    (left out of ``rec``, with a warning) keeps its number, and a burst that would hold it is
+    refused, naming it."""
+    from thermocal.burst import burst_window, pivot_index
+
+    positions = (rec.extra or {}).get("frame_positions")
+    total = (rec.extra or {}).get("frames_at_open", rec.n_frames)
+    if positions is None or len(positions) != rec.n_frames or total == rec.n_frames:
+        return burst_window(rec.n_frames, n, pivot)
+    if n is None or total <= n:  # every frame that decodes, the pivot by its number
+        if pivot is None:
+            return slice(0, rec.n_frames), None
+        at = pivot_index(pivot, total)
+        if at not in positions:
+            raise InvalidInputError(f"{path}: frame {at} does not decode (see the warning): "
+                                    "give another --pivot")
+        return slice(0, rec.n_frames), positions.index(at)
+    window, at = burst_window(total, n, pivot)
+    missing = sorted(set(range(window.start, window.stop)) - set(positions))
+    if missing:
+        listed = ", ".join(map(str, missing))
+        raise InvalidInputError(
+            f"{path}: frame{'s' * (len(missing) > 1)} {listed} of the burst "
+            f"{window.start}-{window.stop - 1} do{'es' * (len(missing) == 1)} not decode (see "
+            "the warning): give another --pivot")
+    first = positions.index(window.start)
+    return slice(first, first + window.stop - window.start), at
 
 
 def _pivot_pace(rec: Any, estimator: Any, window: slice, pivot: int | None) -> dict[str, Any]:

@@ -154,6 +154,10 @@ class FrameChunk:
         ``where`` naming it as :attr:`RecordingSource.damaged` does (its place in its file, or
         its file). Their ``fpa_c`` and ``time_s`` are NaN, their metadata ``source`` and
         ``undecodable`` (``[where, reason]``).
+    positions : tuple of int
+        Each frame's index among the :attr:`~RecordingSource.n_frames` frames found at open
+        (the numbering a flight names its maps by): ``start`` onwards, unless frames that do not
+        decode were left out before them (``iter_frames(skip_undecodable=True)``).
     """
 
     start: int
@@ -163,6 +167,7 @@ class FrameChunk:
     time_s: np.ndarray | None
     metadata: list[dict[str, Any]]
     undecodable: tuple[tuple[int, str, str], ...] = ()
+    positions: tuple[int, ...] = ()
 
     def __len__(self) -> int:
         return int(self.frames.shape[0])
@@ -277,7 +282,7 @@ class RecordingSource:
                     for _ in range(count)]
         if entry not in self.damaged:
             self.damaged.append(entry)
-        return []
+        return [None] * count  # left out: counted by _chunks, so the others keep their numbers
 
     def damaged_summary(self) -> str | None:
         """One line naming the frames left out (None when none was): ``skipped 2 damaged
@@ -292,8 +297,11 @@ class RecordingSource:
 
     def _chunks(self, chunk: int, skip: bool | str = False) -> Iterator[FrameChunk]:
         buf: list[tuple[np.ndarray, Any, Any, Any, dict[str, Any]]] = []
-        start = 0
+        start, position, positions = 0, -1, []
         for item in self._frames(skip=skip):
+            position += 1
+            if item is None:  # a frame that does not decode, left out (_undecodable)
+                continue
             raw = item[0]
             if raw.shape != self.frame_shape:
                 where = item[4].get("source", self.path)
@@ -302,14 +310,15 @@ class RecordingSource:
                     f"{self.frame_shape[1]}x{self.frame_shape[0]} frames (width x height)"
                 )
             buf.append(item)
+            positions.append(position)
             if len(buf) == chunk:
-                yield self._assemble(start, buf)
+                yield self._assemble(start, buf, positions)
                 start += len(buf)
-                buf = []
+                buf, positions = [], []
         if buf:
-            yield self._assemble(start, buf)
+            yield self._assemble(start, buf, positions)
 
-    def _assemble(self, start: int, items: list) -> FrameChunk:
+    def _assemble(self, start: int, items: list, positions: list[int]) -> FrameChunk:
         frames = np.stack([it[0] for it in items]).astype(np.uint16, copy=False)
         fpa = np.array([it[1] for it in items], np.float64) if self.has_fpa else None
         measured = np.array([bool(it[2]) for it in items]) if self.has_fpa else None
@@ -317,13 +326,16 @@ class RecordingSource:
         metas = [it[4] for it in items]
         undecodable = tuple((start + k, *m["undecodable"]) for k, m in enumerate(metas)
                             if "undecodable" in m)
-        return FrameChunk(start, frames, fpa, measured, time_s, metas, undecodable)
+        return FrameChunk(start, frames, fpa, measured, time_s, metas, undecodable,
+                          tuple(positions))
 
     def read_all(self) -> Recording:
         """The whole recording in memory, as a :class:`~thermocal.io.recording.Recording`.
 
-        ``extra`` holds ``source_format``, ``frame_metadata`` (the list of per-frame dicts) and,
-        with an FPA series, ``fpa_measured`` (list of bool).
+        ``extra`` holds ``source_format``, ``frame_metadata`` (the list of per-frame dicts),
+        ``frame_positions`` (each frame's index among the frames found at open, ``frames_at_open``
+        of them: frames that do not decode are left out, with a warning, and the others keep
+        their numbers) and, with an FPA series, ``fpa_measured`` (list of bool).
         """
         chunks = list(self.iter_frames(256, skip_undecodable=True))
         if not chunks:
@@ -333,6 +345,8 @@ class RecordingSource:
         extra: dict[str, Any] = {
             "source_format": self.format,
             "frame_metadata": [m for c in chunks for m in c.metadata],
+            "frame_positions": [p for c in chunks for p in c.positions],
+            "frames_at_open": self.n_frames,
         }
         fpa = time_s = None
         if self.has_fpa:
