@@ -3,6 +3,7 @@ range, and a camera of another family; ``--force`` estimates it with a warning."
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -76,6 +77,13 @@ def test_domain_checks_name_each_reason():
     assert any("spans" in r for r in outside_domain(d, hot, 30.0))
     (why,) = outside_domain(d, np.swapaxes(frames, 1, 2).copy(), 30.0)
     assert "runs along rows" in why and "tau2 family" in why
+    assert "runs along rows (" in why and "and not along columns" in why
+    # rows beside columns: said as a ratio against the limit, both rounded (it read "nearly as
+    # much" at 0.15 and printed the limit to six digits)
+    rows = 0.6 * np.random.default_rng(2).normal(0, 1.0, 120).astype(np.float32)
+    (why,) = outside_domain(d, frames + rows[None, :, None], 30.0)
+    assert re.search(r"\(\d+\.\d\d °C against \d+\.\d\d °C along columns, \d+\.\d\d of it "
+                     r"where a tau2 burst's stays below \d\.\d\d\)", why), why
     assert outside_domain(d, None, 30.0) == ()
 
 

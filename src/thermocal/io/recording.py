@@ -367,6 +367,24 @@ class _ErrorRecords(logging.Handler):
 
 
 @contextlib.contextmanager
+def quiet_tifffile() -> Iterator[None]:
+    """Keep tifffile's log messages off stderr while a TIFF that may be corrupt is read: the
+    reader says what is wrong in one line (an error, or a file redone), where tifffile would
+    also log each bad tag. Its logger stops passing records up (a null handler in place of
+    Python's last resort) for the read only; handlers on that logger itself (the readers'
+    :func:`_tiff_errors`) still get them."""
+    logger = logging.getLogger("tifffile")
+    null = logging.NullHandler()
+    logger.addHandler(null)
+    propagate, logger.propagate = logger.propagate, False
+    try:
+        yield
+    finally:
+        logger.propagate = propagate
+        logger.removeHandler(null)
+
+
+@contextlib.contextmanager
 def _tiff_errors() -> Iterator[_ErrorRecords]:
     """Capture tifffile's logged errors while a TIFF is indexed."""
     handler = _ErrorRecords()

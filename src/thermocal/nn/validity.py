@@ -216,9 +216,12 @@ def family_pattern_reason(frames_c: np.ndarray, family: str | None, line_fpn: st
     if own <= 0 and cross <= 0:
         return (f"its {what} has no {line_fpn} pattern beyond the pixels' noise (a {family} "
                 f"camera's runs along {line_fpn}s): not a camera of the {family} family {of}")
-    return (f"its {what} runs along {other}s nearly as much as along {line_fpn}s "
-            f"({cross:.2f} °C against {own:.2f} °C; a {family} burst's stays below "
-            f"{limit:g} of it): not a camera of the {family} family {of}")
+    return (f"its {what} runs along {other}s too much for a {family} camera "
+            f"({cross:.2f} °C against {own:.2f} °C along {line_fpn}s, {cross / own:.2f} of it "
+            f"where a {family} burst's stays below {limit:.2f}): not a camera of the {family} "
+            f"family {of}" if own > 0 else
+            f"its {what} runs along {other}s ({cross:.2f} °C) and not along {line_fpn}s: not a "
+            f"camera of the {family} family {of}")
 
 
 def family_lines(frames_c: np.ndarray, line_fpn: str, *, warped_c: np.ndarray | None = None,

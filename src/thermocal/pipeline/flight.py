@@ -106,6 +106,7 @@ from thermocal.io.atomic import (
 )
 from thermocal.io.open import open_stream, undecodable_text
 from thermocal.io.recording import (
+    quiet_tifffile,
     read_temperature_tiff,
     write_sigma_tiff,
     write_temperature_tiff,
@@ -1104,10 +1105,11 @@ def _map_ok(path: Path, shape: tuple[int, int], mean_c: Any) -> np.ndarray | Non
     if not isinstance(mean_c, int | float) or isinstance(mean_c, bool):
         return None
     try:
-        with tifffile.TiffFile(path) as tif:
-            if len(tif.series) != 1 or tif.series[0].dtype != np.float32:
-                return None
-        temp = read_temperature_tiff(path)  # corrupt, truncated, NaN: FileFormatError
+        with quiet_tifffile():  # a damaged map is redone, without tifffile's log lines
+            with tifffile.TiffFile(path) as tif:
+                if len(tif.series) != 1 or tif.series[0].dtype != np.float32:
+                    return None
+            temp = read_temperature_tiff(path)  # corrupt, truncated, NaN: FileFormatError
     except Exception:  # missing, unreadable: tifffile raises many types on corrupt input
         return None
     if temp.shape != tuple(shape):

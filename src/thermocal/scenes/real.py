@@ -16,12 +16,9 @@ in °C:
 
 from __future__ import annotations
 
-import contextlib
 import io
-import logging
 import math
 import os
-from collections.abc import Iterator
 from dataclasses import replace
 from importlib.resources import files
 from pathlib import Path
@@ -32,6 +29,7 @@ import numpy as np
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import FileFormatError, InvalidInputError
 from thermocal.io.fff import FFF_MAGICS, parse_fff_record
+from thermocal.io.recording import quiet_tifffile
 from thermocal.io.rjpeg import scan_jpeg
 from thermocal.radiometry import FlirPlanck
 
@@ -272,32 +270,11 @@ def _load_rjpeg(data: bytes, p: Path, emissivity: float | None) -> np.ndarray:
     return celsius
 
 
-class _DropRecords(logging.Filter):
-    def filter(self, record: logging.LogRecord) -> bool:
-        return False
-
-
-@contextlib.contextmanager
-def _quiet_tifffile() -> Iterator[None]:
-    """Silence tifffile's log messages about a corrupt file while it is read.
-
-    A corrupt TIFF becomes one FileFormatError; tifffile would also log each bad tag to stderr.
-    The filter is added to tifffile's own logger only for the duration of the read.
-    """
-    logger = logging.getLogger("tifffile")
-    flt = _DropRecords()
-    logger.addFilter(flt)
-    try:
-        yield
-    finally:
-        logger.removeFilter(flt)
-
-
 def _load_tiff(data: bytes, p: Path, kelvin_per_count: float) -> np.ndarray:
     import tifffile
 
     try:
-        with _quiet_tifffile(), tifffile.TiffFile(io.BytesIO(data)) as tif:
+        with quiet_tifffile(), tifffile.TiffFile(io.BytesIO(data)) as tif:
             arr = tif.asarray()
     except Exception as exc:  # tifffile/imagecodecs raise many types for corrupt files
         raise FileFormatError(
