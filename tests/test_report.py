@@ -185,6 +185,27 @@ def test_mosaic_shown_when_present_and_big_tables_subsampled(tmp_path):
     assert max(widths) <= 1100  # the 2400-px mosaic scaled down
 
 
+def test_a_mosaic_older_than_the_maps_is_said_to_be_out_of_date(tmp_path):
+    """A flight resumed (or rerun) after ``thermocal mosaic`` made maps the mosaic never saw:
+    the report says so and how to remake it (it showed the old mosaic as current, its 'not in
+    log.jsonl' left-outs long logged); a map left out for its own fault is no sign of age."""
+    out = _fake_flight(tmp_path / "out")  # frames 3, 10, 17, 24, 31
+    (out / "mosaic").mkdir()
+    Image.new("RGB", (20, 20)).save(out / "mosaic" / "mosaic.png")
+
+    def mosaic(used, left):
+        (out / "mosaic" / "mosaic.json").write_text(json.dumps({
+            "maps_used": [{"frame": f} for f in used],
+            "maps_left_out": [{"frame": f, "reason": r} for f, r in left]}))
+        return write_report(out).read_text(encoding="utf-8")
+
+    page = mosaic([3, 10], [(17, "correlation 0.12"), (24, "not in log.jsonl")])
+    assert "This mosaic is out of date: it was made before 2 maps of this folder (frames " \
+           "24, 31); run <code>thermocal mosaic" in page
+    page = mosaic([3, 10, 24, 31], [(17, "correlation 0.12")])
+    assert "out of date" not in page
+
+
 def test_mosaic_layers_drawn_from_the_tiffs(tmp_path):
     out = _fake_flight(tmp_path / "out")
     (out / "mosaic").mkdir()

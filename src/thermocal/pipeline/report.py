@@ -444,8 +444,9 @@ def _header(out: Path, summary: dict[str, Any], entries: list[dict[str, Any]]) -
             f'<p class="verdict">{verdict}.</p>\n')
 
 
-def _maps_section(out: Path, previews: int) -> str:
-    """The mosaic and its σ when there is one; else a few pivot previews."""
+def _maps_section(out: Path, previews: int, entries: list[dict[str, Any]] = ()) -> str:
+    """The mosaic and its σ when there is one (said to be out of date where the log has maps
+    the mosaic was not made from: :func:`_mosaic_stale`); else a few pivot previews."""
     mosaic = out / "mosaic"
     parts = []
     for name, label, cmap in (("temperature.tiff", "°C", "inferno"),
@@ -461,6 +462,7 @@ def _maps_section(out: Path, previews: int) -> str:
         return ("<h2>Mosaic</h2>\n" + "".join(
             f"<figure>{_img(u, name)}<figcaption class=\"note\">mosaic/{_e(name)}"
             "</figcaption></figure>\n" for name, u in parts)
+            + _mosaic_stale(out, mosaic / "mosaic.json", entries)
             + _mosaic_facts(mosaic / "mosaic.json"))
     pngs = sorted((out / "previews").glob("frame_*.png")) if (out / "previews").is_dir() else []
     if not pngs or not previews:
@@ -493,6 +495,35 @@ def _layer_uri(path: Path, *, label: str, cmap: str) -> str | None:
     except Exception:  # a damaged TIFF: tifffile raises many types
         return None
     return None if fig is None else _png_uri(figure_png(fig, dpi=100))
+
+
+def _mosaic_stale(out: Path, path: Path, entries: list[dict[str, Any]]) -> str:
+    """A warning when the log lists maps the mosaic (``mosaic.json``) neither used nor left out
+    for a reason that still holds (a map the flight made or remade after the mosaic, e.g. a
+    resumed flight without ``--mosaic``); '' otherwise, or without a readable mosaic.json."""
+    try:
+        meta = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError):
+        return ""
+    if not isinstance(meta, dict):
+        return ""
+
+    def frames(key: str, keep: Any = lambda e: True) -> set[int]:
+        value = meta.get(key)
+        return {e["frame"] for e in value if isinstance(e, dict) and _is_count(e.get("frame"))
+                and keep(e)} if isinstance(value, list) else set()
+
+    # maps left out because the log or temps/ lacked them then: made since, if logged now
+    gone = ("not in log.jsonl", "no map:", "no σ:")
+    seen = frames("maps_used") | frames(
+        "maps_left_out", lambda e: not str(e.get("reason", "")).startswith(gone))
+    made = sorted({e["frame"] for e in entries if _is_count(e.get("frame"))
+                   and "error" not in e} - seen)
+    if not made:
+        return ""
+    return (f'<p class="warn">This mosaic is out of date: it was made before {len(made)} '
+            f"map{'s' * (len(made) > 1)} of this folder (frames {_e(_frames_text(made))}); "
+            f"run <code>thermocal mosaic {_e(out)}</code> again.</p>\n")
 
 
 def _mosaic_facts(path: Path) -> str:
@@ -658,7 +689,7 @@ def _page(out: Path, summary: dict[str, Any], entries: list[dict[str, Any]], *,
           max_rows: int, previews: int) -> str:
     rows = _map_stats(out, entries)
     body = (_header(out, summary, entries) + _problems_section(summary, entries)
-            + _selfcal_section(summary) + _maps_section(out, previews)
+            + _selfcal_section(summary) + _maps_section(out, previews, entries)
             + _ranges_section(rows, entries, max_rows)
             + _files_section(out))
     title = f"Flight report: {Path(str(summary.get('recording', '?'))).name}"
