@@ -497,15 +497,21 @@ def _layer_uri(path: Path, *, label: str, cmap: str) -> str | None:
     return None if fig is None else _png_uri(figure_png(fig, dpi=100))
 
 
+def _mosaic_meta(path: Path) -> dict[str, Any] | None:
+    """``mosaic.json`` as a dict; None when absent or damaged."""
+    try:
+        meta = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError):
+        return None
+    return meta if isinstance(meta, dict) else None
+
+
 def _mosaic_stale(out: Path, path: Path, entries: list[dict[str, Any]]) -> str:
     """A warning when the log lists maps the mosaic (``mosaic.json``) neither used nor left out
     for a reason that still holds (a map the flight made or remade after the mosaic, e.g. a
     resumed flight without ``--mosaic``); '' otherwise, or without a readable mosaic.json."""
-    try:
-        meta = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError, RecursionError):
-        return ""
-    if not isinstance(meta, dict):
+    meta = _mosaic_meta(path)
+    if meta is None:
         return ""
 
     def frames(key: str, keep: Any = lambda e: True) -> set[int]:
@@ -529,11 +535,8 @@ def _mosaic_stale(out: Path, path: Path, entries: list[dict[str, Any]]) -> str:
 def _mosaic_facts(path: Path) -> str:
     """What ``mosaic.json`` says of the mosaic (its canvas, the maps used and left out and why,
     the views per pixel, its σ), as a few lines; '' when absent or damaged."""
-    try:
-        meta = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError, RecursionError):
-        return ""
-    if not isinstance(meta, dict):
+    meta = _mosaic_meta(path)
+    if meta is None:
         return ""
 
     def part(key: str) -> dict[str, Any]:
