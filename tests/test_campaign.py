@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import shutil
+import time
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +16,7 @@ pytest.importorskip("distributed")
 from distributed.diagnostics.plugin import WorkerPlugin  # noqa: E402
 
 from thermocal.cores import available_cores  # noqa: E402
+from thermocal.errors import InvalidInputError  # noqa: E402
 from thermocal.pipeline import campaign  # noqa: E402
 from thermocal.pipeline.campaign import campaign_tasks, run_campaign  # noqa: E402
 from thermocal.pipeline.flight import FlightOptions, process_flight  # noqa: E402
@@ -92,6 +94,82 @@ def test_same_names_are_made_unique_whatever_the_order_given(data, tmp_path):
         tasks = campaign_tasks(order, tmp_path / "out", _options(data))
         names = {Path(t.recording).resolve(): t.name for t in tasks}
         assert names == {first: "pass0", second: "pass0-2"}
+
+
+@pytest.fixture
+def stranger():
+    """A local port that accepts and then never answers (``silent``), or answers as a web
+    server would (``http``, a dashboard's port): its address."""
+    import socket
+    import threading
+
+    servers = []
+
+    def start(kind: str) -> str:
+        server = socket.socket()
+        server.bind(("127.0.0.1", 0))
+        server.listen(4)
+        servers.append(server)
+
+        def serve() -> None:
+            while True:
+                try:
+                    conn, _ = server.accept()
+                except OSError:
+                    return
+                servers.append(conn)
+                if kind == "http":
+                    conn.recv(64)
+                    conn.sendall(b"HTTP/1.1 400 Bad Request\r\nContent-Length: 0\r\n\r\n" * 4)
+
+        threading.Thread(target=serve, daemon=True).start()
+        return f"tcp://127.0.0.1:{server.getsockname()[1]}"
+
+    yield start
+    for s in servers:
+        s.close()
+
+
+@pytest.mark.parametrize("kind, message", [
+    ("silent", "did not answer as a Dask scheduler within 2 s"),
+    ("http", "is not a Dask scheduler (it answered otherwise"),
+])
+def test_a_scheduler_address_that_is_no_scheduler_is_refused_in_time(data, tmp_path, capsys,
+                                                                      monkeypatch, stranger,
+                                                                      kind, message):
+    """A port that accepts and never answers hung the command for good; a web server's (the
+    dashboard's) answer was read as a 3-EiB message ("out of memory"): one line, exit 2, in the
+    connect timeout, nothing written."""
+    from thermocal.cli import main
+
+    monkeypatch.setattr(campaign, "CONNECT_TIMEOUT_S", 2)
+    out = tmp_path / "out"
+    started = time.perf_counter()
+    with pytest.raises(SystemExit) as e:
+        main(["campaign", str(data / "pass0"), "--out", str(out), "--scheduler",
+              stranger(kind)])
+    err = capsys.readouterr().err.strip()
+    assert e.value.code == 2 and "\n" not in err and message in err, err
+    assert time.perf_counter() - started < 20 and not out.exists()
+
+
+def test_a_worker_address_is_refused_and_a_scheduler_without_workers_said():
+    """A worker's address given as the scheduler's: one line naming what it is; a scheduler
+    with no workers yet (a dask-jobqueue cluster still queueing them): connected, with a
+    warning that the tasks wait."""
+    from distributed import LocalCluster
+
+    from thermocal.calibration.base import ThermocalWarning
+
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                      dashboard_address=":0") as cluster:
+        worker = next(iter(cluster.workers.values())).address
+        with pytest.raises(InvalidInputError, match="is a Dask Worker, not a scheduler"):
+            campaign.connect(worker, 1)
+    with LocalCluster(n_workers=0, processes=False, dashboard_address=":0") as cluster:
+        with pytest.warns(ThermocalWarning, match="has no workers yet"):
+            client = campaign.connect(cluster.scheduler_address, 1)
+        client.close()
 
 
 @pytest.mark.parametrize("args, message", [

@@ -36,6 +36,7 @@ from __future__ import annotations
 import json
 import os
 import time
+import warnings
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
 from pathlib import Path
@@ -213,8 +214,6 @@ def _run_task(task: CampaignTask) -> dict[str, Any]:
         # machine would fight over them
         cv2.setNumThreads(task.threads)
     if task.segment is not None:
-        import warnings
-
         started = time.perf_counter()
         try:
             # kept for the finishing task, which warns them once for the recording
@@ -234,8 +233,6 @@ def _finish_task(task: CampaignTask, segments: list[dict[str, Any]]) -> dict[str
     each, its log and summary
     (:func:`~thermocal.pipeline.flight.finish_segments`) and report; the recording's result,
     its counts summed over the segments."""
-    import warnings
-
     from thermocal.pipeline.flight import finish_segments
 
     def finish() -> dict[str, Any]:
@@ -250,8 +247,6 @@ def _reported(task: CampaignTask, flight: Callable[[], dict[str, Any]], *,
               earlier_s: float = 0.0) -> dict[str, Any]:
     """``flight()`` (a flight's summary) and its report, its warnings kept: the recording's
     result (its ``seconds`` with ``earlier_s`` of its segments), or its error."""
-    import warnings
-
     from thermocal.pipeline.report import write_report
 
     started = time.perf_counter() - earlier_s
@@ -301,14 +296,16 @@ def connect(scheduler: str | None, workers: int) -> Any:
             "thermocal campaign needs dask.distributed: pip install 'thermocal[campaign]'"
         ) from None
     if scheduler is not None:
+        _check_scheduler(scheduler)
         try:
-            return Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
+            client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
         except (OSError, TimeoutError, ValueError) as exc:
-            raise InvalidInputError(
-                f"cannot reach the Dask scheduler at {scheduler} "
-                f"({type(exc).__name__}: {str(exc).splitlines()[0][:120] if str(exc) else ''}); "
-                "start one (dask scheduler, dask-jobqueue, dask-kubernetes) or leave out "
-                "--scheduler for this machine's cores") from None
+            raise _unreachable(scheduler, exc) from None
+        if not client.scheduler_info().get("workers"):
+            warnings.warn(f"the Dask scheduler at {scheduler} has no workers yet: the tasks "
+                          "wait for its cluster's (Ctrl-C stops)", ThermocalWarning,
+                          stacklevel=2)
+        return client
     import logging
     import signal
     import threading
@@ -327,6 +324,59 @@ def connect(scheduler: str | None, workers: int) -> Any:
         if main:
             signal.signal(signal.SIGINT, previous)
     return Client(cluster)
+
+
+def _unreachable(scheduler: str, exc: BaseException) -> InvalidInputError:
+    text = str(exc).splitlines()[0][:120] if str(exc) else ""
+    return InvalidInputError(
+        f"cannot reach the Dask scheduler at {scheduler} ({type(exc).__name__}: {text}); start "
+        "one (dask scheduler, dask-jobqueue, dask-kubernetes) or leave out --scheduler for this "
+        "machine's cores")
+
+
+def _check_scheduler(scheduler: str) -> None:
+    """Refuse ``scheduler`` unless a Dask scheduler answers there within
+    :data:`CONNECT_TIMEOUT_S`: its ``identity`` asked over a comm of its own, bounded as a
+    whole, since :class:`distributed.Client` waits forever on a port that accepts and never
+    answers, and reads an HTTP server's answer (a dashboard's port) as a 3-EiB message."""
+    import asyncio
+    import socket
+
+    from distributed.comm import get_address_host_port
+    from distributed.core import rpc
+
+    try:  # nothing listening: said at once (Dask's own connect retries until its timeout)
+        if scheduler.startswith(("tcp://", "tls://")):
+            socket.create_connection(get_address_host_port(scheduler),
+                                     timeout=CONNECT_TIMEOUT_S).close()
+    except (OSError, ValueError) as exc:
+        raise _unreachable(scheduler, exc) from None
+
+    async def identity() -> Any:
+        remote = rpc(scheduler)
+        try:
+            return await remote.identity()
+        finally:
+            await remote.close_rpc()
+
+    try:
+        info = asyncio.run(asyncio.wait_for(identity(), CONNECT_TIMEOUT_S))
+    except TimeoutError:
+        raise InvalidInputError(
+            f"{scheduler} did not answer as a Dask scheduler within {CONNECT_TIMEOUT_S} s: give "
+            "the scheduler's address (tcp://HOST:8786, not its dashboard's)") from None
+    except (OSError, ValueError) as exc:
+        raise _unreachable(scheduler, exc) from None
+    except (MemoryError, Exception) as exc:  # noqa: BLE001 — whatever a stranger answered
+        raise InvalidInputError(
+            f"{scheduler} is not a Dask scheduler (it answered otherwise: "
+            f"{type(exc).__name__}); give the scheduler's address (tcp://HOST:8786, not its "
+            "dashboard's)") from None
+    kind = info.get("type") if isinstance(info, dict) else None
+    if kind != "Scheduler":
+        raise InvalidInputError(
+            f"{scheduler} is a Dask {kind or 'server'}, not a scheduler: give the scheduler's "
+            "address (tcp://HOST:8786)")
 
 
 def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
