@@ -43,6 +43,26 @@ def test_auto_is_the_first_installed_of_its_order(monkeypatch):
     assert backends.resolve_backend("auto") == "torch"
 
 
+def test_auto_for_one_burst_is_torch(monkeypatch, tmp_path):
+    """``thermocal estimate`` (one burst) runs ``auto`` on PyTorch: a graph backend's export and
+    compilation cost more than they gain there; the other names pass through."""
+    from thermocal.estimation import commands
+    from thermocal.nn.backends import one_burst_backend
+
+    assert one_burst_backend("auto") == "torch"
+    assert [one_burst_backend(b) for b in backends.BACKENDS] == list(backends.BACKENDS)
+    seen = []
+
+    def spy(name, **kwargs):
+        seen.append(kwargs["backend"])
+        raise backends.InvalidInputError("stop here")
+
+    monkeypatch.setattr(commands, "make_estimator", spy)
+    with pytest.raises(backends.InvalidInputError, match="stop here"):
+        commands.estimate_file(tmp_path / "x.tiff", tmp_path / "o.tiff", backend="auto")
+    assert seen == ["torch"]
+
+
 def test_a_backend_not_installed_or_unknown_is_refused_with_the_remedy(monkeypatch):
     monkeypatch.setattr(backends, "installed", lambda name: name == "torch")
     with pytest.raises(InvalidInputError, match=r"openvino backend is not installed: pip "

@@ -39,8 +39,8 @@ def backend_options(command, *, threads_help: str = (
         "--backend", type=click.Choice(CHOICES), default="torch", show_default=True,
         help="What runs the network: " + "; ".join(f"{b.name}: {b.summary}"
                                                   for b in BACKENDS.values())
-        + "; auto: the fastest installed (onnxruntime and openvino: pip install "
-        "'thermocal[backends]').")(command)
+        + "; auto: the fastest installed for many bursts (PyTorch for thermocal "
+        "estimate's one; onnxruntime and openvino: pip install 'thermocal[backends]').")(command)
 
 
 def estimate_file(
@@ -66,12 +66,14 @@ def estimate_file(
     (:class:`~thermocal.errors.OutsideDomainError`) unless ``force``, which writes it with a
     warning that names why. ``sigma_out``: where to write its uncertainty (float32 °C, 1σ,
     ``(H, W)``), refused before any work when the estimator has none. ``backend``,
-    ``threads``: what runs a network (:func:`~thermocal.estimation.registry.make_estimator`).
+    ``threads``: what runs a network (:func:`~thermocal.estimation.registry.make_estimator`;
+    ``auto`` is PyTorch for one burst, :func:`~thermocal.nn.backends.one_burst_backend`).
     A recording longer than a network's bursts gives it the frames around ``pivot``
     (:func:`~thermocal.burst.burst_window`); ``pivot`` indexes the recording.
     """
     from thermocal.io.open import check_outside_recording, read_any_recording
     from thermocal.io.recording import write_sigma_tiff, write_temperature_tiff
+    from thermocal.nn.backends import one_burst_backend
 
     out = check_output_file(out, TIFF_SUFFIXES)
     check_not_input(out, frames_path, calibration, model_path)
@@ -81,6 +83,8 @@ def estimate_file(
         check_not_input(sigma_out, frames_path, calibration, model_path, what="--sigma-out")
         check_outputs_differ(sigma_out, out, ("--sigma-out", "--out"))
     info = ESTIMATORS.get(method)
+    if info is not None and info.needs == "model":  # a network on one burst
+        backend = one_burst_backend(backend)
     own_constants = info is not None and info.needs == "recording"  # built from the file below
     if own_constants:
         check_method_options(method, backend=backend, threads=threads,

@@ -8,8 +8,9 @@
 
 ``auto`` is the first installed of :data:`AUTO_ORDER`, fastest first on one thread as
 ``benchmarks/backends.py`` measures them (on two the three lie within their run-to-run
-spread). ONNX Runtime and OpenVINO are the optional extra ``thermocal[backends]``. What
-runs each: :mod:`thermocal.nn.runners`.
+spread), for runs of many bursts (a flight, a campaign); for one burst (``thermocal
+estimate``) it is PyTorch (:func:`one_burst_backend`). ONNX Runtime and OpenVINO are the
+optional extra ``thermocal[backends]``. What runs each: :mod:`thermocal.nn.runners`.
 """
 
 from __future__ import annotations
@@ -21,7 +22,7 @@ from thermocal.cores import available_cores
 from thermocal.errors import InvalidInputError
 
 __all__ = ["AUTO_ORDER", "BACKENDS", "CHOICES", "BackendInfo", "check_threads", "default_threads",
-           "installed", "resolve_backend"]
+           "installed", "one_burst_backend", "resolve_backend"]
 
 
 @dataclass(frozen=True)
@@ -71,6 +72,14 @@ def resolve_backend(name: str) -> str:
             f"the {name} backend is not installed: pip install 'thermocal[backends]' "
             "(or --backend torch)")
     return name
+
+
+def one_burst_backend(name: str) -> str:
+    """The backend ``name`` stands for when one burst is estimated: ``auto`` is PyTorch there.
+    A graph backend first exports and compiles the network (0.4–0.9 s, and importing its
+    runtime), more than it gains on one burst (``thermocal estimate``: 4.1 s with PyTorch,
+    5.7 s with OpenVINO, one run of a helper's audit); the others as given."""
+    return "torch" if name == "auto" else name
 
 
 def default_threads() -> int:
