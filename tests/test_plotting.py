@@ -113,6 +113,7 @@ def test_previews_on_one_figure_are_the_bytes_of_a_new_figure_each(tmp_path):
         for i, m in enumerate(maps):
             previews.save(tmp_path / f"r{i}.png", m, title=f"pivot {i}")
     for i, m in enumerate(maps):
-        save_figure(temperature_figure(m, title=f"pivot {i}"), tmp_path / f"n{i}.png", dpi=80)
+        save_figure(temperature_figure(m, title=f"pivot {i}"), tmp_path / f"n{i}.png", dpi=80,
+                    tight=False, fast=True)
         assert (tmp_path / f"r{i}.png").read_bytes() == (tmp_path / f"n{i}.png").read_bytes()
     assert previews._fig is None  # closed on leaving the block
