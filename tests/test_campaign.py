@@ -48,8 +48,13 @@ def test_a_campaign_gives_the_bytes_of_sequential_flights_and_resumes(data, tmp_
     for r in recordings:
         process_flight(r, tmp_path / "seq" / r.name, _options(data))
     out = tmp_path / "campaign"
-    summary = run_campaign(campaign_tasks(recordings, out, _options(data)), out, workers=2)
+    tasks = campaign_tasks(recordings, out, _options(data))
+    steps: list[int] = []
+    summary = run_campaign(tasks, out, workers=2, progress=steps.append)
     assert summary["failed"] == 0 and summary["workers"] == 2
+    # the bar moves as the workers' groups finish (their events), not once a recording: every
+    # frame counted once
+    assert sum(steps) == sum(t.frames for t in tasks) and len(steps) > len(tasks), steps
     assert [r["name"] for r in summary["recordings"]] == ["pass0", "pass1"]
     for r in recordings:
         seq, par = _outputs(tmp_path / "seq" / r.name), _outputs(out / r.name)
@@ -341,7 +346,7 @@ def test_a_segments_warnings_reach_its_recordings_result_once(tmp_path, monkeypa
 
     said = "e2e: its σ is fitted on bursts of the scenes it was trained on"
 
-    def segment_flight(recording, out_dir, options, *, segment):
+    def segment_flight(recording, out_dir, options, *, segment, progress=None):
         warnings.warn(said, UserWarning, stacklevel=2)
         return {"segment": list(segment), "wall_time_s": 1.0}
 

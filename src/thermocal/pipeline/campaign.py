@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import json
 import os
+import threading
 import time
 import warnings
 from collections.abc import Callable
@@ -51,6 +52,8 @@ __all__ = ["CampaignTask", "campaign_tasks", "run_campaign"]
 
 #: Seconds to wait for a scheduler given by address.
 CONNECT_TIMEOUT_S = 10
+#: The topic of the workers' progress events (:func:`_progress_events`).
+PROGRESS_TOPIC = "thermocal-progress"
 #: Times a task is retried after its worker died (then reported as failed).
 RETRIES = 1
 #: Batches of a flight (:data:`~thermocal.pipeline.flight.BATCH_FRAMES` frames each) per task
@@ -201,11 +204,27 @@ def _segments(task: CampaignTask) -> list[CampaignTask]:
     return [replace(task, segment=span, frames=f) for span, f in zip(spans, frames, strict=True)]
 
 
+def _progress_events(task: CampaignTask) -> Callable[[int], None]:
+    """``progress(k)`` for a task's flight on a worker: each group's frames sent to the client
+    as an event of :data:`PROGRESS_TOPIC` (the campaign's bar moves as groups finish, not as
+    whole recordings do); nothing outside a worker."""
+    from distributed import get_worker
+
+    try:
+        worker = get_worker()
+    except ValueError:  # not on a worker (a task run in this process)
+        return lambda k: None
+    key = _task_key(task)
+    return lambda k: worker.log_event(PROGRESS_TOPIC, {"key": key, "frames": int(k)})
+
+
 def _run_task(task: CampaignTask) -> dict[str, Any]:
     """One flight, or one segment of it, on a worker: its summary's counts (a segment's counts,
     for the recording's finishing task), or its error (a failed flight is a result, not an
     exception: the campaign goes on)."""
     from thermocal.pipeline.flight import process_flight
+
+    progress = _progress_events(task)
 
     if task.threads is not None:
         import cv2
@@ -220,12 +239,13 @@ def _run_task(task: CampaignTask) -> dict[str, Any]:
             with warnings.catch_warnings(record=True) as caught:
                 warnings.simplefilter("always")
                 segment = process_flight(task.recording, task.out_dir, task.options,
-                                         segment=task.segment)
+                                         segment=task.segment, progress=progress)
         except ThermocalError as exc:
             return _failed(task, str(exc), started)
         return {"name": task.name, "ok": True,
                 "segment": segment | {"warnings": sorted({str(w.message) for w in caught})}}
-    return _reported(task, lambda: process_flight(task.recording, task.out_dir, task.options))
+    return _reported(task, lambda: process_flight(task.recording, task.out_dir, task.options,
+                                                  progress=progress))
 
 
 def _finish_task(task: CampaignTask, segments: list[dict[str, Any]]) -> dict[str, Any]:
@@ -308,7 +328,6 @@ def connect(scheduler: str | None, workers: int) -> Any:
         return client
     import logging
     import signal
-    import threading
 
     # the worker processes start with Ctrl-C ignored (a disposition a new process keeps, and
     # Python then installs no KeyboardInterrupt of its own): Ctrl-C reaches the whole process
@@ -383,7 +402,9 @@ def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
                  scheduler: str | None = None, workers: int | None = None,
                  progress: Callable[[int], None] | None = None) -> dict[str, Any]:
     """Run ``tasks`` on the cluster; write and return ``OUT/campaign.json`` (each recording's
-    result, in the order given). ``progress(k)`` after each finished recording of ``k`` frames.
+    result, in the order given). ``progress(k)`` as the workers' groups finish (their events,
+    :data:`PROGRESS_TOPIC`), each task's frames counted once whatever its retries, and the rest
+    of a task's frames when it ends (the bar's total: every task's ``frames``).
     """
     from thermocal.cores import available_cores, check_per_core
     from thermocal.io.atomic import ensure_output_dir, write_json_atomic
@@ -399,8 +420,26 @@ def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
     client = connect(scheduler, n_workers)
     from distributed import as_completed  # installed: connect() checked
     connected = time.perf_counter()
+    counted: dict[str, int] = {}  # frames of each task's key the bar has moved by
+    limits: dict[str, int] = {}
+    lock = threading.Lock()
+
+    def advance(key: str, frames: int) -> None:
+        with lock:  # events arrive on the client's thread, task ends on this one
+            k = max(0, min(frames, limits.get(key, 0) - counted.get(key, 0)))
+            counted[key] = counted.get(key, 0) + k
+        if k and progress is not None:
+            progress(k)
+
+    def on_event(event: Any) -> None:
+        message = event[1] if isinstance(event, tuple | list) and len(event) == 2 else event
+        if isinstance(message, dict) and isinstance(message.get("frames"), int):
+            advance(str(message.get("key")), message["frames"])
+
     try:
         out_dir = ensure_output_dir(out)  # only now: every check has passed
+        if progress is not None:
+            client.subscribe_topic(PROGRESS_TOPIC, on_event)
         share = max(1, cores // n_workers) if scheduler is None else None
         futures = {}
         for task in tasks:
@@ -413,6 +452,7 @@ def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
                 if given is None and _runs_network(task):
                     options = replace(options, threads=1)
                 task = replace(task, threads=share, options=options)
+            limits[_task_key(task)] = task.frames
             futures[client.submit(_run_task, task, key=_task_key(task), pure=False,
                                   retries=RETRIES)] = task
         results: dict[str, dict[str, Any]] = {}
@@ -437,8 +477,7 @@ def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
                     running.add(last)
             elif task.name not in results or results[task.name]["ok"]:  # its first failure
                 results[task.name] = result | {"recording": task.recording}
-            if progress is not None:
-                progress(task.frames)
+            advance(_task_key(task), task.frames)  # what its events did not say
     finally:
         client.close()
         cluster = getattr(client, "cluster", None)
