@@ -21,6 +21,19 @@ def test_every_suite_is_a_package_module_with_a_script_beside_it():
         assert f"thermocal.evaluation.suites.{name}" in (scripts / f"{name}.py").read_text()
 
 
+def test_the_nuc_suite_scores_every_method_or_says_where_it_is_scored():
+    """Every NUC method is in the nuc suite, or is a method of one short burst that Fig. 9's
+    suite scores (deepir, added later, ran on the suite's 120-frame walks and failed to
+    register them: `thermocal bench` failed, unnoticed)."""
+    from thermocal.evaluation.suites import fig9, nuc
+    from thermocal.nuc import NUC_METHODS
+
+    scored = {method for _, method in nuc.VARIANTS}
+    for name in NUC_METHODS:
+        assert (name in scored) != (name in nuc.BURST_ONLY), name
+    assert set(nuc.BURST_ONLY) <= set(fig9.METHODS)
+
+
 def test_bench_refuses_a_missing_output_folder_before_running(tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["bench", "--quick", "--json", str(tmp_path / "no" / "r.json")])
