@@ -3,6 +3,7 @@ bytes of sequential flights; a failed recording is reported, not fatal; bad inpu
 
 from __future__ import annotations
 
+import asyncio
 import json
 import shutil
 import time
@@ -175,6 +176,11 @@ def test_a_worker_address_is_refused_and_a_scheduler_without_workers_said():
         with pytest.warns(ThermocalWarning, match="has no workers yet"):
             client = campaign.connect(cluster.scheduler_address, 1)
         client.close()
+
+        async def inside_a_running_loop() -> None:  # a notebook's: the check still asks
+            campaign._check_scheduler(cluster.scheduler_address)
+
+        asyncio.run(inside_a_running_loop())
 
 
 @pytest.mark.parametrize("args, message", [

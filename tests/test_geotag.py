@@ -278,22 +278,25 @@ def test_flight_geotiff_corners(tmp_path, capsys):
 
 
 def test_real_dji_lens_gives_the_field_of_view(shared_data):
-    """The XT-R frame's EXIF FocalLength (19.0 mm, as exiftool reads it) and the Tau2's 17 µm
-    pixels: 2·atan(640·0.017 / 38) = 31.96°, not the 13 mm lens's 45° assumed before (a
-    footprint 1.45 times too wide; a new-user audit found it)."""
+    """The XT-R frame's EXIF FocalLength (19.0 mm, as exiftool reads it): DJI's 32° for that
+    lens at 640 px, not the 13 mm lens's 45° assumed before (a footprint 1.41 times too wide;
+    a new-user audit found it); a lens DJI does not list, by the Tau2's 17 µm pixels (the
+    listed 9 mm lens's 69° is not its pinhole 62°: listed, not computed)."""
     from thermocal.io.rjpeg import read_rjpeg
 
     source = _real(shared_data, "recordings", "dji_xtr_tau2.jpg")
     dump = _dump(_real(shared_data, "recordings", "dji_xtr_tau2.txt"))
     meta = read_rjpeg(source).metadata
     assert meta["focal_length_mm"] == _num_mm(dump["Focal Length"]) == 19.0
-    assert default_hfov_deg(meta, 640) == pytest.approx(
-        math.degrees(2 * math.atan(640 * 0.017 / 38.0)))
+    assert default_hfov_deg(meta, 640) == 32.0 and default_hfov_deg(meta, 336) == 17.0
+    assert default_hfov_deg(dict(meta, focal_length_mm=9.0), 640) == 69.0
+    assert default_hfov_deg(dict(meta, focal_length_mm=25.0), 640) == pytest.approx(
+        math.degrees(2 * math.atan(640 * 0.017 / 50.0)))
     nadir = dict(meta, relative_altitude_m=100.0,
                  attitude={**meta["attitude"], "gimbal_pitch_deg": -90.0})
     where = footprint(nadir, shape=(512, 640))
-    assert where.hfov_deg == pytest.approx(31.96, abs=0.01)
-    assert where.gsd_m * 640 == pytest.approx(2 * 100 * 640 * 0.017 / 38.0)  # 57.3 m wide
+    assert where.hfov_deg == 32.0
+    assert where.gsd_m * 640 == pytest.approx(2 * 100 * math.tan(math.radians(16.0)))  # 57.3 m
     assert footprint(nadir, shape=(512, 640), hfov_deg=45.0).gsd_m * 640 == pytest.approx(
         82.84, abs=0.01)  # --hfov-deg still overrides
 

@@ -465,3 +465,38 @@ def test_recording_writer_without_frames_writes_nothing(tmp_path):
     with pytest.raises(InvalidInputError, match="no frames"), RecordingWriter(tmp_path / "e.tiff"):
         pass
     assert list(tmp_path.iterdir()) == []
+
+
+def test_quiet_tifffile_restores_the_logger_after_overlapping_reads():
+    """Two reads in two threads inside quiet_tifffile, the first leaving first: the logger
+    passes records up again once both have left (each restoring its own saved state left it
+    silenced for good), and stays quiet while either is inside."""
+    import logging
+    import threading
+
+    from thermocal.io.recording import quiet_tifffile
+
+    logger = logging.getLogger("tifffile")
+    a_in, b_in, a_out = threading.Event(), threading.Event(), threading.Event()
+    seen = []
+
+    def first() -> None:
+        with quiet_tifffile():
+            a_in.set()
+            b_in.wait(5)
+        a_out.set()
+
+    def second() -> None:
+        a_in.wait(5)
+        with quiet_tifffile():
+            b_in.set()
+            a_out.wait(5)
+            seen.append(logger.propagate)
+
+    threads = [threading.Thread(target=first), threading.Thread(target=second)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(10)
+    assert seen == [False] and logger.propagate
+    assert not any(isinstance(h, logging.NullHandler) for h in logger.handlers)

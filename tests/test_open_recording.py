@@ -345,6 +345,13 @@ def test_a_frame_that_does_not_decode_keeps_the_others_numbers(tmp_path, capsys)
     code, _, err = run(["estimate", damaged, "--method", "camera", "--pivot", 2, "--out",
                         tmp_path / "two.tiff"], capsys)
     assert code == 2 and "frame 2 does not decode" in err and not (tmp_path / "two.tiff").exists()
+    # no --pivot: the middle of the frames that decode, never refused for the damaged one
+    from thermocal.estimation.commands import _burst_of
+
+    assert _burst_of(rec, 3, None, damaged) == (slice(1, 4), 1)  # frames 1, 3, 4 of the file
+    with pytest.raises(InvalidInputError, match="frame 2 of the burst 1-3 does not decode"):
+        _burst_of(rec, 3, 2, damaged)
+    assert _burst_of(rec, 3, 4, damaged) == (slice(2, 5), 1)  # frames 3, 4, 5: rec's 2..4
 
 
 def test_rjpeg_synthetic_and_folder_series(tmp_path):

@@ -204,6 +204,11 @@ def test_a_mosaic_older_than_the_maps_is_said_to_be_out_of_date(tmp_path):
            "24, 31); run <code>thermocal mosaic" in page
     page = mosaic([3, 10, 24, 31], [(17, "correlation 0.12")])
     assert "out of date" not in page
+    # a map the mosaic missed that is still missing: no sign of age (remaking cannot help)
+    (out / "temps" / "frame_000031.tiff").unlink()
+    page = mosaic([3, 10, 24], [(17, "correlation 0.12"),
+                                (31, "no map: frame_000031.tiff is missing")])
+    assert "out of date" not in page
 
 
 def test_mosaic_layers_drawn_from_the_tiffs(tmp_path):

@@ -98,6 +98,27 @@ def test_round_trip(tmp_path, fmt, name, reported):
             assert meta["frame_rate_hz"] == 30
 
 
+def test_a_dji_frame_of_counts_the_constants_cannot_read_has_no_spot_meter(tmp_path):
+    """The DJI writer's spot meter: none where the camera's constants give the centre's counts
+    no temperature (a dead frame; the writer failed on it), the centre of a frame under 4 px
+    from its own pixels."""
+    frames = np.full((3, 16, 16), 9000, np.uint16)
+    frames[1] = 0  # below a 0 K blackbody's counts
+    frames[2, 6:10, 6:10] = 12000  # the centre 4x4 alone
+    out = write_recording_as(Recording(frames), tmp_path / "dji", format="dji-rjpeg",
+                             planck=PLANCK)
+    metas = open_recording(out).read_all().extra["frame_metadata"]
+    assert "spot_c" not in metas[1]
+    assert metas[0]["spot_c"] == round(PLANCK.raw_to_temperature_c(9000.0))
+    assert metas[2]["spot_c"] == round(PLANCK.raw_to_temperature_c(12000.0))
+    tiny = np.full((2, 3, 3), 9000, np.uint16)
+    tiny[:, 0, 0] = 15000
+    out = write_recording_as(Recording(tiny), tmp_path / "tiny", format="dji-rjpeg",
+                             planck=PLANCK)
+    spot = open_recording(out).read_all().extra["frame_metadata"][0]["spot_c"]
+    assert spot == round(PLANCK.raw_to_temperature_c((15000 + 8 * 9000) / 9))
+
+
 def test_headings_follow_the_line(tmp_path):
     rec = _recording()
     out = write_recording_as(rec, tmp_path / "rec.seq", format="seq",

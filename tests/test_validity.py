@@ -82,8 +82,8 @@ def test_domain_checks_name_each_reason():
     # much" at 0.15 and printed the limit to six digits)
     rows = 0.6 * np.random.default_rng(2).normal(0, 1.0, 120).astype(np.float32)
     (why,) = outside_domain(d, frames + rows[None, :, None], 30.0)
-    assert re.search(r"\(\d+\.\d\d °C against \d+\.\d\d °C along columns, \d+\.\d\d of it "
-                     r"where a tau2 burst's stays below \d\.\d\d\)", why), why
+    assert re.search(r"\(\d+\.\d\d °C against \d+\.\d\d °C along columns, \d+\.\d\d\d of it "
+                     r"where a tau2 burst's stays below \d\.\d\d\d\)", why), why
     assert outside_domain(d, None, 30.0) == ()
 
 

@@ -235,12 +235,14 @@ def _burst_of(rec: Any, n: int | None, pivot: int | None, path: Any
     """:func:`~thermocal.burst.burst_window` with ``pivot`` numbered as the recording's frames
     were at open, as ``thermocal flight`` and ``info`` number them: a frame that does not decode
     (left out of ``rec``, with a warning) keeps its number, and a burst that would hold it is
-    refused, naming it."""
+    refused, naming it. Without ``pivot``, the middle of the frames that decode (so that a
+    default run is never refused for a frame it could do without)."""
     from thermocal.burst import burst_window, pivot_index
 
     positions = (rec.extra or {}).get("frame_positions")
     total = (rec.extra or {}).get("frames_at_open", rec.n_frames)
-    if positions is None or len(positions) != rec.n_frames or total == rec.n_frames:
+    if (pivot is None or positions is None or len(positions) != rec.n_frames
+            or total == rec.n_frames):  # no --pivot: the middle of the frames that decode
         return burst_window(rec.n_frames, n, pivot)
     if n is None or total <= n:  # every frame that decodes, the pivot by its number
         if pivot is None:

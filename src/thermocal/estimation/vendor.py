@@ -28,9 +28,10 @@ from thermocal.radiometry import FlirPlanck
 
 __all__ = ["MAX_UNDEFINED_FRACTION", "TAU2_CAMERAS", "VendorCalibration", "vendor_accuracy"]
 
-#: Words of a file's make and model (upper case) that name a radiometric Tau2 camera: DJI's
-#: Zenmuse XT series (EXIF make "DJI", model "FLIR"), FLIR's Duo Pro R and Vue Pro R, a bare
-#: Tau2 core. Not "XT" alone: FLIR's E8-XT is a handheld of ±2 °C.
+#: Parts of a file's make and model (upper case, found anywhere in them) that name a
+#: radiometric Tau2 camera: DJI's Zenmuse XT series (EXIF make "DJI", model "FLIR"), FLIR's
+#: Duo Pro R and Vue Pro R, a bare Tau2 core. Not "XT" alone: FLIR's E8-XT is a handheld of
+#: ±2 °C.
 TAU2_CAMERAS = ("DJI", "ZENMUSE", "TAU", "DUO PRO", "VUE PRO")
 
 #: Pixels of a frame whose counts its constants give no temperature (below the count of a

@@ -17,7 +17,8 @@ A temperature or σ map of a frame that had a GPS position gets, in its float32 
   latitude, rotated by the camera's yaw) and a ``GeoKeyDirectoryTag`` for EPSG:4326 (WGS 84,
   pixel is area). A GIS then shows the map in place; photogrammetry tools ignore these tags.
 
-A frame without a GPS position gets none of this: its maps are the bytes they always were.
+A frame without a GPS position keeps its time and camera (EXIF, without a GPS IFD) and its
+attitude and altitudes (XMP); one with none of them gives the plain writer's bytes.
 
 The EXIF and GPS IFDs are the only bytes written by hand here: tifffile writes every tag of the
 image's IFD (the ``ExifTag``/``GPSTag`` pointers included, named so that tifffile does not filter
@@ -46,6 +47,7 @@ __all__ = [
     "DEFAULT_HFOV_DEG",
     "Footprint",
     "MapTags",
+    "LENS_HFOV_DEG",
     "NADIR_TOLERANCE_DEG",
     "PIXEL_PITCH_UM",
     "default_hfov_deg",
@@ -62,8 +64,8 @@ NADIR_TOLERANCE_DEG = 10.0
 #: cameras whose files say neither it nor their lens. DJI Zenmuse XT / XT-R (a FLIR Tau2 core;
 #: EXIF ``Make=DJI``, ``Model=FLIR``) and XT2: DJI's specifications (dji.com/zenmuse-xt/info,
 #: dji.com/zenmuse-xt2/info) give, for the 13 mm lens assumed here, 45° x 37° at 640 x 512 and
-#: 25° x 19° at 336 x 256 (9 mm: 69°, 19 mm: 32° at 640: their files state the lens, EXIF
-#: ``FocalLength``, which :data:`PIXEL_PITCH_UM` turns into the field of view).
+#: 25° x 19° at 336 x 256 (their files state the lens, EXIF ``FocalLength``:
+#: :data:`LENS_HFOV_DEG`).
 DEFAULT_HFOV_DEG: dict[tuple[str, str, int], float] = {
     ("dji", "flir", 640): 45.0,
     ("dji", "flir", 336): 25.0,
@@ -71,10 +73,19 @@ DEFAULT_HFOV_DEG: dict[tuple[str, str, int], float] = {
     ("dji", "xt2", 336): 25.0,
 }
 
-#: Pixel pitch by (make, model), lower case, µm: with a file's EXIF ``FocalLength`` f it gives
-#: the field of view, 2·atan(W·pitch / 2f). The Zenmuse XT, XT-R and XT2 carry FLIR Tau2 cores
-#: of 17 µm pixels (FLIR's Tau2 data sheet; DJI's 45° for 13 mm at 640 px is this formula's
-#: 45.4°).
+#: Horizontal field of view by (frame width in pixels, the lens's focal length in mm) of the
+#: Zenmuse XT, XT-R and XT2 (DJI's specifications, as above): 9, 13 and 19 mm lenses. The
+#: nominal focal length does not give them by a pinhole formula (9 mm at 640 px: 62° from
+#: 17 µm pixels, 69° specified); other lenses fall back to it (:data:`PIXEL_PITCH_UM`).
+LENS_HFOV_DEG: dict[tuple[int, float], float] = {
+    (640, 9.0): 69.0, (640, 13.0): 45.0, (640, 19.0): 32.0,
+    (336, 9.0): 35.0, (336, 13.0): 25.0, (336, 19.0): 17.0,
+}
+
+#: Pixel pitch by (make, model), lower case, µm, of the cameras :data:`LENS_HFOV_DEG` is for:
+#: for a lens it does not list, 2·atan(W·pitch / 2f) with the file's EXIF ``FocalLength`` f.
+#: The Zenmuse XT, XT-R and XT2 carry FLIR Tau2 cores of 17 µm pixels (FLIR's Tau2 data sheet;
+#: for 13 and 19 mm at 640 px the formula gives 45.4° and 32.0°).
 PIXEL_PITCH_UM: dict[tuple[str, str], float] = {
     ("dji", "flir"): 17.0,
     ("dji", "xt2"): 17.0,
@@ -195,8 +206,9 @@ class Footprint:
 
 def default_hfov_deg(metadata: Mapping[str, Any] | None, width: int) -> float | None:
     """The horizontal field of view of a frame's camera, degrees: the file's own (a FLIR
-    record's ``field_of_view_deg``), else its lens's (EXIF ``focal_length_mm`` and the camera's
-    :data:`PIXEL_PITCH_UM`), else :data:`DEFAULT_HFOV_DEG`'s; None when unknown."""
+    record's ``field_of_view_deg``), else its lens's (EXIF ``focal_length_mm``:
+    :data:`LENS_HFOV_DEG`, else by the camera's :data:`PIXEL_PITCH_UM`), else
+    :data:`DEFAULT_HFOV_DEG`'s; None when unknown."""
     meta = metadata or {}
     own = _number(meta.get("field_of_view_deg"))
     if own is not None and 0 < own < 180:
@@ -206,6 +218,9 @@ def default_hfov_deg(metadata: Mapping[str, Any] | None, width: int) -> float | 
     focal = _number(meta.get("focal_length_mm"))
     pitch = PIXEL_PITCH_UM.get((make, model))
     if focal is not None and focal > 0 and pitch is not None:
+        listed = LENS_HFOV_DEG.get((int(width), round(focal, 1)))
+        if listed is not None:
+            return listed
         return math.degrees(2.0 * math.atan(int(width) * pitch * 1e-3 / (2.0 * focal)))
     return DEFAULT_HFOV_DEG.get((make, model, int(width)))
 
@@ -444,15 +459,17 @@ def map_tags(metadata: Mapping[str, Any] | None, *,
     Returns
     -------
     MapTags or None
-        None when the frame has no GPS position, capture time, make or model: its map is
-        written without tags. Without a position, the capture time, make, model and XMP alone
-        (no GPS IFD).
+        None when the frame has no GPS position, capture time, make, model, attitude or
+        altitude: its map is written without tags. Without a position, the capture time,
+        make, model and XMP alone (no GPS IFD).
     """
     where = _gps(metadata)
     meta: Mapping[str, Any] = metadata or {}
     when = _when(meta)
     make, model = _make_model(meta)
-    if where is None and when is None and make is None and model is None:
+    aloft = meta.get("attitude") or any(_number(meta.get(k)) is not None for k in (
+        "absolute_altitude_m", "relative_altitude_m"))
+    if where is None and when is None and make is None and model is None and not aloft:
         return None
     exif, gps = _time_entries(when)
     extratags: list[tuple[Any, ...]] = [

@@ -22,6 +22,7 @@ import contextlib
 import json
 import logging
 import os
+import threading
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -366,22 +367,33 @@ class _ErrorRecords(logging.Handler):
         self.messages.append(record.getMessage())
 
 
+_QUIET = {"depth": 0, "propagate": True, "null": logging.NullHandler()}
+_QUIET_LOCK = threading.Lock()
+
+
 @contextlib.contextmanager
 def quiet_tifffile() -> Iterator[None]:
     """Keep tifffile's log messages off stderr while a TIFF that may be corrupt is read: the
     reader says what is wrong in one line (an error, or a file redone), where tifffile would
     also log each bad tag. Its logger stops passing records up (a null handler in place of
-    Python's last resort) for the read only; handlers on that logger itself (the readers'
+    Python's last resort) while any read is inside (threads may overlap: counted, the logger
+    restored when the last leaves); handlers on that logger itself (the readers'
     :func:`_tiff_errors`) still get them."""
     logger = logging.getLogger("tifffile")
-    null = logging.NullHandler()
-    logger.addHandler(null)
-    propagate, logger.propagate = logger.propagate, False
+    with _QUIET_LOCK:
+        if _QUIET["depth"] == 0:
+            _QUIET["propagate"] = logger.propagate
+            logger.addHandler(_QUIET["null"])
+            logger.propagate = False
+        _QUIET["depth"] += 1
     try:
         yield
     finally:
-        logger.propagate = propagate
-        logger.removeHandler(null)
+        with _QUIET_LOCK:
+            _QUIET["depth"] -= 1
+            if _QUIET["depth"] == 0:
+                logger.propagate = _QUIET["propagate"]
+                logger.removeHandler(_QUIET["null"])
 
 
 @contextlib.contextmanager

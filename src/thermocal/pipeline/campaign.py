@@ -355,14 +355,18 @@ def _unreachable(scheduler: str, exc: BaseException) -> InvalidInputError:
 
 def _check_scheduler(scheduler: str) -> None:
     """Refuse ``scheduler`` unless a Dask scheduler answers there within
-    :data:`CONNECT_TIMEOUT_S`: its ``identity`` asked over a comm of its own, bounded as a
-    whole, since :class:`distributed.Client` waits forever on a port that accepts and never
-    answers, and reads an HTTP server's answer (a dashboard's port) as a 3-EiB message."""
+    :data:`CONNECT_TIMEOUT_S`: its ``identity`` asked over a comm of its own (with the TLS
+    settings of Dask's configuration, as a client takes them), bounded as a whole, since
+    :class:`distributed.Client` waits forever on a port that accepts and never answers, and
+    reads an HTTP server's answer (a dashboard's port) as a 3-EiB message. Asked on a thread
+    of its own, so that a caller inside a running event loop (a notebook) can ask too."""
     import asyncio
     import socket
+    from concurrent.futures import ThreadPoolExecutor
 
     from distributed.comm import get_address_host_port
     from distributed.core import rpc
+    from distributed.security import Security
 
     try:  # nothing listening: said at once (Dask's own connect retries until its timeout)
         if scheduler.startswith(("tcp://", "tls://")):
@@ -372,25 +376,29 @@ def _check_scheduler(scheduler: str) -> None:
         raise _unreachable(scheduler, exc) from None
 
     async def identity() -> Any:
-        remote = rpc(scheduler)
+        remote = rpc(scheduler, connection_args=Security().get_connection_args("client"))
         try:
             return await remote.identity()
         finally:
             await remote.close_rpc()
 
-    try:
-        info = asyncio.run(asyncio.wait_for(identity(), CONNECT_TIMEOUT_S))
-    except TimeoutError:
-        raise InvalidInputError(
-            f"{scheduler} did not answer as a Dask scheduler within {CONNECT_TIMEOUT_S} s: give "
-            "the scheduler's address (tcp://HOST:8786, not its dashboard's)") from None
-    except (OSError, ValueError) as exc:
-        raise _unreachable(scheduler, exc) from None
-    except (MemoryError, Exception) as exc:  # noqa: BLE001 — whatever a stranger answered
-        raise InvalidInputError(
-            f"{scheduler} is not a Dask scheduler (it answered otherwise: "
-            f"{type(exc).__name__}); give the scheduler's address (tcp://HOST:8786, not its "
-            "dashboard's)") from None
+    def ask() -> Any:
+        return asyncio.run(asyncio.wait_for(identity(), CONNECT_TIMEOUT_S))
+
+    with ThreadPoolExecutor(1) as pool:
+        try:
+            info = pool.submit(ask).result()
+        except TimeoutError:
+            raise InvalidInputError(
+                f"{scheduler} did not answer as a Dask scheduler within {CONNECT_TIMEOUT_S} s: "
+                "give the scheduler's address (tcp://HOST:8786, not its dashboard's)") from None
+        except (OSError, ValueError) as exc:
+            raise _unreachable(scheduler, exc) from None
+        except Exception as exc:  # noqa: BLE001 — whatever a stranger answered (MemoryError)
+            raise InvalidInputError(
+                f"{scheduler} is not a Dask scheduler (it answered otherwise: "
+                f"{type(exc).__name__}); give the scheduler's address (tcp://HOST:8786, not "
+                "its dashboard's)") from None
     kind = info.get("type") if isinstance(info, dict) else None
     if kind != "Scheduler":
         raise InvalidInputError(

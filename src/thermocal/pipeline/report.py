@@ -26,7 +26,7 @@ import io
 import json
 import math
 import re
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -444,7 +444,7 @@ def _header(out: Path, summary: dict[str, Any], entries: list[dict[str, Any]]) -
             f'<p class="verdict">{verdict}.</p>\n')
 
 
-def _maps_section(out: Path, previews: int, entries: list[dict[str, Any]] = ()) -> str:
+def _maps_section(out: Path, previews: int, entries: Sequence[dict[str, Any]] = ()) -> str:
     """The mosaic and its σ when there is one (said to be out of date where the log has maps
     the mosaic was not made from: :func:`_mosaic_stale`); else a few pivot previews."""
     mosaic = out / "mosaic"
@@ -506,7 +506,7 @@ def _mosaic_meta(path: Path) -> dict[str, Any] | None:
     return meta if isinstance(meta, dict) else None
 
 
-def _mosaic_stale(out: Path, path: Path, entries: list[dict[str, Any]]) -> str:
+def _mosaic_stale(out: Path, path: Path, entries: Sequence[dict[str, Any]]) -> str:
     """A warning when the log lists maps the mosaic (``mosaic.json``) neither used nor left out
     for a reason that still holds (a map the flight made or remade after the mosaic, e.g. a
     resumed flight without ``--mosaic``); '' otherwise, or without a readable mosaic.json."""
@@ -519,12 +519,17 @@ def _mosaic_stale(out: Path, path: Path, entries: list[dict[str, Any]]) -> str:
         return {e["frame"] for e in value if isinstance(e, dict) and _is_count(e.get("frame"))
                 and keep(e)} if isinstance(value, list) else set()
 
-    # maps left out because the log or temps/ lacked them then: made since, if logged now
+    # maps left out because the log or temps/ lacked them then: made since, if logged now and
+    # their files are there now (a map still missing is no sign of age: it would stay)
     gone = ("not in log.jsonl", "no map:", "no σ:")
     seen = frames("maps_used") | frames(
         "maps_left_out", lambda e: not str(e.get("reason", "")).startswith(gone))
-    made = sorted({e["frame"] for e in entries if _is_count(e.get("frame"))
-                   and "error" not in e} - seen)
+    temps = out / "temps"
+    made = sorted(
+        {e["frame"] for e in entries if _is_count(e.get("frame")) and "error" not in e
+         and (temps / f"frame_{e['frame']:06d}.tiff").is_file()
+         and ("sigma_mean_c" not in e
+              or (temps / f"frame_{e['frame']:06d}_sigma.tiff").is_file())} - seen)
     if not made:
         return ""
     return (f'<p class="warn">This mosaic is out of date: it was made before {len(made)} '

@@ -532,12 +532,17 @@ def _write_flir(out: Path, fmt: str, chunks: Iterable[Recording], ctx: _Frames,
     return n
 
 
-def _spot_meter_c(raw: np.ndarray, planck: FlirPlanck) -> float:
+def _spot_meter_c(raw: np.ndarray, planck: FlirPlanck) -> float | None:
     """A Tau2's spot meter: the camera's own temperature (``planck``) of the mean counts of the
-    4×4 pixels at the frame's centre, °C."""
+    (up to) 4×4 pixels at the frame's centre, °C; None where its constants give the counts no
+    temperature (no reading written, as a camera shows none)."""
     h, w = raw.shape
-    centre = raw[h // 2 - 2 : h // 2 + 2, w // 2 - 2 : w // 2 + 2].astype(np.float64)
-    return float(planck.raw_to_temperature_c(float(centre.mean())))
+    y0, x0 = max(h // 2 - 2, 0), max(w // 2 - 2, 0)
+    centre = raw[y0 : h // 2 + 2, x0 : w // 2 + 2].astype(np.float64)
+    try:
+        return float(planck.raw_to_temperature_c(float(centre.mean())))
+    except InvalidInputError:  # counts below a 0 K blackbody's (a dead frame)
+        return None
 
 
 def _frame_file(fmt: str, record: bytes, raw: np.ndarray,
