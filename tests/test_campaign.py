@@ -56,6 +56,9 @@ def test_a_campaign_gives_the_bytes_of_sequential_flights_and_resumes(data, tmp_
     # the bar moves as the workers' groups finish (their events), not once a recording: every
     # frame counted once
     assert sum(steps) == sum(t.frames for t in tasks) and len(steps) > len(tasks), steps
+    # a run's events go to a topic of its own (campaigns sharing a scheduler kept apart), and
+    # a task given none sends none
+    assert campaign._progress_events(tasks[0])(7) is None
     assert [r["name"] for r in summary["recordings"]] == ["pass0", "pass1"]
     for r in recordings:
         seq, par = _outputs(tmp_path / "seq" / r.name), _outputs(out / r.name)

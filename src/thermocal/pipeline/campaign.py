@@ -37,6 +37,7 @@ import json
 import os
 import threading
 import time
+import uuid
 import warnings
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, replace
@@ -52,7 +53,7 @@ __all__ = ["CampaignTask", "campaign_tasks", "run_campaign"]
 
 #: Seconds to wait for a scheduler given by address.
 CONNECT_TIMEOUT_S = 10
-#: The topic of the workers' progress events (:func:`_progress_events`).
+#: The workers' progress events' topic (:func:`_progress_events`), before each run's own id.
 PROGRESS_TOPIC = "thermocal-progress"
 #: Times a task is retried after its worker died (then reported as failed).
 RETRIES = 1
@@ -75,6 +76,8 @@ class CampaignTask:
     threads: int | None = None
     #: The flight's batches ``(first, stop)`` this task does (None: the whole recording).
     segment: tuple[int, int] | None = None
+    #: The topic its groups' progress events go to, one per campaign run (None: none sent).
+    events: str | None = None
 
 
 def campaign_tasks(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[str],
@@ -214,8 +217,10 @@ def _progress_events(task: CampaignTask) -> Callable[[int], None]:
         worker = get_worker()
     except ValueError:  # not on a worker (a task run in this process)
         return lambda k: None
-    key = _task_key(task)
-    return lambda k: worker.log_event(PROGRESS_TOPIC, {"key": key, "frames": int(k)})
+    if task.events is None:
+        return lambda k: None
+    key, topic = _task_key(task), task.events
+    return lambda k: worker.log_event(topic, {"key": key, "frames": int(k)})
 
 
 def _run_task(task: CampaignTask) -> dict[str, Any]:
@@ -446,8 +451,10 @@ def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
 
     try:
         out_dir = ensure_output_dir(out)  # only now: every check has passed
-        if progress is not None:
-            client.subscribe_topic(PROGRESS_TOPIC, on_event)
+        # a topic of this run's own: campaigns sharing a scheduler keep their bars apart
+        events = f"{PROGRESS_TOPIC}-{uuid.uuid4().hex}" if progress is not None else None
+        if events is not None:
+            client.subscribe_topic(events, on_event)
         share = max(1, cores // n_workers) if scheduler is None else None
         futures = {}
         for task in tasks:
@@ -460,6 +467,7 @@ def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
                 if given is None and _runs_network(task):
                     options = replace(options, threads=1)
                 task = replace(task, threads=share, options=options)
+            task = replace(task, events=events)
             limits[_task_key(task)] = task.frames
             futures[client.submit(_run_task, task, key=_task_key(task), pure=False,
                                   retries=RETRIES)] = task
