@@ -516,3 +516,27 @@ def test_end_folds_that_leave_a_reference_fit_unchanged_measure_its_own_error():
     raised = CalibrationSigma(replace(poly, folds=[
         f | {"own_mae_c": 10.0} if f is low else f for f in poly.folds]))
     assert raised._curves[1][1][0] == 10.0
+
+
+def test_the_session_a_refusal_asks_for_gives_the_set_points_it_promises(tmp_path, capsys):
+    """A refusal's 'record steps' command, run as given, records the set points it asks for
+    (it wrote the step to six digits, 20:70:16.6667, whose last point, 70.0001, was dropped:
+    3 of the 4 asked for, refused again); ``--blackbody-c`` takes a stop reached within a
+    ten-thousandth of a step."""
+    import re
+    import shlex
+
+    from thermocal.cli import setpoints_from_range
+
+    few = tmp_path / "few.h5"
+    assert run(["simulate", "chamber", few, "--size", "32x24", "--blackbody-c", "20:30:10"],
+               capsys)[0] == 0
+    code, _, err = run(["calibrate", few, "--method", "lin-lag", "--out", tmp_path / "x.h5"],
+                       capsys)
+    assert code == 2 and "needs >= 4 blackbody set points" in err, err
+    command = re.search(r"`thermocal (simulate chamber OUT\.h5 [^`]*)`", err).group(1)
+    args = [str(tmp_path / "new.h5") if a == "OUT.h5" else a for a in shlex.split(command)]
+    blackbody = args[args.index("--blackbody-c") + 1]
+    assert len(setpoints_from_range(*map(float, blackbody.split(":")))) >= 4, blackbody
+    assert setpoints_from_range(20.0, 70.0, 16.6667)[-1] == 70.0
+    assert len(setpoints_from_range(20.0, 70.0, 13.3333)) == 4  # 73.33 is past 70: not taken

@@ -235,6 +235,10 @@ def test_command(scene, tmp_path):
     result = CliRunner().invoke(mosaic_command, [str(tmp_path)])
     assert result.exit_code == 0, result.output
     assert "mosaic of 3 maps (0 left out)" in result.output
+    # the folder readable as a plain mkdir's (it was tempfile's private 0700)
+    (tmp_path / "plain").mkdir()
+    assert (tmp_path / "mosaic").stat().st_mode & 0o777 == (tmp_path / "plain").stat().st_mode \
+        & 0o777
 
 
 def test_a_simulated_uav_pass(tmp_path):

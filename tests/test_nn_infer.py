@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import importlib.util
 import json
 
 import numpy as np
@@ -531,6 +532,14 @@ def test_train_from_a_chamber_file(tmp_path, capsys):
     assert info["data"]["sensor_size"] == [32, 24]
     # --calibrated (the default): the fitted model is stored with the weights, at its size
     assert model.config.calibrated and model.nominal.shape == (24, 32)
+    # exported only at its camera's size (at 640x512, the default, it wrote a graph whose
+    # inputs no camera model could make)
+    code, err = run(["export", str(out), "--out", str(tmp_path / "m.onnx")], capsys)
+    assert code == 2 and "export it at --size 32x24" in err and not (tmp_path / "m.onnx").exists()
+    if importlib.util.find_spec("onnx") is not None:
+        code, err = run(["export", str(out), "--out", str(tmp_path / "m.onnx"), "--size",
+                         "32x24"], capsys)
+        assert code == 0, err
     assert model.nominal.info["preset"] is None and model.nominal.offset.std() > 0
     assert np.all(model.nominal.gain[0] > 0)  # the fit's dead pixels filled from neighbours
     code, err = run(["train", "--out", str(out), "--resume", "--steps", "1"], capsys)

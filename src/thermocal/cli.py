@@ -69,7 +69,10 @@ def setpoints_from_range(start: float, stop: float, step: float) -> tuple[float,
             f"{count:.0f} blackbody set points is too many (at most {MAX_SETPOINTS})")
     n = int(round((stop - start) / step)) + 1
     points = (start + step * k for k in range(n))
-    return tuple(float(p) for p in points if p <= stop + 1e-9)
+    # ``stop`` itself within a ten-thousandth of a step (a step written to a few digits,
+    # 20:70:16.6667, reaches 70.0001: 70 is meant)
+    slack = 1e-4 * abs(step)
+    return tuple(float(min(p, stop)) for p in points if p <= stop + slack)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})

@@ -167,8 +167,11 @@ def record_hint(data: ChamberData, profile: str, *, setpoints: int = 0) -> str:
         ambient = (min(float(ambient[0]), 10.0), max(float(ambient[1]), 40.0))
         points = data.setpoints_c
         if setpoints and points.size < setpoints:
-            points = np.linspace(points.min() if points.size else 10.0,
-                                 max(points.max() if points.size else 70.0, 70.0), setpoints)
+            lo = float(points.min()) if points.size else 10.0
+            hi = max(float(points.max()) if points.size else 70.0, 70.0)
+            # whole-degree steps: a step written to 6 digits (50/3 as 16.6667) could end past
+            # the range and lose its last point (the command given gave 3 points of 4)
+            points = lo + max(np.floor((hi - lo) / (setpoints - 1)), 1.0) * np.arange(setpoints)
         blackbody = _range_arg(points)
         args = [f"--ambient-profile {profile}", f"--ambient-c {ambient[0]:g}:{ambient[1]:g}"]
         if blackbody:

@@ -25,6 +25,7 @@ __all__ = [
     "atomic_path",
     "ensure_output_dir",
     "removing_new_dirs_on_error",
+    "staging_folder",
     "temp_name_pattern",
     "write_json_atomic",
 ]
@@ -32,6 +33,17 @@ __all__ = [
 #: The folders :func:`ensure_output_dir` created, one list per active
 #: :func:`removing_new_dirs_on_error` block.
 _NEW_DIRS: list[list[Path]] = []
+
+
+def staging_folder(parent: Path, prefix: str, suffix: str = "") -> Path:
+    """A new folder in ``parent`` named ``prefix…suffix`` (:func:`tempfile.mkdtemp`) with the
+    permissions an ordinary ``mkdir`` gives under this process's umask, not mkdtemp's private
+    0700: an output folder staged in it and renamed into place is readable as the others are."""
+    import tempfile
+
+    folder = Path(tempfile.mkdtemp(prefix=prefix, suffix=suffix, dir=parent))
+    folder.chmod(0o777 & ~_umask())
+    return folder
 
 
 def _umask() -> int:

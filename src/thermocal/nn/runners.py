@@ -229,7 +229,7 @@ def export_onnx(weights: str | os.PathLike[str], out: str | os.PathLike[str], *,
     FileFormatError
         ``weights`` is not a thermocal weights file.
     InvalidInputError
-        A size that is not positive.
+        A size that is not positive, or not the size of a chamber-trained network's camera.
     """
     import json
 
@@ -243,6 +243,16 @@ def export_onnx(weights: str | os.PathLike[str], out: str | os.PathLike[str], *,
         raise InvalidInputError(f"--size must be positive, got {w}x{h}")
     model, norm, content = load_model(weights)
     c = model.config
+    if c.calibrated:  # its inputs are °C through its nominal camera: one for this size
+        from thermocal.nn.store import nominal_for
+
+        try:
+            nominal_for(model, (h, w))
+        except InvalidInputError:
+            nh, nw = model.nominal.shape
+            raise InvalidInputError(
+                f"--size {w}x{h}: this network's camera model is {nw}x{nh} (fitted on a "
+                f"chamber file of that size): export it at --size {nw}x{nh}") from None
     mult = c.multiple
     hp, wp = -(-h // mult) * mult, -(-w // mult) * mult
     graph = onnx.load_from_string(onnx_graph(model, hp, wp))

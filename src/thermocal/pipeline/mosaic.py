@@ -603,7 +603,7 @@ def _write_outputs(target: Path, layers: _Layers, summary: dict[str, Any],
     gets the writing and the total (since ``started``, a :func:`time.perf_counter`)."""
     import tifffile
 
-    from thermocal.io.atomic import ensure_output_dir, write_json_atomic
+    from thermocal.io.atomic import ensure_output_dir, staging_folder, write_json_atomic
     from thermocal.plotting import save_figure, temperature_figure
 
     ensure_output_dir(target.parent)
@@ -611,7 +611,7 @@ def _write_outputs(target: Path, layers: _Layers, summary: dict[str, Any],
     for stale in target.parent.glob(".mosaic.*"):  # folders a killed run left behind
         if _STAGING.fullmatch(stale.name) and stale.is_dir() and not stale.is_symlink():
             shutil.rmtree(stale, ignore_errors=True)
-    staging = Path(tempfile.mkdtemp(prefix=".mosaic.", dir=target.parent))
+    staging = staging_folder(target.parent, ".mosaic.")  # read as other output folders are
     try:
         arrays = {"temperature": layers.temperature, "views": layers.views,
                   "spread": layers.spread, "sigma": layers.sigma}

@@ -50,7 +50,6 @@ import math
 import os
 import shutil
 import struct
-import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 from typing import Any
@@ -59,7 +58,7 @@ import numpy as np
 
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import InvalidInputError
-from thermocal.io.atomic import _umask, atomic_path
+from thermocal.io.atomic import atomic_path, staging_folder
 from thermocal.io.geotag import dms
 from thermocal.io.recording import Recording, RecordingWriter
 from thermocal.radiometry import FlirPlanck
@@ -466,10 +465,9 @@ def check_output_path(path: str | os.PathLike[str], *, format: str,  # noqa: A00
 def _atomic_folder(path: Path) -> Iterator[Path]:
     """A temporary folder beside ``path``, renamed onto it (absent or empty) when the block
     ends without an error and removed otherwise."""
-    tmp = Path(tempfile.mkdtemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent))
+    tmp = staging_folder(path.parent, f".{path.name}.", ".tmp")
     try:
         yield tmp
-        tmp.chmod(0o777 & ~_umask())
         os.replace(tmp, path)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
