@@ -173,9 +173,22 @@ def test_estimators_refuse_outside_and_give_sigma(fitted):
         assert est.outside == () and est.sigma_c.shape == (48, 64)
         assert np.all(est.sigma_c > 0)
         sigmas.append(est.sigma_c)
-    # eq. 9's mean adds the standard error over its views (its σ_cal at its own, slightly
-    # different temperatures): above one frame's σ where the views disagree
+    # eq. 9's mean adds its views' spread, whole (its σ_cal at its own, slightly different
+    # temperatures): above one frame's σ where the views disagree
     assert np.all(sigmas[1] >= sigmas[0] - 0.02) and np.median(sigmas[1] - sigmas[0]) > 0
+    from thermocal.estimation.base import view_spread
+
+    class Spy(OzMean):
+        def uncertainty(self, burst, temperature_c, *, outside):
+            self.seen = (burst, temperature_c)
+            return super().uncertainty(burst, temperature_c, outside=outside)
+
+    spy = Spy(cal)
+    got = estimate(inside.frames, spy, fpa_c=inside.fpa_c).sigma_c
+    burst, t = spy.seen
+    cal_sigma = super(OzMean, spy).uncertainty(burst, t, outside=False)
+    spread, _ = view_spread(burst.warped, burst.valid)  # not over √n: blur is alike in views
+    np.testing.assert_allclose(got, np.hypot(cal_sigma, spread), rtol=1e-5)
     hot = simulate_flight(scene, camera, n_frames=5, motion="walk",
                           fpa_c=report.fpa_range_c[1] + 8.0, seed=1)
     with warnings.catch_warnings():  # refused: the refusal alone, no warning before it
