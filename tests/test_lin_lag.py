@@ -224,3 +224,21 @@ def test_a_lin_lag_burst_takes_its_recordings_lagged_rates(runs):
     with pytest.raises(InvalidInputError, match="one per lag"):
         cal.apply(frames[burst], fpa_c=fpa[burst], time_s=times, fpa_rate_c_per_min=0.0,
                   fpa_lag_rates_c_per_min=[0.0])
+
+
+def test_a_planck_fit_on_four_set_points_says_nothing_of_its_covariance():
+    """Four blackbody temperatures for four coefficients: scipy's "Covariance of the parameters
+    could not be estimated" reached `thermocal calibrate`'s console, though the covariance is
+    not used (a helper's audit); the fit still recovers the curve."""
+    import warnings
+
+    import numpy as np
+
+    from thermocal.calibration.lin import fit_planck_curve, planck_counts
+
+    t = np.array([283.15, 303.15, 323.15, 343.15])
+    v = planck_counts(t, 4.0e5, 1428.0, 1.0, -200.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        r, b, f, o = fit_planck_curve(t, v)
+    np.testing.assert_allclose(planck_counts(t, r, b, f, o), v, rtol=1e-6)

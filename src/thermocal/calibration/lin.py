@@ -96,6 +96,7 @@ from thermocal.calibration.store import (
 )
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import FitError, InvalidInputError
+from thermocal.threads import caught_warnings
 
 METHOD = "lin"
 METHOD_LEVEL = "lin-level"
@@ -139,10 +140,13 @@ def fit_planck_curve(temp_k: Any, counts: Any) -> tuple[float, float, float, flo
     basis = np.stack([1.0 / (np.exp(b0 / t) - f0), np.ones_like(t)], axis=1)
     (r0, o0), *_ = np.linalg.lstsq(basis, v, rcond=None)
     try:
-        popt, _ = curve_fit(
-            lambda tt, r, b, f, o: planck_counts(tt, r, b, f, o), t, v,
-            p0=[r0, b0, f0, o0], maxfev=20000,
-        )
+        # its covariance is not used: scipy's warning that it cannot be estimated (four set
+        # points for four coefficients) said nothing a user could act on
+        with caught_warnings():
+            popt, _ = curve_fit(
+                lambda tt, r, b, f, o: planck_counts(tt, r, b, f, o), t, v,
+                p0=[r0, b0, f0, o0], maxfev=20000,
+            )
     except (RuntimeError, ValueError) as exc:
         raise FitError(f"the Planck curve fit did not converge ({exc})") from None
     if not np.all(np.isfinite(popt)):

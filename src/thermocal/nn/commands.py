@@ -430,9 +430,11 @@ def _camera_setup(opts: dict[str, Any], meta: dict[str, Any]) -> dict[str, Any]:
         if fpa_range_c is None and "fpa_range_c" in camera.info:
             setup["fpa_range"] = tuple(float(v) for v in camera.info["fpa_range_c"])
     if opts["crop"] > min(setup["sensor_size"]):
+        w, h = setup["sensor_size"]
         raise InvalidInputError(
-            f"--crop {opts['crop']} is larger than the sensor {setup['sensor_size']}"
-        )
+            f"--crop {opts['crop']} (the training crop, px) is larger than the sensor, "
+            f"{w}x{h}: give --crop {min(w, h)} or less (a multiple of the network's "
+            f"{opts['xi'] ** opts['levels']} px)")
     return setup
 
 
