@@ -374,6 +374,8 @@ def test_auto_picks_a_method_and_records_why(chamber_files, tmp_path, capsys):
     assert "rise and fall" in refused["wolf2016"]
     assert f"chose {cal.method}" in stdout and "auto: expected MAE °C polynomial" in stdout
     assert "  skipped wolf2016: needs the FPA to rise and fall" in stdout
+    # shutter, never a candidate, is said so (it was left out silently)
+    assert "  not a candidate: shutter: its offsets are re-read on the camera's shutter" in stdout
 
 
 def test_auto_is_in_the_help(capsys):

@@ -139,6 +139,9 @@ def calibrate(chamber: Path, method: str, out: Path, report_path: Path | None,
             if "refused" in r:
                 why = r["refused"].split("; ")[0].removeprefix(f"{r['method']} ")
                 click.echo(f"  skipped {r['method']}: {why}")
+        for name, info in CALIBRATION_METHODS.items():  # never tried: said, not left silent
+            if not info.auto and info.auto_note:
+                click.echo(f"  not a candidate: {name}: {info.auto_note}")
     lo, hi = getattr(cal, "fpa_range", None) or cal.fpa_range_c  # type: ignore[attr-defined]
     info = getattr(cal, "info", None) or {}
     points = info.get("setpoints_c", data.setpoints_c)

@@ -58,6 +58,8 @@ class CalibrationInfo:
         :func:`~thermocal.calibration.protocol.check_protocol`).
     auto : bool
         Whether ``--method auto`` tries it.
+    auto_note : str
+        Why ``--method auto`` does not (said by ``thermocal calibrate --method auto``).
     learns_online : bool
         Whether its ``apply`` learns as frames stream by (an online estimator that starts cold
         on every recording): its report then measures the error by time since the start.
@@ -76,6 +78,7 @@ class CalibrationInfo:
     takes_fpa_ref: bool = True
     needs: ProtocolNeeds = ProtocolNeeds("all", 2)
     auto: bool = True
+    auto_note: str = ""
     learns_online: bool = False
     memoryless: bool = True
 
@@ -102,7 +105,10 @@ CALIBRATION_METHODS: dict[str, CalibrationInfo] = {
         CalibrationInfo("shutter", shutter, ShutterCalibration,
                         "Lin et al.'s baseline, FLIR GEV-style",
                         "two-point gains; offsets re-read on the shutter every few minutes",
-                        needs=_AT_REFERENCE, auto=False),
+                        needs=_AT_REFERENCE, auto=False,
+                        auto_note="its offsets are re-read on the camera's shutter as it is "
+                        "applied, which a chamber session never closes: fitted there it is "
+                        "two-point (give --method shutter to fit it all the same)"),
         CalibrationInfo("polynomial", polynomial, PolynomialCalibration,
                         "Oz et al. eq. 13–15; Nugent et al. 2013",
                         "per-pixel gain and offset cubic in the FPA temperature",
