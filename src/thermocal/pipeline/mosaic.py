@@ -310,6 +310,7 @@ def _register_maps(maps: list[_Map], shape: tuple[int, int], left_out: list[dict
     seq = register_sequence(stack, fixed_pattern=zero) if len(maps) > 1 else None
     chains: list[list[int]] = []
     why: dict[int, str] = {}  # why a map starts a chain
+    ended: dict[int, str] = {}  # why a chain's last map got no successor: the next one's failure
     for k, m in enumerate(maps):
         if k in stack.bad:
             left_out.append({"frame": m.frame, "reason": stack.bad[k]})
@@ -328,7 +329,9 @@ def _register_maps(maps: list[_Map], shape: tuple[int, int], left_out: list[dict
                 m.registered_to, m.correlation = maps[a].frame, cc
                 chain.append(k)
                 break
-            why.setdefault(k, _failure(h, cc, shape, m.frame, maps[a].frame))
+            failure = _failure(h, cc, shape, m.frame, maps[a].frame)
+            why.setdefault(k, failure)
+            ended.setdefault(a, f"map {m.frame} does not register to it ({failure})")
         else:
             m.to_first = np.eye(3)
             chains.append([k])
@@ -337,8 +340,10 @@ def _register_maps(maps: list[_Map], shape: tuple[int, int], left_out: list[dict
         if chain is main:
             continue
         for k in chain:
-            reason = (why.get(k, "no later map registers to it") if k == chain[0]
-                      else f"registered to map {maps[k].registered_to}, which is left out")
+            if k != chain[0]:
+                reason = f"registered to map {maps[k].registered_to}, which is left out"
+            else:  # its own failure, else the one that ended its chain
+                reason = why.get(k) or ended.get(chain[-1], "no later map registers to it")
             left_out.append({"frame": maps[k].frame, "reason": reason})
     left_out.sort(key=lambda e: e["frame"])
     return [maps[k] for k in main]
