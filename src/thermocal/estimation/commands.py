@@ -245,8 +245,6 @@ def _burst_of(rec: Any, n: int | None, pivot: int | None, path: Any
             or total == rec.n_frames):  # no --pivot: the middle of the frames that decode
         return burst_window(rec.n_frames, n, pivot)
     if n is None or total <= n:  # every frame that decodes, the pivot by its number
-        if pivot is None:
-            return slice(0, rec.n_frames), None
         at = pivot_index(pivot, total)
         if at not in positions:
             raise InvalidInputError(f"{path}: frame {at} does not decode (see the warning): "

@@ -198,8 +198,8 @@ def family_pattern_reason(frames_c: np.ndarray, family: str | None, line_fpn: st
     """Why frames ``(N, H, W)`` (°C through the family's average unit) are not of ``family``,
     whose fixed pattern runs along ``line_fpn`` (``"column"`` or ``"row"``; otherwise not
     checked): their pattern runs the other way more than a burst of the family's does
-    (:func:`family_lines`), or they
-    are smaller than :data:`LINE_CHECK_MIN_PX` a side, too small to tell. None when they are.
+    (:func:`family_lines`), or they are smaller than :data:`LINE_CHECK_MIN_PX` a side, too
+    small to tell. None when they are.
     ``of`` ends the sentence: what was made for the family ("the network was trained on");
     ``warped_c``, ``valid``, ``homographies``: the frames registered onto the pivot."""
     if line_fpn not in ("column", "row"):
@@ -217,12 +217,13 @@ def family_pattern_reason(frames_c: np.ndarray, family: str | None, line_fpn: st
     if own <= 0 and cross <= 0:
         return (f"its {what} has no {line_fpn} pattern beyond the pixels' noise (a {family} "
                 f"camera's runs along {line_fpn}s): not a camera of the {family} family {of}")
+    if own <= 0:
+        return (f"its {what} runs along {other}s ({cross:.2f} °C) and not along {line_fpn}s: "
+                f"not a camera of the {family} family {of}")
     return (f"its {what} runs along {other}s too much for a {family} camera "
             f"({cross:.2f} °C against {own:.2f} °C along {line_fpn}s, {cross / own:.3f} of it "
             f"where a {family} burst's stays below {limit:.3f}): not a camera of the {family} "
-            f"family {of}" if own > 0 else
-            f"its {what} runs along {other}s ({cross:.2f} °C) and not along {line_fpn}s: not a "
-            f"camera of the {family} family {of}")
+            f"family {of}")
 
 
 def family_lines(frames_c: np.ndarray, line_fpn: str, *, warped_c: np.ndarray | None = None,

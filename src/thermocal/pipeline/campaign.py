@@ -211,13 +211,13 @@ def _progress_events(task: CampaignTask) -> Callable[[int], None]:
     """``progress(k)`` for a task's flight on a worker: each group's frames sent to the client
     as an event of :data:`PROGRESS_TOPIC` (the campaign's bar moves as groups finish, not as
     whole recordings do); nothing outside a worker."""
+    if task.events is None:
+        return lambda k: None
     from distributed import get_worker
 
     try:
         worker = get_worker()
     except ValueError:  # not on a worker (a task run in this process)
-        return lambda k: None
-    if task.events is None:
         return lambda k: None
     key, topic = _task_key(task), task.events
     return lambda k: worker.log_event(topic, {"key": key, "frames": int(k)})

@@ -459,11 +459,11 @@ def _maps_section(out: Path, previews: int, entries: Sequence[dict[str, Any]] = 
         if uri is not None:
             parts.insert(0, ("mosaic.png", uri))
     if parts:
+        meta = _mosaic_meta(mosaic / "mosaic.json")
         return ("<h2>Mosaic</h2>\n" + "".join(
             f"<figure>{_img(u, name)}<figcaption class=\"note\">mosaic/{_e(name)}"
             "</figcaption></figure>\n" for name, u in parts)
-            + _mosaic_stale(out, mosaic / "mosaic.json", entries)
-            + _mosaic_facts(mosaic / "mosaic.json"))
+            + _mosaic_stale(out, meta, entries) + _mosaic_facts(meta))
     pngs = sorted((out / "previews").glob("frame_*.png")) if (out / "previews").is_dir() else []
     if not pngs or not previews:
         return ("<h2>Maps</h2>\n<p class=\"note\">No mosaic and no previews in this folder "
@@ -506,11 +506,12 @@ def _mosaic_meta(path: Path) -> dict[str, Any] | None:
     return meta if isinstance(meta, dict) else None
 
 
-def _mosaic_stale(out: Path, path: Path, entries: Sequence[dict[str, Any]]) -> str:
-    """A warning when the log lists maps the mosaic (``mosaic.json``) neither used nor left out
-    for a reason that still holds (a map the flight made or remade after the mosaic, e.g. a
-    resumed flight without ``--mosaic``); '' otherwise, or without a readable mosaic.json."""
-    meta = _mosaic_meta(path)
+def _mosaic_stale(out: Path, meta: dict[str, Any] | None,
+                  entries: Sequence[dict[str, Any]]) -> str:
+    """A warning when the log lists maps the mosaic (``meta``, its ``mosaic.json``) neither used
+    nor left out for a reason that still holds (a map the flight made or remade after the
+    mosaic, e.g. a resumed flight without ``--mosaic``); '' otherwise, or without a readable
+    mosaic.json (None)."""
     if meta is None:
         return ""
 
@@ -537,10 +538,9 @@ def _mosaic_stale(out: Path, path: Path, entries: Sequence[dict[str, Any]]) -> s
             f"run <code>thermocal mosaic {_e(out)}</code> again.</p>\n")
 
 
-def _mosaic_facts(path: Path) -> str:
-    """What ``mosaic.json`` says of the mosaic (its canvas, the maps used and left out and why,
-    the views per pixel, its σ), as a few lines; '' when absent or damaged."""
-    meta = _mosaic_meta(path)
+def _mosaic_facts(meta: dict[str, Any] | None) -> str:
+    """What ``mosaic.json`` (``meta``) says of the mosaic (its canvas, the maps used and left out
+    and why, the views per pixel, its σ), as a few lines; '' when absent or damaged (None)."""
     if meta is None:
         return ""
 

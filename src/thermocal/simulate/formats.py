@@ -412,7 +412,7 @@ def _dji_xmp(altitude_m: float | None, relative_m: float | None, yaw_deg: float 
     if yaw_deg is not None:
         yaw = (yaw_deg + 180.0) % 360.0 - 180.0  # DJI writes -180..180
         attrs += [f'drone-dji:{key}YawDegree="{yaw:.6f}"' for key in ("Flight", "Gimbal")]
-    if spot_c is not None and math.isfinite(spot_c):
+    if spot_c is not None:
         attrs.append(f'FLIR:CentralTemperature="{int(round(spot_c))}"')  # whole °C, as the XT-R
     return ('<?xpacket begin="\ufeff" id="W5M0MpCehiHzreSzNTczkc9d"?>'
             '<x:xmpmeta xmlns:x="adobe:ns:meta/"><rdf:RDF '
