@@ -87,7 +87,7 @@ def markdown_report(runs: dict, *, quick: bool, host: str) -> str:
 
 
 @click.command("bench")
-@click.option("--quick", is_flag=True, help="Small and short versions (about 5 minutes).")
+@click.option("--quick", is_flag=True, help="Small and short versions (about 4 min on 2 cores).")
 @click.option("--json", "json_out", type=click.Path(dir_okay=False, path_type=Path),
               default=None, help="Write all results to this JSON file.")
 @click.option("--markdown", "md_out", type=click.Path(dir_okay=False, path_type=Path),
