@@ -36,11 +36,11 @@ from thermocal.camera.presets import make_camera
 from thermocal.errors import ThermocalError
 from thermocal.io.chamber import (
     ChamberSession,
-    import_envchamberctrl_npz,
     iter_chamber_frames,
     read_chamber,
     write_chamber,
 )
+from thermocal.io.envchamber import import_envchamberctrl_npz
 from thermocal.io.recording import (
     Recording,
     iter_recording,

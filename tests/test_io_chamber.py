@@ -16,12 +16,12 @@ from thermocal.io.chamber import (
     ChamberWriter,
     LazyFrames,
     chamber_problems,
-    import_envchamberctrl_npz,
     iter_chamber_frames,
     read_chamber,
     validate_chamber,
     write_chamber,
 )
+from thermocal.io.envchamber import import_envchamberctrl_npz
 
 M, H, W = 10, 8, 12
 

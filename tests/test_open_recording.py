@@ -17,8 +17,8 @@ import pytest
 from PIL import Image
 
 from thermocal.errors import FileFormatError, InvalidInputError, ThermocalError
-from thermocal.io.chamber import import_envchamberctrl_npz
 from thermocal.io.dualtau import interpolate_fpa_readings
+from thermocal.io.envchamber import import_envchamberctrl_npz
 from thermocal.io.fff import parse_fff_record, planck_from_metadata
 from thermocal.io.open import FORMATS, open_recording
 from thermocal.io.recording import Recording, read_temperature_tiff, write_recording

@@ -47,7 +47,8 @@ def as_session(session: Any) -> ChamberSession:
     if isinstance(session, ChamberSession):
         return session
     if isinstance(session, str | os.PathLike):
-        from thermocal.io.chamber import import_envchamberctrl_npz, read_chamber
+        from thermocal.io.chamber import read_chamber
+        from thermocal.io.envchamber import import_envchamberctrl_npz
 
         path = Path(session)
         if path.suffix.lower() == ".npz":

@@ -574,7 +574,7 @@ class _DualTauSource(RecordingSource):
 
 class _ChamberNpzSource(RecordingSource):
     def __init__(self, path: Path) -> None:
-        from thermocal.io.chamber import import_envchamberctrl_npz
+        from thermocal.io.envchamber import import_envchamberctrl_npz
 
         self._session = s = import_envchamberctrl_npz(path)
         frames = np.asarray(s.frames)
