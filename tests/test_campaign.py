@@ -373,6 +373,44 @@ def test_a_segments_warnings_reach_its_recordings_result_once(tmp_path, monkeypa
     assert result["ok"] and result["warnings"] == [said]
 
 
+def test_two_tasks_at_once_on_one_worker_keep_their_own_warnings(tmp_path, monkeypatch):
+    """A worker of a user's cluster may run two tasks at once on two threads of one process:
+    each recording's result lists its own flight's warnings, not the other's (they were
+    recorded through warnings.catch_warnings, which one process shares between threads)."""
+    import threading
+    import warnings
+
+    from thermocal.pipeline import flight, report
+
+    both_in = threading.Barrier(2, timeout=10)
+    counts = {"processed": 1, "skipped_already_done": 0, "failed": 0, "groups": 1}
+
+    def one_flight(recording, out_dir, options, *, progress=None):
+        for step in range(3):  # each warns while the other is inside its own flight too
+            both_in.wait()
+            warnings.warn(f"{recording}: warning {step}", UserWarning, stacklevel=2)
+        return counts
+
+    monkeypatch.setattr(flight, "process_flight", one_flight)
+    monkeypatch.setattr(report, "write_report", lambda out: None)
+    tasks = [campaign.CampaignTask(name, f"{name}.tiff", str(tmp_path / name), 10,
+                                   FlightOptions()) for name in ("a", "b")]
+    results: dict[str, dict] = {}
+    threads = [threading.Thread(target=lambda t=t: results.__setitem__(
+        t.name, campaign._run_task(t))) for t in tasks]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(30)
+    for name in ("a", "b"):
+        assert results[name]["ok"]
+        assert results[name]["warnings"] == [f"{name}.tiff: warning {k}" for k in range(3)]
+    with warnings.catch_warnings(record=True) as after:  # the process's state given back
+        warnings.simplefilter("default")
+        warnings.warn("after", UserWarning, stacklevel=1)
+    assert [str(w.message) for w in after] == ["after"]
+
+
 def test_task_keys_cannot_collide_and_a_short_recording_is_one_task(data, tmp_path):
     """Keys put the kind of task first (a recording named ``a-finish`` and ``a``'s finishing
     task differ); a recording too short for a group is left to its task to report."""

@@ -48,6 +48,7 @@ from thermocal.calibration.base import ThermocalWarning
 from thermocal.errors import InvalidInputError, ThermocalError
 from thermocal.pipeline.flight import FlightOptions
 from thermocal.pipeline.run_record import check_not_a_recording_folder
+from thermocal.threads import caught_warnings, routed_warnings
 
 __all__ = ["CampaignTask", "campaign_tasks", "run_campaign"]
 
@@ -241,8 +242,7 @@ def _run_task(task: CampaignTask) -> dict[str, Any]:
         started = time.perf_counter()
         try:
             # kept for the finishing task, which warns them once for the recording
-            with warnings.catch_warnings(record=True) as caught:
-                warnings.simplefilter("always")
+            with routed_warnings(), caught_warnings() as caught:
                 segment = process_flight(task.recording, task.out_dir, task.options,
                                          segment=task.segment, progress=progress)
         except ThermocalError as exc:
@@ -276,8 +276,7 @@ def _reported(task: CampaignTask, flight: Callable[[], dict[str, Any]], *,
 
     started = time.perf_counter() - earlier_s
     try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
+        with routed_warnings(), caught_warnings() as caught:
             summary = flight()
             write_report(task.out_dir)
     except ThermocalError as exc:
