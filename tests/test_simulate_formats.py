@@ -241,6 +241,10 @@ def test_a_simulated_flir_file_states_its_own_units_constants(tmp_path, capsys, 
     code, _, err = run(["simulate", "flight", tmp_path / "f", "--frames", "7", "--size", "64x48",
                         "--seed", "3", "--format", "seq", "--preset", preset], capsys)
     assert code == 0, err
+    meta = open_recording(tmp_path / "f" / "frames.seq").read_all().extra["frame_metadata"][0]
+    # the file names its family's core (a boson's said Tau2: a helper's audit)
+    family = "Tau2" if preset == "tau2" else "Boson"
+    assert meta["camera_model"] == f"thermocal simulated {family}-class"
     code, _, err = run(["estimate", tmp_path / "f" / "frames.seq", "--method", "camera",
                         "--out", tmp_path / "t.tiff", "--sigma-out", tmp_path / "s.tiff"],
                        capsys)

@@ -78,7 +78,8 @@ def setpoints_from_range(start: float, stop: float, step: float) -> tuple[float,
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
 @click.version_option(__version__, prog_name="thermocal")
 def cli() -> None:
-    """Radiometric temperature from uncooled thermal cameras (FLIR Tau2 class)."""
+    """Radiometric temperature from uncooled thermal cameras (microbolometer cores such as FLIR's
+    Tau2)."""
 
 
 @cli.group()
@@ -216,9 +217,9 @@ def simulate_flight_cmd(
     camera = make_camera(preset, unit=unit, size=(width, height))
     flir = {}  # a FLIR file states its camera's constants: this unit's (checked before any work)
     if frames_out is not None and fmt != "dualtau":
-        from thermocal.simulate.formats import unit_planck
+        from thermocal.simulate.formats import simulated_model, unit_planck
 
-        flir = {"planck": unit_planck(camera, fpa_c)}
+        flir = {"planck": unit_planck(camera, fpa_c), "model": simulated_model(preset)}
     scene_c, scene_name = load_scene_or_procedural(scene, seed=seed)
     plan = plan_flight(
         scene_c, camera, n_frames=n_frames, motion=motion, fpa_c=fpa_c, fps=fps, seed=seed

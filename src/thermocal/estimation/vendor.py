@@ -26,13 +26,18 @@ from thermocal.estimation.base import PreparedBurst
 from thermocal.io.recording import Recording
 from thermocal.radiometry import FlirPlanck
 
-__all__ = ["MAX_UNDEFINED_FRACTION", "TAU2_CAMERAS", "VendorCalibration", "vendor_accuracy"]
+__all__ = ["CORE_CAMERAS", "MAX_UNDEFINED_FRACTION", "TAU2_CAMERAS", "VendorCalibration",
+           "vendor_accuracy"]
 
 #: Parts of a file's make and model (upper case, found anywhere in them) that name a
 #: radiometric Tau2 camera: DJI's Zenmuse XT series (EXIF make "DJI", model "FLIR"), FLIR's
 #: Duo Pro R and Vue Pro R, a bare Tau2 core. Not "XT" alone: FLIR's E8-XT is a handheld of
 #: ±2 °C.
 TAU2_CAMERAS = ("DJI", "ZENMUSE", "TAU", "DUO PRO", "VUE PRO")
+
+#: The same for every radiometric core of ±5 °C or 5 %: the Tau2 cameras and a Boson core
+#: (the simulator's second family writes "thermocal simulated Boson-class core").
+CORE_CAMERAS = (*TAU2_CAMERAS, "BOSON")
 
 #: Pixels of a frame whose counts its constants give no temperature (below the count of a
 #: blackbody at 0 K: dead pixels) filled from their neighbours, at most this fraction of them.
@@ -59,7 +64,7 @@ def vendor_accuracy(metadata: dict[str, Any]) -> tuple[float, float]:
     """The stated accuracy of the camera a frame's metadata names: ``(°C, fraction of the
     reading)``, whichever is larger bounds the error (see the module docstring)."""
     names = " ".join(str(metadata.get(k, "")) for k in ("make", "model", "camera_model"))
-    if any(tag in names.upper() for tag in TAU2_CAMERAS):
+    if any(tag in names.upper() for tag in CORE_CAMERAS):
         return 5.0, 0.05
     return 2.0, 0.02
 

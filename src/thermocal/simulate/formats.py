@@ -75,6 +75,7 @@ __all__ = [
     "gps_line",
     "rjpeg_bytes",
     "unit_planck",
+    "simulated_model",
     "write_chunks_as",
     "write_recording_as",
 ]
@@ -141,6 +142,13 @@ _DUALTAU_FPA_EVERY_S = 30.0  # and reads the FPA temperature every 30 s
 #: ``--method camera`` takes a radiometric core's stated accuracy for it (±5 °C or 5 %,
 #: :func:`thermocal.estimation.vendor.vendor_accuracy`), not a FLIR camera's.
 _MODEL = "thermocal simulated Tau2-class core"
+
+
+def simulated_model(preset: str) -> str:
+    """The camera model a simulated camera of family ``preset`` writes in its files
+    (``"thermocal simulated Boson-class core"`` for ``boson``)."""
+    family = "Tau2" if preset == "tau2" else preset.capitalize()
+    return f"thermocal simulated {family}-class core"
 
 
 # --------------------------------------------------------------------------------------------
@@ -481,9 +489,9 @@ class _Frames:
     """What the writers need besides the frames: Planck constants, clock, GPS and headings."""
 
     def __init__(self, *, planck: FlirPlanck, gps: np.ndarray | None, start_epoch_s: float,
-                 fps: float, ground_m: float | None) -> None:
+                 fps: float, ground_m: float | None, model: str = _MODEL) -> None:
         self.planck, self.gps, self.start, self.fps = planck, gps, start_epoch_s, fps
-        self.ground_m = ground_m
+        self.ground_m, self.model = ground_m, model
         self.tracks = None if gps is None else _tracks_deg(gps)
 
     def time_s(self, chunk: Recording, start: int) -> np.ndarray:
@@ -518,13 +526,14 @@ def _write_flir(out: Path, fmt: str, chunks: Iterable[Recording], ctx: _Frames,
                 record = fff_record(
                     chunk.frames[k], planck=ctx.planck, time_epoch_s=ctx.start + times[k],
                     frame_rate_hz=ctx.fps, gps=None if dji else position, track_deg=track,
-                    order=byte_order, codec=codec, creator="ATAU_RBFO" if dji else "thermocal")
+                    order=byte_order, codec=codec, creator="ATAU_RBFO" if dji else "thermocal",
+                    model=ctx.model)
                 if fmt in ("seq", "csq"):
                     series.write(record)
                 else:
                     spot = _spot_meter_c(chunk.frames[k], ctx.planck) if dji else None
                     data = _frame_file(fmt, record, chunk.frames[k], position, track, spot,
-                                       ctx.ground_m)
+                                       ctx.ground_m, ctx.model)
                     (folder / f"frame_{n:06d}{_FRAME_SUFFIX[fmt]}").write_bytes(data)
                 n += 1
     return n
@@ -545,12 +554,12 @@ def _spot_meter_c(raw: np.ndarray, planck: FlirPlanck) -> float | None:
 
 def _frame_file(fmt: str, record: bytes, raw: np.ndarray,
                 position: tuple[float, float, float] | None, track: float,
-                spot_c: float | None, ground_m: float | None) -> bytes:
+                spot_c: float | None, ground_m: float | None, model: str = _MODEL) -> bytes:
     """The bytes of one frame's file: the FFF record itself, or an R-JPEG around it."""
     if fmt == "fff":
         return record
     if fmt == "rjpeg":
-        return rjpeg_bytes(record, _preview(raw), gps=position)
+        return rjpeg_bytes(record, _preview(raw), model=model, gps=position)
     if position is None:
         xmp = _dji_xmp(None, None, None, spot_c)
     else:
@@ -603,7 +612,7 @@ def write_chunks_as(chunks: Iterable[Recording], path: str | os.PathLike[str], *
                     planck: FlirPlanck = DEFAULT_PLANCK, gps: Any = None,
                     start_epoch_s: float = DEFAULT_START_EPOCH_S, fps: float = 30.0,
                     n_frames: int | None = None, byte_order: str | None = None,
-                    ground_altitude_m: float | None = None) -> int:
+                    ground_altitude_m: float | None = None, model: str = _MODEL) -> int:
     """Write a recording given in consecutive pieces (bounded memory) as ``format``.
 
     Parameters
@@ -634,6 +643,9 @@ def write_chunks_as(chunks: Iterable[Recording], path: str | os.PathLike[str], *
     ground_altitude_m : float, optional
         Altitude of the take-off point, m above sea level: with ``gps``, DJI R-JPEGs get
         ``RelativeAltitude`` (the height above it, which ``thermocal flight --geotiff`` needs).
+    model : str
+        The camera model written in FLIR records and plain R-JPEGs' EXIF
+        (:func:`simulated_model`; a DJI R-JPEG's EXIF says DJI's "FLIR").
 
     Returns
     -------
@@ -658,8 +670,10 @@ def write_chunks_as(chunks: Iterable[Recording], path: str | os.PathLike[str], *
     gps_arr = None if gps is None else _checked_gps(gps, int(n_frames or 0))
     if ground_altitude_m is not None and not math.isfinite(ground_altitude_m):
         raise InvalidInputError(f"ground_altitude_m: must be finite, got {ground_altitude_m}")
+    if not isinstance(model, str) or not model:
+        raise InvalidInputError(f"model: expected a camera model's name, got {model!r}")
     ctx = _Frames(planck=planck, gps=gps_arr, start_epoch_s=float(start_epoch_s), fps=float(fps),
-                  ground_m=ground_altitude_m)
+                  ground_m=ground_altitude_m, model=model)
     counted = _counting(chunks, n_frames)
     if format == "tiff":
         return _write_tiff(out, counted)
@@ -736,7 +750,7 @@ def convert_recording(src: str | os.PathLike[str], dst: str | os.PathLike[str], 
 
     ``fps`` defaults to the median interval of the sidecar's ``time_s`` (30 Hz without it);
     ``options`` are those of :func:`write_chunks_as` (``planck``, ``gps``, ``start_epoch_s``,
-    ``byte_order``, ``ground_altitude_m``). Returns the number of frames written.
+    ``byte_order``, ``ground_altitude_m``, ``model``). Returns the number of frames written.
     """
     from thermocal.io.recording import iter_recording, read_recording_header
 
