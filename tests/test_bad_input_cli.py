@@ -309,8 +309,8 @@ CASES = [
     # the remedy is a session that would pass: not the same narrow ambient range again
     ("calibrate-one-ambient",
      ["calibrate", "{root}/constant.h5", "--method", "polynomial", "--out", "{tmp}/c.h5"],
-     "or all the frames; record steps: `thermocal simulate chamber OUT.h5 --ambient-profile "
-     "steps --ambient-c 10:40"),
+     "or all the frames; record steps: `thermocal simulate chamber OUT.h5 --preset tau2 "
+     "--unit 0 --size 40x24 --ambient-profile steps --ambient-c 10:40"),
     ("info-times-going-backwards", ["info", "{root}/timeback.tiff"],
      "frame times go backwards (frame 4 is"),
     ("correct-times-going-backwards",

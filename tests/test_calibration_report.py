@@ -304,6 +304,9 @@ def test_protocol_checks_read_the_registry(sessions):
     two = check_session(steps, "two-point", fpa_ref_c=float(steps.fpa_c[-1]) + 2.0)
     assert not two.ok and "choose fpa_ref_c (--fpa-ref-c) at one of its FPA plateaus" in (
         two.refusal)
+    # frames near a reference FPA come from the FPA moving slowly through it: more steps of a
+    # few °C would leave one plateau there again (wolf2016 on the boson preset's steps session)
+    assert "record the chamber's ambient rising and falling" in two.refusal
     assert check_session(steps, "one-point", gain=1000.0).ok
 
 
@@ -531,13 +534,16 @@ def test_the_session_a_refusal_asks_for_gives_the_set_points_it_promises(tmp_pat
     from thermocal.cli import setpoints_from_range
 
     few = tmp_path / "few.h5"
-    assert run(["simulate", "chamber", few, "--size", "32x24", "--blackbody-c", "20:30:10"],
-               capsys)[0] == 0
+    assert run(["simulate", "chamber", few, "--size", "32x24", "--blackbody-c", "20:30:10",
+                "--preset", "boson", "--unit", "5"], capsys)[0] == 0
     code, _, err = run(["calibrate", few, "--method", "lin-lag", "--out", tmp_path / "x.h5"],
                        capsys)
     assert code == 2 and "needs >= 4 blackbody set points" in err, err
     command = re.search(r"`thermocal (simulate chamber OUT\.h5 [^`]*)`", err).group(1)
     args = [str(tmp_path / "new.h5") if a == "OUT.h5" else a for a in shlex.split(command)]
+    # the same camera (it recorded a `tau2` unit 0 at 336x256: a helper's audit)
+    for option, value in (("--preset", "boson"), ("--unit", "5"), ("--size", "32x24")):
+        assert args[args.index(option) + 1] == value, command
     blackbody = args[args.index("--blackbody-c") + 1]
     assert len(setpoints_from_range(*map(float, blackbody.split(":")))) >= 4, blackbody
     assert setpoints_from_range(20.0, 70.0, 16.6667)[-1] == 70.0

@@ -149,6 +149,18 @@ def _range_arg(values: np.ndarray) -> str:
     return f"{v[0]:g}:{v[-1]:g}:{step[0]:g}"
 
 
+def _camera_args(data: ChamberData) -> list[str]:
+    """The simulated session's camera as ``thermocal simulate chamber`` options (its family,
+    unit and size, so that the command records the same camera; those the file states)."""
+    attrs = data.session.attrs
+    preset, unit = attrs.get("preset"), attrs.get("unit")
+    h, w = data.frame_shape
+    args = [f"--preset {preset}"] if isinstance(preset, str) and preset.isidentifier() else []
+    if isinstance(unit, int | np.integer) and not isinstance(unit, bool) and unit >= 0:
+        args.append(f"--unit {int(unit)}")
+    return [*args, f"--size {w}x{h}"]
+
+
 def record_hint(data: ChamberData, profile: str, *, setpoints: int = 0) -> str:
     """What to record, in one clause: a ``thermocal simulate chamber`` command for a simulated
     session, words for a real one.
@@ -173,7 +185,8 @@ def record_hint(data: ChamberData, profile: str, *, setpoints: int = 0) -> str:
             # the range and lose its last point (the command given gave 3 points of 4)
             points = lo + max(np.floor((hi - lo) / (setpoints - 1)), 1.0) * np.arange(setpoints)
         blackbody = _range_arg(points)
-        args = [f"--ambient-profile {profile}", f"--ambient-c {ambient[0]:g}:{ambient[1]:g}"]
+        args = [*_camera_args(data), f"--ambient-profile {profile}",
+                f"--ambient-c {ambient[0]:g}:{ambient[1]:g}"]
         if blackbody:
             args.append(f"--blackbody-c {blackbody}")
         return f"record {profile}: `thermocal simulate chamber OUT.h5 {' '.join(args)}`"
@@ -258,8 +271,11 @@ def check_protocol(data: ChamberData, method: str, needs: ProtocolNeeds,
             elsewhere = ("; or choose fpa_ref_c (--fpa-ref-c) at one of its FPA plateaus ("
                          + ", ".join(f"{p:.1f}" for p in plateaus[:8]) + " °C)"
                          if plateaus.size else "")
+            # the FPA moving slowly through the reference: steps of a few °C leave one plateau
+            # within the window (the boson preset's default steps session, refused again)
             return ProtocolCheck(method, options, f"{method} {lack}; "
-                                 + record_hint(data, "steps", setpoints=n_setpoints) + elsewhere)
+                                 + record_hint(data, "sawtooth", setpoints=n_setpoints)
+                                 + elsewhere)
     else:
         given = "frames" in options
         choices = ((str(options["frames"]),) if given else (needs.frames, *needs.fallback))
