@@ -73,6 +73,8 @@ def inputs(tmp_path_factory) -> dict[str, Path]:
             assert exc.code in (0, None), args
     rec = root / "rec.tiff"
     shutil.copy(flight / "frames.tiff", rec)
+    # a chamber session under the name of a checkpoint that `train --out session.pt` writes
+    shutil.copy(chamber, root / "session.ckpt")
     shutil.copy(flight / "frames.json", root / "rec.json")
     sidecar = json.loads((flight / "frames.json").read_text())
     for name, fpa in (("fpa1e50", "[1e50, 1e50, 1e50, 1e50, 1e50, 1e50, 1e50]"),
@@ -288,6 +290,10 @@ CASES = [
      ["train", "--chamber", "{root}/chamber.h5", "--out", "{root}/chamber.h5"], "is an input"),
     ("train-over-init",
      ["train", "--init", "{root}/weights.pt", "--out", "{root}/weights.pt"], "is an input"),
+    # what train writes beside --out (a helper's audit: the chamber file was replaced, exit 0)
+    ("train-checkpoint-over-chamber",
+     ["train", "--chamber", "{root}/session.ckpt", "--out", "{root}/session.pt"],
+     "session.ckpt is an input of this command"),
     ("simulate-flight-beside-another-format",
      ["simulate", "flight", "{root}/flight", "--size", SIZE, "--format", "csq"],
      "holds a recording (frames.tiff)"),

@@ -293,7 +293,14 @@ def train(**opts: Any) -> None:
     from thermocal._validate import check_not_input
 
     init = opts.get("init")
-    check_not_input(opts.get("out"), opts.get("chamber"), None if init == "shipped" else init)
+    inputs = (opts.get("chamber"), None if init == "shipped" else init)
+    check_not_input(opts.get("out"), *inputs)
+    if opts.get("out") is not None:  # and what is written beside it (a chamber named x.ckpt)
+        from thermocal.nn.uncertainty import sidecar_path
+
+        out = Path(opts["out"])
+        check_not_input(out.with_suffix(".ckpt"), *inputs, what="the checkpoint beside --out,")
+        check_not_input(sidecar_path(out), *inputs, what="the σ model beside --out,")
     # OpenMP threads that sleep instead of spinning while they wait: on a shared machine a
     # spinning thread burns the core the other one needs (3x slower steps, measured).
     os.environ.setdefault("OMP_WAIT_POLICY", "PASSIVE")
