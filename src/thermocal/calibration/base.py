@@ -81,6 +81,87 @@ def apply_with_rate(calibration: Calibration, frames: Any, *, fpa_c: Any, time_s
     return calibration.apply(frames, fpa_c=fpa_c, time_s=time_s)
 
 
+def calibration_sigma_extra(calibration: Any, frames: Any, temps: np.ndarray, *,
+                            time_s: Any, fpa_c: Any = None, unverified: Any = None,
+                            filled: bool = True) -> np.ndarray | None:
+    """What a calibration adds to its report's σ for ``frames`` and the temperatures it gave
+    them, ``temps`` ``(N, H, W)`` °C: °C, float32 ``(N, H, W)``, or None where nothing is added.
+    Each part is a correction nothing verified, as uncertain as its own size (GUM: a component
+    of that σ); the parts add in quadrature, and the callers add the sum so to the report's σ:
+
+    - a ``shutter`` calibration's :meth:`~thermocal.calibration.shutter.ShutterCalibration.
+      closure_shift` (its closures, which no chamber fold saw);
+    - on the frames ``unverified`` (bool ``(N,)``: at FPA paces its session never held, forced),
+      :func:`rate_correction` (at the frames' FPA temperatures ``fpa_c``): its rate terms were
+      fitted on other paces (a helper's audit: `lin-level` from a session whose FPA only rose,
+      forced on a falling FPA, erred 8–14 °C where σ said 1.6–7.7);
+    - with ``filled`` (``temps`` are its output pixel for pixel, not a mean over views that see
+      each place through other pixels), at the pixels it marks bad, which
+      :func:`fill_bad_pixels` filled with their good neighbours' median,
+      :func:`filled_pixel_spread`: the scene there may lie anywhere among them (a `lin-lag` bad
+      pixel erred 4.5 °C where σ said 1.4: a helper's audit).
+    """
+    closure_shift = getattr(calibration, "closure_shift", None)
+    parts = [] if closure_shift is None else [closure_shift(frames, time_s=time_s)]
+    if unverified is not None and np.any(unverified) and fpa_c is not None:
+        which = np.flatnonzero(unverified)
+        fpa = np.broadcast_to(np.asarray(fpa_c, dtype=np.float64).reshape(-1), (len(temps),))
+        t = None if time_s is None else np.asarray(time_s, dtype=np.float64).reshape(-1)[which]
+        moved = rate_correction(calibration, np.asarray(frames)[which], temps[which],
+                                fpa_c=fpa[which], time_s=t)
+        if moved is not None:
+            whole = np.zeros(np.shape(temps), dtype=np.float32)
+            whole[which] = moved
+            parts.append(whole)
+    bad = getattr(calibration, "bad", None) if filled else None
+    if bad is not None and np.shape(bad) == np.shape(temps)[1:] and np.any(bad):
+        parts.append(filled_pixel_spread(temps, np.asarray(bad, dtype=bool)))
+    parts = [p for p in parts if p is not None]
+    if not parts:
+        return None
+    return np.sqrt(sum(np.square(p, dtype=np.float32) for p in parts)).astype(np.float32)
+
+
+def rate_correction(calibration: Any, frames: Any, temps: np.ndarray, *, fpa_c: Any,
+                    time_s: Any) -> np.ndarray | None:
+    """How far a calibration's FPA-rate terms moved ``temps``, its output for ``frames`` at
+    FPA temperatures ``fpa_c`` (°C) and times ``time_s`` (s): ``|temps − its output at rate
+    0|`` (the lagged rates at 0 too), °C float32 ``(N, H, W)``; None for a calibration without
+    rate terms (``takes_fpa_rate``)."""
+    if not getattr(calibration, "takes_fpa_rate", False):
+        return None
+    lags = rate_lags_of(calibration)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ThermocalWarning)  # the frames were warned of
+        steady = apply_with_rate(calibration, frames, fpa_c=fpa_c, time_s=time_s,
+                                 fpa_rate_c_per_min=np.zeros(len(temps)),
+                                 fpa_lag_rates_c_per_min=np.zeros(len(lags)) if lags else None)
+    return np.abs(np.asarray(temps, dtype=np.float32) - steady)
+
+
+def filled_pixel_spread(temps: np.ndarray, bad: np.ndarray) -> np.ndarray:
+    """The range (max − min, °C) of each ``bad`` pixel's good 3×3 neighbours in every frame of
+    ``temps`` ``(N, H, W)``, 0 at the good pixels; a bad pixel with no good neighbour takes
+    its frame's range. float32 ``(N, H, W)``; ``temps`` unchanged."""
+    out = np.zeros(temps.shape, dtype=np.float32)
+    h, w = bad.shape
+    rows, cols = np.nonzero(bad)
+    dr, dc = np.meshgrid(np.arange(-1, 2), np.arange(-1, 2), indexing="ij")
+    nr = np.clip(rows[:, None] + dr.ravel()[None], 0, h - 1)  # (B, 9)
+    nc = np.clip(cols[:, None] + dc.ravel()[None], 0, w - 1)
+    usable = ~bad[nr, nc]
+    values = np.asarray(temps, dtype=np.float32)[:, nr, nc]  # (N, B, 9)
+    hi = np.where(usable[None], values, -np.inf).max(axis=2)
+    lo = np.where(usable[None], values, np.inf).min(axis=2)
+    spread = hi - lo
+    if not usable.any(axis=1).all():  # no good neighbour: the frame's range
+        good = np.asarray(temps, dtype=np.float32)[:, ~bad]
+        whole = (good.max(axis=1) - good.min(axis=1)) if good.size else np.zeros(len(temps))
+        spread = np.where(usable.any(axis=1)[None], spread, whole[:, None])
+    out[:, rows, cols] = spread
+    return out
+
+
 def rate_lags_of(calibration: Any) -> tuple[float, ...]:
     """The lags, s, through which a calibration remembers the FPA's rate (``lin-lag``'s
     ``rate_lags_s`` when it has lag terms); ``()`` for every other."""

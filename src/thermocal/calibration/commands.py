@@ -209,7 +209,7 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
     method (the file records which). Frames outside the FPA and scene ranges of the
     calibration's chamber session are refused unless --force. FRAMES: a file or a folder in any
     format `thermocal info` reads; damaged frames are left out with a warning naming them."""
-    from thermocal.calibration.base import ThermocalWarning
+    from thermocal.calibration.base import ThermocalWarning, calibration_sigma_extra
     from thermocal.calibration.dataset import recording_fpa_rates
     from thermocal.calibration.imprint import OTHER_CAMERA_SIGMA_C, imprint_reason
     from thermocal.calibration.registry import load_any_calibration
@@ -280,6 +280,13 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
     if sigma_out is not None:  # σ first: a failure leaves neither file
         since = None if rec.time_s is None else np.asarray(rec.time_s) - rec.time_s[0]
         sigma = model.sigma(temps, rec.fpa_c, rate_c_per_min=rates, time_since_start_s=since)
+        # forced at paces the session never held: the rate terms' correction is unverified
+        unverified = (model.unseen_paces(rates, rec.time_s, fpa_c=rec.fpa_c)
+                      if outside and rates is not None else None)
+        added = calibration_sigma_extra(cal, rec.frames, temps, time_s=rec.time_s,
+                                        fpa_c=rec.fpa_c, unverified=unverified)
+        if added is not None:  # a shutter's closures, unverified rate terms, filled pixels
+            sigma = np.hypot(sigma, added).astype(np.float32)
         if foreign:  # forced through another camera's calibration
             sigma = np.hypot(sigma, np.float32(OTHER_CAMERA_SIGMA_C)).astype(np.float32)
         write_sigma_tiff(sigma_out, sigma)

@@ -145,7 +145,9 @@ class CalibrationReport:
         before it);
         and, where the session's plateaus ended before the camera settled
         (:func:`settling_warning`), ``still``: how long its plateaus held the FPA still
-        (:func:`stillness_of`). Empty for the others and in a report made before it.
+        (:func:`stillness_of`); ``fpa_sensitivity_c_per_c``, the scene °C one FPA °C is worth
+        in the counts (:func:`fpa_sensitivity`; absent in a report made before it). Empty for
+        the others and in a report made before it.
     by_time : list of dict
         For a method that learns as frames stream by (``wolf2016``'s LMS: it errs most at
         first; :attr:`~thermocal.calibration.registry.CalibrationInfo.learns_online`), the same
@@ -723,6 +725,9 @@ def cross_validate(
     if expected is None:
         notes.append("no interior set point or FPA segment could be left out and refitted")
     paces = paces_of(data, memoryless=memoryless)
+    sensitivity = fpa_sensitivity(small, scorable)
+    if paces and sensitivity is not None:
+        paces = paces | {"fpa_sensitivity_c_per_c": sensitivity}
     found = list(protocol_warnings or [])
     ends = plateau_ends(small, scorable) if memoryless else []
     if ends:
@@ -807,6 +812,25 @@ def paces_of(data: ChamberData, *, memoryless: bool = True) -> dict[str, Any]:
     return out
 
 
+def fpa_sensitivity(data: ChamberData, frames: np.ndarray) -> float | None:
+    """How many °C of scene one °C of FPA temperature is worth in the raw counts: ``|c / b|``
+    of the least-squares ``mean counts = a + b·T_scene + c·T_fpa`` over the ``frames`` (bool
+    ``(M,)``) of a session read into memory (a report's sample), scene °C per FPA °C; None
+    where the frames span under 1 °C of FPA or of scene, or give no response. What an FPA
+    change no fold saw can do to a frame, uncorrected (:meth:`~thermocal.calibration.
+    uncertainty.CalibrationSigma._pace_sigma`): 0.5 on the `tau2` preset, 1.0 on `boson`."""
+    idx = np.flatnonzero(frames)
+    if idx.size < 3 or np.ptp(data.fpa_c[idx]) < 1.0 or np.ptp(data.scene_c[idx]) < 1.0:
+        return None
+    counts = np.asarray(data.session.frames[idx], dtype=np.float64)
+    mean = counts.reshape(idx.size, -1).mean(axis=1)
+    design = np.stack([np.ones(idx.size), data.scene_c[idx], data.fpa_c[idx]], axis=1)
+    (_, b, c), *_ = np.linalg.lstsq(design, mean, rcond=None)
+    if not (np.isfinite(b) and np.isfinite(c)) or abs(b) < 1e-9:
+        return None
+    return float(abs(c / b))
+
+
 #: The FPA temperature cells in which :func:`paces_of` records where a pace was held, °C.
 PACE_FPA_CELL_C = 1.0
 #: How far from the FPA temperatures at which the session held a pace a memoryless method's
@@ -879,6 +903,12 @@ def _paces_from(d: dict[str, Any]) -> dict[str, Any]:
             raise ValueError(f"fpa_paces: FPA cells of {fpa_cell} °C within {reach} °C must be "
                              "> 0, finite, and some")
         out |= {"fpa_cell_c": fpa_cell, "fpa_reach_c": reach, "fpa_cells": fpa_cells.tolist()}
+    if d.get("fpa_sensitivity_c_per_c") is not None:
+        sensitivity = float(d["fpa_sensitivity_c_per_c"])
+        if not 0 <= sensitivity < math.inf:
+            raise ValueError(f"fpa_paces: an FPA sensitivity of {sensitivity} scene °C per °C "
+                             "must be >= 0 and finite")
+        out["fpa_sensitivity_c_per_c"] = sensitivity
     if d.get("still") is not None:
         still = d["still"]
         band, held, plateaus = float(still["band_c"]), float(still["held_s"]), still["plateaus"]

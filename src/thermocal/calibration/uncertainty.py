@@ -458,6 +458,19 @@ class CalibrationSigma:
             out[i:i + 4096] = d.min(axis=1) if d.shape[1] else np.inf
         return out
 
+    def pace_unseen(self, rate_c_per_min: float, lagged_c_per_min: float | None,
+                    fpa_c: float | None = None) -> bool:
+        """Whether one frame's pace (its FPA rate and the same through the report's lag,
+        °C/min, taken from its recording; at FPA temperature ``fpa_c``, °C, where known) lies
+        more than the margin from every pace the session held; False where the lagged rate
+        is not known or the report lists no paces."""
+        if lagged_c_per_min is None:
+            return False
+        d = self._distance(np.array([float(rate_c_per_min)]),
+                           np.array([float(lagged_c_per_min)]),
+                           None if fpa_c is None else [float(fpa_c)])
+        return bool(d[0] > self._pace_margin)
+
     def unseen_paces(self, rate_c_per_min: Any, time_s: Any, *, fpa_c: Any = None
                      ) -> np.ndarray:
         """Which frames ``(N,)`` bool of one recording changed at a pace the session never
@@ -690,9 +703,18 @@ class CalibrationSigma:
         """``s`` of frames at paces the session never held (more than the margin from them),
         from their :meth:`pace_distance` (°C/min): the largest σ of the report's rate bins
         times the cells beyond the margin, one at the margin (for a memoryless method, whose
-        margin is a cell, the distance in cells; 0 for the others)."""
+        margin is a cell, the distance in cells; 0 for the others); and at least what so much
+        more FPA change over the report's lag is worth in the counts, uncorrected (its
+        ``fpa_sensitivity_c_per_c`` × distance × lag: the FPA has run that far from where
+        anything lagging it stood at any pace a fold saw). A helper's audit: `polynomial` fitted
+        on a `boson` ramp and forced on steps erred 1.3–2.5 °C where σ said 0.35–1.0."""
         cells = (distance - self._pace_margin) / self._pace_cell + 1.0
-        return np.where(distance > self._pace_margin, self._worst_sigma() * cells, 0.0)
+        s = self._worst_sigma() * cells
+        paces = self.report.paces
+        sensitivity = paces.get("fpa_sensitivity_c_per_c") if paces else None
+        if sensitivity is not None:
+            s = np.maximum(s, sensitivity * distance * paces["lag_s"] / 60.0)
+        return np.where(distance > self._pace_margin, s, 0.0)
 
     def _still_sigma(self, excess: np.ndarray) -> np.ndarray:
         """``s`` of frames held still longer than the session's plateaus held it, from their

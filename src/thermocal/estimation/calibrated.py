@@ -8,7 +8,13 @@ from typing import Any
 
 import numpy as np
 
-from thermocal.calibration.base import Calibration, ThermocalWarning, apply_with_rate, rate_lags_of
+from thermocal.calibration.base import (
+    Calibration,
+    ThermocalWarning,
+    apply_with_rate,
+    calibration_sigma_extra,
+    rate_lags_of,
+)
 from thermocal.calibration.imprint import OTHER_CAMERA_SIGMA_C, imprint_reason
 from thermocal.calibration.uncertainty import (
     NO_REPORT,
@@ -111,7 +117,11 @@ class _ThroughCalibration:
         model remembering the FPA's rates started steady at it: no
         ``fpa_lag_rates_c_per_min``) takes σ of frames so taken in full, however long the
         recording had run (a ``lin-lag`` burst 8 min into a flight of a ``boson`` camera:
-        σ 0.16 °C for a 1.7 °C error before). A burst forced through the calibration of
+        σ 0.16 °C for a 1.7 °C error before). What the calibration adds
+        (:func:`~thermocal.calibration.base.calibration_sigma_extra`: a ``shutter``'s closures,
+        its rate terms' correction at a pace its session never held, its bad pixels filled
+        from their neighbours) is added in quadrature. A burst forced through the calibration
+        of
         another camera: σ grown by :data:`~thermocal.calibration.imprint.OTHER_CAMERA_SIGMA_C`
         (in quadrature)."""
         if self.sigma_model is None or burst.fpa_c is None:
@@ -121,6 +131,16 @@ class _ThroughCalibration:
         sigma = self.sigma_model.burst_sigma(
             temperature_c, burst.fpa_c, pace, time_since_start_s=burst.time_since_start_s,
             history_seen=burst.fpa_lag_rates_c_per_min is not None)
+        # forced at a pace the session never held: the rate terms' correction is unverified
+        unverified = outside and pace is not None and self.sigma_model.pace_unseen(
+            pace.rate_c_per_min, pace.lagged_c_per_min, burst.fpa_c)
+        added = calibration_sigma_extra(  # at the pivot, through the calibration
+            self.calibration, burst.frames[burst.pivot][None], burst.warped[burst.pivot][None],
+            time_s=None if burst.pivot_time_s is None else [burst.pivot_time_s],
+            fpa_c=[burst.fpa_c], unverified=[unverified],
+            filled=self.per_frame)  # a mean's other views see the pivot's bad pixels
+        if added is not None:
+            sigma = np.hypot(sigma, added[0]).astype(np.float32)
         if outside and self._foreign(burst):  # forced through another camera's calibration
             sigma = np.hypot(sigma, np.float32(OTHER_CAMERA_SIGMA_C)).astype(np.float32)
         return sigma

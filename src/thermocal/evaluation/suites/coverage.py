@@ -56,6 +56,7 @@ from scipy import stats
 
 from thermocal.bench import machine
 from thermocal.burst import fill_stuck_pixels
+from thermocal.calibration.base import calibration_sigma_extra
 from thermocal.calibration.dataset import RATE_SMOOTH_S, fpa_rate_c_per_min
 from thermocal.calibration.registry import CALIBRATION_METHODS
 from thermocal.calibration.report import fit_with_report
@@ -282,6 +283,11 @@ def _run_calibration(cal, model: CalibrationSigma, run: physics.Run, rng) -> dic
         temps = est[sel].reshape(sel.size, -1)[:, pick]
         sigmas = model.sigma(temps[:, None, :], s.fpa_c[sel], rate_c_per_min=rate,
                              time_since_start_s=since)[:, 0, :]
+        added = calibration_sigma_extra(physics.part_calibration(cal, run, k),
+                                        np.asarray(s.frames[sel]), est[sel],
+                                        time_s=s.time_s[sel])
+        if added is not None:  # a shutter's closures (the sample has no bad pixel)
+            sigmas = np.hypot(sigmas, added.reshape(sel.size, -1)[:, pick])
         unseen = model.unseen_paces(rate, since, fpa_c=s.fpa_c[sel])  # its pace history
         for j, i in enumerate(sel):
             err = temps[j] - run.truth_c[i]

@@ -231,6 +231,14 @@ def fit_methods(run: Run) -> dict:
     return out
 
 
+def part_calibration(cal, run: Run, part: int):
+    """``cal`` as it serves recording ``part`` of ``run``: a shutter calibration with that
+    recording's closures, any other as it is."""
+    if hasattr(cal, "with_shutter") and run.shutter:
+        return cal.with_shutter(**run.shutter[part])
+    return cal
+
+
 def apply_run(cal, run: Run) -> tuple[np.ndarray, np.ndarray]:
     """``cal`` applied to each recording of ``run`` on its own (a stream from a cold start; with
     its shutter closures for a shutter calibration): the temperatures ``(M, H, W)`` °C and which
@@ -243,9 +251,7 @@ def apply_run(cal, run: Run) -> tuple[np.ndarray, np.ndarray]:
     rng = fitted_fpa_range(cal)
     for k in np.unique(run.part):
         sel = run.part == k
-        c = cal
-        if hasattr(cal, "with_shutter") and run.shutter:
-            c = cal.with_shutter(**run.shutter[k])
+        c = part_calibration(cal, run, k)
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", OutsideCalibrationRangeWarning)
             est[sel] = c.apply(frames[sel], fpa_c=s.fpa_c[sel], time_s=s.time_s[sel])
