@@ -139,17 +139,23 @@ def rate_correction(calibration: Any, frames: Any, temps: np.ndarray, *, fpa_c: 
     return np.abs(np.asarray(temps, dtype=np.float32) - steady)
 
 
+def _neighbourhoods(bad: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The ``bad`` pixels ``(B,)`` rows and columns, their 3×3 neighbourhoods' rows and columns
+    ``(B, 9)`` (clipped at the edges) and which of those are good ``(B, 9)``."""
+    h, w = bad.shape
+    rows, cols = np.nonzero(bad)
+    dr, dc = np.meshgrid(np.arange(-1, 2), np.arange(-1, 2), indexing="ij")
+    nr = np.clip(rows[:, None] + dr.ravel()[None], 0, h - 1)
+    nc = np.clip(cols[:, None] + dc.ravel()[None], 0, w - 1)
+    return rows, cols, nr, nc, ~bad[nr, nc]
+
+
 def filled_pixel_spread(temps: np.ndarray, bad: np.ndarray) -> np.ndarray:
     """The range (max − min, °C) of each ``bad`` pixel's good 3×3 neighbours in every frame of
     ``temps`` ``(N, H, W)``, 0 at the good pixels; a bad pixel with no good neighbour takes
     its frame's range. float32 ``(N, H, W)``; ``temps`` unchanged."""
     out = np.zeros(temps.shape, dtype=np.float32)
-    h, w = bad.shape
-    rows, cols = np.nonzero(bad)
-    dr, dc = np.meshgrid(np.arange(-1, 2), np.arange(-1, 2), indexing="ij")
-    nr = np.clip(rows[:, None] + dr.ravel()[None], 0, h - 1)  # (B, 9)
-    nc = np.clip(cols[:, None] + dc.ravel()[None], 0, w - 1)
-    usable = ~bad[nr, nc]
+    rows, cols, nr, nc, usable = _neighbourhoods(bad)
     values = np.asarray(temps, dtype=np.float32)[:, nr, nc]  # (N, B, 9)
     hi = np.where(usable[None], values, -np.inf).max(axis=2)
     lo = np.where(usable[None], values, np.inf).min(axis=2)
@@ -281,12 +287,7 @@ def fill_bad_pixels(temps: np.ndarray, bad: np.ndarray) -> np.ndarray:
     """
     if not bad.any():
         return temps
-    h, w = bad.shape
-    rows, cols = np.nonzero(bad)
-    dr, dc = np.meshgrid(np.arange(-1, 2), np.arange(-1, 2), indexing="ij")
-    nr = np.clip(rows[:, None] + dr.ravel()[None], 0, h - 1)  # (B, 9)
-    nc = np.clip(cols[:, None] + dc.ravel()[None], 0, w - 1)
-    usable = ~bad[nr, nc]
+    rows, cols, nr, nc, usable = _neighbourhoods(bad)
     # the median of each neighbourhood's good values, as np.nanmedian gives it (NaN values left
     # out; the mean of the middle two of an even count), from one sort of a block of frames'
     # (NaN last): nanmedian takes a masked array's path per frame for so few values, 4× slower
