@@ -97,7 +97,7 @@ def campaign_tasks(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[
     if not inputs:
         raise InvalidInputError("give at least one recording")
     names = _output_names([Path(raw) for raw in inputs], _earlier_names(Path(out)))
-    tasks, seen = [], set()
+    tasks, seen, lengths = [], set(), []
     for raw in inputs:
         path = Path(raw)
         try:
@@ -113,6 +113,12 @@ def campaign_tasks(inputs: list[str | os.PathLike[str]], out: str | os.PathLike[
         check_not_input(target, path)
         check_outside_recording(path, (out, "--out"))
         tasks.extend(_segments(CampaignTask(name, str(path), str(target), n, options)))
+        lengths.append(n)
+    longest = max(lengths)
+    if options.frames > longest:  # no recording could make one map: an option, not a file
+        raise InvalidInputError(
+            f"--frames {options.frames}: a group longer than every recording (the longest has "
+            f"{longest} frames)")
     return tasks
 
 

@@ -85,7 +85,7 @@ from typing import Any
 
 import numpy as np
 
-from thermocal._validate import check_output_dir
+from thermocal._validate import check_fpa_c, check_output_dir
 from thermocal.burst import check_burst, fpa_value
 from thermocal.cores import available_cores
 from thermocal.errors import InvalidInputError, OutputError, RegistrationError
@@ -160,6 +160,8 @@ class FlightOptions:
                 f"unknown method {self.method!r}; choose from {', '.join(ESTIMATORS)}")
         if self.frames < 1 or self.stride < 1:
             raise InvalidInputError("--frames and --stride must be >= 1")
+        if self.fpa_c is not None:  # before anything is read or written (a campaign's too)
+            check_fpa_c(self.fpa_c, "--fpa-c")
         check_method_options(self.method, backend=self.backend, threads=self.threads,
                              calibration=self.calibration, model=self.model,
                              family=self.family, fpa_c=self.fpa_c, force=self.force)
