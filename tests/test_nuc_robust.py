@@ -174,3 +174,28 @@ def test_cli_nuc_refuses_saturated_and_dead_frames(flights, tmp_path, capsys, de
     assert code == 2 and len(io.err.strip().splitlines()) == 1, io.err
     assert "frame 5" in io.err and ("saturated" if defect == "saturated" else "constant") in io.err
     assert not out.exists()
+
+
+def test_methods_that_need_more_frames_than_given_say_so():
+    """torres-kalman has no estimate before its first block ends: a shorter stack is refused
+    (it came back raw, 'corrected'); the constant-statistics methods on fewer frames than
+    their window warn that their first frames may be worse than raw (a helper's audit); a
+    single frame is told of the single-frame methods."""
+    import warnings
+
+    from thermocal.calibration.base import ThermocalWarning
+
+    rng = np.random.default_rng(0)
+    frames = rng.normal(8000, 50, size=(7, 16, 16))
+    with pytest.raises(InvalidInputError, match="needs at least 10 frames, got 7$"):
+        correct_nonuniformity(frames, method="torres-kalman")
+    assert correct_nonuniformity(frames, method="torres-kalman", block=5).shape == frames.shape
+    for method in ("harris1999", "ecr"):
+        with pytest.warns(ThermocalWarning, match="7 frames, fewer than the 200-frame window"):
+            correct_nonuniformity(frames, method=method)
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            correct_nonuniformity(frames, method=method, window=5)
+    with pytest.raises(InvalidInputError, match=r"got 1; use a single-frame method \(admire or "
+                                                r"he2018\)"):
+        correct_nonuniformity(frames[:1], method="harris1999")

@@ -32,10 +32,10 @@ def as_nuc_frames(frames: Any, *, min_frames: int = 1, name: str = "frames") -> 
     """
     arr = as_frames(frames, name, min_size=4, bit_depth=None)
     if arr.shape[0] < min_frames:
+        one = "; use a single-frame method (admire or he2018) for one frame"
         raise InvalidInputError(
-            f"{name}: this method needs at least {min_frames} frames, got {arr.shape[0]}; "
-            "use a single-frame method (admire) for one frame"
-        )
+            f"{name}: this method needs at least {min_frames} frames, got {arr.shape[0]}"
+            + (one if arr.shape[0] == 1 else ""))
     return _as_float32(arr, name)
 
 

@@ -29,12 +29,14 @@ All work is vectorised float32 numpy / OpenCV on whole frames; no Python loop ov
 
 from __future__ import annotations
 
+import warnings
 from collections.abc import Callable
 from typing import Any
 
 import cv2
 import numpy as np
 
+from thermocal.calibration.base import ThermocalWarning
 from thermocal.errors import InvalidInputError
 from thermocal.nuc._common import (
     GAIN_RANGE,
@@ -127,7 +129,13 @@ class StreamingNUC:
         -------
         numpy.ndarray, float32, shape (N, H, W)
         """
-        return self._run(as_nuc_frames(frames, min_frames=self.min_frames))
+        arr = as_nuc_frames(frames, min_frames=self.min_frames)
+        self._warn_short(arr.shape[0])
+        return self._run(arr)
+
+    def _warn_short(self, n: int) -> None:
+        """Warn when ``n`` frames are too few for the method's estimate to settle (none by
+        default)."""
 
     def _run(
         self, arr: np.ndarray, per_frame: Callable[[int], dict[str, Any]] | None = None
@@ -156,6 +164,17 @@ class _ExponentialWindow(StreamingNUC):
 
     def _ready(self) -> bool:
         return self.n_seen >= 2
+
+    def _warn_short(self, n: int) -> None:
+        """A stack shorter than the window: the statistics come from few views (a helper's
+        audit: on a 21-frame walk Harris's frames 1–10 correlated 0.28–0.70 with the truth
+        against 0.90–0.96 raw)."""
+        if n < self.window:
+            warnings.warn(
+                f"{n} frames, fewer than the {self.window}-frame window of this "
+                "constant-statistics method: its per-pixel statistics come from few views of "
+                "the scene, whose own pattern they take for the sensor's, so its first frames "
+                "may come out worse than the raw ones", ThermocalWarning, stacklevel=3)
 
     def _update(self, x: np.ndarray) -> None:
         a = np.float32(max(1.0 / (self.n_seen + 1), 1.0 / self.window))
@@ -401,6 +420,9 @@ class TorresKalman(StreamingNUC):
     ) -> None:
         super().__init__()
         self.block = check_int(block, "block", minimum=2)
+        # before its first block ends no estimate exists and frames pass through unchanged:
+        # a shorter stack would come back raw (a helper's audit: 7 frames, 'corrected')
+        self.min_frames = self.block
         self.q_g = np.float32(check_positive(drift_gain, "drift_gain"))
         self.q_o = np.float32(check_positive(drift_offset, "drift_offset"))
 

@@ -283,12 +283,15 @@ def _run_calibration(cal, model: CalibrationSigma, run: physics.Run, rng) -> dic
         temps = est[sel].reshape(sel.size, -1)[:, pick]
         sigmas = model.sigma(temps[:, None, :], s.fpa_c[sel], rate_c_per_min=rate,
                              time_since_start_s=since)[:, 0, :]
+        unseen = model.unseen_paces(rate, since, fpa_c=s.fpa_c[sel])  # its pace history
+        # as `thermocal correct` gives them: a shutter's closures, the rate terms' correction
+        # on frames at paces never held (refused unless forced); the sample has no bad pixel
         added = calibration_sigma_extra(physics.part_calibration(cal, run, k),
                                         np.asarray(s.frames[sel]), est[sel],
-                                        time_s=s.time_s[sel])
-        if added is not None:  # a shutter's closures (the sample has no bad pixel)
+                                        time_s=s.time_s[sel], fpa_c=s.fpa_c[sel],
+                                        unverified=unseen)
+        if added is not None:
             sigmas = np.hypot(sigmas, added.reshape(sel.size, -1)[:, pick])
-        unseen = model.unseen_paces(rate, since, fpa_c=s.fpa_c[sel])  # its pace history
         for j, i in enumerate(sel):
             err = temps[j] - run.truth_c[i]
             outside = bool(model.outside(temps[j], [s.fpa_c[i]], rate_c_per_min=[rate[j]])
