@@ -636,6 +636,22 @@ def test_method_camera_refuses_a_recording_without_constants(tmp_path, capsys):
     assert code == 2 and "Planck constants" in err and not (tmp_path / "t.tiff").exists()
 
 
+def test_method_camera_refuses_a_frame_of_many_counts_without_a_temperature(tmp_path, capsys):
+    """More than 0.1 % of a frame's pixels at counts its file's constants give no temperature
+    are not dead pixels (a damaged frame, or constants not the camera's): refused in words a
+    user can act on (it said "mask dead pixels before converting", the library's)."""
+    from cli_run import run
+
+    frame = np.full((32, 48), 9000, np.uint16)
+    frame[:2] = 1  # 6 % of the pixels, below the constants' zero kelvin
+    (tmp_path / "f.seq").write_bytes(b"".join(_fff(frame, ms=33 * k) for k in range(3)))
+    code, _, err = run(["estimate", tmp_path / "f.seq", "--method", "camera", "--out",
+                        tmp_path / "t.tiff"], capsys)
+    assert code == 2 and "96 pixel(s) (6.2 %) of a frame" in err, err
+    assert "constants that are not this camera's" in err and "mask" not in err
+    assert not (tmp_path / "t.tiff").exists()
+
+
 def test_flight_runs_on_a_seq(tmp_path):
     """``thermocal flight`` streams a SEQ as it streams the project's TIFF: the same maps from
     the same frames (FPA from ``--fpa-c``; a SEQ has none)."""

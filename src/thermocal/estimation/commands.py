@@ -167,7 +167,8 @@ NO_SIGMA_REMEDY = {
     "model_path",
     type=click.Path(dir_okay=False, path_type=Path),
     default=None,
-    help="Weights file (default: the shipped model for --method).",
+    help="Weights file (default: the shipped model for --method: kpn; kpn-no-offset and e2e "
+    "are not shipped, train them with `thermocal train --variant`).",
 )
 @click.option("--pivot", type=int, default=None,
               help="Pivot frame index in FRAMES (default: the middle); a network made for "

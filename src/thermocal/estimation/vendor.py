@@ -48,8 +48,14 @@ def _converted(planck: FlirPlanck, frame: np.ndarray) -> np.ndarray:
     """One frame ``(H, W)`` through ``planck``, °C float32 (see ``VendorCalibration.calibrate``)."""
     raw = frame.astype(np.float64)
     undefined = ~((raw > planck.raw_min) & (raw < planck.raw_max))
-    if not undefined.any() or undefined.mean() > MAX_UNDEFINED_FRACTION:
-        return np.asarray(planck.raw_to_temperature_c(raw), np.float32)  # refuses the latter
+    if not undefined.any():
+        return np.asarray(planck.raw_to_temperature_c(raw), np.float32)
+    if undefined.mean() > MAX_UNDEFINED_FRACTION:
+        raise InvalidInputError(
+            f"{int(undefined.sum())} pixel(s) ({100 * undefined.mean():.2g} %) of a frame have "
+            "counts its file's Planck constants give no temperature (more than "
+            f"{100 * MAX_UNDEFINED_FRACTION:g} % are not dead pixels): a damaged frame, or "
+            "constants that are not this camera's")
     from thermocal.calibration.base import ThermocalWarning, fill_bad_pixels
 
     warnings.warn(f"{int(undefined.sum())} pixel(s) of a frame with counts the file's "

@@ -523,7 +523,8 @@ def _train_config(opts: dict[str, Any]):
 @click.option("--size", default="640x512", show_default=True,
               help="Frame size WxH the graph runs at (padded up to the network's multiple).")
 @click.option("--method", type=click.Choice(list(VARIANTS)), default=None,
-              help="The shipped network to export when MODEL is not given (default kpn).")
+              help="The shipped network to export when MODEL is not given (default kpn, the "
+              "one shipped; the other variants are trained by `thermocal train --variant`).")
 def export(model: str | None, out: Path, size: str, method: str | None) -> None:
     """Export a network (MODEL: a weights file of `thermocal train`; default the shipped one of
     --method) as an ONNX graph, for ONNX Runtime, OpenVINO, or an edge device's compiler
