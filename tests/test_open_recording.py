@@ -627,6 +627,51 @@ def test_method_camera_is_the_flir_formula_by_hand(shared_data, tmp_path, capsys
     np.testing.assert_allclose(sigma, np.maximum(5.0, 0.05 * np.abs(temps)) / 2, rtol=1e-6)
 
 
+@pytest.mark.parametrize(("parts", "dump"), [
+    (("recordings", "dji_xtr_tau2.jpg"), ("recordings", "dji_xtr_tau2.txt")),
+    (("flirpy", "frame_000000.fff"), ("flirpy", "frame_000000.txt")),
+])
+def test_the_measuring_range_is_the_exiftool_dumps(shared_data, parts, dump):
+    """The camera's measuring range (camera-info record, K at 0x94 and 0x90) is exiftool's
+    Camera Temperature Range Min and Max."""
+    import re
+
+    text = _real(shared_data, *dump).read_text(encoding="utf-8", errors="replace")
+    want = [float(re.search(rf"Camera Temperature Range {k}\s*:\s*(-?[\d.]+) C", text).group(1))
+            for k in ("Min", "Max")]
+    meta = open_recording(_real(shared_data, *parts)).read_all().extra["frame_metadata"][0]
+    assert meta["temperature_range_c"] == pytest.approx(want, abs=1e-3)
+
+
+def test_method_camera_is_held_to_the_measuring_range(shared_data, tmp_path, capsys):
+    """The stated accuracy holds within the measuring range the file states: a damaged DJI
+    frame whose pixels read up to hundreds of °C (σ of a few degrees before: a helper's audit)
+    keeps them, σ grown by the distance beyond the range, and says so; a scene beyond the range
+    (its 1st–99th percentile) is outside, refused unless forced."""
+    import tifffile
+    from cli_run import run
+
+    from thermocal.estimation.vendor import VendorCalibration
+
+    raw = bytearray(_real(shared_data, "recordings", "dji_xtr_tau2.jpg").read_bytes())
+    raw[200000:202000] = np.random.default_rng(1).integers(0, 256, 2000, np.uint8).tobytes()
+    (tmp_path / "c.jpg").write_bytes(bytes(raw))
+    out, sig = tmp_path / "t.tiff", tmp_path / "s.tiff"
+    code, _, err = run(["estimate", tmp_path / "c.jpg", "--method", "camera", "--out", out,
+                        "--sigma-out", sig], capsys)
+    assert code == 0 and "beyond the camera's measuring range -25…135 °C" in err, err
+    temps, sigma = tifffile.imread(out), tifffile.imread(sig)
+    beyond = np.maximum(-25.0 - temps, 0) + np.maximum(temps - 135.0, 0)
+    assert beyond.max() > 100.0
+    np.testing.assert_allclose(sigma, np.maximum(5.0, 0.05 * np.abs(temps)) / 2 + beyond,
+                               rtol=1e-5)
+    planck = FlirPlanck.from_exiftool_text(_real(shared_data, "recordings", "dji_xtr_tau2.txt"))
+    vendor = VendorCalibration([planck], [(5.0, 0.05)], [(-25.0, 20.0)])
+    why = vendor.outside(temps[None], None)
+    assert len(why) == 1 and "beyond the camera's measuring range -25…20 °C" in why[0]
+    assert VendorCalibration([planck], [(5.0, 0.05)]).outside(temps[None], None) == ()
+
+
 def test_method_camera_refuses_a_recording_without_constants(tmp_path, capsys):
     from cli_run import run
 

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from thermocal.calibration.base import ThermocalWarning, fill_bad_pixels
 from thermocal.errors import InvalidInputError
 from thermocal.estimation.base import PreparedBurst
 from thermocal.io.recording import Recording
@@ -56,8 +57,6 @@ def _converted(planck: FlirPlanck, frame: np.ndarray) -> np.ndarray:
             "counts its file's Planck constants give no temperature (more than "
             f"{100 * MAX_UNDEFINED_FRACTION:g} % are not dead pixels): a damaged frame, or "
             "constants that are not this camera's")
-    from thermocal.calibration.base import ThermocalWarning, fill_bad_pixels
-
     warnings.warn(f"{int(undefined.sum())} pixel(s) of a frame with counts the file's "
                   "constants give no temperature (dead or saturated pixels): filled from their "
                   "neighbours", ThermocalWarning, stacklevel=2)
@@ -75,6 +74,15 @@ def vendor_accuracy(metadata: dict[str, Any]) -> tuple[float, float]:
     return 2.0, 0.02
 
 
+def _measuring_range(metadata: dict[str, Any]) -> tuple[float, float] | None:
+    """A frame's measuring range, °C, from its metadata (``temperature_range_c``), or None."""
+    stated = metadata.get("temperature_range_c")
+    if not (isinstance(stated, list | tuple) and len(stated) == 2):
+        return None
+    lo, hi = (float(v) for v in stated)
+    return (lo, hi) if np.isfinite(lo) and np.isfinite(hi) and lo < hi else None
+
+
 class VendorCalibration:
     """``--method camera``: each frame through its own FLIR Planck constants.
 
@@ -84,6 +92,10 @@ class VendorCalibration:
         One per frame of the recording.
     accuracy : list of (float, float)
         Each frame's stated accuracy (:func:`vendor_accuracy`).
+    ranges : list of (float, float) or None, optional
+        Each frame's measuring range, °C, as its file states it (``temperature_range_c``; None:
+        not stated): the stated accuracy holds within it. A burst whose scene (its 1st–99th
+        percentile) lies beyond it is outside; beyond it σ grows by the distance.
     """
 
     name = "camera"
@@ -95,9 +107,11 @@ class VendorCalibration:
               "(`thermocal calibrate`)")
     fpa_paces: dict = {}  # the file's constants: no chamber session's paces
 
-    def __init__(self, plancks: list[FlirPlanck], accuracy: list[tuple[float, float]]) -> None:
+    def __init__(self, plancks: list[FlirPlanck], accuracy: list[tuple[float, float]],
+                 ranges: list[tuple[float, float] | None] | None = None) -> None:
         self.plancks = plancks
         self.accuracy = accuracy
+        self.ranges = list(ranges) if ranges is not None else [None] * len(plancks)
 
     @classmethod
     def from_recording(cls, recording: Recording, path: Any = "the recording"
@@ -121,11 +135,13 @@ class VendorCalibration:
                 "which only FLIR files carry (R-JPEG, FFF, SEQ, CSQ); use a calibration "
                 "(--method calibration --calibration CAL.h5) or the network"
             )
-        return cls([planck_from_metadata(m) for m in metas], [vendor_accuracy(m) for m in metas])
+        return cls([planck_from_metadata(m) for m in metas], [vendor_accuracy(m) for m in metas],
+                   [_measuring_range(m) for m in metas])
 
     def for_frames(self, start: int, n: int) -> VendorCalibration:
         """The same for frames ``start … start + n − 1`` of the recording (a flight's group)."""
-        return VendorCalibration(self.plancks[start : start + n], self.accuracy[start : start + n])
+        return VendorCalibration(self.plancks[start : start + n], self.accuracy[start : start + n],
+                                 self.ranges[start : start + n])
 
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
         if frames.shape[0] != len(self.plancks):
@@ -143,9 +159,23 @@ class VendorCalibration:
 
     def outside(self, calibrated: np.ndarray, fpa_c: float | None, *,
                 pace: Any = None, burst: PreparedBurst | None = None) -> tuple[str, ...]:
-        """``()``: counts the formula cannot convert are refused by it
+        """Where the pivot's scene (its 1st–99th percentile, °C) lies beyond the measuring
+        range its file states (a corrupted DJI file read −104…651 °C with σ of a few degrees:
+        a helper's audit); counts the formula cannot convert are refused by it
         (:meth:`~thermocal.radiometry.FlirPlanck.raw_to_temperature_c`)."""
-        return ()
+        k = 0 if burst is None else burst.pivot
+        stated = self.ranges[k]
+        frames = np.asarray(calibrated)
+        frame = frames[k if frames.shape[0] > 1 else 0] if frames.ndim == 3 else frames  # the
+        # pipeline gives a per-frame estimator's pivot alone
+        if stated is None or not np.size(frame):
+            return ()
+        p1, p99 = (float(v) for v in np.percentile(frame, [1, 99]))
+        if stated[0] <= p1 and p99 <= stated[1]:
+            return ()
+        return (f"the scene reads {p1:.1f}…{p99:.1f} °C, beyond the camera's measuring range "
+                f"{stated[0]:g}…{stated[1]:g} °C (its file's), where its stated accuracy "
+                "holds",)
 
     def estimate(self, burst: PreparedBurst) -> np.ndarray:
         return np.asarray(burst.warped[burst.pivot], dtype=np.float32)
@@ -153,7 +183,19 @@ class VendorCalibration:
     def uncertainty(self, burst: PreparedBurst, temperature_c: np.ndarray, *, outside: bool
                     ) -> np.ndarray:
         """The vendor's stated accuracy as 2σ: ``max(a, r·|T|) / 2`` (°C, :func:`vendor_accuracy`
-        of the pivot frame's camera)."""
+        of the pivot frame's camera); beyond the measuring range its file states, grown by the
+        distance outside it (the accuracy is stated within it alone)."""
         absolute, relative = self.accuracy[burst.pivot]
-        bound = np.maximum(absolute, relative * np.abs(temperature_c.astype(np.float64)))
-        return (0.5 * bound).astype(np.float32)
+        t = temperature_c.astype(np.float64)
+        sigma = 0.5 * np.maximum(absolute, relative * np.abs(t))
+        stated = self.ranges[burst.pivot]
+        if stated is not None:
+            beyond = np.maximum(stated[0] - t, 0.0) + np.maximum(t - stated[1], 0.0)
+            if beyond.any():
+                warnings.warn(
+                    f"{int(np.count_nonzero(beyond))} pixel(s) read {float(t.min()):.0f}…"
+                    f"{float(t.max()):.0f} °C, beyond the camera's measuring range "
+                    f"{stated[0]:g}…{stated[1]:g} °C: their σ grows by the distance",
+                    ThermocalWarning, stacklevel=2)
+            sigma += beyond
+        return sigma.astype(np.float32)

@@ -77,6 +77,8 @@ def recording_summary(path: str | Path) -> dict[str, Any]:
                 str(first_meta[k]) for k in ("make", "model") if first_meta.get(k))
         if first_meta.get("planck"):
             out["planck"] = first_meta["planck"]
+        if first_meta.get("temperature_range_c"):
+            out["temperature_range_c"] = list(first_meta["temperature_range_c"])
     return out
 
 
@@ -118,6 +120,9 @@ def info(path: Path) -> None:
     for key in ("camera_model", "datetime"):
         if key in s:
             click.echo(f"  {key.replace('_', ' ')}: {s[key]}")
+    if "temperature_range_c" in s:  # what --method camera vouches for
+        lo, hi = s["temperature_range_c"]
+        click.echo(f"  the camera's measuring range {lo:g}…{hi:g} °C")
     if "planck" in s:
         p = s["planck"]
         names = ("r1", "r2", "b", "f", "o", "emissivity")

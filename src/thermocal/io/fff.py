@@ -353,6 +353,7 @@ def _camera_metadata(data: bytes, off: int, length: int) -> dict[str, Any]:
         "camera_software": _text(data, off + 0x114, 16),
         "lens_model": _text(data, off + 0x170, 32),
         "field_of_view_deg": float(struct.unpack_from(order + "f", data, off + 0x1B4)[0]),
+        "temperature_range_c": _measuring_range(data, off, order),
         "datetime": None,
         "time_epoch_s": None,
         "frame_rate_hz": None,
@@ -372,6 +373,16 @@ def _camera_metadata(data: bytes, off: int, length: int) -> dict[str, Any]:
     if length >= 0x466:
         meta["frame_rate_hz"] = int(struct.unpack_from(order + "H", data, off + 0x464)[0])
     return meta
+
+
+def _measuring_range(data: bytes, off: int, order: str) -> list[float] | None:
+    """The camera's measuring range, ``[min, max]`` °C: exiftool's CameraTemperatureRangeMin
+    and Max (float32 K at 0x94 and 0x90 of the camera-info record; a DJI XT-R's −25…135 °C);
+    None where the file states none (zeros) or an implausible one."""
+    hi, lo = (v - ZERO_CELSIUS_K for v in struct.unpack_from(order + "ff", data, off + 0x90))
+    if not (math.isfinite(lo) and math.isfinite(hi) and -273.0 < lo < hi < 3000.0):
+        return None
+    return [round(float(lo), 4), round(float(hi), 4)]
 
 
 def _gps(data: bytes, off: int) -> dict[str, Any] | None:
