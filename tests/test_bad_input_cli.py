@@ -184,26 +184,28 @@ def _bad_recordings(root: Path) -> None:
 # {root}: the inputs' folder (never changed); {tmp}: this test's own folder (nothing is to be
 # created in it); {link}: a symbolic link {tmp}/link.tiff to {root}/rec.tiff
 CASES = [
-    # a calibration that cannot be cross-validated, or a file without its report: unchecked
+    # a calibration that cannot be cross-validated, written all the same (--force): its report
+    # measured no error (it said 'no cross-validation report', though it has one): unchecked
     ("calibrate-two-setpoints-not-cross-validated",
      ["calibrate", "{root}/twopoints.h5", "--method", "two-point", "--out", "{tmp}/c.h5"],
      "cannot be cross-validated on this session"),
     ("correct-with-a-calibration-without-report",
      ["correct", "{root}/rec.tiff", "--calibration", "{root}/cal_unreported.h5", "--out",
-      "{tmp}/t.tiff"], "no cross-validation report"),
+      "{tmp}/t.tiff"], "cross-validation report measured no error"),
     ("correct-forced-sigma-of-a-calibration-without-report",
      ["correct", "{root}/rec.tiff", "--calibration", "{root}/cal_unreported.h5", "--out",
       "{tmp}/t.tiff", "--sigma-out", "{tmp}/s.tiff", "--force"],
-     "no σ to write to --sigma-out: the calibration has no cross-validation report"),
+     "no σ to write to --sigma-out: the calibration's cross-validation report measured no error"),
     ("estimate-with-a-calibration-without-report",
      ["estimate", "{root}/rec.tiff", "--method", "mean", "--calibration",
-      "{root}/cal_unreported.h5", "--out", "{tmp}/t.tiff"], "no cross-validation report"),
+      "{root}/cal_unreported.h5", "--out", "{tmp}/t.tiff"],
+     "cross-validation report measured no error"),
     ("flight-with-a-calibration-without-report",
      ["flight", "{root}/flight", "--out", "{tmp}/out", "--method", "calibration",
-      "--calibration", "{root}/cal_unreported.h5"], "no cross-validation report"),
+      "--calibration", "{root}/cal_unreported.h5"], "cross-validation report measured no error"),
     ("selfcal-from-a-calibration-without-report",
      ["flight", "{root}/flight", "--out", "{tmp}/out", "--method", "selfcal",
-      "--calibration", "{root}/cal_unreported.h5"], "no cross-validation report"),
+      "--calibration", "{root}/cal_unreported.h5"], "cross-validation report measured no error"),
     # another camera's frames through a calibration (its fixed pattern left printed on them)
     ("correct-another-units-recording",
      ["correct", "{root}/other.tiff", "--calibration", "{root}/cal.h5", "--out",

@@ -214,10 +214,10 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
     from thermocal.calibration.imprint import OTHER_CAMERA_SIGMA_C, imprint_reason
     from thermocal.calibration.registry import load_any_calibration
     from thermocal.calibration.uncertainty import (
-        NO_REPORT,
         NO_REPORT_REMEDY,
         REMEDY,
         CalibrationSigma,
+        no_sigma_reason,
         older_report_warning,
     )
     from thermocal.errors import OutsideDomainError
@@ -242,10 +242,11 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
     if model is None and (sigma_out is not None or not force):  # --force cannot give σ
         if sigma_out is not None:
             raise InvalidInputError(
-                f"{calibration_path}: no σ to write to --sigma-out: {NO_REPORT}; "
+                f"{calibration_path}: no σ to write to --sigma-out: {no_sigma_reason(cal)}; "
                 f"{NO_REPORT_REMEDY.split(';')[0]} (or leave out --sigma-out and give --force "
                 "for the temperatures alone)")
-        raise OutsideDomainError(f"{calibration_path}: {NO_REPORT}; {NO_REPORT_REMEDY}")
+        raise OutsideDomainError(
+            f"{calibration_path}: {no_sigma_reason(cal)}; {NO_REPORT_REMEDY}")
     rec = read_any_recording(frames, fpa_c=fpa_c)
     if sigma_out is not None and rec.fpa_c is None:
         raise InvalidInputError(f"{frames}: no FPA temperature, which σ depends on: give --fpa-c "
@@ -275,8 +276,8 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
         click.echo(f"thermocal: warning: {frames} lies outside the calibration's ranges "
                    f"({'; '.join(outside)}); corrected all the same (--force)", err=True)
     elif model is None:
-        click.echo(f"thermocal: warning: {calibration_path}: {NO_REPORT}; corrected all the "
-                   "same (--force), without an uncertainty", err=True)
+        click.echo(f"thermocal: warning: {calibration_path}: {no_sigma_reason(cal)}; corrected "
+                   "all the same (--force), without an uncertainty", err=True)
     if sigma_out is not None:  # σ first: a failure leaves neither file
         since = None if rec.time_s is None else np.asarray(rec.time_s) - rec.time_s[0]
         sigma = model.sigma(temps, rec.fpa_c, rate_c_per_min=rates, time_since_start_s=since)

@@ -98,8 +98,9 @@ from thermocal.calibration.report import (
 )
 from thermocal.errors import InvalidInputError
 
-__all__ = ["FPA_MARGIN_C", "MIN_GROWTH_PER_C", "NO_REPORT", "NO_REPORT_REMEDY", "RATE_MARGIN",
-           "REMEDY", "SCENE_MARGIN_C", "CalibrationSigma", "older_report_warning"]
+__all__ = ["FPA_MARGIN_C", "MIN_GROWTH_PER_C", "NO_REPORT", "NO_REPORTED_ERROR",
+           "NO_REPORT_REMEDY", "RATE_MARGIN", "REMEDY", "SCENE_MARGIN_C", "CalibrationSigma",
+           "no_sigma_reason", "older_report_warning"]
 
 #: The least growth of the error outside the calibrated ranges, °C of MAE per °C outside.
 MIN_GROWTH_PER_C = 0.02
@@ -142,9 +143,19 @@ REMEDY = ("calibrate over these conditions (a chamber session that covers them: 
           "calibrate`); --force gives the temperatures with their uncertainty grown")
 
 #: Why frames cannot be checked against a calibration without a cross-validation report.
-NO_REPORT = ("the calibration has no cross-validation report (made by an older thermocal, or "
-             "from a session with too few set points or FPA segments to leave one out), so "
+NO_REPORT = ("the calibration has no cross-validation report (made by an older thermocal), so "
              "neither the ranges it was fitted on nor its error can be checked")
+#: Why a calibration whose report measured no error has no σ (written with ``--force``).
+NO_REPORTED_ERROR = ("the calibration's cross-validation report measured no error (its session "
+                     "had too few set points or FPA segments to leave one out), so its "
+                     "temperatures would have no uncertainty")
+
+
+def no_sigma_reason(calibration: Any) -> str:
+    """Why :meth:`CalibrationSigma.of` gives ``calibration`` no σ: it has no report
+    (:data:`NO_REPORT`), or its report measured no error (:data:`NO_REPORTED_ERROR`; its
+    ranges were stated but never tested)."""
+    return NO_REPORT if report_of(calibration) is None else NO_REPORTED_ERROR
 #: What to do about it.
 NO_REPORT_REMEDY = ("calibrate again (`thermocal calibrate`) from a session of at least 3 set "
                     "points; --force gives the temperatures without an uncertainty")

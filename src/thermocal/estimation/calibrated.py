@@ -17,10 +17,10 @@ from thermocal.calibration.base import (
 )
 from thermocal.calibration.imprint import OTHER_CAMERA_SIGMA_C, imprint_reason
 from thermocal.calibration.uncertainty import (
-    NO_REPORT,
     NO_REPORT_REMEDY,
     REMEDY,
     CalibrationSigma,
+    no_sigma_reason,
     older_report_warning,
 )
 from thermocal.errors import ResolutionMismatchError
@@ -68,7 +68,8 @@ class _ThroughCalibration:
     def unchecked(self) -> str | None:
         """Why no burst can be checked against the calibration (a file without its report,
         when ``report_needed``), or None."""
-        return NO_REPORT if self.report_needed and self.sigma_model is None else None
+        return (no_sigma_reason(self.calibration)
+                if self.report_needed and self.sigma_model is None else None)
 
     @property
     def remedy(self) -> str:

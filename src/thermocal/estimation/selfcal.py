@@ -235,9 +235,9 @@ class SelfCalibration:
         """Why nothing can be checked against the start calibration (a file without its
         report, when ``report_needed``: its σ would be the family's, not its own), or None."""
         if self.report_needed and self.calibration is not None and self.sigma_model is None:
-            from thermocal.calibration.uncertainty import NO_REPORT
+            from thermocal.calibration.uncertainty import no_sigma_reason
 
-            return NO_REPORT
+            return no_sigma_reason(self.calibration)
         return None
 
     def __post_init__(self) -> None:
