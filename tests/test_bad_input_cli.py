@@ -222,7 +222,7 @@ CASES = [
      ["correct", "{root}/times_only.tiff", "--calibration", "{root}/cal2.h5", "--out",
       "{tmp}/t.tiff"], "no history of its FPA was given"),
     # an HDF5 file of the project's given as a recording: which one, and what reads it
-    ("info-on-a-chamber-session", ["info", "{root}/chamber.h5"],
+    ("flight-on-a-chamber-session", ["flight", "{root}/chamber.h5", "--out", "{tmp}/o"],
      "a chamber session (HDF5), not a recording: `thermocal calibrate` reads it"),
     ("info-on-a-calibration", ["info", "{root}/cal.h5"],
      "a calibration (HDF5), not a recording: `thermocal correct --calibration` uses it"),

@@ -565,6 +565,21 @@ def test_info_says_what_a_recording_holds(shared_data, tmp_path, capsys):
     assert code == 2 and len(err.strip().splitlines()) == 1 and "no such file" in err
 
 
+def test_info_says_what_a_chamber_session_holds(tmp_path, capsys):
+    """`thermocal info` of a chamber session: its frames, set points, FPA range, time span and
+    camera, from the file's series (it refused it as "not a recording", though it reads an
+    EnvChamberCtrl .npz: a helper's audit)."""
+    from cli_run import run
+
+    assert run(["simulate", "chamber", tmp_path / "c.h5", "--size", "16x12", "--preset", "boson",
+                "--unit", "7", "--blackbody-c", "10:40:10", "--frames-per-point", "2"],
+               capsys)[0] == 0
+    code, out, err = run(["info", tmp_path / "c.h5"], capsys)
+    assert code == 0, err
+    assert "a chamber session (HDF5)" in out and "of 16x12, 14-bit" in out
+    assert "blackbody 10…40 °C at 4 set point(s)" in out and "camera: preset boson, unit 7" in out
+
+
 def test_info_warns_of_counts_beyond_the_bit_depth(tmp_path, capsys):
     """A DualTau flight of 16-bit counts (the rig's format says 14): ``info`` still describes
     it but warns, naming the first such frame and the largest count (the other commands refuse

@@ -87,7 +87,11 @@ def recording_summary(path: str | Path) -> dict[str, Any]:
 def info(path: Path) -> None:
     """What a recording holds: format, frames, size, bit depth, FPA range and sampling, time
     span, GPS, Planck constants. PATH: a file or a folder in any format thermocal reads (the
-    project's TIFF + JSON, FLIR FFF/SEQ/CSQ, R-JPEG, DualTauUAV, EnvChamberCtrl)."""
+    project's TIFF + JSON, FLIR FFF/SEQ/CSQ, R-JPEG, DualTauUAV, EnvChamberCtrl); or a chamber
+    session (HDF5): its frames, set points, FPA range and time span."""
+    if _is_chamber(path):
+        _chamber_info(path)
+        return
     s = recording_summary(path)
     if s["damaged_summary"]:
         click.echo(f"thermocal: warning: {s['damaged_summary']}", err=True)
@@ -128,3 +132,36 @@ def info(path: Path) -> None:
         names = ("r1", "r2", "b", "f", "o", "emissivity")
         click.echo("  Planck " + ", ".join(f"{k.upper() if len(k) <= 2 else k} {p[k]:g}"
                                             for k in names if isinstance(p.get(k), int | float)))
+
+
+def _is_chamber(path: Path) -> bool:
+    """Whether ``path`` is an HDF5 chamber session (by its signature and content); only a
+    regular file is opened (a FIFO would block)."""
+    if not Path(path).is_file():
+        return False
+    try:
+        with open(path, "rb") as fh:
+            if fh.read(8) != b"\x89HDF\r\n\x1a\n":
+                return False
+    except OSError:  # a folder, a missing file: the recording readers say what it is
+        return False
+    from thermocal.io.replaces import hdf5_kind
+
+    return hdf5_kind(path) == "chamber session"
+
+
+def _chamber_info(path: Path) -> None:
+    """``thermocal info`` of a chamber session: what `thermocal calibrate` would fit on."""
+    from thermocal.io.chamber import read_chamber
+
+    s = read_chamber(path, frames=False)  # validated; its frames left on disk
+    h, w = s.frame_shape
+    points = np.unique(np.round(s.blackbody_c, 3))
+    click.echo(f"{path}: a chamber session (HDF5), {s.n_frames} frame(s) of {w}x{h}, "
+               f"{s.bit_depth}-bit; `thermocal calibrate` reads it")
+    click.echo(f"  blackbody {points.min():g}…{points.max():g} °C at {points.size} set point(s)")
+    click.echo(f"  FPA {float(np.min(s.fpa_c)):.2f}…{float(np.max(s.fpa_c)):.2f} °C")
+    click.echo(f"  time span {float(np.ptp(s.time_s)):.0f} s")
+    camera = ", ".join(f"{k} {s.attrs[k]}" for k in ("preset", "unit") if k in s.attrs)
+    if camera:
+        click.echo(f"  camera: {camera}")
