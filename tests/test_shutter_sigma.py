@@ -152,3 +152,44 @@ def test_a_bursts_sigma_grows_by_its_pivots_closure_shift(still_camera):
     assert float(np.median(shift)) > 1.0
     good = ~cal.bad  # (the bad pixels add their neighbours' range, which the shift moves)
     np.testing.assert_allclose(np.hypot(plain.sigma_c, shift)[good], got.sigma_c[good], atol=0.05)
+
+
+def test_a_recording_long_before_the_first_closure_is_warned_of(still_camera):
+    """Closures on another clock (epoch times against a recording from 0): every frame keeps
+    the reference offset, said."""
+    camera, cal, walk = still_camera
+    late = _closed(camera, cal, walk, 0.0, time_s=1.7e9)
+    with pytest.warns(ThermocalWarning, match=r"5 frame\(s\) end at t = .* long before the first "
+                                              "closure"):
+        late.apply(walk.frames, time_s=walk.time_s)
+
+
+def test_what_sigma_adds_leaves_other_threads_warnings_alone(still_camera):
+    """σ's closure shift and rate correction drop the warnings their second application
+    repeats on their own thread only: a flight's other pivots, on other threads, keep theirs
+    (warnings.catch_warnings changed the filters for every thread: a review found another
+    thread catching none of 400)."""
+    import threading
+    import warnings
+
+    from thermocal.threads import caught_warnings, routed_warnings
+
+    camera, cal, walk = still_camera
+    closed = _closed(camera, cal, walk, 2.0)
+    stop = threading.Event()
+
+    def shifting() -> None:
+        while not stop.is_set():
+            closed.closure_shift(walk.frames, time_s=walk.time_s)
+
+    with routed_warnings():
+        other = threading.Thread(target=shifting)
+        other.start()
+        try:
+            with caught_warnings() as caught:
+                for k in range(400):
+                    warnings.warn(f"pivot {k}", ThermocalWarning, stacklevel=1)
+        finally:
+            stop.set()
+            other.join(30)
+    assert len(caught) == 400

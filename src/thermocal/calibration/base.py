@@ -22,6 +22,7 @@ from thermocal._validate import (
 )
 from thermocal.errors import InvalidInputError
 from thermocal.radiometry import BandRadiance, band_table
+from thermocal.threads import caught_warnings
 
 
 @runtime_checkable
@@ -82,12 +83,13 @@ def apply_with_rate(calibration: Calibration, frames: Any, *, fpa_c: Any, time_s
 
 
 def calibration_sigma_extra(calibration: Any, frames: Any, temps: np.ndarray, *,
-                            time_s: Any, fpa_c: Any = None, unverified: Any = None,
-                            filled: bool = True) -> np.ndarray | None:
+                            time_s: Any, fpa_c: Any = None, unverified: Any = None
+                            ) -> np.ndarray | None:
     """What a calibration adds to its report's σ for ``frames`` and the temperatures it gave
     them, ``temps`` ``(N, H, W)`` °C: °C, float32 ``(N, H, W)``, or None where nothing is added.
-    Each part is a correction nothing verified, as uncertain as its own size (GUM: a component
-    of that σ); the parts add in quadrature, and the callers add the sum so to the report's σ:
+    Each part is an uncertainty component (the parts add in quadrature, and the callers add
+    the sum so to the report's σ). A correction nothing verified is taken at its full size,
+    sign and size unknown (conservative: GUM's rectangular ±size would give size/√3):
 
     - a ``shutter`` calibration's :meth:`~thermocal.calibration.shutter.ShutterCalibration.
       closure_shift` (its closures, which no chamber fold saw);
@@ -95,27 +97,28 @@ def calibration_sigma_extra(calibration: Any, frames: Any, temps: np.ndarray, *,
       :func:`rate_correction` (at the frames' FPA temperatures ``fpa_c``): its rate terms were
       fitted on other paces (a helper's audit: `lin-level` from a session whose FPA only rose,
       forced on a falling FPA, erred 8–14 °C where σ said 1.6–7.7);
-    - with ``filled`` (``temps`` are its output pixel for pixel, not a mean over views that see
-      each place through other pixels), at the pixels it marks bad, which
-      :func:`fill_bad_pixels` filled with their good neighbours' median,
-      :func:`filled_pixel_spread`: the scene there may lie anywhere among them (a `lin-lag` bad
-      pixel erred 4.5 °C where σ said 1.4: a helper's audit).
+    - at the pixels it marks bad, which :func:`fill_bad_pixels` filled with their good
+      neighbours' median, half their range (:func:`filled_pixel_spread`): the scene there may
+      lie anywhere among them, at most about that far from their median (a `lin-lag` bad pixel
+      erred 4.5 °C where σ said 1.4: a helper's audit). A mean over views takes it too, at the
+      pivot's bad pixels: on a hovering camera every view sees that place through them.
     """
     closure_shift = getattr(calibration, "closure_shift", None)
     parts = [] if closure_shift is None else [closure_shift(frames, time_s=time_s)]
     if unverified is not None and np.any(unverified) and fpa_c is not None:
         which = np.flatnonzero(unverified)
         fpa = np.broadcast_to(np.asarray(fpa_c, dtype=np.float64).reshape(-1), (len(temps),))
-        t = None if time_s is None else np.asarray(time_s, dtype=np.float64).reshape(-1)[which]
+        t = None if time_s is None else np.broadcast_to(  # one time, or one per frame
+            np.asarray(time_s, dtype=np.float64).reshape(-1), (len(temps),))[which]
         moved = rate_correction(calibration, np.asarray(frames)[which], temps[which],
                                 fpa_c=fpa[which], time_s=t)
         if moved is not None:
             whole = np.zeros(np.shape(temps), dtype=np.float32)
             whole[which] = moved
             parts.append(whole)
-    bad = getattr(calibration, "bad", None) if filled else None
+    bad = getattr(calibration, "bad", None)
     if bad is not None and np.shape(bad) == np.shape(temps)[1:] and np.any(bad):
-        parts.append(filled_pixel_spread(temps, np.asarray(bad, dtype=bool)))
+        parts.append(0.5 * filled_pixel_spread(temps, np.asarray(bad, dtype=bool)))
     parts = [p for p in parts if p is not None]
     if not parts:
         return None
@@ -131,8 +134,8 @@ def rate_correction(calibration: Any, frames: Any, temps: np.ndarray, *, fpa_c: 
     if not getattr(calibration, "takes_fpa_rate", False):
         return None
     lags = rate_lags_of(calibration)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", ThermocalWarning)  # the frames were warned of
+    with caught_warnings():  # dropped: the frames were warned of (thread-safe, unlike
+        # warnings.catch_warnings, whose filters every thread of a flight's pool shares)
         steady = apply_with_rate(calibration, frames, fpa_c=fpa_c, time_s=time_s,
                                  fpa_rate_c_per_min=np.zeros(len(temps)),
                                  fpa_lag_rates_c_per_min=np.zeros(len(lags)) if lags else None)
@@ -156,15 +159,17 @@ def filled_pixel_spread(temps: np.ndarray, bad: np.ndarray) -> np.ndarray:
     its frame's range. float32 ``(N, H, W)``; ``temps`` unchanged."""
     out = np.zeros(temps.shape, dtype=np.float32)
     rows, cols, nr, nc, usable = _neighbourhoods(bad)
-    values = np.asarray(temps, dtype=np.float32)[:, nr, nc]  # (N, B, 9)
-    hi = np.where(usable[None], values, -np.inf).max(axis=2)
-    lo = np.where(usable[None], values, np.inf).min(axis=2)
-    spread = hi - lo
-    if not usable.any(axis=1).all():  # no good neighbour: the frame's range
-        good = np.asarray(temps, dtype=np.float32)[:, ~bad]
-        whole = (good.max(axis=1) - good.min(axis=1)) if good.size else np.zeros(len(temps))
-        spread = np.where(usable.any(axis=1)[None], spread, whole[:, None])
-    out[:, rows, cols] = spread
+    alone = ~usable.any(axis=1)  # no good neighbour: the frame's range
+    for k0 in range(0, temps.shape[0], _FILL_BLOCK):  # (n, B, 9) at a time, bounded
+        block = np.asarray(temps[k0:k0 + _FILL_BLOCK], dtype=np.float32)
+        values = block[:, nr, nc]
+        spread = (np.where(usable[None], values, -np.inf).max(axis=2)
+                  - np.where(usable[None], values, np.inf).min(axis=2))
+        if alone.any():
+            good = block[:, ~bad]
+            whole = (good.max(axis=1) - good.min(axis=1)) if good.size else np.zeros(len(block))
+            spread = np.where(alone[None], whole[:, None], spread)
+        out[k0:k0 + _FILL_BLOCK, rows, cols] = spread
     return out
 
 

@@ -36,6 +36,7 @@ from thermocal.calibration.store import (
 from thermocal.calibration.two_point import TwoPointCalibration, check_linear_gain, two_point
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import InvalidInputError
+from thermocal.threads import caught_warnings
 
 METHOD = "shutter"
 
@@ -153,15 +154,14 @@ class ShutterCalibration(StoredCalibrationMixin):
 
         Nothing checks a closure: it takes the shutter at the FPA sensor's temperature, which
         a shutter warming or cooling with the housing is not, and the chamber session that made
-        the report (and σ) saw none. So the shift is a correction as uncertain as its size,
-        added to σ in quadrature (:func:`~thermocal.calibration.base.calibration_sigma_extra`).
-        A helper's audit: a `boson` unit's closures at the start of a held-out run erred
-        0.96 °C where the reference offset erred 0.19 and σ said 0.27 (43 of 105 frames
-        silent)."""
+        the report (and σ) saw none. So the shift, a correction nothing verified, is taken at
+        its full size as a component of σ, in quadrature
+        (:func:`~thermocal.calibration.base.calibration_sigma_extra`). A helper's audit: a
+        `boson` unit's closures at the start of a held-out run erred 0.96 °C where the
+        reference offset erred 0.19 and σ said 0.27 (43 of 105 frames silent)."""
         if self.event_offset is None or time_s is None:
             return None
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", ThermocalWarning)  # apply warned of them already
+        with caught_warnings():  # dropped: apply warned of them already (thread-safe)
             closed = self.apply(frames, time_s=time_s)
         plain = replace(self, event_time_s=np.zeros(0), event_offset=None).apply(frames)
         return np.abs(closed - plain)
@@ -173,7 +173,16 @@ STALE_INTERVALS = 2.0
 
 def _warn_stale(time_s: np.ndarray, which: np.ndarray, event_time_s: np.ndarray,
                 interval_s: float) -> None:
-    """Warn of frames more than :data:`STALE_INTERVALS` intervals after the closure they use."""
+    """Warn of frames more than :data:`STALE_INTERVALS` intervals after the closure they use, or
+    of a recording that ends that long before the first closure (closures on another clock)."""
+    if time_s.size and np.all(which < 0) and (
+            float(event_time_s[0] - time_s.max()) > STALE_INTERVALS * interval_s):
+        warnings.warn(
+            f"shutter: the {time_s.size} frame(s) end at t = {float(time_s.max()):g} s, long "
+            f"before the first closure (t = {float(event_time_s[0]):g} s): they keep the "
+            "chamber's reference offset; are the closures this recording's, on its clock?",
+            ThermocalWarning, stacklevel=3)
+        return
     used = which >= 0
     age = np.where(used, time_s - event_time_s[np.maximum(which, 0)], 0.0)
     stale = int(np.count_nonzero(age > STALE_INTERVALS * interval_s))

@@ -146,9 +146,10 @@ REMEDY = ("calibrate over these conditions (a chamber session that covers them: 
 NO_REPORT = ("the calibration has no cross-validation report (made by an older thermocal), so "
              "neither the ranges it was fitted on nor its error can be checked")
 #: Why a calibration whose report measured no error has no σ (written with ``--force``).
-NO_REPORTED_ERROR = ("the calibration's cross-validation report measured no error (its session "
-                     "had too few set points or FPA segments to leave one out), so its "
-                     "temperatures would have no uncertainty")
+NO_REPORTED_ERROR = ("the calibration's cross-validation report measured no error (no set point "
+                     "or FPA segment of its session could be left out and refitted: too few of "
+                     "them, or every refit failed), so its temperatures would have no "
+                     "uncertainty")
 
 
 def no_sigma_reason(calibration: Any) -> str:

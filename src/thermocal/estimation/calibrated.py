@@ -135,11 +135,11 @@ class _ThroughCalibration:
         # forced at a pace the session never held: the rate terms' correction is unverified
         unverified = outside and pace is not None and self.sigma_model.pace_unseen(
             pace.rate_c_per_min, pace.lagged_c_per_min, burst.fpa_c)
-        added = calibration_sigma_extra(  # at the pivot, through the calibration
+        added = calibration_sigma_extra(  # at the pivot, through the calibration (a mean's
+            # too: hovering, every view sees the pivot's bad pixels through the same pixels)
             self.calibration, burst.frames[burst.pivot][None], burst.warped[burst.pivot][None],
             time_s=None if burst.pivot_time_s is None else [burst.pivot_time_s],
-            fpa_c=[burst.fpa_c], unverified=[unverified],
-            filled=self.per_frame)  # a mean's other views see the pivot's bad pixels
+            fpa_c=[burst.fpa_c], unverified=[unverified])
         if added is not None:
             sigma = np.hypot(sigma, added[0]).astype(np.float32)
         if outside and self._foreign(burst):  # forced through another camera's calibration

@@ -22,7 +22,7 @@ per-frame metadata — so that a flight larger than memory can be processed.
 ``"rjpeg-folder"``        a folder of R-JPEGs, in name order
 ``"dualtau"``             a DualTauUAV flight: a folder of ``.npz`` (or one file)
                           (:mod:`thermocal.io.dualtau`)
-``"envchamberctrl"``      an EnvChamberCtrl ``.npz`` (:mod:`thermocal.io.chamber`)
+``"envchamberctrl"``      an EnvChamberCtrl ``.npz`` (:mod:`thermocal.io.envchamber`)
 ========================= ======================================================================
 
 **Per-frame series.** ``fpa_c`` is the FPA temperature in °C: the sidecar's series for a TIFF

@@ -36,7 +36,6 @@ from typing import Any
 import cv2
 import numpy as np
 
-from thermocal.calibration.base import ThermocalWarning
 from thermocal.errors import InvalidInputError
 from thermocal.nuc._common import (
     GAIN_RANGE,
@@ -170,6 +169,8 @@ class _ExponentialWindow(StreamingNUC):
         audit: on a 21-frame walk Harris's frames 1–10 correlated 0.28–0.70 with the truth
         against 0.90–0.96 raw)."""
         if n < self.window:
+            from thermocal.calibration.base import ThermocalWarning  # here: not at import
+
             warnings.warn(
                 f"{n} frames, fewer than the {self.window}-frame window of this "
                 "constant-statistics method: its per-pixel statistics come from few views of "
@@ -436,6 +437,15 @@ class TorresKalman(StreamingNUC):
 
     def _ready(self) -> bool:
         return self.n_blocks > 0
+
+    def _warn_short(self, n: int) -> None:
+        """Its first ``block − 1`` frames pass through unchanged (no estimate before its first
+        block ends): said, not left to look corrected (a helper's review)."""
+        from thermocal.calibration.base import ThermocalWarning  # here: not at import
+
+        warnings.warn(f"torres-kalman: its first {self.block - 1} of {n} frames pass through "
+                      f"uncorrected (no estimate before its first block of {self.block} ends)",
+                      ThermocalWarning, stacklevel=3)
 
     def _update(self, x: np.ndarray) -> None:
         block = self._moments.add(x)

@@ -715,7 +715,7 @@ def write_recording_as(recording: Recording, path: str | os.PathLike[str], *, fo
                        planck: FlirPlanck = DEFAULT_PLANCK, gps: Any = None,
                        start_epoch_s: float = DEFAULT_START_EPOCH_S, fps: float | None = None,
                        byte_order: str | None = None,
-                       ground_altitude_m: float | None = None) -> Path:
+                       ground_altitude_m: float | None = None, model: str = _MODEL) -> Path:
     """Write ``recording`` in a camera's file format (see the module's table).
 
     ``fps`` defaults to the median frame interval of ``recording.time_s`` (30 Hz without
@@ -729,7 +729,7 @@ def write_recording_as(recording: Recording, path: str | os.PathLike[str], *, fo
         fps = _frame_rate(recording.time_s)
     write_chunks_as([recording], path, format=format, planck=planck, gps=gps,
                     start_epoch_s=start_epoch_s, fps=fps, n_frames=recording.n_frames,
-                    byte_order=byte_order, ground_altitude_m=ground_altitude_m)
+                    byte_order=byte_order, ground_altitude_m=ground_altitude_m, model=model)
     return Path(path)
 
 

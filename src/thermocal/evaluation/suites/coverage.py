@@ -285,7 +285,8 @@ def _run_calibration(cal, model: CalibrationSigma, run: physics.Run, rng) -> dic
                              time_since_start_s=since)[:, 0, :]
         unseen = model.unseen_paces(rate, since, fpa_c=s.fpa_c[sel])  # its pace history
         # as `thermocal correct` gives them: a shutter's closures, the rate terms' correction
-        # on frames at paces never held (refused unless forced); the sample has no bad pixel
+        # on frames at paces never held (refused unless forced); the sample leaves the
+        # camera's defects out
         added = calibration_sigma_extra(physics.part_calibration(cal, run, k),
                                         np.asarray(s.frames[sel]), est[sel],
                                         time_s=s.time_s[sel], fpa_c=s.fpa_c[sel],
