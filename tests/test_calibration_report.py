@@ -548,3 +548,22 @@ def test_the_session_a_refusal_asks_for_gives_the_set_points_it_promises(tmp_pat
     assert len(setpoints_from_range(*map(float, blackbody.split(":")))) >= 4, blackbody
     assert setpoints_from_range(20.0, 70.0, 16.6667)[-1] == 70.0
     assert len(setpoints_from_range(20.0, 70.0, 13.3333)) == 4  # 73.33 is past 70: not taken
+
+
+def test_a_reference_beyond_the_session_is_told_an_ambient_that_reaches_it(tmp_path, capsys):
+    """A reference FPA above the session's: the hint's sawtooth widens the ambient by as much
+    (and 2 °C more), so that following it reaches the reference (the same session's range
+    never did, and the same refusal came back: a review)."""
+    import re
+
+    from thermocal.io.chamber import read_chamber
+
+    path = tmp_path / "s.h5"
+    assert run(["simulate", "chamber", path, "--size", "32x24", "--frames-per-point", "2"],
+               capsys)[0] == 0
+    top = float(read_chamber(path, frames=False).fpa_c.max())
+    code, _, err = run(["calibrate", path, "--method", "two-point", "--fpa-ref-c",
+                        f"{top + 3:.1f}", "--out", tmp_path / "c.h5"], capsys)
+    assert code == 2 and "record sawtooth" in err, err
+    high = float(re.search(r"--ambient-c 10:([\d.]+)", err).group(1))
+    assert high >= 40.0 + 5.0  # 3 °C beyond the FPA's top, and 2 more

@@ -15,6 +15,7 @@ The frames are described by their FPA stability (:mod:`thermocal.calibration.dat
 from __future__ import annotations
 
 import ast
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -161,13 +162,15 @@ def _camera_args(data: ChamberData) -> list[str]:
     return [*args, f"--size {w}x{h}"]
 
 
-def record_hint(data: ChamberData, profile: str, *, setpoints: int = 0) -> str:
+def record_hint(data: ChamberData, profile: str, *, setpoints: int = 0,
+                reach_fpa_c: float | None = None) -> str:
     """What to record, in one clause: a ``thermocal simulate chamber`` command for a simulated
     session, words for a real one.
 
     ``profile`` is the ambient profile that gives what is missing (``"steps"``: plateaus of the
     FPA; ``"sawtooth"``: the FPA rising and falling); ``setpoints`` (when > 0), the set points
-    to visit at each.
+    to visit at each; ``reach_fpa_c`` (°C), an FPA temperature the session must reach (a
+    reference beyond its FPA range: the ambient range widened by as much, and 2 °C more).
     """
     plan = _simulated_plan(data)
     if plan is not None:
@@ -177,6 +180,15 @@ def record_hint(data: ChamberData, profile: str, *, setpoints: int = 0) -> str:
             ambient = (float(np.min(amb)), float(np.max(amb))) if amb is not None else (10, 40)
         # at least the default 10…40 °C: the session's own range may be what was too narrow
         ambient = (min(float(ambient[0]), 10.0), max(float(ambient[1]), 40.0))
+        if reach_fpa_c is not None and np.isfinite(reach_fpa_c):  # beyond the FPA's range:
+            # the FPA follows the ambient, so widen that by as much (a review: the same
+            # session's sawtooth never reached a reference 2 °C above it, refused again)
+            fpa = data.fpa_c[data.usable] if data.usable.any() else data.fpa_c
+            lo, hi = float(fpa.min()), float(fpa.max())
+            if reach_fpa_c < lo:
+                ambient = (ambient[0] - math.ceil(lo - reach_fpa_c + 2.0), ambient[1])
+            elif reach_fpa_c > hi:
+                ambient = (ambient[0], ambient[1] + math.ceil(reach_fpa_c - hi + 2.0))
         points = data.setpoints_c
         if setpoints and points.size < setpoints:
             lo = float(points.min()) if points.size else 10.0
@@ -191,9 +203,12 @@ def record_hint(data: ChamberData, profile: str, *, setpoints: int = 0) -> str:
             args.append(f"--blackbody-c {blackbody}")
         return f"record {profile}: `thermocal simulate chamber OUT.h5 {' '.join(args)}`"
     visit = f", visiting >= {setpoints} blackbody set points at each" if setpoints else ""
+    reach = (f", the FPA reaching {reach_fpa_c:.1f} °C" if reach_fpa_c is not None
+             and not float(np.min(data.fpa_c)) <= reach_fpa_c <= float(np.max(data.fpa_c))
+             else "")
     if profile == "sawtooth":
         return ("record the chamber's ambient rising and falling across the FPA range (a "
-                f"sawtooth), or stepping between >= 3 plateaus{visit}")
+                f"sawtooth{reach}), or stepping between >= 3 plateaus{visit}")
     return ("record the chamber's ambient in steps across the FPA range, each held until the FPA "
             f"settles (within ±0.05 °C/min){visit}")
 
@@ -274,7 +289,8 @@ def check_protocol(data: ChamberData, method: str, needs: ProtocolNeeds,
             # the FPA moving slowly through the reference: steps of a few °C leave one plateau
             # within the window (the boson preset's default steps session, refused again)
             return ProtocolCheck(method, options, f"{method} {lack}; "
-                                 + record_hint(data, "sawtooth", setpoints=n_setpoints)
+                                 + record_hint(data, "sawtooth", setpoints=n_setpoints,
+                                               reach_fpa_c=ref)
                                  + elsewhere)
     else:
         given = "frames" in options
