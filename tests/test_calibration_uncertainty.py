@@ -226,6 +226,10 @@ def test_paces_a_memoryless_calibration_never_held_are_outside():
     for pace, unseen in ((0.0, False), (1.5, False), (1.0, True), (-1.0, True)):
         rate = np.full(t.size, pace)
         assert model.unseen_paces(rate, t).all() == unseen
+        # the pace alone, as one burst's is judged (`pace_unseen`): where rate terms are
+        # unverified, whether `correct` or `estimate` asks
+        assert model.paces_never_held(rate, t).all() == unseen
+        assert model.pace_unseen(pace, pace) == unseen
         why = model.outside(np.full((t.size, 2, 2), 25.0), np.full(t.size, 27.0),
                             rate_c_per_min=rate, time_s=t)
         assert bool(why) == unseen

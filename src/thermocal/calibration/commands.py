@@ -282,7 +282,7 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
         since = None if rec.time_s is None else np.asarray(rec.time_s) - rec.time_s[0]
         sigma = model.sigma(temps, rec.fpa_c, rate_c_per_min=rates, time_since_start_s=since)
         # forced at paces the session never held: the rate terms' correction is unverified
-        unverified = (model.unseen_paces(rates, rec.time_s, fpa_c=rec.fpa_c)
+        unverified = (model.paces_never_held(rates, rec.time_s, fpa_c=rec.fpa_c)
                       if outside and rates is not None else None)
         added = calibration_sigma_extra(cal, rec.frames, temps, time_s=rec.time_s,
                                         fpa_c=rec.fpa_c, unverified=unverified)

@@ -483,6 +483,14 @@ class CalibrationSigma:
                            None if fpa_c is None else [float(fpa_c)])
         return bool(d[0] > self._pace_margin)
 
+    def paces_never_held(self, rate_c_per_min: Any, time_s: Any, *, fpa_c: Any = None
+                         ) -> np.ndarray:
+        """Which frames ``(N,)`` bool of one recording changed at a pace more than the margin
+        from every pace the session held (:meth:`pace_distance`; the pace alone, as
+        :meth:`pace_unseen` judges one burst's): where a method's rate terms were never
+        verified."""
+        return self.pace_distance(rate_c_per_min, time_s, fpa_c=fpa_c) > self._pace_margin
+
     def unseen_paces(self, rate_c_per_min: Any, time_s: Any, *, fpa_c: Any = None
                      ) -> np.ndarray:
         """Which frames ``(N,)`` bool of one recording changed at a pace the session never

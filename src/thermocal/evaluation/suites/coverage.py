@@ -290,7 +290,8 @@ def _run_calibration(cal, model: CalibrationSigma, run: physics.Run, rng) -> dic
         added = calibration_sigma_extra(physics.part_calibration(cal, run, k),
                                         np.asarray(s.frames[sel]), est[sel],
                                         time_s=s.time_s[sel], fpa_c=s.fpa_c[sel],
-                                        unverified=unseen)
+                                        unverified=model.paces_never_held(
+                                            rate, since, fpa_c=s.fpa_c[sel]))
         if added is not None:
             sigmas = np.hypot(sigmas, added.reshape(sel.size, -1)[:, pick])
         for j, i in enumerate(sel):
