@@ -193,6 +193,10 @@ def test_methods_that_need_more_frames_than_given_say_so():
                                               "uncorrected"):
         got = correct_nonuniformity(frames, method="torres-kalman", block=5)
     np.testing.assert_array_equal(got[:4], frames[:4].astype(np.float32))  # as it says
+    with warnings.catch_warnings():  # a tenth of the stack or less: not worth a warning
+        warnings.simplefilter("error")
+        correct_nonuniformity(rng.normal(8000, 50, size=(40, 16, 16)), method="torres-kalman",
+                              block=5)
     for method in ("harris1999", "ecr"):
         with pytest.warns(ThermocalWarning, match="7 frames, fewer than the 200-frame window"):
             correct_nonuniformity(frames, method=method)

@@ -440,7 +440,10 @@ class TorresKalman(StreamingNUC):
 
     def _warn_short(self, n: int) -> None:
         """Its first ``block − 1`` frames pass through unchanged (no estimate before its first
-        block ends): said, not left to look corrected (a helper's review)."""
+        block ends): said where they are more than a tenth of the stack, not left to look
+        corrected (a helper's review)."""
+        if self.block - 1 <= 0.1 * n:
+            return
         from thermocal.calibration.base import ThermocalWarning  # here: not at import
 
         warnings.warn(f"torres-kalman: its first {self.block - 1} of {n} frames pass through "
