@@ -55,19 +55,21 @@ def test_the_shift_is_how_far_the_closures_move_the_temperatures(still_camera):
     camera, cal, walk = still_camera
     closed = _closed(camera, cal, walk, 2.0)
     frames = walk.frames.copy()
-    shift = closed.closure_shift(frames, time_s=walk.time_s)
-    moved = (closed.apply(frames, time_s=walk.time_s) - cal.apply(frames))
+    closed_temps = closed.apply(frames, time_s=walk.time_s)
+    shift = closed.closure_shift(frames, closed_temps, time_s=walk.time_s)
+    moved = (closed_temps - cal.apply(frames))
     np.testing.assert_allclose(shift, np.abs(moved), atol=1e-5)
     assert float(np.median(shift)) > 1.0  # a shutter 2 °C warmer than the sensor
     assert np.array_equal(frames, walk.frames)  # inputs unchanged
-    assert cal.closure_shift(frames, time_s=walk.time_s) is None  # no closure
-    assert closed.closure_shift(frames, time_s=None) is None
+    assert cal.closure_shift(frames, closed_temps, time_s=walk.time_s) is None  # no closure
+    assert closed.closure_shift(frames, closed_temps, time_s=None) is None
     # before the first closure a frame keeps the reference offset: nothing moved
     late = _closed(camera, cal, walk, 2.0, time_s=1e6)
-    assert not late.closure_shift(frames, time_s=walk.time_s).any()
+    with pytest.warns(ThermocalWarning, match="long before the first closure"):
+        late_temps = late.apply(frames, time_s=walk.time_s)
+    assert not late.closure_shift(frames, late_temps, time_s=walk.time_s).any()
     # what σ adds: the shift, and at the calibration's bad pixels their neighbours' range
-    temps = closed.apply(frames, time_s=walk.time_s)
-    added = calibration_sigma_extra(closed, frames, temps, time_s=walk.time_s)
+    added = calibration_sigma_extra(closed, frames, closed_temps, time_s=walk.time_s)
     good = ~cal.bad
     np.testing.assert_allclose(added[:, good], shift[:, good], atol=1e-6)
     assert cal.bad.any() and np.all(added[:, cal.bad] >= shift[:, cal.bad])
@@ -148,7 +150,9 @@ def test_a_bursts_sigma_grows_by_its_pivots_closure_shift(still_camera):
     plain = estimate(walk.frames, PivotCalibration(cal), **args)
     got = estimate(walk.frames, PivotCalibration(closed), **args)
     pivot = walk.frames.shape[0] // 2
-    shift = closed.closure_shift(walk.frames[pivot][None], time_s=[walk.time_s[pivot]])[0]
+    one = walk.frames[pivot][None]
+    shift = closed.closure_shift(one, closed.apply(one, time_s=[walk.time_s[pivot]]),
+                                 time_s=[walk.time_s[pivot]])[0]
     assert float(np.median(shift)) > 1.0
     good = ~cal.bad  # (the bad pixels add their neighbours' range, which the shift moves)
     np.testing.assert_allclose(np.hypot(plain.sigma_c, shift)[good], got.sigma_c[good], atol=0.05)
@@ -164,26 +168,37 @@ def test_a_recording_long_before_the_first_closure_is_warned_of(still_camera):
         late.apply(walk.frames, time_s=walk.time_s)
 
 
-def test_what_sigma_adds_leaves_other_threads_warnings_alone(still_camera):
-    """σ's closure shift and rate correction drop the warnings their second application
-    repeats on their own thread only: a flight's other pivots, on other threads, keep theirs
-    (warnings.catch_warnings changed the filters for every thread: a review found another
-    thread catching none of 400)."""
+def test_what_sigma_adds_leaves_other_threads_warnings_alone(tmp_path):
+    """What σ adds drops the warnings its second application of a calibration repeats (a rate
+    correction's, at an FPA outside the calibrated range) on its own thread only: a flight's
+    other pivots, on other threads, keep theirs (warnings.catch_warnings changed the filters
+    for every thread: a review found another thread catching none of 400)."""
     import threading
     import warnings
 
+    from thermocal.calibration.base import rate_correction
+    from thermocal.calibration.registry import fit_calibration
     from thermocal.threads import caught_warnings, routed_warnings
 
-    camera, cal, walk = still_camera
-    closed = _closed(camera, cal, walk, 2.0)
+    camera = make_camera("tau2", unit=3, size=(32, 24))
+    points = (10.0, 30.0, 50.0, 70.0)
+    write_simulated_chamber(tmp_path / "c.h5", camera, ChamberPlan(
+        setpoints_c=points, ambient_c=(15.0, 35.0), interval_s=10.0), seed=1)
+    lin = fit_calibration(tmp_path / "c.h5", "lin")
+    fpa = lin.fpa_range_c[1] + 10.0  # outside: its apply warns
+    walk = simulate_flight(np.full((128, 128), SCENE_C), camera, n_frames=5, motion="walk",
+                           fpa_c=fpa, seed=1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ThermocalWarning)
+        temps = lin.apply(walk.frames, fpa_c=walk.fpa_c, time_s=walk.time_s)
     stop = threading.Event()
 
-    def shifting() -> None:
+    def correcting() -> None:
         while not stop.is_set():
-            closed.closure_shift(walk.frames, time_s=walk.time_s)
+            rate_correction(lin, walk.frames, temps, fpa_c=walk.fpa_c, time_s=walk.time_s)
 
     with routed_warnings():
-        other = threading.Thread(target=shifting)
+        other = threading.Thread(target=correcting)
         other.start()
         try:
             with caught_warnings() as caught:

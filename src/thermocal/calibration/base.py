@@ -104,7 +104,7 @@ def calibration_sigma_extra(calibration: Any, frames: Any, temps: np.ndarray, *,
       pivot's bad pixels: on a hovering camera every view sees that place through them.
     """
     closure_shift = getattr(calibration, "closure_shift", None)
-    parts = [] if closure_shift is None else [closure_shift(frames, time_s=time_s)]
+    parts = [] if closure_shift is None else [closure_shift(frames, temps, time_s=time_s)]
     if unverified is not None and np.any(unverified) and fpa_c is not None:
         which = np.flatnonzero(unverified)
         fpa = np.broadcast_to(np.asarray(fpa_c, dtype=np.float64).reshape(-1), (len(temps),))

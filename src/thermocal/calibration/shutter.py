@@ -36,7 +36,6 @@ from thermocal.calibration.store import (
 from thermocal.calibration.two_point import TwoPointCalibration, check_linear_gain, two_point
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import InvalidInputError
-from thermocal.threads import caught_warnings
 
 METHOD = "shutter"
 
@@ -147,8 +146,9 @@ class ShutterCalibration(StoredCalibrationMixin):
             out[k] = band.temperature(np.clip(rad, lo, hi)) - np.float32(ZERO_CELSIUS_K)
         return fill_bad_pixels(out, self.bad)
 
-    def closure_shift(self, frames: Any, *, time_s: Any) -> np.ndarray | None:
-        """How far the shutter closures move each frame's temperatures from what the chamber's
+    def closure_shift(self, frames: Any, temps: np.ndarray, *, time_s: Any) -> np.ndarray | None:
+        """How far the shutter closures moved ``temps`` (°C ``(N, H, W)``: this calibration's
+        temperatures of ``frames`` at ``time_s``, its closures applied) from what the chamber's
         reference offset gives, °C, float32 ``(N, H, W)`` (0 before the first closure); None
         without closures or frame times.
 
@@ -161,10 +161,8 @@ class ShutterCalibration(StoredCalibrationMixin):
         reference offset erred 0.19 and σ said 0.27 (43 of 105 frames silent)."""
         if self.event_offset is None or time_s is None:
             return None
-        with caught_warnings():  # dropped: apply warned of them already (thread-safe)
-            closed = self.apply(frames, time_s=time_s)
         plain = replace(self, event_time_s=np.zeros(0), event_offset=None).apply(frames)
-        return np.abs(closed - plain)
+        return np.abs(np.asarray(temps, dtype=np.float32) - plain)
 
 
 #: A frame more than this many shutter intervals after the closure it uses is warned of.
