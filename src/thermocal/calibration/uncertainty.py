@@ -150,6 +150,9 @@ NO_REPORTED_ERROR = ("the calibration's cross-validation report measured no erro
                      "or FPA segment of its session could be left out and refitted: too few of "
                      "them, or every refit failed), so its temperatures would have no "
                      "uncertainty")
+#: What to do about either.
+NO_REPORT_REMEDY = ("calibrate again (`thermocal calibrate`) from a session of at least 3 set "
+                    "points; --force gives the temperatures without an uncertainty")
 
 
 def no_sigma_reason(calibration: Any) -> str:
@@ -157,9 +160,7 @@ def no_sigma_reason(calibration: Any) -> str:
     (:data:`NO_REPORT`), or its report measured no error (:data:`NO_REPORTED_ERROR`; its
     ranges were stated but never tested)."""
     return NO_REPORT if report_of(calibration) is None else NO_REPORTED_ERROR
-#: What to do about it.
-NO_REPORT_REMEDY = ("calibrate again (`thermocal calibrate`) from a session of at least 3 set "
-                    "points; --force gives the temperatures without an uncertainty")
+
 
 _GAUSS = math.sqrt(math.pi / 2)
 

@@ -135,19 +135,12 @@ def info(path: Path) -> None:
 
 
 def _is_chamber(path: Path) -> bool:
-    """Whether ``path`` is an HDF5 chamber session (by its signature and content); only a
-    regular file is opened (a FIFO would block)."""
-    if not Path(path).is_file():
-        return False
-    try:
-        with open(path, "rb") as fh:
-            if fh.read(8) != b"\x89HDF\r\n\x1a\n":
-                return False
-    except OSError:  # a folder, a missing file: the recording readers say what it is
-        return False
+    """Whether ``path`` is an HDF5 chamber session (:func:`~thermocal.io.replaces.hdf5_kind`);
+    only a regular file is opened (a FIFO would block; a folder or a missing file: the
+    recording readers say what it is)."""
     from thermocal.io.replaces import hdf5_kind
 
-    return hdf5_kind(path) == "chamber session"
+    return Path(path).is_file() and hdf5_kind(path) == "chamber session"
 
 
 def _chamber_info(path: Path) -> None:

@@ -27,7 +27,6 @@ def hdf5_kind(path: str | os.PathLike[str]) -> str:
 
 def _kind_and_source(p: Path) -> tuple[str, str | None]:
     """:func:`hdf5_kind` and the file's ``source`` attribute (what wrote it), None without."""
-    import h5py
 
     def text(v: object) -> str | None:
         return None if v is None else (v.decode("utf-8", "replace") if isinstance(v, bytes)
@@ -36,6 +35,8 @@ def _kind_and_source(p: Path) -> tuple[str, str | None]:
         with open(p, "rb") as fh:
             if fh.read(8) != _HDF5_MAGIC:
                 return "a file that is not HDF5", None
+        import h5py  # here: a file that is not HDF5 is told without it
+
         with h5py.File(p, "r") as f:
             fmt, source = text(f.attrs.get("format")), text(f.attrs.get("source"))
             if fmt in _KINDS:
