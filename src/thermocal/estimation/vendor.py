@@ -74,15 +74,6 @@ def vendor_accuracy(metadata: dict[str, Any]) -> tuple[float, float]:
     return 2.0, 0.02
 
 
-def _measuring_range(metadata: dict[str, Any]) -> tuple[float, float] | None:
-    """A frame's measuring range, °C, from its metadata (``temperature_range_c``), or None."""
-    stated = metadata.get("temperature_range_c")
-    if not (isinstance(stated, list | tuple) and len(stated) == 2):
-        return None
-    lo, hi = (float(v) for v in stated)
-    return (lo, hi) if np.isfinite(lo) and np.isfinite(hi) and lo < hi else None
-
-
 class VendorCalibration:
     """``--method camera``: each frame through its own FLIR Planck constants.
 
@@ -135,8 +126,10 @@ class VendorCalibration:
                 "which only FLIR files carry (R-JPEG, FFF, SEQ, CSQ); use a calibration "
                 "(--method calibration --calibration CAL.h5) or the network"
             )
+        # the reader states a range only where it is plausible (io.fff._measuring_range)
         return cls([planck_from_metadata(m) for m in metas], [vendor_accuracy(m) for m in metas],
-                   [_measuring_range(m) for m in metas])
+                   [tuple(m["temperature_range_c"]) if m.get("temperature_range_c") else None
+                    for m in metas])
 
     def for_frames(self, start: int, n: int) -> VendorCalibration:
         """The same for frames ``start … start + n − 1`` of the recording (a flight's group)."""
