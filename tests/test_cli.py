@@ -92,10 +92,22 @@ def test_simulate_flight_over_a_real_scene(tmp_path, capsys, shared_data):
     assert 16.0 < truth.min() and truth.max() < 35.0
 
 
+def test_simulate_chamber_sweeps_a_falling_range_from_its_start(tmp_path, capsys):
+    """``--blackbody-c 70:10:30`` (A > B) visits 70, 40 and 10 °C in that order: a chamber run
+    from hot to cold (it was refused as "A <= B")."""
+    out = tmp_path / "c.h5"
+    code, _, err = run(["simulate", "chamber", str(out), "--size", "16x12", "--blackbody-c",
+                        "70:10:30", "--ambient-profile", "constant", "--frames-per-point", "2",
+                        "--duration-min", "1"], capsys)
+    assert code == 0, err
+    bb = read_chamber(out, frames=False).blackbody_c
+    assert list(bb[:6]) == [70.0, 70.0, 40.0, 40.0, 10.0, 10.0]
+
+
 @pytest.mark.parametrize(
     "args, message",
     [
-        (["simulate", "chamber", "{tmp}/c.h5", "--blackbody-c", "70:10:5"], "A <= B"),
+        (["simulate", "chamber", "{tmp}/c.h5", "--blackbody-c", "70:10:-5"], "STEP > 0"),
         (["simulate", "chamber", "{tmp}/c.h5", "--blackbody-c", "10:x"], "A:B:STEP"),
         (["simulate", "chamber", "{tmp}/c.h5", "--ambient-c", "10"], "A:B"),
         (["simulate", "chamber", "{tmp}/c.h5", "--size", "0x10"], "between 8 and 8192"),

@@ -608,9 +608,9 @@ def parse_range(text: str, name: str, *, step: bool = False, increasing: bool = 
                 ) -> tuple[float, ...]:
     """Parse a range of temperatures, °C: ``A:B``, or ``A:B:STEP`` with ``step``.
 
-    ``A:B:STEP`` needs ``A <= B`` and ``STEP > 0``; ``A:B`` needs ``A < B`` only when
-    ``increasing`` (else a falling range is allowed). Raises :class:`InvalidInputError` naming
-    ``name`` (the option) otherwise.
+    ``A:B:STEP`` needs ``STEP > 0`` (``A > B``: a falling range, from A down to B); ``A:B``
+    needs ``A < B`` only when ``increasing`` (else a falling range is allowed). Raises
+    :class:`InvalidInputError` naming ``name`` (the option) otherwise.
     """
     want, example = ("A:B:STEP", "10:70:10") if step else ("A:B", "10:50")
     try:
@@ -622,9 +622,10 @@ def parse_range(text: str, name: str, *, step: bool = False, increasing: bool = 
     if not all(math.isfinite(v) for v in values):
         raise InvalidInputError(f"{name} {text!r}: expected finite numbers (no NaN or inf), "
                                 f"e.g. {example}")
-    if step and (values[2] <= 0 or values[1] < values[0]):
+    if step and values[2] <= 0:
         raise InvalidInputError(
-            f"{name} {text!r}: expected {want} with A <= B and STEP > 0, e.g. {example}"
+            f"{name} {text!r}: expected {want} with STEP > 0 (A > B: from A down to B), "
+            f"e.g. {example}"
         )
     if increasing and not values[0] < values[1]:
         raise InvalidInputError(f"{name} {text!r}: A must be below B")

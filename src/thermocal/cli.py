@@ -62,17 +62,20 @@ MAX_SETPOINTS = 1000
 
 
 def setpoints_from_range(start: float, stop: float, step: float) -> tuple[float, ...]:
-    """Set points ``start, start + step, …`` up to and including ``stop`` (°C)."""
-    count = (stop - start) / step + 1  # a float: inf for a step too small to count
+    """Set points ``start, start ± step, …`` up to (down to, where ``stop < start``) and
+    including ``stop`` (°C; ``step`` > 0): the order the chamber's sweep visits them."""
+    count = abs(stop - start) / step + 1  # a float: inf for a step too small to count
     if not count <= MAX_SETPOINTS:
         raise InvalidInputError(
             f"{count:.0f} blackbody set points is too many (at most {MAX_SETPOINTS})")
-    n = int(round((stop - start) / step)) + 1
-    points = (start + step * k for k in range(n))
+    sign = 1.0 if stop >= start else -1.0
+    n = int(round(abs(stop - start) / step)) + 1
+    offsets = (step * k for k in range(n))
     # ``stop`` itself within a ten-thousandth of a step (a step written to a few digits,
     # 20:70:16.6667, reaches 70.0001: 70 is meant)
     slack = 1e-4 * abs(step)
-    return tuple(float(min(p, stop)) for p in points if p <= stop + slack)
+    span = abs(stop - start)
+    return tuple(float(start + sign * min(d, span)) for d in offsets if d <= span + slack)
 
 
 @click.group(context_settings={"help_option_names": ["-h", "--help"]})
@@ -96,7 +99,8 @@ def simulate() -> None:
               help="Camera family (thermocal.camera.presets).")
 @click.option("--size", default="336x256", show_default=True, help="Frame size WxH.")
 @click.option(
-    "--blackbody-c", default="10:70:10", show_default=True, help="Set points A:B:STEP, °C."
+    "--blackbody-c", default="10:70:10", show_default=True,
+    help="Set points A:B:STEP, °C, visited from A to B (A > B: falling)."
 )
 @click.option(
     "--order",

@@ -112,6 +112,7 @@ from thermocal.io.recording import (
     read_recording,
     read_recording_header,
 )
+from thermocal.io.replaces import HDF5_MAGIC, hdf5_kind
 from thermocal.io.rjpeg import JPEG_MAGIC, read_rjpeg, rjpeg_metadata
 
 __all__ = ["FORMATS", "FrameChunk", "RecordingSource", "open_recording"]
@@ -651,9 +652,7 @@ def _kind(p: Path, head: bytes) -> str:
         return "fff"
     if head[:3] == JPEG_MAGIC:
         return "rjpeg"
-    if head[:8] == b"\x89HDF\r\n\x1a\n":
-        from thermocal.io.replaces import hdf5_kind
-
+    if head[:8] == HDF5_MAGIC:
         kind = hdf5_kind(p)
         reads = {"chamber session": "`thermocal calibrate` reads it",
                  "calibration": "`thermocal correct --calibration` uses it"}.get(

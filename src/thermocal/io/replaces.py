@@ -10,9 +10,11 @@ from pathlib import Path
 
 from thermocal.errors import InvalidInputError
 
-__all__ = ["check_json_replaces_only", "check_replaces_only", "hdf5_kind", "json_object_with"]
+__all__ = ["HDF5_MAGIC", "check_json_replaces_only", "check_replaces_only", "hdf5_kind",
+           "json_object_with"]
 
-_HDF5_MAGIC = b"\x89HDF\r\n\x1a\n"
+#: The first bytes of every HDF5 file (its superblock signature).
+HDF5_MAGIC = b"\x89HDF\r\n\x1a\n"
 #: The ``format`` attribute of each kind of the project's HDF5 files, and its name.
 _KINDS = {"thermocal-calibration": "calibration", "thermocal-chamber": "chamber session"}
 
@@ -33,7 +35,7 @@ def _kind_and_source(p: Path) -> tuple[str, str | None]:
                                        else str(v))
     try:
         with open(p, "rb") as fh:
-            if fh.read(8) != _HDF5_MAGIC:
+            if fh.read(8) != HDF5_MAGIC:
                 return "a file that is not HDF5", None
         import h5py  # here: a file that is not HDF5 is told without it
 
