@@ -244,8 +244,8 @@ def test_the_fits_accumulation_rate_is_measured_on_its_own_code():
 def test_a_frames_silent_share_is_a_gaussians_beyond_both_1c_and_2_sigma():
     from scipy import stats
 
-    from thermocal.evaluation.suites.coverage import _silent_share
+    from thermocal.evaluation.suites.coverage import silent_share
 
-    assert _silent_share(np.full(5, 1.0)) == pytest.approx(2 * stats.norm.sf(2.0))  # 2σ binds
-    assert _silent_share(np.full(5, 0.25)) == pytest.approx(2 * stats.norm.sf(4.0))  # 1 °C binds
-    assert _silent_share(np.zeros(3)) == 0.0
+    assert silent_share(np.full(5, 1.0)) == pytest.approx(2 * stats.norm.sf(2.0))  # 2σ binds
+    assert silent_share(np.full(5, 0.25)) == pytest.approx(2 * stats.norm.sf(4.0))  # 1 °C binds
+    assert silent_share(np.zeros(3)) == 0.0

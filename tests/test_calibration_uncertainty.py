@@ -1056,3 +1056,30 @@ def test_a_forced_frame_at_an_unseen_pace_takes_its_rate_correction_into_sigma(t
     frame_sigma = np.median(sigma.reshape(len(sigma), -1), axis=1)
     silent = (frame_error > 1.0) & (frame_error > 2.0 * frame_sigma)
     assert silent.mean() < 0.05 and np.mean(error <= 2 * sigma) > 0.9
+
+
+def test_a_memoryless_report_holds_only_the_paces_its_session_stayed_at():
+    """A pace a session passed through in seconds (a step's steep rise) is not held for a
+    memoryless method (PACE_DWELL_S): a camera staying there errs in ways no fold measured
+    (lin-level on boson: 1.0–2.1 °C where σ said 0.2–0.3). A method with memory keeps every
+    pace visited; a session too short to stay anywhere keeps what it visited."""
+    from types import SimpleNamespace
+
+    from thermocal.calibration.report import PACE_DWELL_S, paces_of
+
+    t = np.arange(0.0, 2400.0, 10.0)
+    rate = np.where(t < 600, 0.0, 1.0)
+    rate[(t >= 600) & (t < 620)] = 0.5  # two frames (20 s) on the way up
+    data = SimpleNamespace(usable=np.ones(t.size, bool), fpa_rate_c_per_min=rate, time_s=t,
+                           fpa_c=20.0 + np.cumsum(rate) * 10.0 / 60.0)
+    assert PACE_DWELL_S > 20.0
+    held = {tuple(c) for c in paces_of(data, memoryless=True)["cells"]}
+    visited = {tuple(c) for c in paces_of(data, memoryless=False)["cells"]}
+    passed = {c for c in visited if c[0] == 5}
+    assert passed and not passed & held and held < visited
+    assert (0, 0) in held and (10, 10) in held
+    fpa_cells = paces_of(data, memoryless=True)["fpa_cells"]
+    assert not any(c[0] == 5 for c in fpa_cells)
+    brief = SimpleNamespace(usable=np.ones(3, bool), fpa_rate_c_per_min=np.array([0.0, 0.5, 1.0]),
+                            time_s=np.array([0.0, 10.0, 20.0]), fpa_c=np.array([20.0] * 3))
+    assert len(paces_of(brief, memoryless=True)["cells"]) == 3

@@ -776,6 +776,15 @@ PACE_LAG_S = 480.0
 #: Cells of the (FPA rate, lagged FPA rate) plane that :attr:`CalibrationReport.paces` marks as
 #: held, °C/min a side.
 PACE_CELL_C_PER_MIN = 0.1
+#: How long a session must stay in a cell of :data:`PACE_CELL_C_PER_MIN` for its pace to be
+#: held by a memoryless method, s (the FPA rate's smoothing window,
+#: :data:`~thermocal.calibration.dataset.RATE_SMOOTH_S`): a step's steep rise passes through
+#: paces in seconds, which no fold measured a camera staying at. `lin-level` on `boson`,
+#: fitted on ambient steps and forced on a sawtooth: its first rise from a settled start stayed
+#: 2–5 min at paces the steps had passed through in 10–50 s (1–5 frames) and erred
+#: 1.0–2.1 °C where σ said 0.22–0.33 (42 frames silent; 10 with the dwell, a Gaussian σ's
+#: share 24: ``benchmarks/forced_paces.py``).
+PACE_DWELL_S = 60.0
 #: How far (°C/min, Chebyshev, beyond the nearest held cell's half-width) a method *with*
 #: memory of the FPA's pace (``lin-lag``, ``wolf2016``) may be taken from the paces its session
 #: held. Its lag terms follow a pace's history, but their form was fitted on the session's
@@ -794,22 +803,44 @@ def paces_of(data: ChamberData, *, memoryless: bool = True) -> dict[str, Any]:
     """The paces a session's usable frames held (:attr:`CalibrationReport.paces`): each frame's
     FPA rate ``r`` and the same through a first-order lag of :data:`PACE_LAG_S`, ``y``
     (:func:`~thermocal.calibration.dataset.lagged_rate`), binned in cells of
-    :data:`PACE_CELL_C_PER_MIN`. A steady pace has ``y = r``; a pace just changed, ``y ≠ r``.
-    ``margin_c_per_min``: how far from them a frame's pace may lie, one cell for a
+    :data:`PACE_CELL_C_PER_MIN`: for a ``memoryless`` method those the session stayed in for
+    :data:`PACE_DWELL_S` at least (all it visited where it stayed that long in none), for one
+    with memory all it visited (its lag terms follow a history through the paces it passes:
+    kept to the cells of long stays, `lin-lag` and `wolf2016` refused 22 % of the coverage
+    benchmark's held-out `tau2` frames and 33–37 % of `boson`'s, against 0.1 % and 14–19 %,
+    where none of theirs was silent). A steady pace has ``y = r``; a pace just changed,
+    ``y ≠ r``. ``margin_c_per_min``: how far from them a frame's pace may lie, one cell for a
     ``memoryless`` method, :data:`MEMORY_PACE_MARGIN_C_PER_MIN` for one with memory."""
     use = data.usable
     y = lagged_rate(data.fpa_rate_c_per_min, data.time_s, PACE_LAG_S)
     plane = np.round(np.stack([data.fpa_rate_c_per_min, y], axis=1)[use]
                      / PACE_CELL_C_PER_MIN).astype(np.int64)
+    cells, which = np.unique(plane, axis=0, return_inverse=True)
+    which = which.reshape(-1)
+    dwell = np.bincount(which, weights=_frame_spans(data.time_s)[use], minlength=len(cells))
+    held = dwell >= (PACE_DWELL_S if memoryless else 0.0)
+    if not held.any():  # a session too short to stay anywhere that long: what it visited
+        held[:] = True
     out = {"lag_s": PACE_LAG_S, "cell_c_per_min": PACE_CELL_C_PER_MIN,
-           "cells": np.unique(plane, axis=0).tolist(),
+           "cells": cells[held].tolist(),
            "margin_c_per_min": (PACE_CELL_C_PER_MIN if memoryless
                                 else MEMORY_PACE_MARGIN_C_PER_MIN)}
     if memoryless:  # where (at which FPA temperatures) each pace was held
         fpa = np.floor(data.fpa_c[use] / PACE_FPA_CELL_C).astype(np.int64)[:, None]
+        kept = held[which]
         out |= {"fpa_cell_c": PACE_FPA_CELL_C, "fpa_reach_c": PACE_FPA_REACH_C,
-                "fpa_cells": np.unique(np.hstack([plane, fpa]), axis=0).tolist()}
+                "fpa_cells": np.unique(np.hstack([plane, fpa])[kept], axis=0).tolist()}
     return out
+
+
+def _frame_spans(time_s: np.ndarray) -> np.ndarray:
+    """How long each frame stands for, s ``(M,)``: the time to the next frame (the median
+    interval for the last), at most :data:`PACE_LAG_S` (a gap in the session is not a stay)."""
+    t = np.asarray(time_s, dtype=np.float64)
+    if t.size < 2:
+        return np.full(t.shape, PACE_DWELL_S)
+    step = np.diff(t)
+    return np.minimum(np.r_[step, np.median(step)], PACE_LAG_S)
 
 
 def fpa_sensitivity(data: ChamberData, frames: np.ndarray) -> float | None:

@@ -260,7 +260,7 @@ def _silent(mae: float, sigma: np.ndarray) -> bool:
     return mae > max(SILENT_MAE_C, 2.0 * float(np.median(sigma)))
 
 
-def _silent_share(sigma: np.ndarray) -> float:
+def silent_share(sigma: np.ndarray) -> float:
     """How often a frame of this σ would be silent (:func:`_silent`) if its error were a level
     drawn from a Gaussian of its median σ: ``P(|e| > max(SILENT_MAE_C, 2σ))``."""
     s = float(np.median(sigma))
@@ -299,7 +299,7 @@ def _run_calibration(cal, model: CalibrationSigma, run: physics.Run, rng) -> dic
             outside = bool(model.outside(temps[j], [s.fpa_c[i]], rate_c_per_min=[rate[j]])
                            or unseen[j])
             silent += int(not outside and _silent(float(np.abs(err).mean()), sigmas[j]))
-            expected += 0.0 if outside else _silent_share(sigmas[j])
+            expected += 0.0 if outside else silent_share(sigmas[j])
             kept["forced" if outside else "accepted"].append((err, sigmas[j]))
     out = {"frames": int(s.n_frames), "refused": len(kept["forced"]), "silent_over_1c": silent,
            "silent_expected": expected,
