@@ -58,6 +58,10 @@ def test_report_names_the_machine_and_failures():
     text = markdown_report(runs, quick=True, host=machine())
     assert "cores" in text and "| a |" in text
     assert "nuc (1 s) — FAILED (exit 2)" in text and "boom" in text
+    assert "- command: `thermocal bench --quick`" in text
+    # the command that reruns it: the suites --only chose (the audit: `--only` was dropped)
+    text = markdown_report(runs, quick=False, host=machine(), only=("simulator", "nuc"))
+    assert "- command: `thermocal bench --only simulator --only nuc`" in text
 
 
 @pytest.mark.slow

@@ -128,5 +128,6 @@ def test_parse_range():
         parse_range("40:10", "--a", increasing=True)
     with pytest.raises(InvalidInputError, match="expected A:B in °C"):
         parse_range("10", "--a")
-    with pytest.raises(InvalidInputError, match="A <= B and STEP > 0"):
-        parse_range("70:10:10", "--a", step=True)
+    assert parse_range("70:10:10", "--a", step=True) == (70.0, 10.0, 10.0)  # falling
+    with pytest.raises(InvalidInputError, match="STEP > 0"):
+        parse_range("10:70:0", "--a", step=True)

@@ -66,14 +66,17 @@ def run_benchmarks(names: tuple[str, ...], *, quick: bool) -> dict:
     return out
 
 
-def markdown_report(runs: dict, *, quick: bool, host: str) -> str:
-    """The Markdown report: a header with the machine, then each benchmark's own tables."""
+def markdown_report(runs: dict, *, quick: bool, host: str, only: tuple[str, ...] = ()) -> str:
+    """The Markdown report: a header with the machine and the command that reruns it (``only``:
+    the suites ``--only`` chose), then each benchmark's own tables."""
+    command = " ".join(["thermocal bench", *(["--quick"] if quick else []),
+                        *(f"--only {name}" for name in only)])
     lines = [
         f"# thermocal benchmarks{' (--quick)' if quick else ''}",
         "",
         f"- machine: {host}",
         f"- date: {datetime.now(UTC).strftime('%Y-%m-%d %H:%M UTC')}",
-        f"- command: `thermocal bench{' --quick' if quick else ''}`",
+        f"- command: `{command}`",
         "",
     ]
     for name, run in runs.items():
@@ -104,8 +107,9 @@ def bench(quick: bool, json_out: Path | None, md_out: Path | None, only: tuple[s
             check_output_file(path)
     if json_out is not None and md_out is not None:
         check_outputs_differ(md_out, json_out, ("--markdown", "--json"))
-    runs = run_benchmarks(tuple(dict.fromkeys(only)) or BENCHMARKS, quick=quick)  # once each
-    report = markdown_report(runs, quick=quick, host=host)
+    only = tuple(dict.fromkeys(only))  # once each
+    runs = run_benchmarks(only or BENCHMARKS, quick=quick)
+    report = markdown_report(runs, quick=quick, host=host, only=only)
     if json_out:
         write_json_atomic(json_out, {"machine": host, "quick": quick, "benchmarks": runs})
     if md_out:

@@ -196,7 +196,7 @@ _FLIGHT_FRAMES = {"seq": "frames.seq", "csq": "frames.csq"}
     "--format", "fmt", type=click.Choice(FLIGHT_FORMATS), default="tiff", show_default=True,
     help="File format of the frames: the project's frames.tiff + frames.json, a FLIR "
     "frames.seq/frames.csq, or a folder frames/ of FFF files, FLIR or DJI XT-R R-JPEGs, or "
-    "DualTauUAV .npz files (then frames.json becomes flight.json).",
+    "DualTauUAV .npz files (in every format but tiff, frames.json becomes flight.json).",
 )
 def simulate_flight_cmd(
     out_dir: Path, scene: str, n_frames: int, seed: int, unit: int, preset: str, size: str,

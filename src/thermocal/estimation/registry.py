@@ -125,6 +125,9 @@ def make_estimator(
         checked = isinstance(calibration, (str, os.PathLike))
         kind = OzMean if name == "mean" else PivotCalibration
         return kind(_calibration(calibration), report_needed=checked)
+    from thermocal.optional import require
+
+    require("torch", f"--method {name} (a network)", "nn")
     from thermocal.nn.infer import NetworkEstimator  # torch: only for a network
 
     return NetworkEstimator.from_file(name, model, backend=backend, threads=threads,

@@ -291,7 +291,9 @@ def train(**opts: Any) -> None:
     import sys
 
     from thermocal._validate import check_not_input
+    from thermocal.optional import require
 
+    require("torch", "thermocal train", "nn")
     init = opts.get("init")
     inputs = (opts.get("chamber"), None if init == "shipped" else init)
     check_not_input(opts.get("out"), *inputs)
@@ -538,11 +540,10 @@ def export(model: str | None, out: Path, size: str, method: str | None) -> None:
             f"--method picks a shipped network; {model} is given: leave --method out (the "
             "file's own network is exported)")
     width, height = parse_size(size)
-    try:
-        import onnx  # noqa: F401
-    except ImportError:
-        raise InvalidInputError(
-            "exporting needs the onnx package: pip install 'thermocal[backends]'") from None
+    from thermocal.optional import require
+
+    require("torch", "thermocal export", "nn")
+    require("onnx", "thermocal export", "backends")
     from thermocal.nn.infer import shipped_model_path
     from thermocal.nn.runners import export_onnx
 

@@ -192,11 +192,9 @@ def deepir(
         from thermocal.registration.warp import as_homographies
 
         hs = as_homographies(homographies, "homographies", n=n)
-    try:
-        import torch
-    except ImportError:
-        raise InvalidInputError(
-            "deepir needs torch (pip install 'thermocal[nn]')") from None
+    from thermocal.optional import require
+
+    torch = require("torch", "deepir", "nn")
     if device not in ("auto", "cpu", "cuda"):
         raise InvalidInputError(f"deepir: device must be auto, cpu or cuda, not {device!r}")
     if device == "cuda" and not torch.cuda.is_available():

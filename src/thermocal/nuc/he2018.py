@@ -179,8 +179,9 @@ def load_weights(weights: str | os.PathLike[str] | None = None) -> tuple[Any, di
 def _load(path: str, _mtime_ns: int, _size: int) -> tuple[Any, dict[str, Any]]:
     import warnings
 
-    import torch
+    from thermocal.optional import require
 
+    torch = require("torch", "he2018 (its network's weights)", "nn")
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

@@ -319,12 +319,10 @@ def connect(scheduler: str | None, workers: int) -> Any:
     InvalidInputError
         dask.distributed not installed, or the scheduler unreachable.
     """
-    try:
-        from distributed import Client, LocalCluster
-    except ImportError:
-        raise InvalidInputError(
-            "thermocal campaign needs dask.distributed: pip install 'thermocal[campaign]'"
-        ) from None
+    from thermocal.optional import require
+
+    distributed = require("distributed", "thermocal campaign", "campaign")
+    Client, LocalCluster = distributed.Client, distributed.LocalCluster
     if scheduler is not None:
         _check_scheduler(scheduler)
         try:

@@ -66,7 +66,8 @@ def flight_options(command):
               help="Also mosaic the maps into OUT/mosaic (thermocal mosaic OUT).")
 @click.option("--hfov-deg", type=float, default=None,
               help="Horizontal field of view, degrees, for --geotiff (default: the file's, "
-              "else the camera's: DJI XT/XT-R/XT2 with the 13 mm lens, 45° at 640 px).")
+              "else its lens's, from the EXIF focal length, else the camera's: DJI "
+              "XT/XT-R/XT2 with the 13 mm lens, 45° at 640 px).")
 @click.option("--reference", "reference", type=click.Path(dir_okay=False), default=None,
               help="Ground references for --method selfcal: a CSV with columns frame,x,y,"
               "radius_px,temperature_c (optional emissivity, reflected_c, sigma_c); they fix "
