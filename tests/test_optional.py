@@ -67,6 +67,22 @@ def test_network_commands_without_torch_say_which_extra_installs_it(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["f"]
 
 
+def test_the_demo_without_torch_runs_the_rest_and_says_why_not_the_network(tmp_path):
+    """`thermocal demo` without torch gives every row but the network's, and says which extra
+    installs it (rich took "[nn]" for a style tag and printed `pip install 'thermocal'`)."""
+    code = _NO_TORCH.split("d = sys.argv[1]")[0] + (
+        "code, err = run(['demo', '--out', sys.argv[1] + '/demo'])\n"
+        "assert code == 0, err\n")
+    out = subprocess.run([sys.executable, "-c", code.replace(
+        "redirect_stdout(io.StringIO())", "redirect_stdout(sys.stdout)"), str(tmp_path)],
+        capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    said = " ".join(out.stdout.split())
+    assert "network skipped: the network needs torch: pip install 'thermocal[nn]'" in said
+    assert "polynomial" in said and "KPN" not in said
+    assert (tmp_path / "demo" / "results.json").is_file()
+
+
 def test_require_imports_or_names_the_extra():
     assert require("json", "reading", "none") is json
     with pytest.raises(InvalidInputError, match=r"^--method x needs no_such_module_here: "

@@ -22,6 +22,7 @@ from thermocal import metrics
 from thermocal.calibration.report import fit_with_report
 from thermocal.camera.model import invert
 from thermocal.camera.presets import make_camera
+from thermocal.errors import InvalidInputError
 from thermocal.estimation.calibrated import PivotCalibration
 from thermocal.estimation.pipeline import estimate
 from thermocal.estimation.registry import make_estimator
@@ -62,10 +63,13 @@ def calibrate_in_chamber(camera, *, seed: int, tmp: Path) -> dict:
 def _network():
     """The shipped KPN + offset estimator, or None (with the reason) when torch is not
     installed."""
+    from thermocal.optional import require
+
     try:
-        return make_estimator("kpn"), ""
-    except ImportError as exc:  # torch is an optional dependency
+        require("torch", "the network", "nn")  # an optional dependency
+    except InvalidInputError as exc:
         return None, f"network skipped: {exc}"
+    return make_estimator("kpn"), ""
 
 
 KPN_ROW = "KPN + offset (calibration-free)"
@@ -158,7 +162,7 @@ def run_demo(out_dir: str | Path, *, unit: int = DEMO_UNIT, size=(336, 256),
                   "cross-validation; the network: its σ model); † outside its calibrated range "
                   "(estimated with --force, σ grown)")
     if note:
-        console.print(note)
+        console.print(note, markup=False)  # "thermocal[nn]" is no style tag
 
     shown = {m.split(" (")[0]: e[0] for m, e in estimates.items() if "oracle" not in m}
     figures = {"report.png": burst_report_figure(
@@ -192,7 +196,7 @@ def run_demo(out_dir: str | Path, *, unit: int = DEMO_UNIT, size=(336, 256),
     }
     write_json_atomic(out / "results.json", results)
     console.print(f"report written to {out}/ ({', '.join(figures)}, results.json) in "
-                  f"{results['wall_time_s']:.1f} s")
+                  f"{results['wall_time_s']:.1f} s", markup=False)  # a path is no markup
     return results
 
 
