@@ -1083,3 +1083,100 @@ def test_a_memoryless_report_holds_only_the_paces_its_session_stayed_at():
     brief = SimpleNamespace(usable=np.ones(3, bool), fpa_rate_c_per_min=np.array([0.0, 0.5, 1.0]),
                             time_s=np.array([0.0, 10.0, 20.0]), fpa_c=np.array([20.0] * 3))
     assert len(paces_of(brief, memoryless=True)["cells"]) == 3
+    # a review: one frame before a 200 s gap was a minute's stay, and passes on separate steps
+    # added up; a stay is one run of frames, a gap ends it
+    t2 = np.r_[np.arange(0, 600, 10), 600, np.arange(800, 1400, 10)].astype(float)
+    r2 = np.r_[np.zeros(60), 0.5, np.ones(60)]
+    gap = SimpleNamespace(usable=np.ones(t2.size, bool), fpa_rate_c_per_min=r2, time_s=t2,
+                          fpa_c=np.full(t2.size, 20.0))
+    assert not any(c[0] == 5 for c in paces_of(gap, memoryless=True)["cells"])
+    passes = np.tile(np.r_[np.zeros(30), 0.5, 0.5, np.ones(30)], 4)  # four 20 s passes
+    tp = np.arange(passes.size) * 10.0
+    four = SimpleNamespace(usable=np.ones(tp.size, bool), fpa_rate_c_per_min=passes, time_s=tp,
+                           fpa_c=np.full(tp.size, 20.0))
+    assert not any(c[0] == 5 for c in paces_of(four, memoryless=True)["cells"])
+
+
+def _sustained(held_s: list[list[float]], **kw) -> CalibrationSigma:
+    """A memoryless report whose session visited every pace up to 1.5 °C/min (each with its
+    lagged rate anywhere there), with the stays ``held_s`` (``[cell, s]``) its report
+    records: only how long it held them can put a frame outside."""
+    cells = [[i, j] for i in range(16) for j in range(16)]
+    paces = {"lag_s": 480.0, "cell_c_per_min": 0.1, "cells": cells,
+             "fpa_sensitivity_c_per_c": 0.5,
+             "sustained": {"band_c_per_min": 0.1, "slack_s": 120.0, "held_s": held_s}}
+    return CalibrationSigma(_report(paces=paces, fpa_rate_c_per_min=(-0.1, 1.55), **kw))
+
+
+def test_a_pace_held_longer_than_its_session_held_it_is_outside():
+    """A memoryless calibration whose session passed 0.5 °C/min in 90 s (its steps' rises) is
+    inside for the first 90 s + the slack of a recording that holds that pace, outside after
+    (named, with what to record), σ grown by what the FPA ran on beyond the session's longest
+    stay (× its FPA sensitivity, up to the lag); a pace the session held for an hour stays
+    inside; at rest the stillness rule judges (not this one); an older report has no stays."""
+    from thermocal.calibration.report import pace_stays
+
+    model = _sustained([[0, 3600.0], [4, 90.0], [5, 90.0], [6, 60.0], [15, 3600.0]])
+    t = np.arange(0.0, 1800.0, 10.0)
+    rate = np.full(t.size, 0.5)
+    rate[:3] = 0.0  # the recording starts still, then holds 0.5 °C/min
+    stays = pace_stays(rate, t)
+    assert stays[-1] == pytest.approx(t[-1] - t[3])
+    excess = model.sustained_excess(rate, stays)
+    assert excess[3] == 0 and excess[-1] == pytest.approx(stays[-1] - 90.0)
+    unseen = model.unseen_paces(rate, t)
+    first = int(np.argmax(unseen))
+    assert stays[first] > 90.0 + 120.0 >= stays[first - 1]
+    why = model.outside(np.full((t.size, 2, 2), 25.0), np.full(t.size, 27.0),
+                        rate_c_per_min=rate, time_s=t)
+    said = " ".join(why)
+    assert "the FPA held a pace for longer than its chamber session held it" in said
+    assert "+0.50 °C/min for 3.7 min, the session at most 1.5 min near it" in said
+    assert "a ramp or sawtooth at this rate" in said
+    sigma = model.sigma(np.full((t.size, 1, 1), 25.0), 27.5, rate_c_per_min=rate,
+                        time_since_start_s=t)[:, 0, 0]
+    assert sigma[-1] == pytest.approx(0.5 * 0.5 * 480.0 / 60.0, rel=1e-5)  # up to the lag
+    assert sigma[first - 1] == pytest.approx(G * 0.6, rel=1e-5)  # its rate bin's, inside
+    assert sigma[first - 1] <= sigma[first] < sigma[first + 30]  # then grows with the excess
+    # a burst given its stay from its recording is judged alike
+    from thermocal.estimation.base import FpaPace
+
+    long_, short = (model.outside_burst(np.full((1, 2, 2), 25.0), 27.0,
+                                        FpaPace(0.5, 0.5, None, None, s)) for s in (600.0, 60.0))
+    assert any("held a pace for longer" in w for w in long_)
+    assert not any("held a pace for longer" in w for w in short)
+    # a pace the session held for an hour: inside however long; at rest: not this rule
+    assert not model.sustained_excess(np.full(t.size, 1.5), pace_stays(np.full(t.size, 1.5),
+                                                                       t)).any()
+    assert not model.sustained_excess(np.zeros(t.size), t - t[0]).any()
+    # an older report, or a method with memory: no stays, nothing outside for them
+    assert not CalibrationSigma(_report()).sustained_excess(rate, stays).any()
+
+
+def test_stays_survive_json_and_are_checked():
+    model = _sustained([[0, 3600.0], [5, 90.0]])
+    again = CalibrationReport.from_dict(json.loads(json.dumps(model.report.to_dict())))
+    assert again.paces == model.report.paces
+    for bad in ({"band_c_per_min": 0.0}, {"slack_s": -1.0}, {"slack_s": math.inf},
+                {"held_s": []}, {"held_s": [[0.5, 10.0]]}, {"held_s": [[1, -5.0]]},
+                {"held_s": [[1, math.nan]]}):
+        paces = model.report.to_dict()["fpa_paces"]
+        paces = paces | {"sustained": paces["sustained"] | bad}
+        with pytest.raises(InvalidInputError, match="not a calibration report"):
+            CalibrationReport.from_dict(model.report.to_dict() | {"fpa_paces": paces})
+
+
+def test_a_memoryless_report_records_how_long_its_session_held_each_pace():
+    """``sustained_of``: per pace cell, the longest the session's usable frames had stayed
+    within a cell of their rate; only a memoryless method's report holds it."""
+    from types import SimpleNamespace
+
+    from thermocal.calibration.report import paces_of
+
+    t = np.arange(0.0, 3000.0, 10.0)
+    rate = np.where(t < 600, 0.0, np.where(t < 900, 0.5, 0.0))  # 5 min at 0.5 °C/min
+    data = SimpleNamespace(usable=np.ones(t.size, bool), fpa_rate_c_per_min=rate, time_s=t,
+                           fpa_c=20.0 + np.cumsum(rate) * 10.0 / 60.0)
+    held = dict((c, s) for c, s in paces_of(data, memoryless=True)["sustained"]["held_s"])
+    assert held[5] == pytest.approx(290.0) and held[0] == pytest.approx(t[-1] - 900.0)
+    assert "sustained" not in paces_of(data, memoryless=False)

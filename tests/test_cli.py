@@ -102,6 +102,10 @@ def test_simulate_chamber_sweeps_a_falling_range_from_its_start(tmp_path, capsys
     assert code == 0, err
     bb = read_chamber(out, frames=False).blackbody_c
     assert list(bb[:6]) == [70.0, 70.0, 40.0, 40.0, 10.0, 10.0]
+    # what calibrate says to record keeps the sweep falling (a review: it turned it round)
+    code, _, err = run(["calibrate", str(out), "--method", "polynomial", "--out",
+                        str(tmp_path / "cal.h5")], capsys)
+    assert code == 2 and "--blackbody-c 70:10:30" in err, err
 
 
 @pytest.mark.parametrize(

@@ -20,7 +20,7 @@ import contextlib, importlib.abc, io, json, sys
 class NoTorch(importlib.abc.MetaPathFinder):  # as if not installed: `import torch` fails
     def find_spec(self, name, path, target=None):
         if name.split('.')[0] == 'torch':
-            raise ModuleNotFoundError(f"No module named {name!r}")
+            raise ModuleNotFoundError(f"No module named {name!r}", name=name)
 
 
 sys.meta_path.insert(0, NoTorch())
@@ -47,6 +47,7 @@ print(json.dumps({name: run(args) for name, args in {
     'train': ['train', '--out', d + '/n.pt'],
     'nuc he2018': ['nuc', rec, '--method', 'he2018', '--out', d + '/n.tiff'],
     'export': ['export', '--out', d + '/m.onnx'],
+    'campaign': ['campaign', rec, '--out', d + '/camp', '--workers', '1'],
 }.items()}))
 """
 
@@ -55,7 +56,8 @@ def test_network_commands_without_torch_say_which_extra_installs_it(tmp_path):
     """Without torch, `estimate` and `flight` (their default method is the network), `train`,
     `nuc --method he2018` and `export` each end in one line and exit 2 that names
     `pip install 'thermocal[nn]'` (they ended in a ModuleNotFoundError traceback, exit 1), and
-    write nothing."""
+    write nothing; `campaign` too, before its cluster starts (a review: it failed every
+    recording, naming torch only in its campaign.json)."""
     res = subprocess.run([sys.executable, "-c", _NO_TORCH, str(tmp_path)], capture_output=True,
                          text=True, timeout=300)
     assert res.returncode == 0, res.stderr[-2000:]
@@ -83,8 +85,14 @@ def test_the_demo_without_torch_runs_the_rest_and_says_why_not_the_network(tmp_p
     assert (tmp_path / "demo" / "results.json").is_file()
 
 
-def test_require_imports_or_names_the_extra():
+def test_require_imports_or_names_the_extra(tmp_path, monkeypatch):
     assert require("json", "reading", "none") is json
     with pytest.raises(InvalidInputError, match=r"^--method x needs no_such_module_here: "
                        r"pip install 'thermocal\[extra\]'$"):
         require("no_such_module_here", "--method x", "extra")
+    # installed, but a dependency of its own is missing: pip would say it is there already
+    (tmp_path / "half_installed_mod.py").write_text("import no_such_dependency_here\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    with pytest.raises(InvalidInputError, match="needs half_installed_mod, which is installed "
+                       "but fails to import: No module named 'no_such_dependency_here'"):
+        require("half_installed_mod", "--method x", "extra")

@@ -139,15 +139,26 @@ def _simulated_plan(data: ChamberData) -> dict[str, Any] | None:
     return plan if isinstance(plan, dict) else {}
 
 
-def _range_arg(values: np.ndarray) -> str:
-    """``A:B:STEP`` for evenly spaced values (``A:B:STEP`` of ``--blackbody-c``), else ``""``."""
+def _range_arg(values: np.ndarray, *, falling: bool = False) -> str:
+    """``A:B:STEP`` for evenly spaced values (``A:B:STEP`` of ``--blackbody-c``; ``falling``:
+    from the highest down, as a session that swept them so visited them), else ``""``."""
     v = np.unique(np.round(np.asarray(values, dtype=np.float64), 6))
     if v.size < 2:
         return f"{v[0]:g}:{v[0]:g}:1" if v.size else ""
     step = np.diff(v)
     if np.ptp(step) > 1e-6:
         return ""
-    return f"{v[0]:g}:{v[-1]:g}:{step[0]:g}"
+    a, b = (v[-1], v[0]) if falling else (v[0], v[-1])
+    return f"{a:g}:{b:g}:{step[0]:g}"
+
+
+def _swept_down(blackbody_c: Any) -> bool:
+    """Whether a session visited its first two set points from the higher down (a falling
+    sweep, ``--blackbody-c 70:10:10``)."""
+    values, first = np.unique(np.round(np.asarray(blackbody_c, dtype=np.float64), 6),
+                              return_index=True)
+    order = values[np.argsort(first)]
+    return bool(order.size > 1 and order[0] > order[1])
 
 
 def _camera_args(data: ChamberData) -> list[str]:
@@ -196,7 +207,7 @@ def record_hint(data: ChamberData, profile: str, *, setpoints: int = 0,
             # whole-degree steps: a step written to 6 digits (50/3 as 16.6667) could end past
             # the range and lose its last point (the command given gave 3 points of 4)
             points = lo + max(np.floor((hi - lo) / (setpoints - 1)), 1.0) * np.arange(setpoints)
-        blackbody = _range_arg(points)
+        blackbody = _range_arg(points, falling=_swept_down(data.session.blackbody_c))
         args = [*_camera_args(data), f"--ambient-profile {profile}",
                 f"--ambient-c {ambient[0]:g}:{ambient[1]:g}"]
         if blackbody:

@@ -62,6 +62,7 @@ from thermocal.calibration.dataset import (
     lagged_rate,
     prepare_chamber,
     recording_still_time,
+    still_time,
 )
 from thermocal.errors import InvalidInputError, ThermocalError
 from thermocal.io.chamber import ChamberSession
@@ -136,8 +137,10 @@ class CalibrationReport:
         (:func:`coverage_sigma`), °C; None in a report made before it.
     paces : dict
         The FPA paces the session held: ``lag_s`` (:data:`PACE_LAG_S`), ``cell_c_per_min``
-        (:data:`PACE_CELL_C_PER_MIN`) and ``cells``, the visited cells ``[i, j]`` of the plane
-        (FPA rate, the same through a lag of ``lag_s``) / ``cell_c_per_min`` (:func:`paces_of`),
+        (:data:`PACE_CELL_C_PER_MIN`) and ``cells``, the held cells ``[i, j]`` of the plane
+        (FPA rate, the same through a lag of ``lag_s``) / ``cell_c_per_min`` (:func:`paces_of`:
+        for a memoryless method those stayed in for a minute at a time, for the others every
+        one visited),
         and ``margin_c_per_min``, how far from them a frame is still inside: a cell for a
         method whose model has no memory of how the FPA changed
         (:attr:`~thermocal.calibration.registry.CalibrationInfo.memoryless`),
@@ -286,9 +289,13 @@ class CalibrationReport:
                                                         if rates else ""))
         cell = self.paces.get("cell_c_per_min")
         if self.paces and self.paces.get("margin_c_per_min", cell) <= cell:
+            longest = _longest_stay(self.paces)
             lines.append(f"  held steadily at {_steady_paces(self.paces)} °C/min: {self.method} "
                          "has no memory of how the FPA changed, so frames at paces the session "
-                         "never held are refused (lin-lag follows the pace's history)")
+                         "never held" + (", or held longer than it held them (a changing FPA's "
+                                         f"pace for {longest / 60:.1f} min at most)"
+                                         if longest is not None else "")
+                         + ", are refused (lin-lag follows the pace's history)")
         elif self.paces:
             lines.append(f"  held steadily at {_steady_paces(self.paces)} °C/min: frames more "
                          f"than {self.paces['margin_c_per_min']:g} °C/min from the paces the "
@@ -785,6 +792,19 @@ PACE_CELL_C_PER_MIN = 0.1
 #: 1.0–2.1 °C where σ said 0.22–0.33 (42 frames silent; 10 with the dwell, a Gaussian σ's
 #: share 24: ``benchmarks/forced_paces.py``).
 PACE_DWELL_S = 60.0
+#: How far a memoryless method's FPA rate may stray from its present pace and still hold it
+#: (:func:`pace_stays`), °C/min: a cell of :data:`PACE_CELL_C_PER_MIN`.
+SUSTAIN_BAND_C_PER_MIN = PACE_CELL_C_PER_MIN
+#: How much longer than its chamber session held any pace within a cell of it a recording may
+#: hold a pace before a memoryless method's frames are outside, s (``sustained``: a pace held
+#: for minutes brings what lags the FPA to a state the session's steps, whose rises pass
+#: through each pace in a minute or two, never showed). A helper's map of silent frames:
+#: `polynomial` on `tau2` fitted on ambient steps erred 1.0–1.2 °C where σ said 0.46–0.53,
+#: 14–23 min into a steady 0.5 °C/min rise (a pace the steps held 1.5–3 min); `lin-level` on
+#: `boson` 1.0–1.6 °C where σ said 0.18–0.38 over a 0.25 °C/min rise. Two minutes: what the
+#: rate's own smoothing (:data:`~thermocal.calibration.dataset.RATE_SMOOTH_S`) and noise can
+#: lengthen a stay by, twice.
+SUSTAIN_SLACK_S = 120.0
 #: How far (°C/min, Chebyshev, beyond the nearest held cell's half-width) a method *with*
 #: memory of the FPA's pace (``lin-lag``, ``wolf2016``) may be taken from the paces its session
 #: held. Its lag terms follow a pace's history, but their form was fitted on the session's
@@ -803,8 +823,9 @@ def paces_of(data: ChamberData, *, memoryless: bool = True) -> dict[str, Any]:
     """The paces a session's usable frames held (:attr:`CalibrationReport.paces`): each frame's
     FPA rate ``r`` and the same through a first-order lag of :data:`PACE_LAG_S`, ``y``
     (:func:`~thermocal.calibration.dataset.lagged_rate`), binned in cells of
-    :data:`PACE_CELL_C_PER_MIN`: for a ``memoryless`` method those the session stayed in for
-    :data:`PACE_DWELL_S` at least (all it visited where it stayed that long in none), for one
+    :data:`PACE_CELL_C_PER_MIN`: for a ``memoryless`` method those the session stayed in, or
+    within a cell of, for :data:`PACE_DWELL_S` at a time (:func:`_longest_stays`; all it
+    visited where it stayed that long nowhere), for one
     with memory all it visited (its lag terms follow a history through the paces it passes:
     kept to the cells of long stays, `lin-lag` and `wolf2016` refused 22 % of the coverage
     benchmark's held-out `tau2` frames and 33–37 % of `boson`'s, against 0.1 % and 14–19 %,
@@ -813,34 +834,81 @@ def paces_of(data: ChamberData, *, memoryless: bool = True) -> dict[str, Any]:
     ``memoryless`` method, :data:`MEMORY_PACE_MARGIN_C_PER_MIN` for one with memory."""
     use = data.usable
     y = lagged_rate(data.fpa_rate_c_per_min, data.time_s, PACE_LAG_S)
-    plane = np.round(np.stack([data.fpa_rate_c_per_min, y], axis=1)[use]
-                     / PACE_CELL_C_PER_MIN).astype(np.int64)
+    points = np.stack([data.fpa_rate_c_per_min, y], axis=1)[use] / PACE_CELL_C_PER_MIN
+    plane = np.round(points).astype(np.int64)
     cells, which = np.unique(plane, axis=0, return_inverse=True)
     which = which.reshape(-1)
-    dwell = np.bincount(which, weights=_frame_spans(data.time_s)[use], minlength=len(cells))
-    held = dwell >= (PACE_DWELL_S if memoryless else 0.0)
+    held = (_longest_stays(points, data.time_s[use], cells) >= PACE_DWELL_S if memoryless
+            else np.ones(len(cells), dtype=bool))
     if not held.any():  # a session too short to stay anywhere that long: what it visited
         held[:] = True
     out = {"lag_s": PACE_LAG_S, "cell_c_per_min": PACE_CELL_C_PER_MIN,
            "cells": cells[held].tolist(),
            "margin_c_per_min": (PACE_CELL_C_PER_MIN if memoryless
                                 else MEMORY_PACE_MARGIN_C_PER_MIN)}
-    if memoryless:  # where (at which FPA temperatures) each pace was held
+    if memoryless:  # where (at which FPA temperatures) each pace was held, and how long
         fpa = np.floor(data.fpa_c[use] / PACE_FPA_CELL_C).astype(np.int64)[:, None]
         kept = held[which]
         out |= {"fpa_cell_c": PACE_FPA_CELL_C, "fpa_reach_c": PACE_FPA_REACH_C,
-                "fpa_cells": np.unique(np.hstack([plane, fpa])[kept], axis=0).tolist()}
+                "fpa_cells": np.unique(np.hstack([plane, fpa])[kept], axis=0).tolist(),
+                "sustained": sustained_of(data)}
     return out
 
 
-def _frame_spans(time_s: np.ndarray) -> np.ndarray:
-    """How long each frame stands for, s ``(M,)``: the time to the next frame (the median
-    interval for the last), at most :data:`PACE_LAG_S` (a gap in the session is not a stay)."""
+def pace_stays(rate_c_per_min: Any, time_s: Any) -> np.ndarray:
+    """How long each frame's FPA rate had stayed within :data:`SUSTAIN_BAND_C_PER_MIN` of its
+    present value, s ``(M,)`` (:func:`~thermocal.calibration.dataset.still_time` of the rate; a
+    gap of :data:`PACE_LAG_S` between frames starts anew; a rate not known, NaN, stays
+    nowhere: 0): how long the FPA had been changing at its present pace. ``rate_c_per_min``
+    (°C/min) and ``time_s`` (s) ``(M,)`` of one recording, in time order."""
+    rate = np.asarray(rate_c_per_min, dtype=np.float64)
+    known = np.isfinite(rate)
+    stays = still_time(np.where(known, rate, 0.0), time_s, band_c=SUSTAIN_BAND_C_PER_MIN,
+                       max_gap_s=PACE_LAG_S)
+    return np.where(known, stays, 0.0)
+
+
+def sustained_of(data: ChamberData) -> dict[str, Any]:
+    """How long a session held each pace (:attr:`CalibrationReport.paces`' ``sustained``, a
+    memoryless method's): ``band_c_per_min`` (:data:`SUSTAIN_BAND_C_PER_MIN`), ``slack_s``
+    (:data:`SUSTAIN_SLACK_S`) and ``held_s``, ``[cell, s]`` for each cell of the FPA rate
+    (``round(rate / PACE_CELL_C_PER_MIN)``) its usable frames visited: the longest they had
+    stayed at a pace by then (:func:`pace_stays`)."""
+    stays = pace_stays(data.fpa_rate_c_per_min, data.time_s)[data.usable]
+    rate = np.nan_to_num(np.asarray(data.fpa_rate_c_per_min, dtype=np.float64)[data.usable])
+    cells = np.round(rate / PACE_CELL_C_PER_MIN).astype(np.int64)
+    held = {}
+    for c, s in zip(cells.tolist(), stays.tolist(), strict=True):
+        held[c] = max(held.get(c, 0.0), s)
+    return {"band_c_per_min": SUSTAIN_BAND_C_PER_MIN, "slack_s": SUSTAIN_SLACK_S,
+            "held_s": [[c, held[c]] for c in sorted(held)]}
+
+
+#: How far from a cell's centre a frame's pace may lie and still stay in it (:func:`paces_of`'s
+#: stays), cells (Chebyshev): the cell and a quarter-cell border, so that a steady pace on a
+#: cell's edge, which flickers across it, stays in both; a step's rise still passes through.
+STAY_REACH_CELLS = 0.75
+
+
+def _longest_stays(points: np.ndarray, time_s: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """The longest each of ``cells`` ``(C, 2)`` was stayed in, s ``(C,)``: over runs of
+    consecutive frames (``points`` ``(M, 2)``, their paces in cells, at ``time_s`` ``(M,)``) all
+    within :data:`STAY_REACH_CELLS` of its centre, from the run's first frame's time to its
+    last's (one frame: 0), a gap of more than :data:`PACE_DWELL_S` between frames ending a run
+    (what the FPA did then was not seen). Passes through a cell on separate steps do not add
+    up: each is its own run."""
     t = np.asarray(time_s, dtype=np.float64)
-    if t.size < 2:
-        return np.full(t.shape, PACE_DWELL_S)
-    step = np.diff(t)
-    return np.minimum(np.r_[step, np.median(step)], PACE_LAG_S)
+    cut = np.r_[True, np.diff(t) > PACE_DWELL_S]  # a frame that starts a run whatever its cell
+    out = np.zeros(len(cells))
+    for k, c in enumerate(cells):
+        near = np.abs(points - c).max(axis=1) <= STAY_REACH_CELLS
+        idx = np.flatnonzero(near)
+        if idx.size < 2:
+            continue
+        starts = np.r_[0, np.flatnonzero((np.diff(idx) != 1) | cut[idx[1:]]) + 1]
+        ends = np.r_[starts[1:], idx.size] - 1
+        out[k] = float(np.max(t[idx[ends]] - t[idx[starts]]))
+    return out
 
 
 def fpa_sensitivity(data: ChamberData, frames: np.ndarray) -> float | None:
@@ -913,6 +981,13 @@ def _steady_paces(paces: dict[str, Any]) -> str:
                      for a, b in runs) or "no pace"
 
 
+def _longest_stay(paces: dict[str, Any]) -> float | None:
+    """The longest a session held a changing FPA's pace (its ``sustained`` stays off the rest
+    cell), s; None where the report lists no stays or only rest."""
+    stays = [s for c, s in (paces.get("sustained") or {}).get("held_s", []) if c != 0]
+    return max(stays) if stays else None
+
+
 def _paces_from(d: dict[str, Any]) -> dict[str, Any]:
     """A report's ``fpa_paces`` read back, checked (``{}`` when absent)."""
     if not d:
@@ -948,6 +1023,17 @@ def _paces_from(d: dict[str, Any]) -> dict[str, Any]:
             raise ValueError("fpa_paces: still needs a band and a held time > 0, finite, and "
                              "at least one plateau")
         out["still"] = {"band_c": band, "held_s": held, "plateaus": plateaus}
+    if d.get("sustained") is not None:
+        sus = d["sustained"]
+        band, slack = float(sus["band_c_per_min"]), float(sus["slack_s"])
+        held = np.asarray(sus["held_s"], dtype=np.float64).reshape(-1, 2)
+        if not (0 < band < math.inf and 0 <= slack < math.inf and held.size
+                and np.all(np.isfinite(held)) and np.all(held[:, 1] >= 0)
+                and np.array_equal(held[:, 0], np.round(held[:, 0]))):
+            raise ValueError("fpa_paces: sustained needs a band > 0, a slack >= 0, both "
+                             "finite, and a held time >= 0 for some whole cells")
+        out["sustained"] = {"band_c_per_min": band, "slack_s": slack,
+                            "held_s": [[int(c), float(s)] for c, s in held]}
     return out
 
 

@@ -93,6 +93,7 @@ from thermocal.calibration.report import (
     MIN_BIN_FRAMES,
     PACE_LAG_S,
     CalibrationReport,
+    pace_stays,
     rate_bin_range,
     report_of,
 )
@@ -497,8 +498,11 @@ class CalibrationSigma:
         """Which frames ``(N,)`` bool of one recording changed at a pace the session never
         held: more than one cell from every held one (:meth:`pace_distance`), or, given their
         FPA temperatures ``fpa_c`` (°C ``(N,)``), held it still longer than the session's
-        plateaus did (:meth:`still_excess`)."""
+        plateaus did (:meth:`still_excess`); or held a pace longer than the session held it
+        by more than its slack (:meth:`sustained_excess`)."""
         unseen = self.pace_distance(rate_c_per_min, time_s, fpa_c=fpa_c) > self._pace_margin
+        _, excess = self._sustained(rate_c_per_min, time_s)
+        unseen |= excess > self.report.paces.get("sustained", {}).get("slack_s", math.inf)
         if fpa_c is not None:
             _, excess, unknown = self._still(fpa_c, time_s, rate_c_per_min=rate_c_per_min)
             unseen |= (excess > 1.0) | unknown
@@ -512,6 +516,79 @@ class CalibrationSigma:
         s = np.asarray(still_s, dtype=np.float64).reshape(-1)
         still = (self.report.paces or {}).get("still")
         return s / still["held_s"] if still else np.zeros(s.shape)
+
+    def sustained_excess(self, rate_c_per_min: Any, stays_s: Any) -> np.ndarray:
+        """How much longer each frame had held its pace than its chamber session held any pace
+        within a cell of it, s ``(N,)`` (0 where no longer, where the report lists no stays —
+        a method with memory, an older report — and at rest, the stillness's part): its stay
+        ``stays_s`` (s, :func:`~thermocal.calibration.report.pace_stays` of its recording, one
+        or one per frame) at its FPA rate ``rate_c_per_min`` (°C/min) less the longest the
+        session stayed there (its report's ``sustained``). Frames with an excess above the
+        report's ``slack_s`` are outside: what lags the FPA has run on to a state the session
+        never showed."""
+        sus = (self.report.paces or {}).get("sustained")
+        rate = np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)
+        stays = np.asarray(stays_s, dtype=np.float64).reshape(-1)
+        shape = _common_shape(rate, stays, "rate_c_per_min", "the stays")
+        if not sus:
+            return np.zeros(shape)
+        cell = self.report.paces["cell_c_per_min"]
+        held = dict((int(c), s) for c, s in sus["held_s"])
+        lo, hi = min(held), max(held)
+        table = np.zeros(hi - lo + 3)  # cells lo−1 … hi+1: the longest stay within one cell
+        for c, s in held.items():
+            table[c - lo : c - lo + 3] = np.maximum(table[c - lo : c - lo + 3], s)
+        at = np.round(np.nan_to_num(np.broadcast_to(rate, shape)) / cell).astype(np.int64)
+        inside = (at >= lo - 1) & (at <= hi + 1)
+        longest = np.where(inside, table[np.clip(at - lo + 1, 0, table.size - 1)], 0.0)
+        excess = np.maximum(np.broadcast_to(stays, shape) - longest, 0.0)
+        return np.where((at != 0) & np.isfinite(np.broadcast_to(rate, shape)), excess, 0.0)
+
+    def _sustained(self, rate_c_per_min: Any, time_s: Any = None, stays_s: Any = None
+                   ) -> tuple[np.ndarray, np.ndarray]:
+        """Frames' stays at their pace (s) and :meth:`sustained_excess` (s), both ``(N,)``: the
+        stays given (``stays_s``, one or one per frame, taken from their recording), or those
+        of the frames of one recording at ``time_s`` (s, in time order); zeros where neither
+        (no history: a burst alone) or the report lists no stays."""
+        rate = np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)
+        if not (self.report.paces or {}).get("sustained"):
+            return np.zeros(rate.shape), np.zeros(rate.shape)
+        if stays_s is None:
+            t = None if time_s is None else np.asarray(time_s, dtype=np.float64).reshape(-1)
+            if t is None or t.shape != rate.shape or np.any(np.diff(t) <= 0):
+                return np.zeros(rate.shape), np.zeros(rate.shape)
+            stays_s = pace_stays(rate, t)
+        stays = np.nan_to_num(np.asarray(stays_s, dtype=np.float64).reshape(-1))
+        excess = self.sustained_excess(rate, stays)
+        return np.broadcast_to(stays, excess.shape), excess
+
+    def _sustained_sigma(self, rate_c_per_min: np.ndarray, excess: np.ndarray) -> np.ndarray:
+        """``s`` of frames that held their pace longer than the session did by more than its
+        slack (:meth:`sustained_excess`, s): what the FPA ran on by at that rate beyond the
+        session's longest stay, up to the report's lag, is worth in the counts (its
+        ``fpa_sensitivity_c_per_c``; 1 where absent), and at least the report's largest
+        rate-bin σ: how far what lags it fell behind no fold measured (0 elsewhere)."""
+        paces = self.report.paces or {}
+        sus = paces.get("sustained")
+        if not sus:
+            return np.zeros(np.shape(excess))
+        sensitivity = paces.get("fpa_sensitivity_c_per_c")
+        sensitivity = 1.0 if sensitivity is None else sensitivity
+        ran = np.abs(np.nan_to_num(rate_c_per_min)) * np.minimum(excess, paces["lag_s"]) / 60.0
+        return np.where(excess > sus["slack_s"],
+                        np.maximum(self._worst_sigma(), sensitivity * ran), 0.0)
+
+    def _sustained_reason(self, rate: float, stay: float, excess: float,
+                          count: str = "") -> str:
+        """The refusal's text for a frame that held ``rate`` °C/min for ``stay`` s, ``excess`` s
+        longer than its chamber session held any pace within a cell of it."""
+        held = max(stay - excess, 0.0)
+        return (f"the FPA held a pace for longer than its chamber session held it ({count}"
+                f"{'first ' if count else ''}{rate:+.2f} °C/min for {stay / 60:.1f} min, the "
+                f"session at most {held / 60:.1f} min near it): the {self.report.method} "
+                "calibration, with no memory of how the FPA changed, cannot vouch for the "
+                "state what lags the FPA reaches then (record a session that holds such paces "
+                "as long, a ramp or sawtooth at this rate; lin-lag follows the pace's history)")
 
     def _still(self, fpa_c: Any, time_s: Any, still_s: Any = None, since_s: Any = None,
                rate_c_per_min: Any = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -606,7 +683,8 @@ class CalibrationSigma:
 
     def sigma(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None,
               time_since_start_s: Any = None, lagged_rate_c_per_min: Any = None,
-              still_s: Any = None, history_seen: bool = True) -> np.ndarray:
+              still_s: Any = None, sustained_s: Any = None,
+              history_seen: bool = True) -> np.ndarray:
         """σ (°C, float32, the shape of ``temps_c``: ``(H, W)`` or ``(N, H, W)``) of
         temperatures at FPA temperature ``fpa_c`` (°C: one, or one per frame) changing at
         ``rate_c_per_min`` (°C/min, one or one per frame; None: not known), taken
@@ -617,9 +695,12 @@ class CalibrationSigma:
         the report's largest rate-bin σ times :meth:`still_excess` (one frame has no pace
         history: give its ``lagged_rate_c_per_min``, °C/min, and ``still_s``, s, one or one
         per frame, taken from its recording); for a memoryless method with a pace history, at
-        least :meth:`change_sigma` of ``|rate − lagged rate|``. ``history_seen`` False: the
-        calibration was applied to these frames without their recording's FPA history (a
-        burst: a model remembering the FPA's rates started steady at the burst), whatever
+        least :meth:`change_sigma` of ``|rate − lagged rate|``, and where a pace was held
+        longer than the session held it (:meth:`sustained_excess`, from the recording or each
+        frame's ``sustained_s``, s, its stay at its pace), :meth:`_sustained_sigma`.
+        ``history_seen`` False: the calibration was applied to these frames without their
+        recording's FPA history (a burst: a model remembering the FPA's rates started steady
+        at the burst), whatever
         ``time_since_start_s`` says: :meth:`history_sigma` in full."""
         temps = np.asarray(temps_c, dtype=np.float64)
         frames = temps if temps.ndim == 3 else temps[None]
@@ -631,17 +712,19 @@ class CalibrationSigma:
         if rate_c_per_min is not None:
             rate = np.broadcast_to(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1), (n,))
             if history:  # a recording: its own paces; else the lagged rates given
+                times = (np.broadcast_to(np.asarray(time_since_start_s, dtype=np.float64)
+                                         .reshape(-1), (n,)) if recording else None)
                 rate, lagged, d = self._pace(
-                    rate,
-                    np.broadcast_to(np.asarray(time_since_start_s, dtype=np.float64).reshape(-1),
-                                    (n,)) if recording else None,
-                    None if recording else lagged_rate_c_per_min, fpa)
+                    rate, times, None if recording else lagged_rate_c_per_min, fpa)
                 change = self.change_sigma(np.abs(rate - lagged))
+                _, sustained = self._sustained(rate, times, None if recording else sustained_s)
+                sustained = self._sustained_sigma(rate, sustained)
                 if self.by_pace:  # the bins are of the pace: the larger of the two rates
                     rate = np.maximum(np.abs(rate), np.abs(lagged))
             level = self.rate_sigma(rate, at_least=self.by_pace and not history)
             if history:
                 level = np.maximum(level, np.maximum(self._pace_sigma(d), change))
+                level = np.maximum(level, sustained)
         elif self.report.paces.get("fpa_cells"):  # no rate: taken as steady, as applied
             level = np.maximum(level, self._pace_sigma(self._distance(np.zeros(n), np.zeros(n),
                                                                       fpa)))
@@ -762,7 +845,9 @@ class CalibrationSigma:
             temps_c, fpa_c, rate_c_per_min=[pace.rate_c_per_min], time_since_start_s=since,
             lagged_rate_c_per_min=(None if pace.lagged_c_per_min is None
                                    else [pace.lagged_c_per_min]),
-            still_s=None if pace.still_s is None else [pace.still_s], history_seen=history_seen)
+            still_s=None if pace.still_s is None else [pace.still_s],
+            sustained_s=None if pace.sustained_s is None else [pace.sustained_s],
+            history_seen=history_seen)
 
     def outside_burst(self, temps_c: np.ndarray, fpa_c: float | None, pace: Any, *,
                       time_since_start_s: float | None = None) -> tuple[str, ...]:
@@ -777,14 +862,16 @@ class CalibrationSigma:
         lagged = (None if pace is None or pace.lagged_c_per_min is None
                   else [pace.lagged_c_per_min])
         still = [math.nan if pace is None or pace.still_s is None else pace.still_s]
+        stays = None if pace is None or pace.sustained_s is None else [pace.sustained_s]
         return self.outside(temps_c, () if fpa_c is None else fpa_c, rate_c_per_min=rate,
-                            lagged_rate_c_per_min=lagged, still_s=still,
+                            lagged_rate_c_per_min=lagged, still_s=still, sustained_s=stays,
                             time_since_start_s=(None if time_since_start_s is None
                                                 else [time_since_start_s]))
 
     def outside(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None,
                 time_s: Any = None, lagged_rate_c_per_min: Any = None,
-                still_s: Any = None, time_since_start_s: Any = None) -> tuple[str, ...]:
+                still_s: Any = None, time_since_start_s: Any = None,
+                sustained_s: Any = None) -> tuple[str, ...]:
         """Why frames lie outside what the calibration was fitted on: their FPA temperatures
         (more than :data:`FPA_MARGIN_C` beyond the session's), their FPA rates (°C/min, where
         known: faster than :data:`RATE_MARGIN` times the session's fastest), their paces (with
@@ -793,7 +880,9 @@ class CalibrationSigma:
         from its recording, by its rate and lagged rate), their stillness (where the session's
         plateaus ended before the camera settled: the FPA held still longer than they held it,
         :meth:`still_excess`, from ``time_s`` or each frame's ``still_s``, s; or not known:
-        still since their recording began, ``time_since_start_s`` s before, or NaN), or
+        still since their recording began, ``time_since_start_s`` s before, or NaN), for a
+        memoryless method a pace held longer than the session held it
+        (:meth:`sustained_excess`, from ``time_s`` or each frame's ``sustained_s``, s), or
         their scene (its 1st–99th percentile beyond the blackbody's range); ``()`` inside."""
         reasons = []
         fpa = np.asarray(fpa_c, dtype=np.float64).reshape(-1)
@@ -809,6 +898,16 @@ class CalibrationSigma:
                          else "")
                 at = float(fpa[min(k, fpa.size - 1)]) if fpa.size else None
                 reasons.append(self._pace_reason(rate[k], lagged[k], count=count, fpa=at))
+            stays, excess = self._sustained(rate, time_s if lagged_rate_c_per_min is None
+                                            else None, sustained_s)
+            held_long = excess > self.report.paces.get("sustained", {}).get("slack_s", math.inf)
+            if held_long.any():
+                k = int(np.argmax(held_long))
+                count = (f"{int(held_long.sum())} of {held_long.size} frames; "
+                         if held_long.size > 1 else "")
+                reasons.append(self._sustained_reason(float(rate[min(k, rate.size - 1)]),
+                                                      float(stays[k]), float(excess[k]),
+                                                      count=count))
         elif rate_c_per_min is None and fpa.size and self.report.paces.get("fpa_cells"):
             # no rate (a recording too short to show it): taken as steady, as it is applied
             unseen = self._distance(np.zeros(fpa.size), np.zeros(fpa.size), fpa) \

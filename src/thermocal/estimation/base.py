@@ -34,20 +34,26 @@ class FpaPace(NamedTuple):
         The FPA rate through each lag of a calibration that remembers the rate (``lin-lag``'s
         ``rate_lags_s``), °C/min, from the recording: the history its lag terms need; None
         without it (then they start steady at the burst).
+    sustained_s : float or None
+        How long the FPA rate had stayed within a cell of its value at the burst
+        (:func:`~thermocal.calibration.report.pace_stays`), s, where the calibration's report
+        judges how long paces were held (a memoryless method's); None without the recording's
+        history or without such a calibration.
     """
 
     rate_c_per_min: float
     lagged_c_per_min: float | None = None
     still_s: float | None = None
     lag_rates: tuple[float, ...] | None = None
+    sustained_s: float | None = None
 
 
 def fpa_pace(rate_c_per_min: float | None, lagged_c_per_min: float | None = None,
-             still_s: float | None = None, lag_rates: tuple[float, ...] | None = None
-             ) -> FpaPace | None:
+             still_s: float | None = None, lag_rates: tuple[float, ...] | None = None, *,
+             sustained_s: float | None = None) -> FpaPace | None:
     """A burst's :class:`FpaPace`, None without its rate."""
     return (None if rate_c_per_min is None
-            else FpaPace(rate_c_per_min, lagged_c_per_min, still_s, lag_rates))
+            else FpaPace(rate_c_per_min, lagged_c_per_min, still_s, lag_rates, sustained_s))
 
 
 @dataclass(frozen=True)
@@ -110,6 +116,9 @@ class PreparedBurst:
     fpa_still_s : float or None
         How long the FPA had held still at the burst (:class:`FpaPace`), s, where the
         recording's history is known; for the same.
+    fpa_sustained_s : float or None
+        How long the FPA had held its pace at the burst (:attr:`FpaPace.sustained_s`), s,
+        where the recording's history is known; for the same.
     fpa_lag_rates_c_per_min : tuple of float or None
         The FPA rate through each lag of a calibration that remembers it
         (:attr:`FpaPace.lag_rates`), given to its calibration; None: it started steady at the
@@ -131,12 +140,13 @@ class PreparedBurst:
     fpa_still_s: float | None = None
     fpa_lag_rates_c_per_min: tuple[float, ...] | None = None
     pivot_time_s: float | None = None
+    fpa_sustained_s: float | None = None
 
     @property
     def pace(self) -> FpaPace | None:
         """How the FPA was changing at the burst (:func:`fpa_pace`), None where not known."""
         return fpa_pace(self.fpa_rate_c_per_min, self.fpa_lagged_rate_c_per_min,
-                        self.fpa_still_s)
+                        self.fpa_still_s, sustained_s=self.fpa_sustained_s)
 
 
 @runtime_checkable

@@ -24,7 +24,7 @@ from thermocal.calibration.uncertainty import (
     older_report_warning,
 )
 from thermocal.errors import ResolutionMismatchError
-from thermocal.estimation.base import Estimate, FpaPace, PreparedBurst, fpa_pace, view_spread
+from thermocal.estimation.base import Estimate, FpaPace, PreparedBurst, view_spread
 from thermocal.estimation.pipeline import estimate
 
 __all__ = ["OzMean", "PivotCalibration", "naive_mean"]
@@ -127,8 +127,7 @@ class _ThroughCalibration:
         (in quadrature)."""
         if self.sigma_model is None or burst.fpa_c is None:
             return None
-        pace = fpa_pace(burst.fpa_rate_c_per_min, burst.fpa_lagged_rate_c_per_min,
-                        burst.fpa_still_s)  # its stillness judged with its pace, as checked
+        pace = burst.pace  # its stillness and stays judged with its pace, as checked
         sigma = self.sigma_model.burst_sigma(
             temperature_c, burst.fpa_c, pace, time_since_start_s=burst.time_since_start_s,
             history_seen=burst.fpa_lag_rates_c_per_min is not None)

@@ -13,14 +13,14 @@ from typing import Any
 import numpy as np
 
 from thermocal.calibration.dataset import lagged_rate, recording_fpa_rates, recording_still_time
-from thermocal.calibration.report import PACE_LAG_S
+from thermocal.calibration.report import PACE_LAG_S, pace_stays
 
 __all__ = ["PACE_KEYS", "pace_at", "recording_paces"]
 
 #: The series :func:`recording_paces` gives, each a keyword of
 #: :func:`~thermocal.estimation.pipeline.estimate` (one frame's value, :func:`pace_at`).
 PACE_KEYS = ("fpa_rate_c_per_min", "fpa_lagged_rate_c_per_min", "fpa_still_s",
-             "fpa_lag_rates_c_per_min")
+             "fpa_lag_rates_c_per_min", "fpa_sustained_s")
 
 
 def recording_paces(fpa_c: Any, time_s: Any, paces: dict[str, Any],
@@ -38,7 +38,10 @@ def recording_paces(fpa_c: Any, time_s: Any, paces: dict[str, Any],
       ``still``, s (:func:`~thermocal.calibration.dataset.recording_still_time`);
     - ``fpa_lag_rates_c_per_min``: the rate through each of ``rate_lags_s``, °C/min
       ``(M, K)``, started steady at the recording's first frame (the history ``lin-lag``'s
-      lag terms need; a burst alone would start them steady at itself).
+      lag terms need; a burst alone would start them steady at itself);
+    - ``fpa_sustained_s``: how long the FPA rate had stayed at its pace, s
+      (:func:`~thermocal.calibration.report.pace_stays`), for a report that holds its
+      session's stays (``sustained``: a memoryless method's).
 
     Each None where it cannot be known: without FPA temperatures or frame times, for a recording
     too short to show its rate, for frame times that do not increase, for a constant FPA series
@@ -62,6 +65,8 @@ def recording_paces(fpa_c: Any, time_s: Any, paces: dict[str, Any],
     if still:
         out["fpa_still_s"] = recording_still_time(fpa_c, time_s, band_c=still["band_c"],
                                                   max_gap_s=PACE_LAG_S)
+    if paces.get("sustained"):
+        out["fpa_sustained_s"] = pace_stays(rates, time_s)
     return out
 
 
@@ -70,8 +75,8 @@ def pace_at(paces: dict[str, Any], time_s: Any, k: int) -> dict[str, Any]:
     :data:`PACE_KEYS`; a missing or None series: not known) and how long after the recording's
     first frame it was taken (``time_s``, s; None: not known), as
     :func:`~thermocal.estimation.pipeline.estimate`'s keywords: ``fpa_rate_c_per_min``,
-    ``fpa_lagged_rate_c_per_min``, ``fpa_still_s`` (floats), ``fpa_lag_rates_c_per_min``
-    (``(K,)``) and ``time_since_start_s``."""
+    ``fpa_lagged_rate_c_per_min``, ``fpa_still_s``, ``fpa_sustained_s`` (floats),
+    ``fpa_lag_rates_c_per_min`` (``(K,)``) and ``time_since_start_s``."""
     out: dict[str, Any] = {}
     for name in PACE_KEYS:
         series = paces.get(name)

@@ -121,6 +121,7 @@ def estimate(
     fpa_lagged_rate_c_per_min: float | None = None,
     fpa_still_s: float | None = None,
     fpa_lag_rates_c_per_min: Any = None,
+    fpa_sustained_s: float | None = None,
     bit_depth: int = 14,
 ) -> Estimate:
     """The pivot frame's temperature of a raw burst through ``estimator``.
@@ -169,6 +170,11 @@ def estimate(
         ``rate_lags_s``), °C/min, from the whole recording (with ``fpa_rate_c_per_min``):
         without it, its lag terms start steady at the burst and σ is that of frames without
         their history.
+    fpa_sustained_s : float, optional
+        How long the FPA had held its pace at the burst, s
+        (:attr:`~thermocal.estimation.base.FpaPace.sustained_s`, from the whole recording): a
+        calibration with no memory of the FPA's pace refuses a pace held longer than its
+        chamber session held it (unless ``force``: σ grown).
     bit_depth : int
         The counts' bit depth (14 for a Tau2 core; 16 for FLIR files): saturation is at
         ``2**bit_depth − 1``.
@@ -192,7 +198,8 @@ def estimate(
     fpa = fpa_value(fpa_c, arr.shape[0]) if estimator.needs_fpa or fpa_c is not None else None
     lag_rates = (None if fpa_lag_rates_c_per_min is None
                  else tuple(float(v) for v in np.asarray(fpa_lag_rates_c_per_min).reshape(-1)))
-    pace = fpa_pace(fpa_rate_c_per_min, fpa_lagged_rate_c_per_min, fpa_still_s, lag_rates)
+    pace = fpa_pace(fpa_rate_c_per_min, fpa_lagged_rate_c_per_min, fpa_still_s, lag_rates,
+                    sustained_s=fpa_sustained_s)
     lag_rates = None if pace is None else lag_rates  # given to the calibration with its rate
     # the pivot's time, for a calibration whose correction depends on it (a shutter's
     # closures): one time for every frame, as the calibrations take it, or the pivot's own
@@ -209,7 +216,7 @@ def estimate(
         calibrated, raised = calibrate_stage(estimator, arr, fpa_c, time_s, pace=pace)
         burst = PreparedBurst(arr, calibrated, valid, hs, p, fpa, fpa_rate_c_per_min,
                               time_since_start_s, fpa_lagged_rate_c_per_min, fpa_still_s,
-                              lag_rates, pivot_time)
+                              lag_rates, pivot_time, fpa_sustained_s)
         # the pivot alone is estimated: the pivot alone is checked (a recording's other frames
         # may lie anywhere: a chamber session's cycle through its set points)
         outside = checked_stage(estimator, calibrated[p : p + 1], burst, raised, force=force,
@@ -238,7 +245,7 @@ def estimate(
     check_overlap(valid, p)
     burst = PreparedBurst(filled, warped, valid, hs, p, fpa, fpa_rate_c_per_min,
                           time_since_start_s, fpa_lagged_rate_c_per_min, fpa_still_s, lag_rates,
-                          pivot_time)
+                          pivot_time, fpa_sustained_s)
     outside = checked_stage(estimator, calibrated, burst, raised, force=force, pace=pace)
     # 6. estimate
     return _estimate_of(estimator, burst, outside)

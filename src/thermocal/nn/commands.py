@@ -293,7 +293,8 @@ def train(**opts: Any) -> None:
     from thermocal._validate import check_not_input
     from thermocal.optional import require
 
-    require("torch", "thermocal train", "nn")
+    for module in ("torch", "kornia"):  # the [nn] extra's
+        require(module, "thermocal train", "nn")
     init = opts.get("init")
     inputs = (opts.get("chamber"), None if init == "shipped" else init)
     check_not_input(opts.get("out"), *inputs)

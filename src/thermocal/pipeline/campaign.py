@@ -432,6 +432,11 @@ def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
     if scheduler is None:  # processes of this machine's LocalCluster
         check_per_core(n_workers, "--workers")
     check_not_a_recording_folder(Path(out))
+    networks = sorted({t.options.method for t in tasks if _runs_network(t)})
+    if networks and scheduler is None:  # this machine's workers: before any starts, not in each
+        from thermocal.optional import require
+
+        require("torch", f"--method {networks[0]} (a network)", "nn")
     started = time.perf_counter()
     client = connect(scheduler, n_workers)
     from distributed import as_completed  # installed: connect() checked

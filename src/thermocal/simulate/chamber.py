@@ -46,8 +46,9 @@ SOURCE = "thermocal simulate chamber"
 class ChamberPlan:
     """What the chamber does: set points (°C), their order, the ambient profile and the timing.
 
-    ``order``: ``sweep`` goes low → high and starts again, ``sawtooth`` goes up and down,
-    ``random`` visits the set points in a random order each cycle. ``duration_s`` defaults to one
+    ``order``: ``sweep`` visits ``setpoints_c`` in their order (low → high, or high → low for
+    a falling range) and starts again, ``sawtooth`` goes through them and back, ``random``
+    visits them in a random order each cycle. ``duration_s`` defaults to one
     full cycle of the ambient profile.
     """
 
