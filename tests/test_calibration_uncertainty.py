@@ -1180,3 +1180,28 @@ def test_a_memoryless_report_records_how_long_its_session_held_each_pace():
     held = dict((c, s) for c, s in paces_of(data, memoryless=True)["sustained"]["held_s"])
     assert held[5] == pytest.approx(290.0) and held[0] == pytest.approx(t[-1] - 900.0)
     assert "sustained" not in paces_of(data, memoryless=False)
+
+
+def test_a_method_that_learns_online_is_held_to_the_directions_its_session_changed():
+    """wolf2016 (it learns its FPA terms online) fitted on a session whose FPA only rose: a
+    recording falling by more than a cell below the session's paces is outside, named ("fell
+    … never did"), with what to record, though within its 0.3 °C/min margin (a helper's map:
+    −2.6…−4.4 °C where σ said 0.5–2.1 over a slow sawtooth's falls, unrefused); a fall within a
+    cell is the session's rest; lin-lag, whose lag terms are linear in the rate, keeps its
+    margin."""
+    cells = [[i, j] for i in range(0, 11) for j in range(0, 11)]  # rest and rises only
+    paces = {"lag_s": 480.0, "cell_c_per_min": 0.1, "cells": cells, "margin_c_per_min": 0.3}
+    t = np.arange(0.0, 1800.0, 10.0)
+    temps = np.full((t.size, 2, 2), 25.0)
+    fpa = np.full(t.size, 27.0)
+    for method, rate, outside in (("wolf2016", -0.25, True), ("wolf2016", -0.08, False),
+                                  ("wolf2016", 0.5, False), ("lin-lag", -0.25, False)):
+        model = CalibrationSigma(_report(method=method, paces=paces,
+                                         fpa_rate_c_per_min=(-0.05, 1.05)))
+        r = np.full(t.size, rate)
+        why = model.outside(temps, fpa, rate_c_per_min=r, time_s=t)
+        assert bool(why) == outside, (method, rate, why)
+        assert model.unseen_paces(r, t).all() == outside
+        if outside:
+            assert "the FPA fell at a pace its chamber session never did" in why[0]
+            assert "-0.25 °C/min" in why[0] and "a sawtooth at this rate" in why[0]

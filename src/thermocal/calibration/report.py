@@ -297,10 +297,16 @@ class CalibrationReport:
                                          if longest is not None else "")
                          + ", are refused (lin-lag follows the pace's history)")
         elif self.paces:
+            from thermocal.calibration.registry import CALIBRATION_METHODS  # here: no cycle
+
+            info = CALIBRATION_METHODS.get(self.method)
+            online = info is not None and info.learns_online
             lines.append(f"  held steadily at {_steady_paces(self.paces)} °C/min: frames more "
                          f"than {self.paces['margin_c_per_min']:g} °C/min from the paces the "
-                         f"session held are refused ({self.method}'s lag terms were fitted on "
-                         "those alone)")
+                         "session held" + (", or changing the other way than it ever did,"
+                                           if online else "")
+                         + f" are refused ({self.method}'s lag terms were fitted on those "
+                         "alone)")
         if self.paces.get("still"):
             still = self.paces["still"]
             lines.append(f"  its {still['plateaus']} plateau(s) held the FPA still for "

@@ -456,7 +456,30 @@ class CalibrationSigma:
             local = self._nearest(point, where[:, :2] * cell, at, centre, reach) - 0.5 * cell
             local[np.isinf(local)] = LOCAL_PACE_MARGIN_C_PER_MIN + cell  # none within reach
             out = np.maximum(out, local - (LOCAL_PACE_MARGIN_C_PER_MIN - self._pace_margin))
+        if self._learns_online:  # a direction of change its session never held: outside
+            out = np.maximum(out, self._pace_margin + self._beyond_rates(rate))
         return np.maximum(out, 0.0)
+
+    @property
+    def _learns_online(self) -> bool:
+        """Whether the report's method learns as frames stream by (``wolf2016``'s LMS)."""
+        from thermocal.calibration.registry import CALIBRATION_METHODS  # here: no cycle
+
+        info = CALIBRATION_METHODS.get(self.report.method)
+        return bool(info is not None and info.learns_online)
+
+    def _beyond_rates(self, rate: np.ndarray) -> np.ndarray:
+        """How far each FPA rate (°C/min ``(N,)``) lies more than a cell beyond the rates of
+        the paces the session held (below the lowest or above the highest cell's), °C/min;
+        negative within. A method that learns online (``wolf2016``) is held to the directions
+        of change its session showed: on `boson` fitted on ambient steps (an FPA that only
+        rose) it went unrefused over a slow sawtooth's falls at −0.25 °C/min, within its
+        margin of the session's rest, erring −2.6…−4.4 °C where σ said 0.5–2.1 (250 frames, a
+        helper's map of silent frames)."""
+        paces = self.report.paces
+        cell = paces["cell_c_per_min"]
+        rates = np.asarray(paces["cells"], dtype=np.float64).reshape(-1, 2)[:, 0] * cell
+        return np.maximum(rates.min() - rate, rate - rates.max()) - cell
 
     @staticmethod
     def _nearest(point: np.ndarray, held: np.ndarray, at: np.ndarray | None = None,
@@ -785,6 +808,14 @@ class CalibrationSigma:
         if unknown:
             what = (f"{count}its pace not known from so short a recording, taken as steady, as "
                     "the calibration applies it")
+        if self._learns_online and self._beyond_rates(np.array([rate]))[0] > 0:
+            cell = self.report.paces["cell_c_per_min"]
+            held = np.asarray(self.report.paces["cells"], dtype=np.float64)[:, 0] * cell
+            way = "fell" if rate < held.min() else "rose"
+            return (f"the FPA {way} at a pace its chamber session never did ({what}; the "
+                    f"session's paces {held.min():+.2f}…{held.max():+.2f} °C/min): the "
+                    f"{self.report.method} calibration learned its FPA terms on those alone "
+                    "(record a session whose ambient rises and falls, a sawtooth at this rate)")
         if fpa is not None and self._distance(np.array([rate]), np.array([lagged]))[0] \
                 <= self._pace_margin:  # held, but at other FPA temperatures only
             paces = self.report.paces
