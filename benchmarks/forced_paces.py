@@ -8,7 +8,7 @@ temperature. "Silent": frames whose mean error exceeds both 1 °C and twice thei
 beside them, how many a σ would leave silent were each frame's error a level drawn from a
 Gaussian of its median σ (the coverage benchmark's share).
 
-Run: ``python benchmarks/forced_paces.py [--unit 101] [--size 80x64]`` (about a minute on 2
+Run: ``python benchmarks/forced_paces.py [--unit 101] [--size 80x64]`` (5–10 s on 2
 cores)."""
 
 import argparse
