@@ -856,8 +856,10 @@ def paces_of(data: ChamberData, *, memoryless: bool = True) -> dict[str, Any]:
         fpa = np.floor(data.fpa_c[use] / PACE_FPA_CELL_C).astype(np.int64)[:, None]
         kept = held[which]
         out |= {"fpa_cell_c": PACE_FPA_CELL_C, "fpa_reach_c": PACE_FPA_REACH_C,
-                "fpa_cells": np.unique(np.hstack([plane, fpa])[kept], axis=0).tolist(),
-                "sustained": sustained_of(data)}
+                "fpa_cells": np.unique(np.hstack([plane, fpa])[kept], axis=0).tolist()}
+        sustained = sustained_of(data)
+        if sustained["held_s"]:  # none without usable frames: nothing to hold a recording to
+            out["sustained"] = sustained
     return out
 
 

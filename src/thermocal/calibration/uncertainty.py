@@ -553,7 +553,7 @@ class CalibrationSigma:
         rate = np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)
         stays = np.asarray(stays_s, dtype=np.float64).reshape(-1)
         shape = _common_shape(rate, stays, "rate_c_per_min", "the stays")
-        if not sus:
+        if not sus or not sus["held_s"]:
             return np.zeros(shape)
         cell = self.report.paces["cell_c_per_min"]
         held = dict((int(c), s) for c, s in sus["held_s"])
