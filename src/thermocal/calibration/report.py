@@ -863,15 +863,17 @@ def paces_of(data: ChamberData, *, memoryless: bool = True) -> dict[str, Any]:
     return out
 
 
-def pace_stays(rate_c_per_min: Any, time_s: Any) -> np.ndarray:
-    """How long each frame's FPA rate had stayed within :data:`SUSTAIN_BAND_C_PER_MIN` of its
-    present value, s ``(M,)`` (:func:`~thermocal.calibration.dataset.still_time` of the rate; a
+def pace_stays(rate_c_per_min: Any, time_s: Any, *,
+               band_c_per_min: float = SUSTAIN_BAND_C_PER_MIN) -> np.ndarray:
+    """How long each frame's FPA rate had stayed within ``band_c_per_min`` (a report's
+    ``sustained`` band; :data:`SUSTAIN_BAND_C_PER_MIN` where it is made) of its present value,
+    s ``(M,)`` (:func:`~thermocal.calibration.dataset.still_time` of the rate; a
     gap of :data:`PACE_LAG_S` between frames starts anew; a rate not known, NaN, stays
     nowhere: 0): how long the FPA had been changing at its present pace. ``rate_c_per_min``
     (°C/min) and ``time_s`` (s) ``(M,)`` of one recording, in time order."""
     rate = np.asarray(rate_c_per_min, dtype=np.float64)
     known = np.isfinite(rate)
-    stays = still_time(np.where(known, rate, 0.0), time_s, band_c=SUSTAIN_BAND_C_PER_MIN,
+    stays = still_time(np.where(known, rate, 0.0), time_s, band_c=band_c_per_min,
                        max_gap_s=PACE_LAG_S)
     return np.where(known, stays, 0.0)
 

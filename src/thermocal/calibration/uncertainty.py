@@ -250,6 +250,12 @@ def _rising_bins_sigma(values: np.ndarray, bins: list[dict[str, Any]], key: str
     return out
 
 
+def _count(outside: np.ndarray) -> str:
+    """``"K of N frames; "`` of the frames ``outside`` (bool ``(N,)``) a refusal names, or
+    ``""`` for one frame."""
+    return f"{int(np.sum(outside))} of {outside.size} frames; " if outside.size > 1 else ""
+
+
 def older_report_warning(what: str) -> str:
     """The warning for a calibration whose report lacks ``what``
     (:meth:`CalibrationSigma.older_report`)."""
@@ -282,9 +288,7 @@ class CalibrationSigma:
         thermocal), in words, or None: the FPA paces its session held (frames are then not
         checked against them), or, for a memoryless method, σ by how far the pace is from
         steady (:meth:`change_sigma`)."""
-        from thermocal.calibration.registry import CALIBRATION_METHODS  # here: no cycle
-
-        info = CALIBRATION_METHODS.get(self.report.method)
+        info = self._method_info
         if not self.report.paces:
             return ("no FPA paces, so frames are not checked against the paces its session "
                     "held")
@@ -460,13 +464,18 @@ class CalibrationSigma:
             out = np.maximum(out, self._pace_margin + self._beyond_rates(rate))
         return np.maximum(out, 0.0)
 
+    @cached_property
+    def _method_info(self) -> Any:
+        """The report's method's :class:`~thermocal.calibration.registry.CalibrationInfo`, or
+        None for a method the registry does not know."""
+        from thermocal.calibration.registry import CALIBRATION_METHODS  # here: no cycle
+
+        return CALIBRATION_METHODS.get(self.report.method)
+
     @property
     def _learns_online(self) -> bool:
         """Whether the report's method learns as frames stream by (``wolf2016``'s LMS)."""
-        from thermocal.calibration.registry import CALIBRATION_METHODS  # here: no cycle
-
-        info = CALIBRATION_METHODS.get(self.report.method)
-        return bool(info is not None and info.learns_online)
+        return bool(self._method_info is not None and self._method_info.learns_online)
 
     def _beyond_rates(self, rate: np.ndarray) -> np.ndarray:
         """How far each FPA rate (°C/min ``(N,)``) lies more than a cell beyond the rates of
@@ -525,7 +534,7 @@ class CalibrationSigma:
         by more than its slack (:meth:`sustained_excess`)."""
         unseen = self.pace_distance(rate_c_per_min, time_s, fpa_c=fpa_c) > self._pace_margin
         _, excess = self._sustained(rate_c_per_min, time_s)
-        unseen |= excess > self.report.paces.get("sustained", {}).get("slack_s", math.inf)
+        unseen |= self._held_too_long(excess)
         if fpa_c is not None:
             _, excess, unknown = self._still(fpa_c, time_s, rate_c_per_min=rate_c_per_min)
             unseen |= (excess > 1.0) | unknown
@@ -580,7 +589,8 @@ class CalibrationSigma:
             t = None if time_s is None else np.asarray(time_s, dtype=np.float64).reshape(-1)
             if t is None or t.shape != rate.shape or np.any(np.diff(t) <= 0):
                 return np.zeros(rate.shape), np.zeros(rate.shape)
-            stays_s = pace_stays(rate, t)
+            stays_s = pace_stays(rate, t, band_c_per_min=self.report.paces["sustained"][
+                "band_c_per_min"])
         stays = np.nan_to_num(np.asarray(stays_s, dtype=np.float64).reshape(-1))
         excess = self.sustained_excess(rate, stays)
         return np.broadcast_to(stays, excess.shape), excess
@@ -598,8 +608,14 @@ class CalibrationSigma:
         sensitivity = paces.get("fpa_sensitivity_c_per_c")
         sensitivity = 1.0 if sensitivity is None else sensitivity
         ran = np.abs(np.nan_to_num(rate_c_per_min)) * np.minimum(excess, paces["lag_s"]) / 60.0
-        return np.where(excess > sus["slack_s"],
+        return np.where(self._held_too_long(excess),
                         np.maximum(self._worst_sigma(), sensitivity * ran), 0.0)
+
+    def _held_too_long(self, excess: np.ndarray) -> np.ndarray:
+        """Whether frames' :meth:`sustained_excess` (s) exceeds the report's ``slack_s`` (never
+        where the report lists no stays): outside."""
+        sus = (self.report.paces or {}).get("sustained")
+        return np.asarray(excess) > (sus["slack_s"] if sus else math.inf)
 
     def _sustained_reason(self, rate: float, stay: float, excess: float,
                           count: str = "") -> str:
@@ -925,17 +941,15 @@ class CalibrationSigma:
             unseen = d > self._pace_margin
             if unseen.any():
                 k = int(np.argmax(unseen))
-                count = (f"{int(unseen.sum())} of {unseen.size} frames; " if unseen.size > 1
-                         else "")
+                count = _count(unseen)
                 at = float(fpa[min(k, fpa.size - 1)]) if fpa.size else None
                 reasons.append(self._pace_reason(rate[k], lagged[k], count=count, fpa=at))
             stays, excess = self._sustained(rate, time_s if lagged_rate_c_per_min is None
                                             else None, sustained_s)
-            held_long = excess > self.report.paces.get("sustained", {}).get("slack_s", math.inf)
+            held_long = self._held_too_long(excess)
             if held_long.any():
                 k = int(np.argmax(held_long))
-                count = (f"{int(held_long.sum())} of {held_long.size} frames; "
-                         if held_long.size > 1 else "")
+                count = _count(held_long)
                 reasons.append(self._sustained_reason(float(rate[min(k, rate.size - 1)]),
                                                       float(stays[k]), float(excess[k]),
                                                       count=count))
@@ -945,8 +959,7 @@ class CalibrationSigma:
                 > self._pace_margin
             if unseen.any():
                 k = int(np.argmax(unseen))
-                count = (f"{int(unseen.sum())} of {unseen.size} frames; " if unseen.size > 1
-                         else "")
+                count = _count(unseen)
                 reasons.append(self._pace_reason(0.0, 0.0, count=count, fpa=float(fpa[k]),
                                                  unknown=True))
         if rate_c_per_min is not None and np.size(rate_c_per_min):
@@ -962,8 +975,7 @@ class CalibrationSigma:
                                    (unknown, self._unknown_still_reason)):
                 if np.any(beyond):
                     k = int(np.argmax(beyond))
-                    count = (f"{int(np.sum(beyond))} of {beyond.size} frames; "
-                             if beyond.size > 1 else "")
+                    count = _count(beyond)
                     at = float(fpa[min(k, fpa.size - 1)]) if fpa.size else None
                     reasons.append(reason(at, held[k], count=count))
         flo, fhi = self.report.fpa_range_c

@@ -66,7 +66,8 @@ def recording_paces(fpa_c: Any, time_s: Any, paces: dict[str, Any],
         out["fpa_still_s"] = recording_still_time(fpa_c, time_s, band_c=still["band_c"],
                                                   max_gap_s=PACE_LAG_S)
     if paces.get("sustained"):
-        out["fpa_sustained_s"] = pace_stays(rates, time_s)
+        out["fpa_sustained_s"] = pace_stays(
+            rates, time_s, band_c_per_min=paces["sustained"]["band_c_per_min"])
     return out
 
 
