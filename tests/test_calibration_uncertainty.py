@@ -1205,3 +1205,73 @@ def test_a_method_that_learns_online_is_held_to_the_directions_its_session_chang
         if outside:
             assert "the FPA fell at a pace its chamber session never did" in why[0]
             assert "-0.25 °C/min" in why[0] and "a sawtooth at this rate" in why[0]
+
+
+def test_a_method_with_memory_is_judged_settled_on_the_history_that_led_to_each_plateau():
+    """``settling_warning`` for a method with memory applies the session in time order, so
+    each plateau's end has the history before it; applied alone, an online estimate still
+    converging at each end (a decaying start error) would read as a camera still settling. Its
+    threshold is the memory one: an error drifting 0.01 °C/min at every end is unsettled for
+    it, settled for a memoryless method."""
+    from types import SimpleNamespace
+
+    from thermocal.calibration.report import settling_warning
+
+    t = np.arange(0.0, 6 * 1200.0, 10.0)
+    scene = np.full(t.size, 30.0)
+
+    def stub(drift_c_per_min: float, start_error_c: float):
+        def apply(frames, *, fpa_c=None, time_s=None):
+            since = (np.asarray(time_s) - time_s[0]) / 60.0  # its state starts at frame 0
+            err = start_error_c * np.exp(-since / 5.0) + drift_c_per_min * (since % 20.0)
+            return np.asarray(frames, dtype=np.float64) + err[:, None, None]
+        return SimpleNamespace(apply=apply)
+
+    data = SimpleNamespace(n_frames=t.size, usable=np.ones(t.size, bool), time_s=t,
+                           scene_c=scene, fpa_c=np.full(t.size, 27.0),
+                           session=SimpleNamespace(frames=np.full((t.size, 2, 2), 30.0)))
+    ends = [np.flatnonzero((t >= k * 1200.0 + 720.0) & (t < (k + 1) * 1200.0))
+            for k in range(1, 6)]
+    converging = stub(0.0, 1.0)
+    assert settling_warning(converging, data, ends, "m", memoryless=True) is not None
+    assert settling_warning(converging, data, ends, "m", memoryless=False) is None
+    drifting = stub(0.01, 0.0)
+    assert settling_warning(drifting, data, ends, "m", memoryless=True) is None
+    said = settling_warning(drifting, data, ends, "lin-lag", memoryless=False)
+    assert "lin-lag's error was still changing by +0.010 °C/min" in said
+    assert "terms for the FPA's history never saw the camera settle" in said
+    assert "use lin-lag" not in said
+
+
+def test_a_method_with_memory_is_refused_in_its_own_words():
+    """A method with memory whose session did not settle (``lin-lag``) or that learns online
+    (``wolf2016``, its stays recorded) is refused a camera held still or at a pace longer than
+    its session did, in words that fit it: its terms for the FPA's history, not "no memory";
+    and no advice to use lin-lag."""
+    from dataclasses import replace
+
+    from thermocal.calibration.report import paces_of
+
+    still = {"band_c": 0.15, "held_s": 600.0, "plateaus": 4}
+    t = np.arange(0.0, 1800.0, 10.0)
+    temps = np.full((t.size, 1, 1), 25.0)
+    model = _stilled()
+    lag = CalibrationSigma(replace(model.report, method="lin-lag"))
+    fpa = np.full(t.size, 27.0)
+    said = " ".join(lag.outside(temps, fpa, rate_c_per_min=np.zeros(t.size), time_s=t))
+    assert "its terms for the FPA's history never saw the camera settle" in said
+    assert "no memory" not in said and "use lin-lag" not in said
+    assert still == lag.report.paces["still"]
+    wolf = _sustained([[0, 3600.0], [5, 90.0]], method="wolf2016")
+    rate = np.full(t.size, 0.5)
+    said = " ".join(wolf.outside(temps, fpa, rate_c_per_min=rate, time_s=t))
+    assert "the FPA held a pace for longer than its chamber session held it" in said
+    assert "fitted on its session's short rises" in said and "lin-lag" not in said
+    # its report records the stays: a method that learns online, as a memoryless one
+    from types import SimpleNamespace
+
+    rate = np.where(t < 600, 0.0, np.where(t < 900, 0.5, 0.0))
+    data = SimpleNamespace(usable=np.ones(t.size, bool), fpa_rate_c_per_min=rate, time_s=t,
+                           fpa_c=20.0 + np.cumsum(rate) * 10.0 / 60.0)
+    assert "sustained" in paces_of(data, memoryless=False, sustained=True)
+    assert "sustained" not in paces_of(data, memoryless=False)

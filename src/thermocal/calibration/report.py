@@ -472,6 +472,17 @@ PLATEAU_BAND_C = 0.25
 #: 20-minute steps: `polynomial`, `lin`, `lin-level` −0.03…0.00 on `tau2`, +0.08…+0.12 on
 #: `boson` (whose optics lag by a second-order response).
 SETTLE_SLOPE_C_PER_MIN = 0.05
+#: The same for a method with memory of the FPA's history (``lin-lag``, ``wolf2016``), °C/min:
+#: its terms follow the settling the session showed, so an error still changing at all is a
+#: state beyond them. Its σ is small (``lin-lag`` 0.06 °C on ``tau2``): the memoryless
+#: threshold would pass drifts that leave a settled camera several σ off. A helper's map of
+#: silent frames (``benchmarks/silent_map.py``, ambient steps of 19-min plateaus): ``lin-lag``
+#: on ``tau2`` drifted −0.007 °C/min at their ends and read a camera held at 25 °C ambient for
+#: 2 h −0.12 °C off where σ said 0.06 (54–60 % within 2σ); ``wolf2016`` on ``boson`` −0.032,
+#: and −1.4…−2.2 °C off where σ said 0.9 (41 frames silent). The physics suite's 20-min
+#: plateaus (three units each): ``lin-lag`` on ``tau2`` −0.002…0.000 (settled, and covered),
+#: on ``boson`` +0.020…+0.025; ``wolf2016`` +0.06…+0.07 and −0.008…−0.022.
+SETTLE_SLOPE_MEMORY_C_PER_MIN = 0.005
 
 
 def plateau_ends(data: ChamberData, scored: np.ndarray) -> list[np.ndarray]:
@@ -500,28 +511,63 @@ def plateau_ends(data: ChamberData, scored: np.ndarray) -> list[np.ndarray]:
 
 
 def settling_warning(calibration: Calibration, data: ChamberData, ends: list[np.ndarray],
-                     method: str) -> str | None:
+                     method: str, *, memoryless: bool = True) -> str | None:
     """The warning that the session's plateaus ended before the camera settled, or None: the
     slope (°C/min) of ``calibration``'s signed mean error in time over each of ``ends``
     (:func:`plateau_ends` of ``data``), fitted beside a quadratic in the blackbody's
     temperature (the error depends on the scene level, and the set points cycle), median over
-    the plateaus, beyond :data:`SETTLE_SLOPE_C_PER_MIN`."""
+    the plateaus, beyond :data:`SETTLE_SLOPE_C_PER_MIN` (``memoryless``: each plateau's end
+    applied alone) or, for a method with memory of the FPA's history,
+    :data:`SETTLE_SLOPE_MEMORY_C_PER_MIN` (the session's frames applied in time order, each
+    end with the history that led to it)."""
+    if not ends:
+        return None
+    if not memoryless:
+        scored = np.unique(np.concatenate(ends))
+        signed = np.full(data.n_frames, np.nan)
+        signed[scored] = _signed_in_order(calibration, data, scored)
     slopes = []
     for end in ends:
-        err = _signed_errors(calibration, data, end)
+        err = _signed_errors(calibration, data, end) if memoryless else signed[end]
         minutes = (data.time_s[end] - data.time_s[end[0]]) / 60.0
         level = (data.scene_c[end] - data.scene_c[end].mean()) / 50.0
         design = np.stack([minutes, np.ones(end.size), level, level**2], axis=1)
         slopes.append(float(np.linalg.lstsq(design, err, rcond=None)[0][0]))
-    if not slopes or abs(float(np.median(slopes))) <= SETTLE_SLOPE_C_PER_MIN:
+    limit = SETTLE_SLOPE_C_PER_MIN if memoryless else SETTLE_SLOPE_MEMORY_C_PER_MIN
+    if abs(float(np.median(slopes))) <= limit:
         return None
     slope = float(np.median(slopes))
     return (f"the session's plateaus ended before the camera settled: {method}'s error was "
-            f"still changing by {slope:+.2f} °C/min over their last {SETTLE_WINDOW_S / 60:.0f} "
-            f"min (median of {len(slopes)} plateaus); with no memory of how the FPA changed, it "
-            "may be off by more than its σ once a camera has held still longer than they "
-            "lasted: record plateaus long enough for this error to stop changing, or use "
-            "lin-lag, which follows the settling")
+            f"still changing by {slope:+.{2 if memoryless else 3}f} °C/min over their last "
+            f"{SETTLE_WINDOW_S / 60:.0f} min (median of {len(slopes)} plateaus); "
+            f"{settling_cause(memoryless)}, it may be off by more than its σ once a camera has "
+            "held still longer than they lasted: record plateaus long enough for this error to "
+            f"stop changing{settling_alternative(memoryless)}")
+
+
+def settling_cause(memoryless: bool) -> str:
+    """Why a calibration cannot vouch for a camera held still longer than its session's
+    unsettled plateaus, in words (a refusal's middle)."""
+    return ("with no memory of how the FPA changed" if memoryless else
+            "since its terms for the FPA's history never saw the camera settle")
+
+
+def settling_alternative(memoryless: bool) -> str:
+    """The other remedy for an unsettled session: lin-lag, which follows the settling, for a
+    memoryless method; none for one with memory (it already follows what the session showed)."""
+    return ", or use lin-lag, which follows the settling" if memoryless else ""
+
+
+def _signed_in_order(calibration: Calibration, data: ChamberData, scored: np.ndarray
+                     ) -> np.ndarray:
+    """The signed mean error (°C ``(len(scored),)``) of the frames ``scored`` (indices, in time
+    order) of ``data`` through ``calibration`` applied to its usable frames up to the last of
+    them, in time order: what a method with memory of the FPA's history gives them after that
+    history."""
+    run = np.flatnonzero(data.usable)
+    run = np.union1d(run[run <= scored[-1]], scored)
+    err = _signed_errors(calibration, data, run)
+    return err[np.searchsorted(run, scored)]
 
 
 def _signed_errors(calibration: Calibration, data: ChamberData, idx: np.ndarray) -> np.ndarray:
@@ -737,15 +783,21 @@ def cross_validate(
                         "frames": int(sum(len(a) for a in alone))} if alone else {})
     if expected is None:
         notes.append("no interior set point or FPA segment could be left out and refitted")
-    paces = paces_of(data, memoryless=memoryless)
+    # a method that learns its FPA terms online (wolf2016's LMS) is held, as a memoryless one
+    # is, to paces no longer than its session held them: its estimate follows a pace but its
+    # form was fitted on the session's short rises (`wolf2016` on `boson`, fitted on ambient
+    # steps: +2 °C where σ said 0.9–1.0, 20–40 min into a steady 0.5 °C/min rise; a helper's map,
+    # `benchmarks/silent_map.py`)
+    paces = paces_of(data, memoryless=memoryless,
+                     sustained=memoryless or CALIBRATION_METHODS[method].learns_online)
     sensitivity = fpa_sensitivity(small, scorable)
     if paces and sensitivity is not None:
         paces = paces | {"fpa_sensitivity_c_per_c": sensitivity}
     found = list(protocol_warnings or [])
-    ends = plateau_ends(small, scorable) if memoryless else []
+    ends = plateau_ends(small, scorable)
     if ends:
         try:
-            settling = settling_warning(sample_fit(), small, ends, method)
+            settling = settling_warning(sample_fit(), small, ends, method, memoryless=memoryless)
         except ThermocalError:
             settling = None  # no fit on the sample: the folds' notes say why
         # how long the plateaus held the FPA still, from the whole session's FPA series (the
@@ -825,7 +877,8 @@ SUSTAIN_SLACK_S = 120.0
 MEMORY_PACE_MARGIN_C_PER_MIN = 0.3
 
 
-def paces_of(data: ChamberData, *, memoryless: bool = True) -> dict[str, Any]:
+def paces_of(data: ChamberData, *, memoryless: bool = True,
+             sustained: bool | None = None) -> dict[str, Any]:
     """The paces a session's usable frames held (:attr:`CalibrationReport.paces`): each frame's
     FPA rate ``r`` and the same through a first-order lag of :data:`PACE_LAG_S`, ``y``
     (:func:`~thermocal.calibration.dataset.lagged_rate`), binned in cells of
@@ -837,7 +890,9 @@ def paces_of(data: ChamberData, *, memoryless: bool = True) -> dict[str, Any]:
     benchmark's held-out `tau2` frames and 33–37 % of `boson`'s, against 0.1 % and 14–19 %,
     where none of theirs was silent). A steady pace has ``y = r``; a pace just changed,
     ``y ≠ r``. ``margin_c_per_min``: how far from them a frame's pace may lie, one cell for a
-    ``memoryless`` method, :data:`MEMORY_PACE_MARGIN_C_PER_MIN` for one with memory."""
+    ``memoryless`` method, :data:`MEMORY_PACE_MARGIN_C_PER_MIN` for one with memory.
+    ``sustained`` (default: ``memoryless``): also how long the session held each pace
+    (:func:`sustained_of`), for a method that cannot vouch for a pace held longer."""
     use = data.usable
     y = lagged_rate(data.fpa_rate_c_per_min, data.time_s, PACE_LAG_S)
     points = np.stack([data.fpa_rate_c_per_min, y], axis=1)[use] / PACE_CELL_C_PER_MIN
@@ -857,9 +912,10 @@ def paces_of(data: ChamberData, *, memoryless: bool = True) -> dict[str, Any]:
         kept = held[which]
         out |= {"fpa_cell_c": PACE_FPA_CELL_C, "fpa_reach_c": PACE_FPA_REACH_C,
                 "fpa_cells": np.unique(np.hstack([plane, fpa])[kept], axis=0).tolist()}
-        sustained = sustained_of(data)
-        if sustained["held_s"]:  # none without usable frames: nothing to hold a recording to
-            out["sustained"] = sustained
+    if memoryless if sustained is None else sustained:
+        stays = sustained_of(data)
+        if stays["held_s"]:  # none without usable frames: nothing to hold a recording to
+            out["sustained"] = stays
     return out
 
 

@@ -65,12 +65,18 @@ the same paces with a wider margin (the report's ``margin_c_per_min``,
 :data:`~thermocal.calibration.report.MEMORY_PACE_MARGIN_C_PER_MIN`): its lag terms follow a
 pace's history, but their form was fitted on the session's paces alone, and on a camera whose
 lag has another form its error grows with the distance from them where no fold can show it.
+``wolf2016``, which learns its FPA terms online, is also held, as a memoryless method is, to
+paces no longer than its session held them (its report's ``sustained``): on ``boson``, fitted
+on ambient steps, it read +2 °C where σ said 0.9–1.0 20–40 min into a steady 0.5 °C/min rise.
 
 **Stillness a session never reached.** Where the session's plateaus ended before the camera
-settled (:func:`~thermocal.calibration.report.settling_warning`: a memoryless method's error was
-still changing at their ends), a camera held still for longer than they lasted is in a state
+settled (:func:`~thermocal.calibration.report.settling_warning`: the method's error was still
+changing at their ends; for a method with memory, at a tenth of the memoryless threshold, its
+σ being that much smaller), a camera held still for longer than they lasted is in a state
 the session never showed: on the ``boson`` preset, the 30-minute hold at the top of a held-out
-ramp drifts on to +1.0…+1.25 °C for ``polynomial`` where σ said 0.5. The report then states
+ramp drifts on to +1.0…+1.25 °C for ``polynomial`` where σ said 0.5; after 19-min plateaus,
+``lin-lag`` on ``tau2`` read a 2-h hold −0.12 °C off where σ said 0.06, and ``wolf2016`` on
+``boson`` −1.4…−2.2 °C where σ said 0.9. The report then states
 how long the session's plateaus held the FPA still (its ``paces["still"]``,
 :func:`~thermocal.calibration.report.stillness_of`); a frame held still for longer
 (:meth:`CalibrationSigma.still_excess` > 1) is outside, and forced, its ``s`` becomes at least
@@ -96,6 +102,8 @@ from thermocal.calibration.report import (
     pace_stays,
     rate_bin_range,
     report_of,
+    settling_alternative,
+    settling_cause,
 )
 from thermocal.errors import InvalidInputError
 
@@ -473,6 +481,12 @@ class CalibrationSigma:
         return CALIBRATION_METHODS.get(self.report.method)
 
     @property
+    def _memoryless(self) -> bool:
+        """Whether the report's method has no memory of how the FPA changed (True for a method
+        the registry does not know: the stricter words)."""
+        return bool(self._method_info is None or self._method_info.memoryless)
+
+    @property
     def _learns_online(self) -> bool:
         """Whether the report's method learns as frames stream by (``wolf2016``'s LMS)."""
         return bool(self._method_info is not None and self._method_info.learns_online)
@@ -622,12 +636,21 @@ class CalibrationSigma:
         """The refusal's text for a frame that held ``rate`` °C/min for ``stay`` s, ``excess`` s
         longer than its chamber session held any pace within a cell of it."""
         held = max(stay - excess, 0.0)
+        alternative = "; lin-lag follows the pace's history" if self._memoryless else ""
         return (f"the FPA held a pace for longer than its chamber session held it ({count}"
                 f"{'first ' if count else ''}{rate:+.2f} °C/min for {stay / 60:.1f} min, the "
                 f"session at most {held / 60:.1f} min near it): the {self.report.method} "
-                "calibration, with no memory of how the FPA changed, cannot vouch for the "
+                f"calibration, {self._pace_cause}, cannot vouch for the "
                 "state what lags the FPA reaches then (record a session that holds such paces "
-                "as long, a ramp or sawtooth at this rate; lin-lag follows the pace's history)")
+                "as long, a ramp or sawtooth at this rate"
+                f"{alternative})")
+
+    @property
+    def _pace_cause(self) -> str:
+        """Why the report's method cannot vouch for a pace held longer than its session held
+        it, in words."""
+        return ("with no memory of how the FPA changed" if self._memoryless else
+                "whose terms for the FPA's history were fitted on its session's short rises")
 
     def _still(self, fpa_c: Any, time_s: Any, still_s: Any = None, since_s: Any = None,
                rate_c_per_min: Any = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -694,9 +717,10 @@ class CalibrationSigma:
         return (f"{what}, so how long the camera had held it still is not known, and the "
                 f"plateaus of the {self.report.method} calibration's chamber session ended "
                 f"before the camera settled ({self.report.paces['still']['held_s'] / 60:.0f} "
-                "min): with no memory of how the FPA changed, it cannot vouch for a camera "
-                "held still longer (give the recording from before the camera last changed "
-                "temperature, or use lin-lag, which follows the settling)")
+                f"min): {settling_cause(self._memoryless)}, it cannot vouch for a camera held "
+                "still longer (give the recording from before the camera last changed "
+                "temperature"
+                f"{settling_alternative(self._memoryless)})")
 
     def _worst_sigma(self) -> float:
         """The largest σ of the report's rate bins (or its overall σ), °C: the level of frames
@@ -711,9 +735,10 @@ class CalibrationSigma:
         return (f"the camera held its FPA still ({count}{'first ' if count else ''}{where}"
                 f"for {still / 60:.1f} min), {excess:.2f}× longer than the plateaus "
                 f"of its chamber session, which ended before the camera settled: the "
-                f"{self.report.method} calibration, with no memory of how the FPA changed, "
+                f"{self.report.method} calibration, {settling_cause(self._memoryless)}, "
                 "cannot vouch for the state it settles into (record plateaus long enough for "
-                "its error to stop changing, or use lin-lag, which follows the settling)")
+                "its error to stop changing"
+                f"{settling_alternative(self._memoryless)})")
 
     @property
     def max_rate_c_per_min(self) -> float:
