@@ -1243,35 +1243,147 @@ def test_a_method_with_memory_is_judged_settled_on_the_history_that_led_to_each_
     assert "use lin-lag" not in said
 
 
-def test_a_method_with_memory_is_refused_in_its_own_words():
-    """A method with memory whose session did not settle (``lin-lag``) or that learns online
-    (``wolf2016``, its stays recorded) is refused a camera held still or at a pace longer than
-    its session did, in words that fit it: its terms for the FPA's history, not "no memory";
-    and no advice to use lin-lag."""
+def test_a_method_with_memory_is_refused_a_stillness_in_its_own_words():
+    """A method with memory whose session did not settle (``lin-lag``) is refused a camera held
+    still longer than its session's plateaus in words that fit it: its terms for the FPA's
+    history, not "no memory"; and no advice to use lin-lag."""
     from dataclasses import replace
+
+    t = np.arange(0.0, 1800.0, 10.0)
+    lag = CalibrationSigma(replace(_stilled().report, method="lin-lag"))
+    said = " ".join(lag.outside(np.full((t.size, 1, 1), 25.0), np.full(t.size, 27.0),
+                                rate_c_per_min=np.zeros(t.size), time_s=t))
+    assert "its terms for the FPA's history never saw the camera settle" in said
+    assert "no memory" not in said and "use lin-lag" not in said
+
+
+def test_fpa_swings_are_how_far_the_fpa_ran_one_way_since_its_run_began():
+    """Against the definition, frame by frame: a run is the frames beyond the band on one side;
+    a frame within it, a change of side, a NaN rate or a gap longer than the pace lag ends it."""
+    from thermocal.calibration.report import PACE_LAG_S, fpa_swings
+
+    rng = np.random.default_rng(3)
+    rate = np.repeat(rng.choice([-0.5, -0.05, 0.0, 0.3, 1.0], 40), rng.integers(1, 12, 40))
+    rate[rng.integers(0, rate.size, 5)] = np.nan
+    t = np.cumsum(rng.uniform(5.0, 20.0, rate.size))
+    t[150:] += 2 * PACE_LAG_S  # a new recording
+    fpa = 20.0 + np.cumsum(np.nan_to_num(rate) * 0.2)
+
+    def by_definition(band):
+        side = [0 if not abs(r) > band else int(np.sign(r)) for r in rate]
+        out = np.zeros(rate.size)
+        for i in range(rate.size):
+            if side[i] == 0:
+                continue
+            j = i
+            while j > 0 and side[j - 1] == side[i] and t[j] - t[j - 1] <= PACE_LAG_S:
+                j -= 1
+            out[i] = fpa[i] - fpa[j]
+        return out
+
+    for band in (0.1, 0.4):
+        np.testing.assert_allclose(fpa_swings(fpa, rate, t, band_c_per_min=band),
+                                   by_definition(band))
+    assert fpa_swings([], [], []).shape == (0,)
+    with pytest.raises(InvalidInputError, match="must be equal"):
+        fpa_swings([1.0, 2.0], [0.0], [0.0, 1.0])
+
+
+def _swung(rise_c: float = 5.0, fall_c: float = 0.0) -> CalibrationSigma:
+    """A lin-lag report whose session visited every pace up to ±1.5 °C/min, and whose FPA ran
+    at most ``rise_c`` up and ``fall_c`` down without pause."""
+    cells = [[i, j] for i in range(-15, 16) for j in range(-15, 16)]
+    paces = {"lag_s": 480.0, "cell_c_per_min": 0.1, "cells": cells, "margin_c_per_min": 0.3,
+             "swing": {"band_c_per_min": 0.1, "slack_c": 1.0, "rise_c": rise_c,
+                       "fall_c": fall_c}}
+    return CalibrationSigma(_report(method="lin-lag", paces=paces,
+                                    fpa_rate_c_per_min=(-1.55, 1.55)))
+
+
+def test_a_longer_run_of_the_fpa_than_its_session_ran_is_outside_a_method_with_memory():
+    """lin-lag fitted on 5 °C ambient steps (its FPA ran at most 5 °C up, never down): a steady
+    0.25 °C/min rise is inside for its first 6 °C (the run and the slack), outside after, named
+    with what to record, σ grown by how many times the session's run the frame's is; a fall of
+    more than the slack is outside at once; a session with a sawtooth over the range (a 35 °C
+    run) takes the rise; a report without runs (memoryless, older) judges none."""
+    t = np.arange(0.0, 3600.0, 10.0)
+    rate = np.full(t.size, 0.25)
+    rate[:3] = 0.0
+    fpa = 20.0 + np.r_[np.zeros(3), np.arange(1, t.size - 2) * 0.25 * 10.0 / 60.0]
+    temps = np.full((t.size, 2, 2), 25.0)
+    model = _swung()
+    swings, excess = model._swings(fpa, rate, t)
+    assert swings[-1] == pytest.approx(fpa[-1] - fpa[3])
+    np.testing.assert_allclose(excess, np.maximum(swings - 5.0, 0.0))
+    said = " ".join(model.outside(temps, fpa, rate_c_per_min=rate, time_s=t))
+    assert "the FPA rose" in said and "without pause" in said
+    assert "further than its chamber session's longest rise (5.0 °C)" in said
+    assert "a ramp or sawtooth over this range" in said
+    sigma = model.sigma(temps[:, :1, :1], fpa, rate_c_per_min=rate,
+                        time_since_start_s=t)[:, 0, 0]
+    first = int(np.argmax(swings > 6.0))
+    assert sigma[-1] == pytest.approx(model._worst_sigma() * swings[-1] / 6.0, rel=1e-4)
+    assert sigma[first - 1] < sigma[first + 1] < sigma[-1]
+    falling = model.outside(temps, fpa[::-1], rate_c_per_min=-rate[::-1], time_s=t)
+    assert any("the FPA fell" in w and "longest fall (0.0 °C)" in w for w in falling)
+    assert not any("without pause" in w for w in _swung(rise_c=35.0, fall_c=35.0).outside(
+        temps, fpa, rate_c_per_min=rate, time_s=t))
+    assert not _paced().swing_excess(swings).any()
+    # a report's runs survive JSON and are checked
+    again = CalibrationReport.from_dict(json.loads(json.dumps(model.report.to_dict())))
+    assert again.paces == model.report.paces
+    for bad in ({"band_c_per_min": 0.0}, {"slack_c": -1.0}, {"rise_c": math.inf},
+                {"fall_c": math.nan}):
+        paces = model.report.to_dict()["fpa_paces"]
+        paces = paces | {"swing": paces["swing"] | bad}
+        with pytest.raises(InvalidInputError, match="not a calibration report"):
+            CalibrationReport.from_dict(model.report.to_dict() | {"fpa_paces": paces})
+
+
+def test_a_report_of_a_method_with_memory_records_its_sessions_runs():
+    """``swing_of``: the farthest the usable frames' FPA ran up and down without pause; only a
+    method with memory's report holds it (a memoryless one holds its stays instead)."""
+    from types import SimpleNamespace
 
     from thermocal.calibration.report import paces_of
 
-    still = {"band_c": 0.15, "held_s": 600.0, "plateaus": 4}
-    t = np.arange(0.0, 1800.0, 10.0)
-    temps = np.full((t.size, 1, 1), 25.0)
-    model = _stilled()
-    lag = CalibrationSigma(replace(model.report, method="lin-lag"))
-    fpa = np.full(t.size, 27.0)
-    said = " ".join(lag.outside(temps, fpa, rate_c_per_min=np.zeros(t.size), time_s=t))
-    assert "its terms for the FPA's history never saw the camera settle" in said
-    assert "no memory" not in said and "use lin-lag" not in said
-    assert still == lag.report.paces["still"]
-    wolf = _sustained([[0, 3600.0], [5, 90.0]], method="wolf2016")
-    rate = np.full(t.size, 0.5)
-    said = " ".join(wolf.outside(temps, fpa, rate_c_per_min=rate, time_s=t))
-    assert "the FPA held a pace for longer than its chamber session held it" in said
-    assert "fitted on its session's short rises" in said and "lin-lag" not in said
-    # its report records the stays: a method that learns online, as a memoryless one
-    from types import SimpleNamespace
-
-    rate = np.where(t < 600, 0.0, np.where(t < 900, 0.5, 0.0))
+    t = np.arange(0.0, 3000.0, 10.0)
+    rate = np.where(t < 600, 0.0, np.where(t < 900, 0.5, np.where(t < 1200, -0.3, 0.0)))
+    fpa = 20.0 + np.cumsum(rate) * 10.0 / 60.0
     data = SimpleNamespace(usable=np.ones(t.size, bool), fpa_rate_c_per_min=rate, time_s=t,
-                           fpa_c=20.0 + np.cumsum(rate) * 10.0 / 60.0)
-    assert "sustained" in paces_of(data, memoryless=False, sustained=True)
+                           fpa_c=fpa)
+    swing = paces_of(data, memoryless=False)["swing"]
+    assert swing["rise_c"] == pytest.approx(0.5 * 290.0 / 60.0)
+    assert swing["fall_c"] == pytest.approx(0.3 * 290.0 / 60.0)
+    assert "swing" not in paces_of(data, memoryless=True)
     assert "sustained" not in paces_of(data, memoryless=False)
+
+
+def test_an_online_estimate_begun_while_the_fpa_changes_takes_the_error_of_a_frame_alone():
+    """wolf2016 learns its FPA terms online; its session began settled, so its start-up bins
+    never saw an estimate begun mid-change. A recording begun while its FPA changes takes the
+    report's σ of frames alone over its first minute (fading); one begun settled does not;
+    lin-lag's applies to every recording's start, as before."""
+    from dataclasses import replace
+
+    alone = {"sigma_c": 3.0, "mae_c": 2.5, "lag_s": 60.0, "frames": 100}
+    t = np.arange(0.0, 300.0, 10.0)
+    temps = np.full((t.size, 1, 1), 25.0)
+
+    def sigmas(method, rate0, history):
+        report = replace(_paced().report, method=method,
+                         without_history=alone if history else {})
+        rate = np.full(t.size, rate0)
+        return CalibrationSigma(report).sigma(temps, 27.0 + rate * t / 60.0,
+                                              rate_c_per_min=rate, time_since_start_s=t)[:, 0, 0]
+
+    for method, rate0, grown in (("wolf2016", 1.5, True), ("wolf2016", 0.0, False),
+                                 ("lin-lag", 0.0, True)):
+        with_, without = sigmas(method, rate0, True), sigmas(method, rate0, False)
+        assert bool(with_[0] > without[0]) is grown, (method, rate0)
+        if grown:
+            assert with_[0] == pytest.approx(max(3.0, without[0]), rel=1e-5)
+            np.testing.assert_allclose(with_[-1], without[-1], rtol=1e-4)  # faded
+    wolf = CalibrationSigma(replace(_paced().report, method="wolf2016", without_history=alone))
+    # a burst (history not seen) takes it in full, whatever its rate
+    assert wolf.sigma(temps[0], 27.0, rate_c_per_min=[0.0], history_seen=False)[0, 0] >= 3.0

@@ -55,6 +55,7 @@ import numpy as np
 from thermocal._validate import SATURATED_FRACTION, saturated_fraction
 from thermocal.calibration.base import Calibration, ThermocalWarning, apply_with_rate
 from thermocal.calibration.dataset import (
+    RATE_SMOOTH_S,
     ChamberData,
     fpa_change,
     fpa_pace,
@@ -163,13 +164,14 @@ class CalibrationReport:
         just after a step with frames of a steady ramp at the same pace, and the first err
         more; empty for the others and in a report made before it.
     without_history : dict
-        For a method whose model remembers how the FPA changed without learning online
-        (``lin-lag``'s lagged rates), the interior folds' error on each frame taken alone, its
-        lagged rates started steady at its own rate as a recording too short to show its
-        history starts them (:func:`frame_errors_alone`): ``sigma_c``
-        (:func:`coverage_sigma`), ``mae_c``, ``frames``, and ``lag_s``, the model's longest lag,
-        over which a recording's own history takes that start's place. Empty for the others
-        and in a report made before it.
+        For a method whose model remembers how the FPA changed (``lin-lag``'s lagged rates) or
+        learns it online (``wolf2016``), the interior folds' error on each frame taken alone,
+        its lagged rates started steady at its own rate (or its estimate started afresh) as a
+        recording too short to show its history starts them (:func:`frame_errors_alone`):
+        ``sigma_c`` (:func:`coverage_sigma`), ``mae_c``, ``frames``, and ``lag_s``, the model's
+        longest lag (one that learns online: :data:`ONLINE_START_S`), over which a recording's
+        own history takes that start's place. Empty for the others and in a report made before
+        it.
     """
 
     method: str
@@ -307,6 +309,11 @@ class CalibrationReport:
                                            if online else "")
                          + f" are refused ({self.method}'s lag terms were fitted on those "
                          "alone)")
+        if self.paces.get("swing"):
+            swing = self.paces["swing"]
+            lines.append(f"  its FPA ran at most {swing['rise_c']:.1f} °C up and "
+                         f"{swing['fall_c']:.1f} °C down without pause: frames whose FPA runs "
+                         f"more than {swing['slack_c']:g} °C further are refused")
         if self.paces.get("still"):
             still = self.paces["still"]
             lines.append(f"  its {still['plateaus']} plateau(s) held the FPA still for "
@@ -462,6 +469,13 @@ def frame_errors(calibration: Calibration, data: ChamberData, scored: np.ndarray
     return out, out.mean(axis=1, dtype=np.float64)
 
 
+#: How long an estimate learned online and begun afresh (a frame alone, a recording begun while
+#: the FPA changed) keeps the error of one, s (:attr:`CalibrationReport.without_history`'s
+#: ``lag_s`` for ``wolf2016``): the FPA rate's smoothing window
+#: (:data:`~thermocal.calibration.dataset.RATE_SMOOTH_S`), over which the rate it learns from
+#: comes to be measured. `wolf2016` on `boson` read the first frame of clips begun in a
+#: 0.25 °C/min rise −2.9…−3.0 °C off where σ said 1.2–1.3; its frames alone err 2.7 °C MAE.
+ONLINE_START_S = RATE_SMOOTH_S
 #: The end of an ambient plateau whose error trend says whether the camera had settled, s; a
 #: plateau needs 1.5 times it to be judged.
 SETTLE_WINDOW_S = 480.0
@@ -716,11 +730,12 @@ def cross_validate(
     # a memoryless method's error follows how fast the FPA has been changing, not its present
     # rate alone (what lags the FPA catches up after the rate is 0): its bins are by pace
     memoryless = CALIBRATION_METHODS[method].memoryless
-    # a model that remembers the FPA's rates without learning online (lin-lag's lags): its
-    # error on frames whose history it cannot see, measured too (a short recording's)
+    # a model that remembers the FPA's rates (lin-lag's lags), or learns its FPA terms online
+    # (wolf2016's LMS): its error on frames whose history it cannot see, measured too (a short
+    # recording's; for one that learns online, a recording begun while its FPA changed, a
+    # start its session, begun settled, never showed)
     lags = tuple(getattr(calibration, "rate_lags_s", ()) or ())
-    remembers = (not memoryless and not CALIBRATION_METHODS[method].learns_online
-                 and bool(lags))
+    remembers = not memoryless and (bool(lags) or CALIBRATION_METHODS[method].learns_online)
     alone: list[np.ndarray] = []  # the interior folds' pixel errors, each frame alone
     rate_key = "pace_c_per_min" if memoryless else "rate_c_per_min"
     binned_rate = (fpa_pace(small.fpa_rate_c_per_min, small.time_s, PACE_LAG_S) if memoryless
@@ -779,17 +794,12 @@ def cross_validate(
                          "change_c_per_min", min_frames=MIN_BIN_FRAMES)
                  if errors and memoryless else [])
     without_history = ({"sigma_c": coverage_sigma(np.concatenate(alone)),
-                        "mae_c": float(np.mean(np.concatenate(alone))), "lag_s": max(lags),
+                        "mae_c": float(np.mean(np.concatenate(alone))),
+                        "lag_s": max(lags) if lags else ONLINE_START_S,
                         "frames": int(sum(len(a) for a in alone))} if alone else {})
     if expected is None:
         notes.append("no interior set point or FPA segment could be left out and refitted")
-    # a method that learns its FPA terms online (wolf2016's LMS) is held, as a memoryless one
-    # is, to paces no longer than its session held them: its estimate follows a pace but its
-    # form was fitted on the session's short rises (`wolf2016` on `boson`, fitted on ambient
-    # steps: +2 °C where σ said 0.9–1.0, 20–40 min into a steady 0.5 °C/min rise; a helper's map,
-    # `benchmarks/silent_map.py`)
-    paces = paces_of(data, memoryless=memoryless,
-                     sustained=memoryless or CALIBRATION_METHODS[method].learns_online)
+    paces = paces_of(data, memoryless=memoryless)
     sensitivity = fpa_sensitivity(small, scorable)
     if paces and sensitivity is not None:
         paces = paces | {"fpa_sensitivity_c_per_c": sensitivity}
@@ -877,8 +887,7 @@ SUSTAIN_SLACK_S = 120.0
 MEMORY_PACE_MARGIN_C_PER_MIN = 0.3
 
 
-def paces_of(data: ChamberData, *, memoryless: bool = True,
-             sustained: bool | None = None) -> dict[str, Any]:
+def paces_of(data: ChamberData, *, memoryless: bool = True) -> dict[str, Any]:
     """The paces a session's usable frames held (:attr:`CalibrationReport.paces`): each frame's
     FPA rate ``r`` and the same through a first-order lag of :data:`PACE_LAG_S`, ``y``
     (:func:`~thermocal.calibration.dataset.lagged_rate`), binned in cells of
@@ -890,9 +899,10 @@ def paces_of(data: ChamberData, *, memoryless: bool = True,
     benchmark's held-out `tau2` frames and 33–37 % of `boson`'s, against 0.1 % and 14–19 %,
     where none of theirs was silent). A steady pace has ``y = r``; a pace just changed,
     ``y ≠ r``. ``margin_c_per_min``: how far from them a frame's pace may lie, one cell for a
-    ``memoryless`` method, :data:`MEMORY_PACE_MARGIN_C_PER_MIN` for one with memory.
-    ``sustained`` (default: ``memoryless``): also how long the session held each pace
-    (:func:`sustained_of`), for a method that cannot vouch for a pace held longer."""
+    ``memoryless`` method, :data:`MEMORY_PACE_MARGIN_C_PER_MIN` for one with memory. For a
+    memoryless method also how long the session held each pace (``sustained``,
+    :func:`sustained_of`); for one with memory, how far the FPA ran in one direction without
+    pause (``swing``, :func:`swing_of`)."""
     use = data.usable
     y = lagged_rate(data.fpa_rate_c_per_min, data.time_s, PACE_LAG_S)
     points = np.stack([data.fpa_rate_c_per_min, y], axis=1)[use] / PACE_CELL_C_PER_MIN
@@ -912,11 +922,59 @@ def paces_of(data: ChamberData, *, memoryless: bool = True,
         kept = held[which]
         out |= {"fpa_cell_c": PACE_FPA_CELL_C, "fpa_reach_c": PACE_FPA_REACH_C,
                 "fpa_cells": np.unique(np.hstack([plane, fpa])[kept], axis=0).tolist()}
-    if memoryless if sustained is None else sustained:
+    if memoryless:
         stays = sustained_of(data)
         if stays["held_s"]:  # none without usable frames: nothing to hold a recording to
             out["sustained"] = stays
+    elif data.usable.any():
+        out["swing"] = swing_of(data)
     return out
+
+
+#: A method with memory's run of FPA change in one direction: frames whose rate stays beyond
+#: this, °C/min (a pace cell: a plateau's creep and the rate's noise stay within it).
+SWING_BAND_C_PER_MIN = PACE_CELL_C_PER_MIN
+#: How much further than its session's longest run in one direction a recording's FPA may
+#: run before a method with memory's frames are outside, °C: 1 °C, about where `lin-lag` on
+#: `tau2`, fitted on 5 °C ambient steps, went beyond 2σ on a steady 0.5 °C/min rise.
+SWING_SLACK_C = 1.0
+
+
+def fpa_swings(fpa_c: Any, rate_c_per_min: Any, time_s: Any, *,
+               band_c_per_min: float = SWING_BAND_C_PER_MIN) -> np.ndarray:
+    """How far each frame's FPA had run since its run of change in one direction began, °C
+    ``(M,)`` (signed: + rising): a run is the frames whose rate stays beyond
+    ``band_c_per_min`` on one side, ended by a frame within it (0 there), a change of side, a
+    rate not known (NaN) or a gap of more than :data:`PACE_LAG_S` between frames.
+    ``fpa_c`` (°C), ``rate_c_per_min`` (°C/min) and ``time_s`` (s) ``(M,)``: one recording, in
+    time order.
+
+    For a model that remembers the FPA's rates through lags of minutes (lin-lag's 8), what
+    lags the FPA more slowly falls behind by about as much as the FPA ran: a session's steps
+    show runs of a few °C; a ramp runs on."""
+    fpa = np.asarray(fpa_c, dtype=np.float64).reshape(-1)
+    rate = np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)
+    t = np.asarray(time_s, dtype=np.float64).reshape(-1)
+    if not fpa.shape == rate.shape == t.shape:
+        raise InvalidInputError(f"fpa_swings: fpa_c {fpa.shape}, rate_c_per_min {rate.shape} "
+                                f"and time_s {t.shape} must be equal")
+    if not fpa.size:
+        return np.zeros(0)
+    with np.errstate(invalid="ignore"):
+        side = np.where(rate > band_c_per_min, 1, np.where(rate < -band_c_per_min, -1, 0))
+    starts = np.r_[True, (side[1:] != side[:-1]) | (np.diff(t) > PACE_LAG_S)]
+    first = np.maximum.accumulate(np.where(starts, np.arange(fpa.size), 0))
+    return np.where(side != 0, fpa - fpa[first], 0.0)
+
+
+def swing_of(data: ChamberData) -> dict[str, Any]:
+    """How far a session's FPA ran in one direction without pause (:attr:`CalibrationReport.
+    paces`' ``swing``, a method with memory's): ``band_c_per_min``
+    (:data:`SWING_BAND_C_PER_MIN`), ``slack_c`` (:data:`SWING_SLACK_C`), ``rise_c`` and
+    ``fall_c``: the farthest its usable frames had run up and down (:func:`fpa_swings`), °C."""
+    swings = fpa_swings(data.fpa_c, data.fpa_rate_c_per_min, data.time_s)[data.usable]
+    return {"band_c_per_min": SWING_BAND_C_PER_MIN, "slack_c": SWING_SLACK_C,
+            "rise_c": float(max(swings.max(), 0.0)), "fall_c": float(max(-swings.min(), 0.0))}
 
 
 def pace_stays(rate_c_per_min: Any, time_s: Any, *,
@@ -1089,6 +1147,14 @@ def _paces_from(d: dict[str, Any]) -> dict[str, Any]:
             raise ValueError("fpa_paces: still needs a band and a held time > 0, finite, and "
                              "at least one plateau")
         out["still"] = {"band_c": band, "held_s": held, "plateaus": plateaus}
+    if d.get("swing") is not None:
+        swing = {k: float(d["swing"][k]) for k in ("band_c_per_min", "slack_c", "rise_c",
+                                                    "fall_c")}
+        if not (0 < swing["band_c_per_min"] < math.inf
+                and all(0 <= v < math.inf for v in swing.values())):
+            raise ValueError("fpa_paces: swing needs a band > 0, and a slack and runs >= 0, "
+                             "all finite")
+        out["swing"] = swing
     if d.get("sustained") is not None:
         sus = d["sustained"]
         band, slack = float(sus["band_c_per_min"]), float(sus["slack_s"])

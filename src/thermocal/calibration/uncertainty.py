@@ -65,9 +65,15 @@ the same paces with a wider margin (the report's ``margin_c_per_min``,
 :data:`~thermocal.calibration.report.MEMORY_PACE_MARGIN_C_PER_MIN`): its lag terms follow a
 pace's history, but their form was fitted on the session's paces alone, and on a camera whose
 lag has another form its error grows with the distance from them where no fold can show it.
-``wolf2016``, which learns its FPA terms online, is also held, as a memoryless method is, to
-paces no longer than its session held them (its report's ``sustained``): on ``boson``, fitted
-on ambient steps, it read +2 °C where σ said 0.9–1.0 20–40 min into a steady 0.5 °C/min rise.
+Nor does it vouch for a longer run of the FPA in one direction than its session's longest
+(the report's ``swing``, :meth:`CalibrationSigma.swing_excess`): what lags the FPA more slowly
+than its lags or its online estimate follow falls behind by about as far as the FPA ran, and a
+session of ambient steps runs a few °C at a time. Fitted on 5 °C steps, ``lin-lag`` on ``tau2``
+read a steady 0.5 °C/min rise 0.1–0.2 °C off where σ said 0.06 from 7 °C on (54 % within 2σ),
+and ``wolf2016`` on ``boson`` +2 °C where σ said 0.9–1.0; a frame whose FPA ran more than
+:data:`~thermocal.calibration.report.SWING_SLACK_C` further is outside, and forced, its ``s``
+becomes at least the report's largest rate-bin σ times how many times the session's run (and
+the slack) the frame's is. A session with a sawtooth over its range runs as far as a ramp does.
 
 **Stillness a session never reached.** Where the session's plateaus ended before the camera
 settled (:func:`~thermocal.calibration.report.settling_warning`: the method's error was still
@@ -98,7 +104,9 @@ from thermocal.calibration.dataset import RATE_SMOOTH_S, lagged_rate, recording_
 from thermocal.calibration.report import (
     MIN_BIN_FRAMES,
     PACE_LAG_S,
+    SWING_BAND_C_PER_MIN,
     CalibrationReport,
+    fpa_swings,
     pace_stays,
     rate_bin_range,
     report_of,
@@ -400,16 +408,21 @@ class CalibrationSigma:
             out[np.isnan(d)] = max(b["sigma_c"] for b in used)
         return out
 
-    def history_sigma(self, time_since_start_s: Any, n: int) -> np.ndarray:
+    def history_sigma(self, time_since_start_s: Any, n: int, *, moving_start: bool = True
+                      ) -> np.ndarray:
         """σ of ``n`` frames taken ``time_since_start_s`` after their recording began (s, one
         or one per frame; None: not known, or not seen, as a burst's) that a model remembering
         the FPA's rates cannot see the history of: the report's σ of frames taken alone
         (``without_history``), fading as ``exp(−t / τ)`` with the model's longest lag ``τ``
         (a first-order lag forgets its start so); 0 for the other methods. ``lin-lag`` on a
         5-frame recording of a camera long settled: −0.14 °C where σ said 0.07, 55 % of the
-        pixels beyond 2σ; σ without history covers it (0.16 °C MAE on its session's frames)."""
+        pixels beyond 2σ; σ without history covers it (0.16 °C MAE on its session's frames).
+        For a method that learns online, only where its recording began while the FPA changed
+        (``moving_start``; its session began settled, as its start-up bins,
+        :meth:`start_sigma`, measured), or its history was not seen."""
         alone = self.report.without_history
-        if not alone:
+        if not alone or (self._learns_online and not moving_start
+                         and time_since_start_s is not None):
             return np.zeros(n)
         since = (np.zeros(n) if time_since_start_s is None else np.broadcast_to(
             np.asarray(time_since_start_s, dtype=np.float64).reshape(-1), (n,)))
@@ -631,26 +644,78 @@ class CalibrationSigma:
         sus = (self.report.paces or {}).get("sustained")
         return np.asarray(excess) > (sus["slack_s"] if sus else math.inf)
 
+    def swing_excess(self, swings_c: Any) -> np.ndarray:
+        """How much further each frame's FPA had run in one direction without pause than its
+        chamber session's ever did that way, °C ``(N,)``: ``|swing|`` less the report's
+        ``rise_c`` (a rise) or ``fall_c`` (a fall), ``swings_c`` (°C, signed:
+        :func:`~thermocal.calibration.report.fpa_swings` of its recording); 0 where not
+        further, and where the report lists no runs (a memoryless method, an older report).
+        Frames beyond the report's ``slack_c`` are outside: what lags the FPA more slowly than
+        a model with memory follows has fallen further behind than any fold saw."""
+        swings = np.nan_to_num(np.asarray(swings_c, dtype=np.float64).reshape(-1))
+        swing = (self.report.paces or {}).get("swing")
+        if not swing:
+            return np.zeros(swings.shape)
+        held = np.where(swings > 0, swing["rise_c"], swing["fall_c"])
+        return np.maximum(np.abs(swings) - held, 0.0)
+
+    def _swings(self, fpa_c: np.ndarray, rate: np.ndarray, time_s: Any
+                ) -> tuple[np.ndarray, np.ndarray]:
+        """Frames' runs in one direction (°C, signed) and :meth:`swing_excess` (°C), both
+        ``(N,)``: those of the frames of one recording at FPA ``fpa_c`` (°C), rate ``rate``
+        (°C/min) and ``time_s`` (s, in time order); zeros without them (a burst alone, a
+        constant FPA) or where the report lists no runs."""
+        n = rate.shape[0]
+        swing = (self.report.paces or {}).get("swing")
+        t = None if time_s is None else np.asarray(time_s, dtype=np.float64).reshape(-1)
+        if (not swing or t is None or fpa_c.shape != rate.shape or t.shape != rate.shape
+                or np.any(np.diff(t) <= 0)):
+            return np.zeros(n), np.zeros(n)
+        swings = fpa_swings(fpa_c, rate, t, band_c_per_min=swing["band_c_per_min"])
+        return swings, self.swing_excess(swings)
+
+    def _ran_too_far(self, excess: np.ndarray) -> np.ndarray:
+        """Whether frames' :meth:`swing_excess` (°C) exceeds the report's ``slack_c`` (never
+        where the report lists no runs): outside."""
+        swing = (self.report.paces or {}).get("swing")
+        return np.asarray(excess) > (swing["slack_c"] if swing else math.inf)
+
+    def _swing_sigma(self, swings: np.ndarray, excess: np.ndarray) -> np.ndarray:
+        """``s`` of frames whose FPA ran further in one direction than the session's did by more
+        than its slack: the report's largest rate-bin σ times how many times its longest run
+        that way (and the slack) the frame's run is: how far behind what lags the FPA fell, no
+        fold measured (0 elsewhere)."""
+        swing = (self.report.paces or {}).get("swing")
+        if not swing:
+            return np.zeros(np.shape(excess))
+        held = np.where(swings > 0, swing["rise_c"], swing["fall_c"]) + swing["slack_c"]
+        return np.where(self._ran_too_far(excess),
+                        self._worst_sigma() * np.abs(swings) / held, 0.0)
+
+    def _swing_reason(self, swing: float, excess: float, count: str = "") -> str:
+        """The refusal's text for a frame whose FPA ran ``swing`` °C (signed) in one direction,
+        ``excess`` °C further than its session's longest run that way."""
+        way, run = ("rose", "rise") if swing > 0 else ("fell", "fall")
+        held = abs(swing) - excess
+        return (f"the FPA {way} {abs(swing):.1f} °C without pause ({count}"
+                f"{'first ' if count else ''}frame beyond), {excess:.1f} °C further than its "
+                f"chamber session's longest {run} ({held:.1f} °C): the {self.report.method} "
+                "calibration's terms for the FPA's history were fitted on shorter runs, and what "
+                "lags the FPA more slowly falls further behind on a longer one (record a "
+                f"session whose ambient {'rises' if swing > 0 else 'falls'} as far without "
+                "pause: a ramp or sawtooth over this range)")
+
     def _sustained_reason(self, rate: float, stay: float, excess: float,
                           count: str = "") -> str:
         """The refusal's text for a frame that held ``rate`` °C/min for ``stay`` s, ``excess`` s
         longer than its chamber session held any pace within a cell of it."""
         held = max(stay - excess, 0.0)
-        alternative = "; lin-lag follows the pace's history" if self._memoryless else ""
         return (f"the FPA held a pace for longer than its chamber session held it ({count}"
                 f"{'first ' if count else ''}{rate:+.2f} °C/min for {stay / 60:.1f} min, the "
                 f"session at most {held / 60:.1f} min near it): the {self.report.method} "
-                f"calibration, {self._pace_cause}, cannot vouch for the "
+                "calibration, with no memory of how the FPA changed, cannot vouch for the "
                 "state what lags the FPA reaches then (record a session that holds such paces "
-                "as long, a ramp or sawtooth at this rate"
-                f"{alternative})")
-
-    @property
-    def _pace_cause(self) -> str:
-        """Why the report's method cannot vouch for a pace held longer than its session held
-        it, in words."""
-        return ("with no memory of how the FPA changed" if self._memoryless else
-                "whose terms for the FPA's history were fitted on its session's short rises")
+                "as long, a ramp or sawtooth at this rate; lin-lag follows the pace's history)")
 
     def _still(self, fpa_c: Any, time_s: Any, still_s: Any = None, since_s: Any = None,
                rate_c_per_min: Any = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -783,6 +848,8 @@ class CalibrationSigma:
                 change = self.change_sigma(np.abs(rate - lagged))
                 _, sustained = self._sustained(rate, times, None if recording else sustained_s)
                 sustained = self._sustained_sigma(rate, sustained)
+                sustained = np.maximum(sustained, self._swing_sigma(*self._swings(
+                    np.ascontiguousarray(fpa), rate, times if recording else None)))
                 if self.by_pace:  # the bins are of the pace: the larger of the two rates
                     rate = np.maximum(np.abs(rate), np.abs(lagged))
             level = self.rate_sigma(rate, at_least=self.by_pace and not history)
@@ -800,8 +867,12 @@ class CalibrationSigma:
         if time_since_start_s is not None:
             level = np.maximum(level, np.broadcast_to(self.start_sigma(time_since_start_s),
                                                       frames.shape[:1]))
+
         level = np.maximum(level, self.history_sigma(
-            time_since_start_s if history_seen else None, n))
+            time_since_start_s if history_seen else None, n,
+            moving_start=not (recording and rate_c_per_min is not None) or bool(
+                abs(np.nan_to_num(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)[0]))
+                > SWING_BAND_C_PER_MIN)))
         (sx, sm), (fx, fm), k_scene, k_fpa, (step_lo, step_hi) = self._curves
         mean = self.report.expected_mae_c
         m_scene = np.interp(frames, sx, sm) if sx.size else np.full(frames.shape, mean)
@@ -978,6 +1049,13 @@ class CalibrationSigma:
                 reasons.append(self._sustained_reason(float(rate[min(k, rate.size - 1)]),
                                                       float(stays[k]), float(excess[k]),
                                                       count=count))
+            swings, beyond = self._swings(
+                fpa, rate, time_s if lagged_rate_c_per_min is None else None)
+            too_far = self._ran_too_far(beyond)
+            if too_far.any():
+                k = int(np.argmax(too_far))
+                reasons.append(self._swing_reason(float(swings[k]), float(beyond[k]),
+                                                  count=_count(too_far)))
         elif rate_c_per_min is None and fpa.size and self.report.paces.get("fpa_cells"):
             # no rate (a recording too short to show it): taken as steady, as it is applied
             unseen = self._distance(np.zeros(fpa.size), np.zeros(fpa.size), fpa) \
