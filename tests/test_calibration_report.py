@@ -427,6 +427,17 @@ def test_plateaus_that_end_before_the_camera_settles_are_warned_of(family, warne
         assert alone["mae_c"] > lag.expected_mae_c and alone["sigma_c"] > lag.sigma_c
         assert any("FPA history it cannot see" in line for line in lag.summary_lines())
         assert not report.without_history  # polynomial: memoryless, nothing to see
+        # wolf2016 learns online: its frames alone and its cold starts at each step measured,
+        # and how far its session's FPA ran one way (the physics suite's sawtooth: its range)
+        from thermocal.evaluation.suites.physics import plateau_fpa_c
+
+        _, wolf = fit_with_report(run.session, "wolf2016",
+                                  fpa_ref_c=plateau_fpa_c(run.session))
+        cold = wolf.without_history["by_time"]
+        assert cold[0]["time_s"][0] == 0.0 and all(b["frames"] >= 10 for b in cold)
+        assert wolf.without_history["lag_s"] == 480.0
+        assert 25.0 < wolf.paces["swing"]["rise_c"] < 40.0
+        assert "sustained" not in wolf.paces and "swing" not in report.paces
     else:
         _, lag = fit_with_report(run.session, "lin-lag")
         assert "still" not in lag.paces and not any("settled" in w for w in lag.warnings)

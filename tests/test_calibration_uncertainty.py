@@ -1385,5 +1385,57 @@ def test_an_online_estimate_begun_while_the_fpa_changes_takes_the_error_of_a_fra
             assert with_[0] == pytest.approx(max(3.0, without[0]), rel=1e-5)
             np.testing.assert_allclose(with_[-1], without[-1], rtol=1e-4)  # faded
     wolf = CalibrationSigma(replace(_paced().report, method="wolf2016", without_history=alone))
+    # its cold starts measured (the estimate begun afresh at each of its session's steps): σ by
+    # the time since the recording began, once its FPA has changed; settled, none
+    cold = alone | {"by_time": [{"time_s": [0.0, 60.0], "frames": 20, "mae_c": 3.0,
+                                 "sigma_c": 3.5},
+                                {"time_s": [60.0, 900.0], "frames": 50, "mae_c": 4.0,
+                                 "sigma_c": 5.0}]}
+    measured = CalibrationSigma(replace(wolf.report, without_history=cold))
+    moved = t >= 30.0
+    got = measured.history_sigma(t, t.size, moved=moved)
+    assert np.all(got[~moved] == 0.0) and got[3] == pytest.approx(3.5)
+    assert got[10] == pytest.approx(5.0)  # 100 s in: its measured bin, above the fade
+    again = CalibrationReport.from_dict(json.loads(json.dumps(measured.report.to_dict())))
+    assert again.without_history == cold
+    for bad in ({"time_s": [60.0, 10.0]}, {"sigma_c": math.nan}, {"frames": 0}):
+        broken = cold | {"by_time": [cold["by_time"][0] | bad]}
+        with pytest.raises(InvalidInputError, match="not a calibration report"):
+            CalibrationReport.from_dict(measured.report.to_dict()
+                                        | {"without_history": broken})
     # a burst (history not seen) takes it in full, whatever its rate
     assert wolf.sigma(temps[0], 27.0, rate_c_per_min=[0.0], history_seen=False)[0, 0] >= 3.0
+
+
+def test_the_pipeline_judges_a_bursts_run_of_fpa_change_from_its_recording(fitted):
+    """Given how far the FPA had run one way (from its recording: ``recording_paces``'
+    ``fpa_swing_c``), a calibration with memory refuses a burst whose FPA ran further than its
+    session's did, and forced, grows its σ; a shorter run, as before; a report without runs
+    gives none."""
+    from dataclasses import replace
+
+    from thermocal.estimation.paces import pace_at, recording_paces
+
+    camera, cal, report = fitted
+    scene = 15.0 + 10.0 * np.random.default_rng(0).random((96, 96))
+    fpa = 0.5 * sum(report.fpa_range_c)
+    burst = simulate_flight(scene, camera, n_frames=5, motion="walk", fpa_c=fpa, seed=1)
+    estimator = PivotCalibration(cal)
+    cells = [[i, j] for i in range(-20, 21) for j in range(-20, 21)]
+    swing = {"band_c_per_min": 0.1, "slack_c": 1.0, "rise_c": 5.0, "fall_c": 0.0}
+    estimator.sigma_model = CalibrationSigma(replace(report, paces={
+        "lag_s": 480.0, "cell_c_per_min": 0.1, "cells": cells, "margin_c_per_min": 0.3,
+        "swing": swing}))
+    t = np.arange(0.0, 1800.0, 10.0)
+    ramp = fpa - 5.0 + 0.3 * t / 60.0  # 9 °C in 30 min
+    history = recording_paces(ramp, t, estimator.fpa_paces)
+    assert history["fpa_swing_c"][-1] == pytest.approx(ramp[-1] - ramp[1], abs=0.1)
+    late, early = (pace_at(history, t, k) for k in (t.size - 1, 60))
+    assert late["fpa_swing_c"] > 6.0 > early["fpa_swing_c"]
+    with pytest.raises(OutsideDomainError, match="the FPA rose .* without pause"):
+        estimate(burst.frames, estimator, fpa_c=burst.fpa_c, **late)
+    forced = estimate(burst.frames, estimator, fpa_c=burst.fpa_c, force=True, **late)
+    inside = estimate(burst.frames, estimator, fpa_c=burst.fpa_c, **early)
+    assert inside.outside == () and any("without pause" in w for w in forced.outside)
+    assert np.median(forced.sigma_c) > np.median(inside.sigma_c)
+    assert recording_paces(ramp, t, {})["fpa_swing_c"] is None

@@ -55,7 +55,6 @@ import numpy as np
 from thermocal._validate import SATURATED_FRACTION, saturated_fraction
 from thermocal.calibration.base import Calibration, ThermocalWarning, apply_with_rate
 from thermocal.calibration.dataset import (
-    RATE_SMOOTH_S,
     ChamberData,
     fpa_change,
     fpa_pace,
@@ -469,13 +468,6 @@ def frame_errors(calibration: Calibration, data: ChamberData, scored: np.ndarray
     return out, out.mean(axis=1, dtype=np.float64)
 
 
-#: How long an estimate learned online and begun afresh (a frame alone, a recording begun while
-#: the FPA changed) keeps the error of one, s (:attr:`CalibrationReport.without_history`'s
-#: ``lag_s`` for ``wolf2016``): the FPA rate's smoothing window
-#: (:data:`~thermocal.calibration.dataset.RATE_SMOOTH_S`), over which the rate it learns from
-#: comes to be measured. `wolf2016` on `boson` read the first frame of clips begun in a
-#: 0.25 °C/min rise −2.9…−3.0 °C off where σ said 1.2–1.3; its frames alone err 2.7 °C MAE.
-ONLINE_START_S = RATE_SMOOTH_S
 #: The end of an ambient plateau whose error trend says whether the camera had settled, s; a
 #: plateau needs 1.5 times it to be judged.
 SETTLE_WINDOW_S = 480.0
@@ -797,6 +789,16 @@ def cross_validate(
                         "mae_c": float(np.mean(np.concatenate(alone))),
                         "lag_s": max(lags) if lags else ONLINE_START_S,
                         "frames": int(sum(len(a) for a in alone))} if alone else {})
+    if without_history and CALIBRATION_METHODS[method].learns_online:
+        # its estimate begun afresh at each step: how its error fades after a cold start
+        try:
+            cold, cold_since = cold_start_errors(sample_fit(), small, scorable,
+                                                 plateau_ends(small, scorable))
+        except ThermocalError:
+            cold = None  # no fit on the sample: the folds' notes say why
+        if cold is not None and cold.size:
+            without_history["by_time"] = _binned(cold, cold_since, TIME_EDGES, "time_s",
+                                                 min_frames=MIN_BIN_FRAMES)
     if expected is None:
         notes.append("no interior set point or FPA segment could be left out and refitted")
     paces = paces_of(data, memoryless=memoryless)
@@ -848,6 +850,14 @@ def cross_validate(
 #: The lag through which a frame's FPA rate tells the pace it has been changing at, s (the
 #: longest lag of ``lin-lag``'s rate terms: what lags the FPA by minutes).
 PACE_LAG_S = 480.0
+#: How long an estimate learned online and begun afresh (a frame alone, a recording whose FPA
+#: changes soon after it began) keeps the error of one, s (:attr:`CalibrationReport.
+#: without_history`'s ``lag_s`` for ``wolf2016``): the pace lag, as for lin-lag's lags. A
+#: helper's map, ``benchmarks/silent_map.py``: `wolf2016` on `boson` read clips begun settled
+#: +4…+5.6 °C off where σ said 1.1–2.5 when an ambient step came in their first minute (for
+#: 3 min), and the first frame of clips begun in a 0.25 °C/min rise −3 °C where σ said 1.3;
+#: its frames alone err 2.7 °C MAE (σ 3.3).
+ONLINE_START_S = PACE_LAG_S
 #: Cells of the (FPA rate, lagged FPA rate) plane that :attr:`CalibrationReport.paces` marks as
 #: held, °C/min a side.
 PACE_CELL_C_PER_MIN = 0.1
@@ -1219,7 +1229,43 @@ def _without_history_from(d: Any) -> dict[str, Any]:
             and 0 < frames < math.inf and frames == int(frames)):
         raise ValueError(f"without_history: σ {sigma} °C, MAE {mae} °C, lag {lag} s over "
                          f"{frames} frames")
-    return {"sigma_c": sigma, "mae_c": mae, "lag_s": lag, "frames": int(frames)}
+    out = {"sigma_c": sigma, "mae_c": mae, "lag_s": lag, "frames": int(frames)}
+    if d.get("by_time") is not None:  # an online estimate's cold starts
+        bins = [dict(b) for b in d["by_time"]]
+        for b in bins:
+            lo, hi = b["time_s"]
+            if not (0 <= float(lo) < (math.inf if hi is None else float(hi))
+                    and 0 <= float(b["sigma_c"]) < math.inf and int(b["frames"]) >= 1):
+                raise ValueError(f"without_history: a cold-start bin {b}")
+        out["by_time"] = bins
+    return out
+
+
+def cold_start_errors(calibration: Calibration, data: ChamberData, scored: np.ndarray,
+                      ends: list[np.ndarray], *, span_s: float = 1800.0
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """The pixel errors (°C ``(M, P)``) of a method that learns online begun afresh at each
+    ambient step of ``data`` (the first ``scored`` frame after each of the plateau ``ends``,
+    :func:`plateau_ends`) and applied to the ``scored`` frames of the next ``span_s`` s, and
+    their time since that start (s ``(M,)``): what a recording begun just before the FPA
+    changes gives it, which its session, begun settled, does not show."""
+    errors, since = [], []
+    idx = np.flatnonzero(scored)
+    for end in ends:
+        after = idx[idx > end[-1]]
+        if not after.size:
+            continue
+        t0 = data.time_s[after[0]]
+        run = after[data.time_s[after] < t0 + span_s]
+        if run.size < 2:
+            continue
+        est = _applied(calibration, data, run)
+        errors.append(np.abs(est - data.scene_c[run, None, None].astype(np.float32)).reshape(
+            run.size, -1))
+        since.append(data.time_s[run] - t0)
+    if not errors:
+        return np.zeros((0, 0), dtype=np.float32), np.zeros(0)
+    return np.concatenate(errors), np.concatenate(since)
 
 
 #: Edges of the bins of :attr:`CalibrationReport.by_change`, °C/min: settled, settling,

@@ -408,7 +408,7 @@ class CalibrationSigma:
             out[np.isnan(d)] = max(b["sigma_c"] for b in used)
         return out
 
-    def history_sigma(self, time_since_start_s: Any, n: int, *, moving_start: bool = True
+    def history_sigma(self, time_since_start_s: Any, n: int, *, moved: Any = None
                       ) -> np.ndarray:
         """σ of ``n`` frames taken ``time_since_start_s`` after their recording began (s, one
         or one per frame; None: not known, or not seen, as a burst's) that a model remembering
@@ -417,16 +417,28 @@ class CalibrationSigma:
         (a first-order lag forgets its start so); 0 for the other methods. ``lin-lag`` on a
         5-frame recording of a camera long settled: −0.14 °C where σ said 0.07, 55 % of the
         pixels beyond 2σ; σ without history covers it (0.16 °C MAE on its session's frames).
-        For a method that learns online, only where its recording began while the FPA changed
-        (``moving_start``; its session began settled, as its start-up bins,
-        :meth:`start_sigma`, measured), or its history was not seen."""
+        For a method that learns online, only at frames whose recording's FPA had changed since
+        it began (``moved``, bool ``(n,)``; None: not known, taken as changed) or whose history
+        was not seen: a recording that stays settled is what its session's start-up bins
+        (:meth:`start_sigma`) measured, its session having begun settled; a change early in
+        it, before the estimate learned anything, no fold saw."""
         alone = self.report.without_history
-        if not alone or (self._learns_online and not moving_start
-                         and time_since_start_s is not None):
+        if not alone:
             return np.zeros(n)
+        if self._learns_online and moved is not None and time_since_start_s is not None:
+            gate = np.broadcast_to(np.asarray(moved, dtype=bool).reshape(-1), (n,))
+            if alone.get("by_time"):  # its cold starts, measured: their σ by time since
+                since = np.broadcast_to(np.asarray(time_since_start_s, dtype=np.float64)
+                                        .reshape(-1), (n,))
+                cold = _bins_sigma(since, alone["by_time"], "time_s")
+                return np.where(gate, np.maximum(cold, alone["sigma_c"] * np.exp(
+                    -np.maximum(since, 0.0) / alone["lag_s"])), 0.0)
+        else:
+            gate = np.ones(n, dtype=bool)
         since = (np.zeros(n) if time_since_start_s is None else np.broadcast_to(
             np.asarray(time_since_start_s, dtype=np.float64).reshape(-1), (n,)))
-        return alone["sigma_c"] * np.exp(-np.maximum(since, 0.0) / alone["lag_s"])
+        return np.where(gate, alone["sigma_c"] * np.exp(-np.maximum(since, 0.0)
+                                                        / alone["lag_s"]), 0.0)
 
     def pace_distance(self, rate_c_per_min: Any, time_s: Any, *, fpa_c: Any = None
                       ) -> np.ndarray:
@@ -659,14 +671,19 @@ class CalibrationSigma:
         held = np.where(swings > 0, swing["rise_c"], swing["fall_c"])
         return np.maximum(np.abs(swings) - held, 0.0)
 
-    def _swings(self, fpa_c: np.ndarray, rate: np.ndarray, time_s: Any
+    def _swings(self, fpa_c: np.ndarray, rate: np.ndarray, time_s: Any, swing_c: Any = None
                 ) -> tuple[np.ndarray, np.ndarray]:
         """Frames' runs in one direction (°C, signed) and :meth:`swing_excess` (°C), both
-        ``(N,)``: those of the frames of one recording at FPA ``fpa_c`` (°C), rate ``rate``
-        (°C/min) and ``time_s`` (s, in time order); zeros without them (a burst alone, a
-        constant FPA) or where the report lists no runs."""
+        ``(N,)``: the runs given (``swing_c``, one or one per frame, taken from their
+        recording), or those of the frames of one recording at FPA ``fpa_c`` (°C), rate
+        ``rate`` (°C/min) and ``time_s`` (s, in time order); zeros without them (a burst alone,
+        a constant FPA) or where the report lists no runs."""
         n = rate.shape[0]
         swing = (self.report.paces or {}).get("swing")
+        if swing and swing_c is not None:
+            given = np.broadcast_to(np.nan_to_num(np.asarray(swing_c, dtype=np.float64)
+                                                  .reshape(-1)), (n,))
+            return given, self.swing_excess(given)
         t = None if time_s is None else np.asarray(time_s, dtype=np.float64).reshape(-1)
         if (not swing or t is None or fpa_c.shape != rate.shape or t.shape != rate.shape
                 or np.any(np.diff(t) <= 0)):
@@ -812,7 +829,7 @@ class CalibrationSigma:
 
     def sigma(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None,
               time_since_start_s: Any = None, lagged_rate_c_per_min: Any = None,
-              still_s: Any = None, sustained_s: Any = None,
+              still_s: Any = None, sustained_s: Any = None, swing_c: Any = None,
               history_seen: bool = True) -> np.ndarray:
         """σ (°C, float32, the shape of ``temps_c``: ``(H, W)`` or ``(N, H, W)``) of
         temperatures at FPA temperature ``fpa_c`` (°C: one, or one per frame) changing at
@@ -826,7 +843,9 @@ class CalibrationSigma:
         per frame, taken from its recording); for a memoryless method with a pace history, at
         least :meth:`change_sigma` of ``|rate − lagged rate|``, and where a pace was held
         longer than the session held it (:meth:`sustained_excess`, from the recording or each
-        frame's ``sustained_s``, s, its stay at its pace), :meth:`_sustained_sigma`.
+        frame's ``sustained_s``, s, its stay at its pace), :meth:`_sustained_sigma`; for a
+        method with memory whose FPA ran further one way than the session's did (from the
+        recording or each frame's ``swing_c``, °C), :meth:`_swing_sigma`.
         ``history_seen`` False: the calibration was applied to these frames without their
         recording's FPA history (a burst: a model remembering the FPA's rates started steady
         at the burst), whatever
@@ -849,7 +868,8 @@ class CalibrationSigma:
                 _, sustained = self._sustained(rate, times, None if recording else sustained_s)
                 sustained = self._sustained_sigma(rate, sustained)
                 sustained = np.maximum(sustained, self._swing_sigma(*self._swings(
-                    np.ascontiguousarray(fpa), rate, times if recording else None)))
+                    np.ascontiguousarray(fpa), rate, times if recording else None,
+                    None if recording else swing_c)))
                 if self.by_pace:  # the bins are of the pace: the larger of the two rates
                     rate = np.maximum(np.abs(rate), np.abs(lagged))
             level = self.rate_sigma(rate, at_least=self.by_pace and not history)
@@ -868,11 +888,16 @@ class CalibrationSigma:
             level = np.maximum(level, np.broadcast_to(self.start_sigma(time_since_start_s),
                                                       frames.shape[:1]))
 
-        level = np.maximum(level, self.history_sigma(
-            time_since_start_s if history_seen else None, n,
-            moving_start=not (recording and rate_c_per_min is not None) or bool(
-                abs(np.nan_to_num(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)[0]))
-                > SWING_BAND_C_PER_MIN)))
+        moved = None
+        if recording and rate_c_per_min is not None:  # whether the FPA had changed yet
+            moved = np.maximum.accumulate(np.abs(np.nan_to_num(np.broadcast_to(np.asarray(
+                rate_c_per_min, dtype=np.float64).reshape(-1), (n,)))) > SWING_BAND_C_PER_MIN)
+        # frames taken alone were scored over all the session's scene levels and FPA
+        # temperatures: their σ is not narrowed where the folds' is (wolf2016 on boson, begun
+        # settled with a step in its first minute, erred +5.5 °C at a 40 °C set point whose
+        # folds' σ narrowed it to 2.5)
+        history = self.history_sigma(time_since_start_s if history_seen else None, n,
+                                     moved=moved)
         (sx, sm), (fx, fm), k_scene, k_fpa, (step_lo, step_hi) = self._curves
         mean = self.report.expected_mae_c
         m_scene = np.interp(frames, sx, sm) if sx.size else np.full(frames.shape, mean)
@@ -894,7 +919,9 @@ class CalibrationSigma:
         unmeasured = unmeasured + (UNMEASURED_FPA_GROWTH_PER_C * (
             np.maximum(flo - seg_lo - fpa, 0.0) + np.maximum(fpa - fhi - seg_hi, 0.0)))[
                 :, None, None]
-        out = (level[:, None, None] * shape + _GAUSS * growth + unmeasured).astype(np.float32)
+        base = np.maximum(level[:, None, None] * shape,
+                          history[:, None, None] * np.maximum(shape, 1.0))
+        out = (base + _GAUSS * growth + unmeasured).astype(np.float32)
         return out if temps.ndim == 3 else out[0]
 
     @property
@@ -990,6 +1017,7 @@ class CalibrationSigma:
                                    else [pace.lagged_c_per_min]),
             still_s=None if pace.still_s is None else [pace.still_s],
             sustained_s=None if pace.sustained_s is None else [pace.sustained_s],
+            swing_c=None if getattr(pace, "swing_c", None) is None else [pace.swing_c],
             history_seen=history_seen)
 
     def outside_burst(self, temps_c: np.ndarray, fpa_c: float | None, pace: Any, *,
@@ -1006,15 +1034,17 @@ class CalibrationSigma:
                   else [pace.lagged_c_per_min])
         still = [math.nan if pace is None or pace.still_s is None else pace.still_s]
         stays = None if pace is None or pace.sustained_s is None else [pace.sustained_s]
+        swing = None if getattr(pace, "swing_c", None) is None else [pace.swing_c]
         return self.outside(temps_c, () if fpa_c is None else fpa_c, rate_c_per_min=rate,
                             lagged_rate_c_per_min=lagged, still_s=still, sustained_s=stays,
+                            swing_c=swing,
                             time_since_start_s=(None if time_since_start_s is None
                                                 else [time_since_start_s]))
 
     def outside(self, temps_c: np.ndarray, fpa_c: Any, *, rate_c_per_min: Any = None,
                 time_s: Any = None, lagged_rate_c_per_min: Any = None,
                 still_s: Any = None, time_since_start_s: Any = None,
-                sustained_s: Any = None) -> tuple[str, ...]:
+                sustained_s: Any = None, swing_c: Any = None) -> tuple[str, ...]:
         """Why frames lie outside what the calibration was fitted on: their FPA temperatures
         (more than :data:`FPA_MARGIN_C` beyond the session's), their FPA rates (°C/min, where
         known: faster than :data:`RATE_MARGIN` times the session's fastest), their paces (with
@@ -1025,7 +1055,9 @@ class CalibrationSigma:
         :meth:`still_excess`, from ``time_s`` or each frame's ``still_s``, s; or not known:
         still since their recording began, ``time_since_start_s`` s before, or NaN), for a
         memoryless method a pace held longer than the session held it
-        (:meth:`sustained_excess`, from ``time_s`` or each frame's ``sustained_s``, s), or
+        (:meth:`sustained_excess`, from ``time_s`` or each frame's ``sustained_s``, s), for a
+        method with memory a longer run of the FPA in one direction than the session's
+        (:meth:`swing_excess`, from ``time_s`` or each frame's ``swing_c``, °C, signed), or
         their scene (its 1st–99th percentile beyond the blackbody's range); ``()`` inside."""
         reasons = []
         fpa = np.asarray(fpa_c, dtype=np.float64).reshape(-1)
@@ -1050,7 +1082,7 @@ class CalibrationSigma:
                                                       float(stays[k]), float(excess[k]),
                                                       count=count))
             swings, beyond = self._swings(
-                fpa, rate, time_s if lagged_rate_c_per_min is None else None)
+                fpa, rate, time_s if lagged_rate_c_per_min is None else None, swing_c)
             too_far = self._ran_too_far(beyond)
             if too_far.any():
                 k = int(np.argmax(too_far))

@@ -39,6 +39,11 @@ class FpaPace(NamedTuple):
         (:func:`~thermocal.calibration.report.pace_stays`), s, where the calibration's report
         judges how long paces were held (a memoryless method's); None without the recording's
         history or without such a calibration.
+    swing_c : float or None
+        How far the FPA had run in one direction without pause at the burst, °C, signed
+        (:func:`~thermocal.calibration.report.fpa_swings`), where the calibration's report
+        judges it (a method with memory's); None without the recording's history or without
+        such a calibration.
     """
 
     rate_c_per_min: float
@@ -46,14 +51,17 @@ class FpaPace(NamedTuple):
     still_s: float | None = None
     lag_rates: tuple[float, ...] | None = None
     sustained_s: float | None = None
+    swing_c: float | None = None
 
 
 def fpa_pace(rate_c_per_min: float | None, lagged_c_per_min: float | None = None,
              still_s: float | None = None, lag_rates: tuple[float, ...] | None = None, *,
-             sustained_s: float | None = None) -> FpaPace | None:
+             sustained_s: float | None = None, swing_c: float | None = None
+             ) -> FpaPace | None:
     """A burst's :class:`FpaPace`, None without its rate."""
     return (None if rate_c_per_min is None
-            else FpaPace(rate_c_per_min, lagged_c_per_min, still_s, lag_rates, sustained_s))
+            else FpaPace(rate_c_per_min, lagged_c_per_min, still_s, lag_rates, sustained_s,
+                         swing_c))
 
 
 @dataclass(frozen=True)
@@ -119,6 +127,9 @@ class PreparedBurst:
     fpa_sustained_s : float or None
         How long the FPA had held its pace at the burst (:attr:`FpaPace.sustained_s`), s,
         where the recording's history is known; for the same.
+    fpa_swing_c : float or None
+        How far the FPA had run one way without pause at the burst (:attr:`FpaPace.swing_c`),
+        °C, where the recording's history is known; for a calibration with memory of it.
     fpa_lag_rates_c_per_min : tuple of float or None
         The FPA rate through each lag of a calibration that remembers it
         (:attr:`FpaPace.lag_rates`), given to its calibration; None: it started steady at the
@@ -141,12 +152,14 @@ class PreparedBurst:
     fpa_lag_rates_c_per_min: tuple[float, ...] | None = None
     pivot_time_s: float | None = None
     fpa_sustained_s: float | None = None
+    fpa_swing_c: float | None = None
 
     @property
     def pace(self) -> FpaPace | None:
         """How the FPA was changing at the burst (:func:`fpa_pace`), None where not known."""
         return fpa_pace(self.fpa_rate_c_per_min, self.fpa_lagged_rate_c_per_min,
-                        self.fpa_still_s, sustained_s=self.fpa_sustained_s)
+                        self.fpa_still_s, sustained_s=self.fpa_sustained_s,
+                        swing_c=self.fpa_swing_c)
 
 
 @runtime_checkable

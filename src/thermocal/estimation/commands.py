@@ -267,8 +267,9 @@ def _pivot_pace(rec: Any, estimator: Any, window: slice, pivot: int | None) -> d
     """How the FPA was changing at the pivot, from the whole recording as ``thermocal flight``
     takes it (:func:`~thermocal.estimation.paces.recording_paces`): the pipeline's
     ``fpa_rate_c_per_min``, ``fpa_lagged_rate_c_per_min``, ``fpa_still_s``,
-    ``fpa_lag_rates_c_per_min``, ``fpa_sustained_s`` and ``time_since_start_s``, each None
-    where not known (a pivot out of range is the pipeline's to refuse)."""
+    ``fpa_lag_rates_c_per_min``, ``fpa_sustained_s``, ``fpa_swing_c`` and
+    ``time_since_start_s``, each None where not known (a pivot out of range is the pipeline's
+    to refuse)."""
     from thermocal.burst import pivot_index
     from thermocal.estimation.paces import pace_at, recording_paces
 

@@ -13,14 +13,14 @@ from typing import Any
 import numpy as np
 
 from thermocal.calibration.dataset import lagged_rate, recording_fpa_rates, recording_still_time
-from thermocal.calibration.report import PACE_LAG_S, pace_stays
+from thermocal.calibration.report import PACE_LAG_S, fpa_swings, pace_stays
 
 __all__ = ["PACE_KEYS", "pace_at", "recording_paces"]
 
 #: The series :func:`recording_paces` gives, each a keyword of
 #: :func:`~thermocal.estimation.pipeline.estimate` (one frame's value, :func:`pace_at`).
 PACE_KEYS = ("fpa_rate_c_per_min", "fpa_lagged_rate_c_per_min", "fpa_still_s",
-             "fpa_lag_rates_c_per_min", "fpa_sustained_s")
+             "fpa_lag_rates_c_per_min", "fpa_sustained_s", "fpa_swing_c")
 
 
 def recording_paces(fpa_c: Any, time_s: Any, paces: dict[str, Any],
@@ -41,7 +41,10 @@ def recording_paces(fpa_c: Any, time_s: Any, paces: dict[str, Any],
       lag terms need; a burst alone would start them steady at itself);
     - ``fpa_sustained_s``: how long the FPA rate had stayed at its pace, s
       (:func:`~thermocal.calibration.report.pace_stays`), for a report that holds its
-      session's stays (``sustained``: a memoryless method's).
+      session's stays (``sustained``: a memoryless method's);
+    - ``fpa_swing_c``: how far the FPA had run one way without pause, °C, signed
+      (:func:`~thermocal.calibration.report.fpa_swings`), for a report that holds its
+      session's runs (``swing``: a method with memory's).
 
     Each None where it cannot be known: without FPA temperatures or frame times, for a recording
     too short to show its rate, for frame times that do not increase, for a constant FPA series
@@ -68,6 +71,9 @@ def recording_paces(fpa_c: Any, time_s: Any, paces: dict[str, Any],
     if paces.get("sustained"):
         out["fpa_sustained_s"] = pace_stays(
             rates, time_s, band_c_per_min=paces["sustained"]["band_c_per_min"])
+    if paces.get("swing"):
+        out["fpa_swing_c"] = fpa_swings(fpa_c, rates, time_s,
+                                        band_c_per_min=paces["swing"]["band_c_per_min"])
     return out
 
 
@@ -76,7 +82,8 @@ def pace_at(paces: dict[str, Any], time_s: Any, k: int) -> dict[str, Any]:
     :data:`PACE_KEYS`; a missing or None series: not known) and how long after the recording's
     first frame it was taken (``time_s``, s; None: not known), as
     :func:`~thermocal.estimation.pipeline.estimate`'s keywords: ``fpa_rate_c_per_min``,
-    ``fpa_lagged_rate_c_per_min``, ``fpa_still_s``, ``fpa_sustained_s`` (floats),
+    ``fpa_lagged_rate_c_per_min``, ``fpa_still_s``, ``fpa_sustained_s``, ``fpa_swing_c``
+    (floats),
     ``fpa_lag_rates_c_per_min`` (``(K,)``) and ``time_since_start_s``."""
     out: dict[str, Any] = {}
     for name in PACE_KEYS:

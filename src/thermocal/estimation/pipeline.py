@@ -122,6 +122,7 @@ def estimate(
     fpa_still_s: float | None = None,
     fpa_lag_rates_c_per_min: Any = None,
     fpa_sustained_s: float | None = None,
+    fpa_swing_c: float | None = None,
     bit_depth: int = 14,
 ) -> Estimate:
     """The pivot frame's temperature of a raw burst through ``estimator``.
@@ -175,6 +176,11 @@ def estimate(
         (:attr:`~thermocal.estimation.base.FpaPace.sustained_s`, from the whole recording): a
         calibration with no memory of the FPA's pace refuses a pace held longer than its
         chamber session held it (unless ``force``: σ grown).
+    fpa_swing_c : float, optional
+        How far the FPA had run one way without pause at the burst, °C, signed
+        (:attr:`~thermocal.estimation.base.FpaPace.swing_c`, from the whole recording): a
+        calibration with memory of the FPA's history refuses a longer run than its chamber
+        session's (unless ``force``: σ grown).
     bit_depth : int
         The counts' bit depth (14 for a Tau2 core; 16 for FLIR files): saturation is at
         ``2**bit_depth − 1``.
@@ -199,7 +205,7 @@ def estimate(
     lag_rates = (None if fpa_lag_rates_c_per_min is None
                  else tuple(float(v) for v in np.asarray(fpa_lag_rates_c_per_min).reshape(-1)))
     pace = fpa_pace(fpa_rate_c_per_min, fpa_lagged_rate_c_per_min, fpa_still_s, lag_rates,
-                    sustained_s=fpa_sustained_s)
+                    sustained_s=fpa_sustained_s, swing_c=fpa_swing_c)
     lag_rates = None if pace is None else lag_rates  # given to the calibration with its rate
     # the pivot's time, for a calibration whose correction depends on it (a shutter's
     # closures): one time for every frame, as the calibrations take it, or the pivot's own
@@ -216,7 +222,7 @@ def estimate(
         calibrated, raised = calibrate_stage(estimator, arr, fpa_c, time_s, pace=pace)
         burst = PreparedBurst(arr, calibrated, valid, hs, p, fpa, fpa_rate_c_per_min,
                               time_since_start_s, fpa_lagged_rate_c_per_min, fpa_still_s,
-                              lag_rates, pivot_time, fpa_sustained_s)
+                              lag_rates, pivot_time, fpa_sustained_s, fpa_swing_c)
         # the pivot alone is estimated: the pivot alone is checked (a recording's other frames
         # may lie anywhere: a chamber session's cycle through its set points)
         outside = checked_stage(estimator, calibrated[p : p + 1], burst, raised, force=force,
@@ -245,7 +251,7 @@ def estimate(
     check_overlap(valid, p)
     burst = PreparedBurst(filled, warped, valid, hs, p, fpa, fpa_rate_c_per_min,
                           time_since_start_s, fpa_lagged_rate_c_per_min, fpa_still_s, lag_rates,
-                          pivot_time, fpa_sustained_s)
+                          pivot_time, fpa_sustained_s, fpa_swing_c)
     outside = checked_stage(estimator, calibrated, burst, raised, force=force, pace=pace)
     # 6. estimate
     return _estimate_of(estimator, burst, outside)
