@@ -438,6 +438,8 @@ def test_plateaus_that_end_before_the_camera_settles_are_warned_of(family, warne
         assert wolf.without_history["lag_s"] == 480.0
         assert 25.0 < wolf.paces["swing"]["rise_c"] < 40.0
         assert "sustained" not in wolf.paces and "swing" not in report.paces
+        assert any("its estimate begun afresh at a step: σ" in line
+                   for line in wolf.summary_lines())
     else:
         _, lag = fit_with_report(run.session, "lin-lag")
         assert "still" not in lag.paces and not any("settled" in w for w in lag.warnings)

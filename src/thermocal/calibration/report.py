@@ -324,6 +324,13 @@ class CalibrationReport:
             lines.append(f"  frames whose FPA history it cannot see (a recording's first "
                          f"{alone['lag_s'] / 60:.0f} min, a burst): {alone['mae_c']:.2f} °C MAE "
                          f"(σ {alone['sigma_c']:.2f}, fading over those minutes)")
+            if alone.get("by_time"):
+                cold = [b["sigma_c"] for b in alone["by_time"]]
+                last = alone["by_time"][-1]["time_s"][1]
+                lines.append(f"  its estimate begun afresh at a step: σ {min(cold):.2f}…"
+                             f"{max(cold):.2f} °C over the first "
+                             + (f"{last / 60:.0f} min" if last is not None else "minutes")
+                             + " of a recording whose FPA changes")
         return lines
 
 
