@@ -1258,32 +1258,34 @@ def test_a_method_with_memory_is_refused_a_stillness_in_its_own_words():
 
 
 def test_fpa_swings_are_how_far_the_fpa_ran_one_way_since_its_run_began():
-    """Against the definition, frame by frame: a run is the frames beyond the band on one side;
-    a frame within it, a change of side, a NaN rate or a gap longer than the pace lag ends it."""
-    from thermocal.calibration.report import PACE_LAG_S, fpa_swings
+    """A run starts where the rate leaves the band and goes on through frames beyond it on that
+    side, NaN rates and pauses within the band of up to a minute (a slow ramp's flicker); a
+    longer pause, a turn or a recording gap ends it."""
+    from thermocal.calibration.report import PACE_LAG_S, SWING_PAUSE_S, fpa_swings
 
-    rng = np.random.default_rng(3)
-    rate = np.repeat(rng.choice([-0.5, -0.05, 0.0, 0.3, 1.0], 40), rng.integers(1, 12, 40))
-    rate[rng.integers(0, rate.size, 5)] = np.nan
-    t = np.cumsum(rng.uniform(5.0, 20.0, rate.size))
-    t[150:] += 2 * PACE_LAG_S  # a new recording
-    fpa = 20.0 + np.cumsum(np.nan_to_num(rate) * 0.2)
-
-    def by_definition(band):
-        side = [0 if not abs(r) > band else int(np.sign(r)) for r in rate]
-        out = np.zeros(rate.size)
-        for i in range(rate.size):
-            if side[i] == 0:
-                continue
-            j = i
-            while j > 0 and side[j - 1] == side[i] and t[j] - t[j - 1] <= PACE_LAG_S:
-                j -= 1
-            out[i] = fpa[i] - fpa[j]
-        return out
-
-    for band in (0.1, 0.4):
-        np.testing.assert_allclose(fpa_swings(fpa, rate, t, band_c_per_min=band),
-                                   by_definition(band))
+    t = np.arange(0.0, 3600.0, 10.0)
+    rate = np.full(t.size, 0.25)
+    rate[:6] = 0.0  # still, then a steady rise
+    fpa = 20.0 + np.cumsum(rate) * 10.0 / 60.0
+    steady = fpa_swings(fpa, rate, t)
+    np.testing.assert_allclose(steady[6:], fpa[6:] - fpa[6])
+    assert not steady[:6].any()
+    flicker = rate.copy()
+    flicker[30::90], flicker[75::90] = 0.09, np.nan  # a frame in the band, a rate not known
+    np.testing.assert_allclose(fpa_swings(fpa, flicker, t), steady)
+    paused = rate.copy()
+    paused[100:100 + int(SWING_PAUSE_S / 10) + 2] = 0.0  # longer than a pause: a new run
+    again = fpa_swings(fpa, paused, t)
+    k = 100 + int(SWING_PAUSE_S / 10) + 2
+    assert again[k] == 0.0 and again[-1] == pytest.approx(fpa[-1] - fpa[k])
+    turned = rate.copy()
+    turned[200:] = -0.25
+    down = fpa_swings(20.0 + np.cumsum(turned) * 10.0 / 60.0, turned, t)
+    assert down[199] > 0 and down[200] == 0.0 and np.all(down[201:] < 0)
+    gap = t.copy()
+    gap[150:] += 2 * PACE_LAG_S  # another recording: the run starts anew
+    split = fpa_swings(fpa, rate, gap)
+    assert split[150] == 0.0 and split[-1] == pytest.approx(fpa[-1] - fpa[150])
     assert fpa_swings([], [], []).shape == (0,)
     with pytest.raises(InvalidInputError, match="must be equal"):
         fpa_swings([1.0, 2.0], [0.0], [0.0, 1.0])
@@ -1398,8 +1400,11 @@ def test_an_online_estimate_begun_while_the_fpa_changes_takes_the_error_of_a_fra
     assert got[10] == pytest.approx(5.0)  # 100 s in: its measured bin, above the fade
     again = CalibrationReport.from_dict(json.loads(json.dumps(measured.report.to_dict())))
     assert again.without_history == cold
-    for bad in ({"time_s": [60.0, 10.0]}, {"sigma_c": math.nan}, {"frames": 0}):
-        broken = cold | {"by_time": [cold["by_time"][0] | bad]}
+    overlapping = [cold["by_time"][1], cold["by_time"][0]]
+    for broken in [cold | {"by_time": [cold["by_time"][0] | bad]}
+                   for bad in ({"time_s": [60.0, 10.0]}, {"sigma_c": math.nan}, {"frames": 0},
+                               {"time_s": [0.0, None]}, {"mae_c": -1.0})] + [
+                       cold | {"by_time": overlapping}]:
         with pytest.raises(InvalidInputError, match="not a calibration report"):
             CalibrationReport.from_dict(measured.report.to_dict()
                                         | {"without_history": broken})
@@ -1439,3 +1444,46 @@ def test_the_pipeline_judges_a_bursts_run_of_fpa_change_from_its_recording(fitte
     assert inside.outside == () and any("without pause" in w for w in forced.outside)
     assert np.median(forced.sigma_c) > np.median(inside.sigma_c)
     assert recording_paces(ramp, t, {})["fpa_swing_c"] is None
+
+
+def test_a_method_that_learns_online_is_scored_alone_frame_by_frame_and_its_bursts_alike():
+    """Frames alone, for a method that learns online, are each applied in a call of their own
+    (its estimate carries its state from frame to frame of one call, whatever their times); a
+    burst of it begins its estimate afresh: settled (its pace known, 0), the start-up σ of its
+    session; changing, the σ of frames alone; an older report without its cold starts or runs
+    is said to be older."""
+    from dataclasses import replace
+    from types import SimpleNamespace
+
+    from thermocal.calibration.report import frame_errors_alone
+
+    def apply(frames, *, fpa_c=None, time_s=None):  # an estimate that learns frame by frame
+        return np.asarray(frames, np.float32) + np.arange(len(frames), dtype=np.float32)[
+            :, None, None]
+
+    stub = SimpleNamespace(apply=apply)
+    n = 6
+    data = SimpleNamespace(session=SimpleNamespace(frames=np.full((n, 2, 2), 30.0)),
+                           fpa_c=np.full(n, 27.0), fpa_rate_c_per_min=np.zeros(n),
+                           scene_c=np.full(n, 30.0))
+    scored = np.ones(n, bool)
+    assert not frame_errors_alone(stub, data, scored, learns_online=True).any()
+    np.testing.assert_array_equal(frame_errors_alone(stub, data, scored)[:, 0], np.arange(n))
+    alone = {"sigma_c": 3.0, "mae_c": 2.5, "lag_s": 480.0, "frames": 100,
+             "by_time": [{"time_s": [0.0, 60.0], "frames": 20, "mae_c": 3.0, "sigma_c": 3.5}]}
+    wolf = CalibrationSigma(replace(_paced().report, method="wolf2016", without_history=alone,
+                                    by_time=[{"time_s": [0.0, 300.0], "frames": 20,
+                                              "mae_c": 0.4, "sigma_c": 0.5}]))
+    x = np.full((1, 1), 25.0)
+    settled = wolf.sigma(x, 27.0, rate_c_per_min=[0.0], lagged_rate_c_per_min=[0.0],
+                         time_since_start_s=[1800.0], history_seen=False)[0, 0]
+    moving = wolf.sigma(x, 27.0, rate_c_per_min=[0.0], lagged_rate_c_per_min=[0.5],
+                        time_since_start_s=[1800.0], history_seen=False)[0, 0]
+    assert settled == pytest.approx(0.5, rel=1e-5)  # its start-up bin, 0 s into its estimate
+    assert moving == pytest.approx(3.5, rel=1e-5)  # its cold start's
+    assert "no record of how far" in CalibrationSigma(replace(
+        _paced().report, method="lin-lag", without_history=alone)).older_report()
+    assert "estimate begun afresh" in CalibrationSigma(replace(
+        _paced().report, method="wolf2016", paces=_paced().report.paces | {
+            "swing": {"band_c_per_min": 0.1, "slack_c": 1.0, "rise_c": 5.0,
+                      "fall_c": 0.0}})).older_report()

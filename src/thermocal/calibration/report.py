@@ -149,8 +149,10 @@ class CalibrationReport:
         and, where the session's plateaus ended before the camera settled
         (:func:`settling_warning`), ``still``: how long its plateaus held the FPA still
         (:func:`stillness_of`); ``fpa_sensitivity_c_per_c``, the scene °C one FPA °C is worth
-        in the counts (:func:`fpa_sensitivity`; absent in a report made before it). Empty for
-        the others and in a report made before it.
+        in the counts (:func:`fpa_sensitivity`; absent in a report made before it); for a
+        memoryless method ``sustained``, how long it held each pace (:func:`sustained_of`), for
+        one with memory ``swing``, how far its FPA ran one way without pause
+        (:func:`swing_of`). Empty for the others and in a report made before it.
     by_time : list of dict
         For a method that learns as frames stream by (``wolf2016``'s LMS: it errs most at
         first; :attr:`~thermocal.calibration.registry.CalibrationInfo.learns_online`), the same
@@ -169,7 +171,10 @@ class CalibrationReport:
         recording too short to show its history starts them (:func:`frame_errors_alone`):
         ``sigma_c`` (:func:`coverage_sigma`), ``mae_c``, ``frames``, and ``lag_s``, the model's
         longest lag (one that learns online: :data:`ONLINE_START_S`), over which a recording's
-        own history takes that start's place. Empty for the others and in a report made before
+        own history takes that start's place; for one that learns online also ``by_time``, its
+        estimate begun afresh at each of the session's steps (:func:`cold_start_errors`) by time
+        since then (``time_s`` ``[low, high]`` s, closed at :data:`COLD_START_SPAN_S`, with
+        ``frames``, ``mae_c``, ``sigma_c``). Empty for the others and in a report made before
         it.
     """
 
@@ -605,18 +610,28 @@ def _applied(calibration: Calibration, data: ChamberData, idx: np.ndarray) -> np
 _APART_S = 1e9
 
 
-def frame_errors_alone(calibration: Calibration, data: ChamberData, scored: np.ndarray
-                       ) -> np.ndarray:
+def frame_errors_alone(calibration: Calibration, data: ChamberData, scored: np.ndarray, *,
+                       learns_online: bool = False) -> np.ndarray:
     """The absolute error of each pixel of the ``scored`` frames of ``data`` (°C, ``(M, P)``
     for the M scored frames) with each frame taken alone, at its own FPA rate: what a model
     that remembers the FPA's rates (lin-lag's lags) gives a recording too short to show its
-    history, which starts its lagged rates steady at the present one."""
+    history, which starts its lagged rates steady at the present one. ``learns_online``: each
+    frame in a call of its own (an online estimate carries its state from frame to frame of
+    one call, whatever their times: wolf2016's LMS), its estimate begun afresh at it."""
     idx = np.flatnonzero(scored)
+    frames = np.asarray(data.session.frames[idx])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ThermocalWarning)
-        est = apply_with_rate(calibration, np.asarray(data.session.frames[idx]),
-                              fpa_c=data.fpa_c[idx], time_s=np.arange(idx.size) * _APART_S,
-                              fpa_rate_c_per_min=data.fpa_rate_c_per_min[idx])
+        if learns_online:
+            est = np.concatenate([
+                apply_with_rate(calibration, frames[k : k + 1], fpa_c=data.fpa_c[idx[k : k + 1]],
+                                time_s=np.zeros(1),
+                                fpa_rate_c_per_min=data.fpa_rate_c_per_min[idx[k : k + 1]])
+                for k in range(idx.size)]) if idx.size else frames.astype(np.float32)
+        else:
+            est = apply_with_rate(calibration, frames, fpa_c=data.fpa_c[idx],
+                                  time_s=np.arange(idx.size) * _APART_S,
+                                  fpa_rate_c_per_min=data.fpa_rate_c_per_min[idx])
     return np.abs(est - data.scene_c[idx, None, None].astype(np.float32)).reshape(idx.size, -1)
 
 
@@ -773,7 +788,8 @@ def cross_validate(
         if not desc["extrapolation"]:
             errors.append(pix)
             if remembers:
-                alone.append(frame_errors_alone(cal, small, held))
+                alone.append(frame_errors_alone(
+                    cal, small, held, learns_online=CALIBRATION_METHODS[method].learns_online))
             rates.append(binned_rate[held])
             if change is not None:
                 changes.append(change[held])
@@ -804,8 +820,10 @@ def cross_validate(
         except ThermocalError:
             cold = None  # no fit on the sample: the folds' notes say why
         if cold is not None and cold.size:
-            without_history["by_time"] = _binned(cold, cold_since, TIME_EDGES, "time_s",
-                                                 min_frames=MIN_BIN_FRAMES)
+            # closed at the span measured: beyond it, the fade of frames alone
+            without_history["by_time"] = _binned(
+                cold, cold_since, (*[e for e in TIME_EDGES if e < COLD_START_SPAN_S],
+                                   COLD_START_SPAN_S), "time_s", min_frames=MIN_BIN_FRAMES)
     if expected is None:
         notes.append("no interior set point or FPA segment could be left out and refitted")
     paces = paces_of(data, memoryless=memoryless)
@@ -957,31 +975,51 @@ SWING_BAND_C_PER_MIN = PACE_CELL_C_PER_MIN
 SWING_SLACK_C = 1.0
 
 
+#: How long a run of FPA change survives its rate back within the band, s (the rate's
+#: smoothing window, :data:`~thermocal.calibration.dataset.RATE_SMOOTH_S`): a slow ramp whose
+#: rate flickers across the band for a frame is one run, not many short ones.
+SWING_PAUSE_S = 60.0
+
+
 def fpa_swings(fpa_c: Any, rate_c_per_min: Any, time_s: Any, *,
                band_c_per_min: float = SWING_BAND_C_PER_MIN) -> np.ndarray:
     """How far each frame's FPA had run since its run of change in one direction began, °C
-    ``(M,)`` (signed: + rising): a run is the frames whose rate stays beyond
-    ``band_c_per_min`` on one side, ended by a frame within it (0 there), a change of side, a
-    rate not known (NaN) or a gap of more than :data:`PACE_LAG_S` between frames.
+    ``(M,)`` (signed: + rising; 0 outside a run): a run starts at a frame whose rate lies
+    beyond ``band_c_per_min`` on one side and goes on through frames beyond it on that side,
+    frames whose rate is not known (NaN), and pauses within the band of up to
+    :data:`SWING_PAUSE_S`; it ends at a longer pause, a frame beyond it on the other side
+    (which starts a run that way) or a gap of more than :data:`PACE_LAG_S` between frames.
     ``fpa_c`` (°C), ``rate_c_per_min`` (°C/min) and ``time_s`` (s) ``(M,)``: one recording, in
     time order.
 
     For a model that remembers the FPA's rates through lags of minutes (lin-lag's 8), what
     lags the FPA more slowly falls behind by about as much as the FPA ran: a session's steps
-    show runs of a few °C; a ramp runs on."""
+    show runs of a few °C; a ramp runs on. By hand, frame by frame: a run with pauses has no
+    numpy primitive (a session or recording has thousands of frames)."""
     fpa = np.asarray(fpa_c, dtype=np.float64).reshape(-1)
     rate = np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)
     t = np.asarray(time_s, dtype=np.float64).reshape(-1)
     if not fpa.shape == rate.shape == t.shape:
         raise InvalidInputError(f"fpa_swings: fpa_c {fpa.shape}, rate_c_per_min {rate.shape} "
                                 f"and time_s {t.shape} must be equal")
-    if not fpa.size:
-        return np.zeros(0)
-    with np.errstate(invalid="ignore"):
-        side = np.where(rate > band_c_per_min, 1, np.where(rate < -band_c_per_min, -1, 0))
-    starts = np.r_[True, (side[1:] != side[:-1]) | (np.diff(t) > PACE_LAG_S)]
-    first = np.maximum.accumulate(np.where(starts, np.arange(fpa.size), 0))
-    return np.where(side != 0, fpa - fpa[first], 0.0)
+    out = np.zeros(fpa.size)
+    side, start, paused = 0, 0, None  # the run's direction, first frame, pause's start (s)
+    for i in range(fpa.size):
+        if i and t[i] - t[i - 1] > PACE_LAG_S:
+            side, paused = 0, None  # another recording: what the FPA did between is not known
+        r = rate[i]
+        way = 0 if not np.isfinite(r) else (1 if r > band_c_per_min else
+                                              -1 if r < -band_c_per_min else 0)
+        if way and way != side:  # a run starts (or turns)
+            side, start, paused = way, i, None
+        elif way:
+            paused = None
+        elif side and np.isfinite(r):  # within the band: a pause, or the run's end
+            paused = t[i] if paused is None else paused
+            if t[i] - paused > SWING_PAUSE_S:
+                side, paused = 0, None
+        out[i] = fpa[i] - fpa[start] if side else 0.0
+    return out
 
 
 def swing_of(data: ChamberData) -> dict[str, Any]:
@@ -1238,24 +1276,36 @@ def _without_history_from(d: Any) -> dict[str, Any]:
                          f"{frames} frames")
     out = {"sigma_c": sigma, "mae_c": mae, "lag_s": lag, "frames": int(frames)}
     if d.get("by_time") is not None:  # an online estimate's cold starts
-        bins = [dict(b) for b in d["by_time"]]
-        for b in bins:
-            lo, hi = b["time_s"]
-            if not (0 <= float(lo) < (math.inf if hi is None else float(hi))
-                    and 0 <= float(b["sigma_c"]) < math.inf and int(b["frames"]) >= 1):
-                raise ValueError(f"without_history: a cold-start bin {b}")
+        bins, end = [], 0.0
+        for b in d["by_time"]:
+            lo, hi = (float(v) for v in b["time_s"])
+            sigma, mae, count = float(b["sigma_c"]), float(b["mae_c"]), float(b["frames"])
+            if not (end <= lo < hi < math.inf and 0 <= sigma < math.inf
+                    and 0 <= mae < math.inf and 1 <= count == int(count)):
+                raise ValueError(f"without_history: a cold-start bin {b} (bins in order, "
+                                 "closed, σ and MAE >= 0, frames >= 1)")
+            bins.append({"time_s": [lo, hi], "frames": int(count), "mae_c": mae,
+                         "sigma_c": sigma})
+            end = hi
         out["by_time"] = bins
     return out
 
 
+#: How long after each step :func:`cold_start_errors` follows an online estimate begun
+#: afresh, s (the last of :data:`TIME_EDGES` before its open bin).
+COLD_START_SPAN_S = 1800.0
+
+
 def cold_start_errors(calibration: Calibration, data: ChamberData, scored: np.ndarray,
-                      ends: list[np.ndarray], *, span_s: float = 1800.0
+                      ends: list[np.ndarray], *, span_s: float = COLD_START_SPAN_S
                       ) -> tuple[np.ndarray, np.ndarray]:
     """The pixel errors (°C ``(M, P)``) of a method that learns online begun afresh at each
     ambient step of ``data`` (the first ``scored`` frame after each of the plateau ``ends``,
     :func:`plateau_ends`) and applied to the ``scored`` frames of the next ``span_s`` s, and
     their time since that start (s ``(M,)``): what a recording begun just before the FPA
-    changes gives it, which its session, begun settled, does not show."""
+    changes gives it, which its session, begun settled, does not show. The calibration is
+    the one fitted on all the session's frames (its cross-validated error is the folds'; what
+    a cold start adds is the estimate's state, which no refit changes)."""
     errors, since = [], []
     idx = np.flatnonzero(scored)
     for end in ends:

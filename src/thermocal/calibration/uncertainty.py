@@ -314,6 +314,13 @@ class CalibrationSigma:
         if self.report.method == "lin-lag" and not self.report.without_history:
             return ("no σ of frames whose FPA history it cannot see, so σ of a recording "
                     "shorter than its lags may be too small")
+        if info is not None and not info.memoryless and "swing" not in self.report.paces:
+            return ("no record of how far its session's FPA ran one way without pause, so a "
+                    "longer run (a long ramp) is not refused")
+        if info is not None and info.learns_online and not (
+                self.report.without_history or {}).get("by_time"):
+            return ("no σ of its estimate begun afresh, so σ of a recording whose FPA changes "
+                    "soon after it began may be too small")
         return None
 
     @cached_property
@@ -425,20 +432,15 @@ class CalibrationSigma:
         alone = self.report.without_history
         if not alone:
             return np.zeros(n)
-        if self._learns_online and moved is not None and time_since_start_s is not None:
-            gate = np.broadcast_to(np.asarray(moved, dtype=bool).reshape(-1), (n,))
-            if alone.get("by_time"):  # its cold starts, measured: their σ by time since
-                since = np.broadcast_to(np.asarray(time_since_start_s, dtype=np.float64)
-                                        .reshape(-1), (n,))
-                cold = _bins_sigma(since, alone["by_time"], "time_s")
-                return np.where(gate, np.maximum(cold, alone["sigma_c"] * np.exp(
-                    -np.maximum(since, 0.0) / alone["lag_s"])), 0.0)
-        else:
-            gate = np.ones(n, dtype=bool)
         since = (np.zeros(n) if time_since_start_s is None else np.broadcast_to(
             np.asarray(time_since_start_s, dtype=np.float64).reshape(-1), (n,)))
-        return np.where(gate, alone["sigma_c"] * np.exp(-np.maximum(since, 0.0)
-                                                        / alone["lag_s"]), 0.0)
+        faded = alone["sigma_c"] * np.exp(-np.maximum(since, 0.0) / alone["lag_s"])
+        if not (self._learns_online and moved is not None):
+            return faded
+        if alone.get("by_time"):  # its cold starts, measured: their σ by time since
+            faded = np.maximum(faded, _bins_sigma(since, alone["by_time"], "time_s"))
+        return np.where(np.broadcast_to(np.asarray(moved, dtype=bool).reshape(-1), (n,)),
+                        faded, 0.0)
 
     def pace_distance(self, rate_c_per_min: Any, time_s: Any, *, fpa_c: Any = None
                       ) -> np.ndarray:
@@ -714,9 +716,10 @@ class CalibrationSigma:
         ``excess`` °C further than its session's longest run that way."""
         way, run = ("rose", "rise") if swing > 0 else ("fell", "fall")
         held = abs(swing) - excess
-        return (f"the FPA {way} {abs(swing):.1f} °C without pause ({count}"
-                f"{'first ' if count else ''}frame beyond), {excess:.1f} °C further than its "
-                f"chamber session's longest {run} ({held:.1f} °C): the {self.report.method} "
+        frames = f" ({count.rstrip('; ')} beyond)" if count else ""
+        return (f"the FPA {way} {abs(swing):.1f} °C without pause{frames}, {excess:.1f} °C "
+                f"further than its chamber session's longest {run} ({held:.1f} °C): the "
+                f"{self.report.method} "
                 "calibration's terms for the FPA's history were fitted on shorter runs, and what "
                 "lags the FPA more slowly falls further behind on a longer one (record a "
                 f"session whose ambient {'rises' if swing > 0 else 'falls'} as far without "
@@ -884,20 +887,29 @@ class CalibrationSigma:
                                          rate_c_per_min)
         level = np.maximum(level, self._still_sigma(np.where(
             unknown, np.maximum(excess, UNKNOWN_STILL_EXCESS), excess)))
+        if self._learns_online and not history_seen:
+            time_since_start_s = np.zeros(n)  # its estimate begins at these frames
         if time_since_start_s is not None:
             level = np.maximum(level, np.broadcast_to(self.start_sigma(time_since_start_s),
                                                       frames.shape[:1]))
 
-        moved = None
-        if recording and rate_c_per_min is not None:  # whether the FPA had changed yet
+        moved = None  # whether the FPA had changed since the estimate began (None: not known)
+        if recording and rate_c_per_min is not None:
             moved = np.maximum.accumulate(np.abs(np.nan_to_num(np.broadcast_to(np.asarray(
                 rate_c_per_min, dtype=np.float64).reshape(-1), (n,)))) > SWING_BAND_C_PER_MIN)
+        elif rate_c_per_min is not None and lagged_rate_c_per_min is not None:
+            # a burst of a recording whose pace is known: an estimate begun at it, its FPA
+            # changing now or over the pace's lag before
+            pace = np.maximum(np.abs(np.asarray(rate_c_per_min, dtype=np.float64)),
+                              np.abs(np.asarray(lagged_rate_c_per_min, dtype=np.float64)))
+            moved = np.broadcast_to(np.nan_to_num(pace.reshape(-1), nan=np.inf)
+                                    > SWING_BAND_C_PER_MIN, (n,))
         # frames taken alone were scored over all the session's scene levels and FPA
         # temperatures: their σ is not narrowed where the folds' is (wolf2016 on boson, begun
         # settled with a step in its first minute, erred +5.5 °C at a 40 °C set point whose
         # folds' σ narrowed it to 2.5)
-        history = self.history_sigma(time_since_start_s if history_seen else None, n,
-                                     moved=moved)
+        alone = self.history_sigma(time_since_start_s if history_seen else None, n,
+                                   moved=moved)
         (sx, sm), (fx, fm), k_scene, k_fpa, (step_lo, step_hi) = self._curves
         mean = self.report.expected_mae_c
         m_scene = np.interp(frames, sx, sm) if sx.size else np.full(frames.shape, mean)
@@ -920,7 +932,7 @@ class CalibrationSigma:
             np.maximum(flo - seg_lo - fpa, 0.0) + np.maximum(fpa - fhi - seg_hi, 0.0)))[
                 :, None, None]
         base = np.maximum(level[:, None, None] * shape,
-                          history[:, None, None] * np.maximum(shape, 1.0))
+                          alone[:, None, None] * np.maximum(shape, 1.0))
         out = (base + _GAUSS * growth + unmeasured).astype(np.float32)
         return out if temps.ndim == 3 else out[0]
 
@@ -1085,7 +1097,7 @@ class CalibrationSigma:
                 fpa, rate, time_s if lagged_rate_c_per_min is None else None, swing_c)
             too_far = self._ran_too_far(beyond)
             if too_far.any():
-                k = int(np.argmax(too_far))
+                k = int(np.argmax(np.where(too_far, beyond, -1.0)))  # the farthest run
                 reasons.append(self._swing_reason(float(swings[k]), float(beyond[k]),
                                                   count=_count(too_far)))
         elif rate_c_per_min is None and fpa.size and self.report.paces.get("fpa_cells"):
