@@ -851,7 +851,11 @@ def test_a_report_of_an_older_thermocal_says_what_it_lacks(fitted, tmp_path):
     assert "pace is from steady" in CalibrationSigma(paced).older_report()
     assert "FPA history" in CalibrationSigma(replace(paced, method="lin-lag")).older_report()
     alone = {"sigma_c": 0.2, "mae_c": 0.17, "lag_s": 480.0, "frames": 10}
-    assert CalibrationSigma(replace(paced, method="lin-lag",
+    assert "ran one way" in CalibrationSigma(replace(paced, method="lin-lag",
+                                                     without_history=alone)).older_report()
+    swung = replace(paced, paces=paced.paces | {"swing": {
+        "band_c_per_min": 0.1, "slack_c": 1.0, "rise_c": 5.0, "fall_c": 0.0}})
+    assert CalibrationSigma(replace(swung, method="lin-lag",
                                     without_history=alone)).older_report() is None
     _, cal, report = fitted
     assert CalibrationSigma(report).older_report() is None
