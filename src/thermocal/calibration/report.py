@@ -474,10 +474,14 @@ def frame_errors(calibration: Calibration, data: ChamberData, scored: np.ndarray
     idx = np.flatnonzero(scored)
     if idx.size == 0:
         return out, np.full(data.n_frames, np.nan)
-    est = _applied(calibration, data, idx)
-    out[idx] = np.abs(est - data.scene_c[idx, None, None].astype(np.float32)).reshape(
-        idx.size, pixels)
+    out[idx] = _pixel_errors(_applied(calibration, data, idx), data, idx)
     return out, out.mean(axis=1, dtype=np.float64)
+
+
+def _pixel_errors(est: np.ndarray, data: ChamberData, idx: np.ndarray) -> np.ndarray:
+    """The absolute error of each pixel of ``est`` (°C ``(M, H, W)``, the frames ``idx`` of
+    ``data`` through a calibration) against ``data.scene_c``, °C ``(M, P)``."""
+    return np.abs(est - data.scene_c[idx, None, None].astype(np.float32)).reshape(idx.size, -1)
 
 
 #: The end of an ambient plateau whose error trend says whether the camera had settled, s; a
@@ -632,7 +636,7 @@ def frame_errors_alone(calibration: Calibration, data: ChamberData, scored: np.n
             est = apply_with_rate(calibration, frames, fpa_c=data.fpa_c[idx],
                                   time_s=np.arange(idx.size) * _APART_S,
                                   fpa_rate_c_per_min=data.fpa_rate_c_per_min[idx])
-    return np.abs(est - data.scene_c[idx, None, None].astype(np.float32)).reshape(idx.size, -1)
+    return _pixel_errors(est, data, idx)
 
 
 def coverage_sigma(abs_errors: np.ndarray) -> float:
@@ -744,12 +748,13 @@ def cross_validate(
     # a memoryless method's error follows how fast the FPA has been changing, not its present
     # rate alone (what lags the FPA catches up after the rate is 0): its bins are by pace
     memoryless = CALIBRATION_METHODS[method].memoryless
+    online = CALIBRATION_METHODS[method].learns_online
     # a model that remembers the FPA's rates (lin-lag's lags), or learns its FPA terms online
     # (wolf2016's LMS): its error on frames whose history it cannot see, measured too (a short
     # recording's; for one that learns online, a recording begun while its FPA changed, a
     # start its session, begun settled, never showed)
     lags = tuple(getattr(calibration, "rate_lags_s", ()) or ())
-    remembers = not memoryless and (bool(lags) or CALIBRATION_METHODS[method].learns_online)
+    remembers = not memoryless and (bool(lags) or online)
     alone: list[np.ndarray] = []  # the interior folds' pixel errors, each frame alone
     rate_key = "pace_c_per_min" if memoryless else "rate_c_per_min"
     binned_rate = (fpa_pace(small.fpa_rate_c_per_min, small.time_s, PACE_LAG_S) if memoryless
@@ -788,8 +793,7 @@ def cross_validate(
         if not desc["extrapolation"]:
             errors.append(pix)
             if remembers:
-                alone.append(frame_errors_alone(
-                    cal, small, held, learns_online=CALIBRATION_METHODS[method].learns_online))
+                alone.append(frame_errors_alone(cal, small, held, learns_online=online))
             rates.append(binned_rate[held])
             if change is not None:
                 changes.append(change[held])
@@ -812,11 +816,11 @@ def cross_validate(
                         "mae_c": float(np.mean(np.concatenate(alone))),
                         "lag_s": max(lags) if lags else ONLINE_START_S,
                         "frames": int(sum(len(a) for a in alone))} if alone else {})
-    if without_history and CALIBRATION_METHODS[method].learns_online:
+    ends = plateau_ends(small, scorable)
+    if without_history and online:
         # its estimate begun afresh at each step: how its error fades after a cold start
         try:
-            cold, cold_since = cold_start_errors(sample_fit(), small, scorable,
-                                                 plateau_ends(small, scorable))
+            cold, cold_since = cold_start_errors(sample_fit(), small, scorable, ends)
         except ThermocalError:
             cold = None  # no fit on the sample: the folds' notes say why
         if cold is not None and cold.size:
@@ -831,7 +835,6 @@ def cross_validate(
     if paces and sensitivity is not None:
         paces = paces | {"fpa_sensitivity_c_per_c": sensitivity}
     found = list(protocol_warnings or [])
-    ends = plateau_ends(small, scorable)
     if ends:
         try:
             settling = settling_warning(sample_fit(), small, ends, method, memoryless=memoryless)
@@ -957,7 +960,6 @@ def paces_of(data: ChamberData, *, memoryless: bool = True) -> dict[str, Any]:
         kept = held[which]
         out |= {"fpa_cell_c": PACE_FPA_CELL_C, "fpa_reach_c": PACE_FPA_REACH_C,
                 "fpa_cells": np.unique(np.hstack([plane, fpa])[kept], axis=0).tolist()}
-    if memoryless:
         stays = sustained_of(data)
         if stays["held_s"]:  # none without usable frames: nothing to hold a recording to
             out["sustained"] = stays
@@ -1316,9 +1318,7 @@ def cold_start_errors(calibration: Calibration, data: ChamberData, scored: np.nd
         run = after[data.time_s[after] < t0 + span_s]
         if run.size < 2:
             continue
-        est = _applied(calibration, data, run)
-        errors.append(np.abs(est - data.scene_c[run, None, None].astype(np.float32)).reshape(
-            run.size, -1))
+        errors.append(_pixel_errors(_applied(calibration, data, run), data, run))
         since.append(data.time_s[run] - t0)
     if not errors:
         return np.zeros((0, 0), dtype=np.float32), np.zeros(0)

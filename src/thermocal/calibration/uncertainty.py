@@ -667,11 +667,15 @@ class CalibrationSigma:
         Frames beyond the report's ``slack_c`` are outside: what lags the FPA more slowly than
         a model with memory follows has fallen further behind than any fold saw."""
         swings = np.nan_to_num(np.asarray(swings_c, dtype=np.float64).reshape(-1))
-        swing = (self.report.paces or {}).get("swing")
-        if not swing:
+        if not (self.report.paces or {}).get("swing"):
             return np.zeros(swings.shape)
-        held = np.where(swings > 0, swing["rise_c"], swing["fall_c"])
-        return np.maximum(np.abs(swings) - held, 0.0)
+        return np.maximum(np.abs(swings) - self._session_run(swings), 0.0)
+
+    def _session_run(self, swings: np.ndarray) -> np.ndarray:
+        """The session's longest run in each of ``swings``' directions (its report's
+        ``rise_c`` for a rise, ``fall_c`` for a fall), °C."""
+        swing = self.report.paces["swing"]
+        return np.where(swings > 0, swing["rise_c"], swing["fall_c"])
 
     def _swings(self, fpa_c: np.ndarray, rate: np.ndarray, time_s: Any, swing_c: Any = None
                 ) -> tuple[np.ndarray, np.ndarray]:
@@ -707,7 +711,7 @@ class CalibrationSigma:
         swing = (self.report.paces or {}).get("swing")
         if not swing:
             return np.zeros(np.shape(excess))
-        held = np.where(swings > 0, swing["rise_c"], swing["fall_c"]) + swing["slack_c"]
+        held = self._session_run(swings) + swing["slack_c"]
         return np.where(self._ran_too_far(excess),
                         self._worst_sigma() * np.abs(swings) / held, 0.0)
 
@@ -1029,7 +1033,7 @@ class CalibrationSigma:
                                    else [pace.lagged_c_per_min]),
             still_s=None if pace.still_s is None else [pace.still_s],
             sustained_s=None if pace.sustained_s is None else [pace.sustained_s],
-            swing_c=None if getattr(pace, "swing_c", None) is None else [pace.swing_c],
+            swing_c=None if pace.swing_c is None else [pace.swing_c],
             history_seen=history_seen)
 
     def outside_burst(self, temps_c: np.ndarray, fpa_c: float | None, pace: Any, *,
@@ -1046,7 +1050,7 @@ class CalibrationSigma:
                   else [pace.lagged_c_per_min])
         still = [math.nan if pace is None or pace.still_s is None else pace.still_s]
         stays = None if pace is None or pace.sustained_s is None else [pace.sustained_s]
-        swing = None if getattr(pace, "swing_c", None) is None else [pace.swing_c]
+        swing = None if pace is None or pace.swing_c is None else [pace.swing_c]
         return self.outside(temps_c, () if fpa_c is None else fpa_c, rate_c_per_min=rate,
                             lagged_rate_c_per_min=lagged, still_s=still, sustained_s=stays,
                             swing_c=swing,
