@@ -500,7 +500,7 @@ SETTLE_SLOPE_C_PER_MIN = 0.05
 #: threshold would pass drifts that leave a settled camera several σ off. A helper's map of
 #: silent frames (``benchmarks/silent_map.py``, ambient steps of 19-min plateaus): ``lin-lag``
 #: on ``tau2`` drifted −0.007 °C/min at their ends and read a camera held at 25 °C ambient for
-#: 2 h −0.12 °C off where σ said 0.06 (54–60 % within 2σ); ``wolf2016`` on ``boson`` −0.032,
+#: 2 h −0.12 °C off where σ said 0.07 (60 % within 2σ); ``wolf2016`` on ``boson`` −0.032,
 #: and −1.4…−2.2 °C off where σ said 0.9 (41 frames silent). The physics suite's 20-min
 #: plateaus (three units each): ``lin-lag`` on ``tau2`` −0.002…0.000 (settled, and covered),
 #: on ``boson`` +0.020…+0.025; ``wolf2016`` +0.06…+0.07 and −0.008…−0.022.

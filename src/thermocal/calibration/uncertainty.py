@@ -81,7 +81,7 @@ changing at their ends; for a method with memory, at a tenth of the memoryless t
 σ being that much smaller), a camera held still for longer than they lasted is in a state
 the session never showed: on the ``boson`` preset, the 30-minute hold at the top of a held-out
 ramp drifts on to +1.0…+1.25 °C for ``polynomial`` where σ said 0.5; after 19-min plateaus,
-``lin-lag`` on ``tau2`` read a 2-h hold −0.12 °C off where σ said 0.06, and ``wolf2016`` on
+``lin-lag`` on ``tau2`` read a 2-h hold −0.12 °C off where σ said 0.07, and ``wolf2016`` on
 ``boson`` −1.4…−2.2 °C where σ said 0.9. The report then states
 how long the session's plateaus held the FPA still (its ``paces["still"]``,
 :func:`~thermocal.calibration.report.stillness_of`); a frame held still for longer
