@@ -525,22 +525,30 @@ def test_end_folds_that_leave_a_reference_fit_unchanged_measure_its_own_error():
     assert len(ends) == 2 and all(f.get("fit_unchanged") for f in ends)
     assert not any(f.get("fit_unchanged") for f in two.folds if not f["extrapolation"])
     again = CalibrationReport.from_dict(json.loads(json.dumps(two.to_dict())))
-    (fx, fm) = CalibrationSigma(again)._curves[1]
-    inner = [f["mae_c"] for f in two.by_fpa() if not f["extrapolation"] and f.get("mae_c")]
-    assert fx.size == len(inner) + 2 and fm[0] > 2.0 * min(inner)  # the far end errs most
+    (fx, fm, _) = CalibrationSigma(again)._curves[1]
+    # the curves are of each fold's error over its frames' level (the rate bins')
+    assert all(f["relative_mae"] > 0 for f in two.folds if f.get("mae_c") is not None)
+    inner = [f["relative_mae"] for f in two.by_fpa()
+             if not f["extrapolation"] and f.get("mae_c") is not None]
+    assert fx.size == len(inner) + 2 and fm[0] > 1.5 * min(inner)  # the far end errs most
     _, poly = fit_with_report(run.session, "polynomial")
     assert not any(f.get("fit_unchanged") for f in poly.folds)
     # every end fold also scores the fit itself there; σ's curves take that, not the
     # extrapolation's (larger) error, where it exceeds the nearest interior fold's
     ends = [f for f in poly.folds if f["extrapolation"]]
     assert len(ends) == 4 and all(0 < f["own_mae_c"] < f["mae_c"] for f in ends)
-    (sx, sm), (fx, fm), *_ = CalibrationSigma(poly)._curves
+    assert all(0 < f["own_relative_mae"] < f["relative_mae"] for f in ends)
+    (sx, sm, _), (fx, fm, _), *_ = CalibrationSigma(poly)._curves
     assert sx.size == len(poly.by_scene()) and fx.size == len(poly.by_fpa())
     low = min((f for f in ends if f["kind"] == "fpa"), key=lambda f: f["held_out"][0])
-    assert fm[0] == max(low["own_mae_c"], fm[1])
+    assert fm[0] == max(low["own_relative_mae"], fm[1])
     raised = CalibrationSigma(replace(poly, folds=[
-        f | {"own_mae_c": 10.0} if f is low else f for f in poly.folds]))
+        f | {"own_relative_mae": 10.0} if f is low else f for f in poly.folds]))
     assert raised._curves[1][1][0] == 10.0
+    # a report made before the folds measured it: their MAE
+    older = CalibrationSigma(replace(poly, folds=[
+        {k: v for k, v in f.items() if "relative" not in k} for f in poly.folds]))
+    assert older._curves[1][1][0] == max(low["own_mae_c"], older._curves[1][1][1])
 
 
 def test_the_session_a_refusal_asks_for_gives_the_set_points_it_promises(tmp_path, capsys):

@@ -45,17 +45,17 @@ def _report(**kw) -> CalibrationReport:
 
 
 def test_sigma_inside_follows_the_cross_validation():
-    """Inside both ranges: √(π/2) × (the interpolated scene MAE + the FPA MAE − their mean),
-    never below the least MAE a fold measured."""
+    """Inside both ranges: the level (√(π/2) × MAE here: no rate, no σ stored) times 1 plus
+    each curve's excess over its own interior folds' mean, relative to it."""
     model = CalibrationSigma(_report())
     s = model.sigma(np.array([[20.0, 25.0, 30.0]]), 27.5)
     np.testing.assert_allclose(s[0], G * np.array([0.2, 0.3, 0.4]), rtol=1e-6)
-    # a better FPA segment lowers every scene level's σ by its margin, down to the least MAE
+    # FPA folds that all err less (or more) than the set points' tell nothing of where σ is
+    # larger: a segment left out is a gap of its own size; the level is the rate bins'
     better = CalibrationSigma(_report(folds=[
         f | {"mae_c": 0.15} if f["kind"] == "fpa" and not f["extrapolation"] else f
         for f in _report().folds]))
-    s = better.sigma(np.array([[20.0, 25.0, 30.0]]), 27.5)
-    np.testing.assert_allclose(s[0], G * np.array([0.15, 0.15, 0.25]), rtol=1e-6)
+    np.testing.assert_allclose(better.sigma(np.array([[20.0, 25.0, 30.0]]), 27.5), s)
     # the rate: settled frames are better, fast ones worse; unknown rates average
     slow, fast, faster = (model.sigma(np.array([[25.0]]), 27.5, rate_c_per_min=[r])[0, 0]
                           for r in (0.01, -0.5, 1.0))
@@ -86,7 +86,8 @@ def test_sigma_grows_outside_without_bound():
     assert near == pytest.approx(G * (0.4 + 0.3 - 0.3 + scene_rate * 8.0), rel=1e-5)
     # a pixel clipped at the radiance tables' floor is not given a few degrees
     assert model.sigma(np.array([[-123.15]]), 27.5)[0, 0] > 120.0
-    flat = CalibrationSigma(_report(folds=[f | {"mae_c": 0.1} for f in _report().folds]))
+    flat = CalibrationSigma(_report(folds=[f | {"mae_c": 0.1} for f in _report().folds],
+                                    expected_mae_c=0.1))
     assert flat.sigma(np.array([[25.0]]), 45.0)[0, 0] == pytest.approx(
         G * (0.1 + MIN_GROWTH_PER_C * 10.0) + UNMEASURED * 5.0, rel=1e-5)
 
@@ -831,7 +832,7 @@ def test_the_unmeasured_growth_starts_where_each_end_fold_stopped():
     folds = [f | {"held_out": 60.0} if f["kind"] == "setpoint" and f["held_out"] == 40.0 else f
              for f in _report().folds]
     model = CalibrationSigma(_report(folds=folds, scene_range_c=(10.0, 60.0)))
-    (_, _), _, k_scene, _, ends = model._curves
+    _, _, k_scene, _, ends = model._curves
     assert ends == (10.0, 30.0)
     s = {t: float(model.sigma(np.array([[t]]), 27.5)[0, 0]) for t in (80.0, 100.0, -5.0, -10.0)}
     assert s[100.0] - s[80.0] == pytest.approx(G * k_scene * 20.0 + 10.0, rel=1e-4)
@@ -1491,3 +1492,38 @@ def test_a_method_that_learns_online_is_scored_alone_frame_by_frame_and_its_burs
         _paced().report, method="wolf2016", paces=_paced().report.paces | {
             "swing": {"band_c_per_min": 0.1, "slack_c": 1.0, "rise_c": 5.0,
                       "fall_c": 0.0}})).older_report()
+
+
+def test_the_curves_say_where_sigma_is_larger_not_how_large():
+    """Two interior FPA segments erring 0.2 and 0.4 °C: σ at the worse one's centre is the
+    level times (1 + 0.4 / 0.3 − 1), at the better one's times (1 + 0.2 / 0.3 − 1), whatever
+    the set points' folds erred on the whole; and a report whose folds measured their error
+    over their frames' level (``relative_mae``) is read by that, not by the MAE."""
+    folds = [f for f in _report().folds if f["kind"] == "setpoint"] + [
+        {"kind": "fpa", "held_out": [20.0, 25.0], "extrapolation": False, "frames": 5,
+         "mae_c": 0.2},
+        {"kind": "fpa", "held_out": [25.0, 30.0], "extrapolation": False, "frames": 5,
+         "mae_c": 0.4}]
+    model = CalibrationSigma(_report(folds=folds))
+    s = model.sigma(np.full((2, 1, 1), 25.0), [22.5, 27.5])[:, 0, 0]
+    np.testing.assert_allclose(s, G * 0.3 * np.array([0.2, 0.4]) / 0.3, rtol=1e-6)
+    # the worse segment was the one the session crossed fast: over their frames' level the
+    # two erred alike, and σ is the level at both
+    relative = [f | {"relative_mae": 0.8} for f in folds]
+    flat = CalibrationSigma(_report(folds=relative))
+    np.testing.assert_allclose(flat.sigma(np.full((2, 1, 1), 25.0), [22.5, 27.5])[:, 0, 0],
+                               G * 0.3, rtol=1e-6)
+    # the centre is the interior folds' mean (weighted by their frames), not the ends': an
+    # end's own error, large where the fit is poor there, would put the interior below it
+    weights = {20.0: 15, 25.0: 20}  # the two interior FPA segments' frames, by their start
+    ends = [f | {"frames": weights[f["held_out"][0]]} if f["kind"] == "fpa" else f
+            for f in folds] + [
+        {"kind": "fpa", "held_out": [15.0, 20.0], "extrapolation": True, "frames": 10,
+         "mae_c": 2.0, "own_mae_c": 0.7}]
+    x, v, mean = CalibrationSigma(_report(folds=ends))._curves[1]
+    np.testing.assert_allclose(v, [0.7, 0.2, 0.4])
+    assert mean == pytest.approx((0.2 * 15 + 0.4 * 20) / 35)
+    # one fold without it (a report whose folds did not all measure it): the MAE
+    mixed = CalibrationSigma(_report(folds=relative[:-1] + folds[-1:]))
+    np.testing.assert_allclose(mixed.sigma(np.full((2, 1, 1), 25.0), [22.5, 27.5])[:, 0, 0], s,
+                               rtol=1e-6)

@@ -108,7 +108,11 @@ class CalibrationReport:
         also has ``own_mae_c``, the MAE on its frames of the fit on the whole sample (its own
         error at that end: what σ takes there); one of a method fitted on the reference FPA's
         frames alone whose refit is the fit itself on its frames (within 1e-4 °C: the left-out
-        frames were not the fit's) has ``fit_unchanged``.
+        frames were not the fit's) has ``fit_unchanged``. Each scored fold also has
+        ``relative_mae`` (and an end fold ``own_relative_mae``): the mean over its frames of
+        their error over the MAE of their rate bin (``by_rate``; for a memoryless method, the
+        larger of that and their ``by_change`` bin's), what σ's curves are drawn from: where a
+        fold errs more than its frames' paces explain.
     fpa_range_c, scene_range_c : (float, float)
         FPA temperatures and scene (radiance-equivalent) temperatures the session covers, °C.
     fpa_rate_c_per_min : (float, float)
@@ -740,6 +744,8 @@ def cross_validate(
     from thermocal.calibration.registry import CALIBRATION_METHODS
 
     folds = []
+    # (fold, its frames' errors, its frames, the fit's own errors there): each fold scored
+    scored_folds: list[tuple[int, np.ndarray, np.ndarray, np.ndarray | None]] = []
     # an end fold also scores the fit on all the sample's frames there (its own error at that
     # end, where a refit without them extrapolates); a method fitted on the reference FPA's
     # frames alone keeps its fit when an end FPA segment without them is left out: that fold
@@ -790,6 +796,8 @@ def cross_validate(
                                                 equal_nan=True):
                     desc = desc | {"fit_unchanged": True}
         folds.append(desc | {"frames": int(held.sum()), "mae_c": float(np.mean(err))})
+        scored_folds.append((len(folds) - 1, err, np.flatnonzero(held),
+                             own_errors()[held].mean(axis=1) if "own_mae_c" in desc else None))
         if not desc["extrapolation"]:
             errors.append(pix)
             if remembers:
@@ -812,6 +820,16 @@ def cross_validate(
     by_change = (_binned(np.concatenate(errors), np.concatenate(changes), CHANGE_EDGES,
                          "change_c_per_min", min_frames=MIN_BIN_FRAMES)
                  if errors and memoryless else [])
+    if by_rate:  # each fold's error relative to its frames' level: where, not how fast
+        level = _bins_mae(np.abs(binned_rate), by_rate, rate_key)
+        if by_change:
+            level = np.fmax(level, _bins_mae(change, by_change, "change_c_per_min"))
+        for k, err, frames, own in scored_folds:
+            ratio = _relative(err, level[frames])
+            if ratio is not None:
+                folds[k] = folds[k] | {"relative_mae": ratio}
+                if own is not None and (own_ratio := _relative(own, level[frames])) is not None:
+                    folds[k] = folds[k] | {"own_relative_mae": own_ratio}
     without_history = ({"sigma_c": coverage_sigma(np.concatenate(alone)),
                         "mae_c": float(np.mean(np.concatenate(alone))),
                         "lag_s": max(lags) if lags else ONLINE_START_S,
@@ -1379,6 +1397,23 @@ def _binned(errors: np.ndarray, values: np.ndarray, edges: tuple[float, ...], ke
     return [{key: [lo, hi if math.isfinite(hi) else None], "frames": int(sel.sum()),
              "mae_c": float(np.mean(errors[sel])), "sigma_c": coverage_sigma(errors[sel])}
             for lo, hi, sel in spans]
+
+
+def _bins_mae(values: np.ndarray, bins: list[dict[str, Any]], key: str) -> np.ndarray:
+    """Each of ``values`` ``(M,)``'s MAE in ``bins`` (:func:`_binned`'s, ``key``), °C; NaN
+    outside every bin."""
+    out = np.full(values.shape, np.nan)
+    for b in bins:
+        lo, hi = b[key]
+        out[(values >= lo) & (values < (math.inf if hi is None else hi))] = b["mae_c"]
+    return out
+
+
+def _relative(errors: np.ndarray, level: np.ndarray) -> float | None:
+    """The mean of ``errors`` ``(M,)`` over their frames' ``level`` ``(M,)`` (°C both), over
+    the frames with both; None without one."""
+    ok = np.isfinite(errors) & np.isfinite(level) & (level > 0)
+    return float(np.mean(errors[ok] / level[ok])) if ok.any() else None
 
 
 def _json_options(options: dict[str, Any]) -> dict[str, Any]:

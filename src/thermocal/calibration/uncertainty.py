@@ -2,21 +2,30 @@
 
 For a temperature ``T`` (°C) measured at FPA temperature ``t`` (°C)::
 
-    σ(T, t, r) = s(r) · max(m_scene(T) + m_fpa(t) − m, m_least) / m
+    σ(T, t, r) = s(r) · max(1 + [v_scene(T) / v̄_scene − 1] + [v_fpa(t) / v̄_fpa − 1], v_least)
                  + √(π/2) · [k_scene · d_scene(T) + k_fpa · d_fpa(t)]
 
-- ``m_scene``, ``m_fpa``: the cross-validated MAE of the report's interior folds (set points left
-  out; FPA segments left out), interpolated at ``T`` and ``t`` (:class:`CalibrationReport`), and
-  at its end folds the fit's own error there where it exceeds the nearest interior fold's (a
-  refit without an end extrapolates, the fit did not: `lin` on `boson` unit 105 errs 2.2 and
-  2.6 °C at its session's FPA ends, 0.8–1.1 inside; a two-point's refit without an FPA end is
-  the fit itself, far from its reference FPA). The folds score single frames, so the noise
-  (NETD) and the unmodelled drift are in them;
-- ``m``: the report's expected MAE (all interior folds). Each curve averages over the other's
-  variable, so ``m_scene + m_fpa − m`` is the MAE at ``(T, t)`` of an error whose scene and FPA
-  parts add (a cold scene at an FPA end errs by both; taking half of each, as before, missed
-  `lin`'s cold scenes at the FPA ends of `tau2`'s held-out runs by over 2σ); it is never taken
-  below ``m_least``, the smallest MAE a fold of either curve measured;
+- ``v_scene``, ``v_fpa``: the cross-validated error of the report's interior folds (set points
+  left out; FPA segments left out), each over the level of its frames' FPA rates (the folds'
+  ``relative_mae``: a segment the session crossed at fast paces errs more for its paces, which
+  ``s(r)`` already tells; a report made before: their MAE), interpolated at ``T`` and ``t``
+  (:class:`CalibrationReport`), and at its end folds the fit's own error there where it exceeds
+  the nearest interior fold's (a refit without an end extrapolates, the fit did not: `lin` on
+  `boson` unit 105 errs 2.2 and 2.6 °C at its session's FPA ends, 0.8–1.1 inside; a
+  two-point's refit without an FPA end is the fit itself, far from its reference FPA). The
+  folds score single frames, so the noise (NETD) and the unmodelled drift are in them;
+- ``v̄_scene``, ``v̄_fpa``: the mean of each curve's interior folds (weighted by their frames;
+  with its end points too, the ends' own errors, large where a fit is poor at an end, put the
+  interior below 1: `wolf2016` and `lin` on `boson` left 688 and 338 frames silent over five
+  units). A set point left out and
+  an FPA segment left out are gaps of their own sizes, and one kind errs more than the other
+  throughout (``lin-lag`` on ``tau2``: FPA segments 0.09–0.11 °C, set points 0.05–0.07): each
+  curve tells *where* σ is larger, relative to its own mean, and the rate bins how large (taken
+  against the mean of all folds, the FPA folds' excess raised σ by 5–53 % at every FPA, where
+  the held-out runs erred as the folds did on the whole). The two excesses add (a cold scene
+  at an FPA end errs by both; taking half of each, as before, missed `lin`'s cold scenes at the
+  FPA ends of `tau2`'s held-out runs by over 2σ), never below ``v_least``, the least of either
+  curve over its mean (and 1);
 - ``s(r)``: the σ that covers the interior
   folds' pixel errors at the FPA rate ``r`` (°C/min; its bin of ``mae_by_fpa_rate_c``) as a
   Gaussian's would (:func:`~thermocal.calibration.report.coverage_sigma`): a method without a
@@ -182,25 +191,30 @@ def no_sigma_reason(calibration: Any) -> str:
 _GAUSS = math.sqrt(math.pi / 2)
 
 
-def _curve(folds: list[dict[str, Any]], where: Any) -> tuple[np.ndarray, np.ndarray]:
-    """``(x, mae)`` of σ's curve along ``x = where(fold)``, sorted: the interior folds'
-    cross-validated MAE, and at each end fold the fit's own error there (``own_mae_c``; the
-    refit's where the refit was the fit itself, ``fit_unchanged``) where that exceeds the
-    nearest interior point's (an own error is the least to expect there; a refit without that
-    end extrapolates, the fit did not). A report made before end folds scored the fit has
-    interior points alone."""
-    inner = sorted((where(f), f["mae_c"]) for f in folds
-                   if not f["extrapolation"] and f.get("mae_c") is not None)
+def _curve(folds: list[dict[str, Any]], where: Any, key: str = "mae_c"
+           ) -> tuple[np.ndarray, np.ndarray, float | None]:
+    """``(x, v, mean)`` of σ's curve along ``x = where(fold)``, sorted: the interior folds'
+    cross-validated error ``v`` (``key``: ``mae_c``, °C, or ``relative_mae``, that over the
+    level of its frames' FPA rates), and at each end fold the fit's own error there
+    (``own_`` + ``key``; the refit's where the refit was the fit itself, ``fit_unchanged``)
+    where that exceeds the nearest interior point's (an own error is the least to expect
+    there; a refit without that end extrapolates, the fit did not); and the mean of the
+    interior folds' (weighted by their frames; None without one), what the curve is centred
+    on. A report made before end folds scored the fit has interior points alone."""
+    inner = sorted((where(f), f[key], f.get("frames") or 1) for f in folds
+                   if not f["extrapolation"] and f.get(key) is not None)
     pts = list(inner)
     for f in (f for f in folds if f["extrapolation"]):
-        own = f.get("mae_c") if f.get("fit_unchanged") else f.get("own_mae_c")
+        own = f.get(key) if f.get("fit_unchanged") else f.get(f"own_{key}")
         if own is None:
             continue
         x = where(f)
         near = min(inner, key=lambda p: abs(p[0] - x))[1] if inner else own
-        pts.append((x, max(own, near)))
+        pts.append((x, max(own, near), f.get("frames") or 1))
     pts.sort()
-    return np.array([p[0] for p in pts]), np.array([p[1] for p in pts])
+    x, v = (np.array([p[k] for p in pts], dtype=np.float64) for k in range(2))
+    mean = (sum(p[1] * p[2] for p in inner) / sum(p[2] for p in inner)) if inner else None
+    return x, v, mean
 
 
 def _growth(folds: list[dict[str, Any]], interior: float, distance: Any) -> float:
@@ -328,8 +342,14 @@ class CalibrationSigma:
         """The report's interior MAE curves by scene level and by FPA temperature, and the
         growth rates outside them (derived from the report once: σ is asked per frame)."""
         r = self.report
-        scene = _curve(r.by_scene(), lambda f: float(f["held_out"]))
-        fpa = _curve(r.by_fpa(), lambda f: 0.5 * sum(f["held_out"]))
+        # a report whose folds measured their error over their frames' level: the curves
+        # of that (a set point or FPA segment that the session visited at fast paces errs
+        # more at the same scene and FPA: the rate bins say so already); else of the MAE
+        scored = [f for f in r.folds if f.get("mae_c") is not None]
+        key = ("relative_mae" if scored and all(f.get("relative_mae") is not None
+                                                for f in scored) else "mae_c")
+        scene = _curve(r.by_scene(), lambda f: float(f["held_out"]), key)
+        fpa = _curve(r.by_fpa(), lambda f: 0.5 * sum(f["held_out"]), key)
         points = sorted(float(f["held_out"]) for f in r.by_scene())
         step = float(np.min(np.diff(points))) if len(points) > 1 else 10.0
         k_scene = _growth(r.by_scene(), r.expected_mae_c, lambda f: step)
@@ -341,6 +361,26 @@ class CalibrationSigma:
         ends = ((points[1] - points[0], points[-1] - points[-2]) if len(points) > 1
                 else (step, step))
         return scene, fpa, k_scene, k_fpa, ends
+
+    def _shape(self, frames: np.ndarray, fpa: np.ndarray) -> np.ndarray:
+        """σ's shape ``(N, H, W)`` at temperatures ``frames`` (°C ``(N, H, W)``) and FPA
+        temperatures ``fpa`` (°C ``(N,)``): 1, plus each curve's excess there over its
+        interior folds' mean, relative to that mean (the scene and FPA parts add: a
+        cold scene at an FPA end errs by both), never below the least of either curve so
+        taken. Each curve is centred on its own: a set point left out and an FPA segment left
+        out are gaps of their own size, and one kind errs more than the other throughout
+        (`lin-lag` on `tau2`: FPA folds 0.09–0.11 °C, set points 0.05–0.07): they tell where
+        σ is larger, the rate bins how large."""
+        (sx, sv, c_scene), (fx, fv, c_fpa), *_ = self._curves
+        shape = np.ones(frames.shape)
+        least = 1.0
+        if sx.size and c_scene:
+            shape += np.interp(frames, sx, sv) / c_scene - 1.0
+            least = min(least, float(sv.min()) / c_scene)
+        if fx.size and c_fpa:
+            shape += (np.interp(fpa, fx, fv) / c_fpa - 1.0)[:, None, None]
+            least = min(least, float(fv.min()) / c_fpa)
+        return np.maximum(shape, least)
 
     @cached_property
     def _fpa_ends(self) -> tuple[float, float]:
@@ -914,16 +954,12 @@ class CalibrationSigma:
         # folds' σ narrowed it to 2.5)
         alone = self.history_sigma(time_since_start_s if history_seen else None, n,
                                    moved=moved)
-        (sx, sm), (fx, fm), k_scene, k_fpa, (step_lo, step_hi) = self._curves
-        mean = self.report.expected_mae_c
-        m_scene = np.interp(frames, sx, sm) if sx.size else np.full(frames.shape, mean)
-        m_fpa = np.interp(fpa, fx, fm) if fx.size else np.full(fpa.shape, mean)
+        _, _, k_scene, k_fpa, (step_lo, step_hi) = self._curves
         lo, hi = self.report.scene_range_c
         d_scene = np.maximum(lo - frames, 0.0) + np.maximum(frames - hi, 0.0)
         flo, fhi = self.report.fpa_range_c
         d_fpa = np.maximum(flo - fpa, 0.0) + np.maximum(fpa - fhi, 0.0)
-        least = min([mean, *sm, *fm])
-        shape = np.maximum(m_scene + m_fpa[:, None, None] - mean, least) / mean
+        shape = self._shape(frames, fpa)
         growth = k_scene * d_scene + (k_fpa * d_fpa)[:, None, None]
         # beyond one set-point step outside, no fold measured the error: it may be the whole
         # distance (a pixel clipped at the radiance tables' floor reads −123 °C whatever it saw)
