@@ -213,3 +213,30 @@ def test_bad_backend_and_export_input_is_one_line_and_exit_2(argv, message, tmp_
     err = capsys.readouterr().err.strip()
     assert e.value.code == 2 and "\n" not in err and message in err, err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_mkl_gives_the_same_numbers_on_any_thread_count():
+    """Importing thermocal asks MKL for strict reproducibility before torch starts it (a
+    value the user set stays), so a convolution on one thread is bitwise that on two (on an
+    AVX-512 Xeon they differed without it)."""
+    import os
+    import subprocess
+    import sys
+
+    code = ("import os, thermocal, torch; print(os.environ['MKL_CBWR'])\n"
+            "torch.manual_seed(0)\n"
+            "conv = torch.nn.Conv2d(128, 128, 3, padding=1).eval()\n"
+            "x = torch.randn(1, 128, 8, 8).contiguous(memory_format=torch.channels_last)\n"
+            "out = []\n"
+            "for n in (1, 2):\n"
+            "    torch.set_num_threads(n)\n"
+            "    with torch.inference_mode(): out.append(conv(x))\n"
+            "print(torch.equal(*out))\n")
+    env = {k: v for k, v in os.environ.items() if k != "MKL_CBWR"}
+    said = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                          text=True, check=True).stdout.split()
+    assert said == ["AUTO,STRICT", "True"]
+    kept = subprocess.run([sys.executable, "-c", "import os, thermocal; "
+                           "print(os.environ['MKL_CBWR'])"], env=env | {"MKL_CBWR": "AVX2"},
+                          capture_output=True, text=True, check=True).stdout.split()
+    assert kept == ["AVX2"]

@@ -1,6 +1,16 @@
 """thermocal: radiometric temperature from low-cost uncooled microbolometer cameras."""
 
-from thermocal.errors import (
+import os
+
+# The same numbers whatever the thread count: PyTorch's CPU build does its convolutions of a
+# few channels at a coarse level through MKL, whose reductions split by thread count (on an
+# AVX-512 Xeon the shipped network's maps on 1 and on 2 threads differed by 1.5e-5 °C, so a
+# flight's pivots estimated at once were not the bytes of one at a time). MKL's conditional
+# numerical reproducibility, strict, makes them bitwise the same at no measured cost; it is read
+# when MKL starts, so before torch is imported (a value the user set is kept).
+os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
+
+from thermocal.errors import (  # noqa: E402
     FileFormatError,
     FitError,
     InvalidInputError,
