@@ -29,7 +29,7 @@ from thermocal.calibration.commands import frames_used
 from thermocal.calibration.dataset import STABLE, UNSTABLE
 from thermocal.calibration.report import frame_counts
 from thermocal.camera.presets import make_camera
-from thermocal.errors import FileFormatError, FitError
+from thermocal.errors import FileFormatError, FitError, InvalidInputError
 from thermocal.io.chamber import ChamberSession
 from thermocal.simulate.chamber import ChamberPlan, simulate_chamber, write_simulated_chamber
 
@@ -395,7 +395,12 @@ def test_plateaus_that_end_before_the_camera_settles_are_warned_of(family, warne
     follows most of the settling, not all of it: on `boson` its own error was still changing
     (+0.02 °C/min, against +0.1 for polynomial), which its report says in its own words, at its
     own threshold (its σ is a tenth of polynomial's); on `tau2` it is not warned."""
-    from thermocal.calibration.report import fit_with_report, plateau_ends, settling_warning
+    from thermocal.calibration.report import (
+        fit_with_report,
+        plateau_ends,
+        settling_slope,
+        settling_warning,
+    )
     from thermocal.evaluation.suites.physics import SESSION_SEED, calibration_session
 
     run = calibration_session(make_camera(family, unit=101, size=(32, 24)), SESSION_SEED, False)
@@ -405,6 +410,17 @@ def test_plateaus_that_end_before_the_camera_settles_are_warned_of(family, warne
     # a session that had not settled states how long its plateaus held the FPA still (the
     # 20-minute steps: the FPA within 0.15 °C for the last minutes of each)
     assert ("still" in report.paces) is warned
+    # warned or not, how far the error still drifted at the plateaus' ends (σ takes it for a
+    # camera held still longer), read back as written; a damaged one is refused
+    settle = report.paces["settling"]
+    assert settle["window_s"] == 480.0 and settle["plateaus"] >= 4
+    assert (abs(settle["slope_c_per_min"]) > 0.05) is warned
+    again = CalibrationReport.from_dict(json.loads(json.dumps(report.to_dict())))
+    assert again.paces["settling"] == settle
+    bad = json.loads(json.dumps(report.to_dict()))  # a copy: to_dict shares its lists
+    bad["fpa_paces"]["settling"]["slope_c_per_min"] = float("nan")
+    with pytest.raises(InvalidInputError, match="settling needs"):
+        CalibrationReport.from_dict(bad)
     if warned:
         assert "record plateaus long enough" in said[0] and "lin-lag" in said[0]
         assert "are refused; --force gives them with σ grown" in said[0]
@@ -450,7 +466,8 @@ def test_plateaus_that_end_before_the_camera_settles_are_warned_of(family, warne
 
     data = prepare_chamber(replace(run.session, ambient_c=None))
     assert plateau_ends(data, data.usable) == []
-    assert settling_warning(None, data, [], "polynomial") is None
+    assert settling_slope(None, data, []) is None
+    assert settling_warning(None, 0, "polynomial") is None
 
 
 def test_plateaus_are_found_in_a_logged_ambient_with_its_noise():

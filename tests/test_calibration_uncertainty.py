@@ -1213,14 +1213,18 @@ def test_a_method_that_learns_online_is_held_to_the_directions_its_session_chang
 
 
 def test_a_method_with_memory_is_judged_settled_on_the_history_that_led_to_each_plateau():
-    """``settling_warning`` for a method with memory applies the session in time order, so
+    """``settling_slope`` for a method with memory applies the session in time order, so
     each plateau's end has the history before it; applied alone, an online estimate still
     converging at each end (a decaying start error) would read as a camera still settling. Its
     threshold is the memory one: an error drifting 0.01 °C/min at every end is unsettled for
     it, settled for a memoryless method."""
     from types import SimpleNamespace
 
-    from thermocal.calibration.report import settling_warning
+    from thermocal.calibration.report import settling_slope, settling_warning
+
+    def settling(calibration, data, ends, method, *, memoryless):
+        slope = settling_slope(calibration, data, ends, memoryless=memoryless)
+        return settling_warning(slope, len(ends), method, memoryless=memoryless)
 
     t = np.arange(0.0, 6 * 1200.0, 10.0)
     scene = np.full(t.size, 30.0)
@@ -1238,11 +1242,11 @@ def test_a_method_with_memory_is_judged_settled_on_the_history_that_led_to_each_
     ends = [np.flatnonzero((t >= k * 1200.0 + 720.0) & (t < (k + 1) * 1200.0))
             for k in range(1, 6)]
     converging = stub(0.0, 1.0)
-    assert settling_warning(converging, data, ends, "m", memoryless=True) is not None
-    assert settling_warning(converging, data, ends, "m", memoryless=False) is None
+    assert settling(converging, data, ends, "m", memoryless=True) is not None
+    assert settling(converging, data, ends, "m", memoryless=False) is None
     drifting = stub(0.01, 0.0)
-    assert settling_warning(drifting, data, ends, "m", memoryless=True) is None
-    said = settling_warning(drifting, data, ends, "lin-lag", memoryless=False)
+    assert settling(drifting, data, ends, "m", memoryless=True) is None
+    said = settling(drifting, data, ends, "lin-lag", memoryless=False)
     assert "lin-lag's error was still changing by +0.010 °C/min" in said
     assert "terms for the FPA's history never saw the camera settle" in said
     assert "use lin-lag" not in said
@@ -1527,3 +1531,50 @@ def test_the_curves_say_where_sigma_is_larger_not_how_large():
     mixed = CalibrationSigma(_report(folds=relative[:-1] + folds[-1:]))
     np.testing.assert_allclose(mixed.sigma(np.full((2, 1, 1), 25.0), [22.5, 27.5])[:, 0, 0], s,
                                rtol=1e-6)
+
+
+def test_a_camera_held_still_longer_than_the_plateaus_takes_their_last_drift():
+    """A session whose error still changed at its plateaus' ends by less than refuses
+    (−0.025 °C/min over 8 min: 0.2 °C) answers a camera held still longer than its plateaus
+    held the FPA (4 min) with that drift in quadrature; a moving camera, one held still for
+    less, and a calibration whose report lists no settling keep σ as it was. A frame whose
+    stillness is not known (a burst, or still since its recording began) may have been held
+    still for hours: it takes it too."""
+    settling = {"band_c": 0.15, "held_s": 240.0, "plateaus": 6, "slope_c_per_min": -0.025,
+                "window_s": 480.0}
+    paces = {"lag_s": 480.0, "cell_c_per_min": 0.1, "cells": [[0, 0]], "settling": settling}
+    plain = CalibrationSigma(_report(paces={k: v for k, v in paces.items() if k != "settling"}))
+    model = CalibrationSigma(_report(paces=paces))
+    drift = 0.025 * 8.0
+    np.testing.assert_allclose(model.settling_drift([100.0, 600.0, np.nan], [False, False, True]),
+                               [0.0, drift, drift])
+    np.testing.assert_allclose(plain.settling_drift([600.0]), [0.0])
+    t = np.arange(0.0, 1800.0, 10.0)
+    temps = np.full((t.size, 1, 1), 25.0)
+    still = np.full(t.size, 27.5)
+    moving = 27.5 + 0.5 * (t - t[0]) / 60.0
+    before = plain.sigma(temps, still, rate_c_per_min=np.zeros(t.size),
+                         time_since_start_s=t)[:, 0, 0]
+    after = model.sigma(temps, still, rate_c_per_min=np.zeros(t.size),
+                        time_since_start_s=t)[:, 0, 0]
+    # still since the recording began: how long before it is not known, so every frame
+    np.testing.assert_allclose(after, np.hypot(before, drift), rtol=1e-6)
+    rate = np.full(t.size, 0.5)
+    np.testing.assert_allclose(model.sigma(temps, moving, rate_c_per_min=rate,
+                                           time_since_start_s=t),
+                               plain.sigma(temps, moving, rate_c_per_min=rate,
+                                           time_since_start_s=t))
+    # the FPA moved, then held: the drift only once it had held longer than the plateaus
+    fpa = np.where(t < 600.0, 20.0 + 0.75 * t / 60.0, 27.5)
+    r = np.where(t < 600.0, 0.75, 0.0)
+    got = model.sigma(temps, fpa, rate_c_per_min=r, time_since_start_s=t)[:, 0, 0]
+    ref = plain.sigma(temps, fpa, rate_c_per_min=r, time_since_start_s=t)[:, 0, 0]
+    late = t >= 600.0 + 240.0 + 60.0
+    np.testing.assert_allclose(got[late], np.hypot(ref[late], drift), rtol=1e-6)
+    np.testing.assert_allclose(got[t < 600.0], ref[t < 600.0])
+    # a burst: its stillness given, or not known
+    burst = dict(rate_c_per_min=[0.0], lagged_rate_c_per_min=[0.0])
+    assert model.sigma(temps[:1], [27.5], still_s=[60.0], **burst)[0, 0, 0] == pytest.approx(
+        plain.sigma(temps[:1], [27.5], **burst)[0, 0, 0], rel=1e-6)
+    assert model.sigma(temps[:1], [27.5], still_s=[np.nan], **burst)[0, 0, 0] == pytest.approx(
+        np.hypot(plain.sigma(temps[:1], [27.5], **burst)[0, 0, 0], drift), rel=1e-6)

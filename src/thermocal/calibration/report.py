@@ -536,16 +536,15 @@ def plateau_ends(data: ChamberData, scored: np.ndarray) -> list[np.ndarray]:
     return ends[::-1]
 
 
-def settling_warning(calibration: Calibration, data: ChamberData, ends: list[np.ndarray],
-                     method: str, *, memoryless: bool = True) -> str | None:
-    """The warning that the session's plateaus ended before the camera settled, or None: the
-    slope (°C/min) of ``calibration``'s signed mean error in time over each of ``ends``
-    (:func:`plateau_ends` of ``data``), fitted beside a quadratic in the blackbody's
+def settling_slope(calibration: Calibration, data: ChamberData, ends: list[np.ndarray], *,
+                   memoryless: bool = True) -> float | None:
+    """How fast ``calibration``'s error was still changing at the session's plateaus' ends,
+    °C/min (None without one): the slope of its signed mean error in time over each of
+    ``ends`` (:func:`plateau_ends` of ``data``), fitted beside a quadratic in the blackbody's
     temperature (the error depends on the scene level, and the set points cycle), median over
-    the plateaus, beyond :data:`SETTLE_SLOPE_C_PER_MIN` (``memoryless``: each plateau's end
-    applied alone) or, for a method with memory of the FPA's history,
-    :data:`SETTLE_SLOPE_MEMORY_C_PER_MIN` (the session's frames applied in time order, each
-    end with the history that led to it)."""
+    the plateaus; ``memoryless``: each plateau's end applied alone, else (a method with memory
+    of the FPA's history) the session's frames applied in time order, each end with the
+    history that led to it."""
     if not ends:
         return None
     if not memoryless:
@@ -559,13 +558,20 @@ def settling_warning(calibration: Calibration, data: ChamberData, ends: list[np.
         level = (data.scene_c[end] - data.scene_c[end].mean()) / 50.0
         design = np.stack([minutes, np.ones(end.size), level, level**2], axis=1)
         slopes.append(float(np.linalg.lstsq(design, err, rcond=None)[0][0]))
+    return float(np.median(slopes))
+
+
+def settling_warning(slope: float | None, plateaus: int, method: str, *,
+                     memoryless: bool = True) -> str | None:
+    """The warning that the session's ``plateaus`` ended before the camera settled, or None:
+    their :func:`settling_slope` (°C/min) beyond :data:`SETTLE_SLOPE_C_PER_MIN` or, for a
+    method with memory of the FPA's history, :data:`SETTLE_SLOPE_MEMORY_C_PER_MIN`."""
     limit = SETTLE_SLOPE_C_PER_MIN if memoryless else SETTLE_SLOPE_MEMORY_C_PER_MIN
-    if abs(float(np.median(slopes))) <= limit:
+    if slope is None or abs(slope) <= limit:
         return None
-    slope = float(np.median(slopes))
     return (f"the session's plateaus ended before the camera settled: {method}'s error was "
             f"still changing by {slope:+.{2 if memoryless else 3}f} °C/min over their last "
-            f"{SETTLE_WINDOW_S / 60:.0f} min (median of {len(slopes)} plateaus); "
+            f"{SETTLE_WINDOW_S / 60:.0f} min (median of {plateaus} plateaus); "
             f"{settling_cause(memoryless)}, it may be off by more than its σ once a camera has "
             "held still longer than they lasted: record plateaus long enough for this error to "
             f"stop changing{settling_alternative(memoryless)}")
@@ -855,13 +861,17 @@ def cross_validate(
     found = list(protocol_warnings or [])
     if ends:
         try:
-            settling = settling_warning(sample_fit(), small, ends, method, memoryless=memoryless)
+            slope = settling_slope(sample_fit(), small, ends, memoryless=memoryless)
         except ThermocalError:
-            settling = None  # no fit on the sample: the folds' notes say why
+            slope = None  # no fit on the sample: the folds' notes say why
+        settling = settling_warning(slope, len(ends), method, memoryless=memoryless)
         # how long the plateaus held the FPA still, from the whole session's FPA series (the
         # sample keeps every k-th frame: a stillness at another frame rate than a recording's)
-        still = stillness_of(data, [index[end] for end in ends]) if settling else {}
-        if still:
+        still = stillness_of(data, [index[end] for end in ends]) if slope is not None else {}
+        if still:  # how far the error was still changing, whether or not it is refused
+            paces = paces | {"settling": still | {"slope_c_per_min": slope,
+                                                  "window_s": SETTLE_WINDOW_S}}
+        if still and settling:
             settling += (f" (frames held still longer than {still['held_s'] / 60:.1f} min, the "
                          "median of the plateaus, are refused; --force gives them with σ grown)")
             paces = paces | {"still": still}
@@ -1222,6 +1232,18 @@ def _paces_from(d: dict[str, Any]) -> dict[str, Any]:
             raise ValueError("fpa_paces: still needs a band and a held time > 0, finite, and "
                              "at least one plateau")
         out["still"] = {"band_c": band, "held_s": held, "plateaus": plateaus}
+    if d.get("settling") is not None:
+        settle = d["settling"]
+        band, held, plateaus = float(settle["band_c"]), float(settle["held_s"]), \
+            settle["plateaus"]
+        slope, window = float(settle["slope_c_per_min"]), float(settle["window_s"])
+        if not (0 < band < math.inf and 0 < held < math.inf and isinstance(plateaus, int)
+                and not isinstance(plateaus, bool) and plateaus >= 1
+                and math.isfinite(slope) and 0 < window < math.inf):
+            raise ValueError("fpa_paces: settling needs a band, a held time and a window > 0, "
+                             "a finite slope, all finite, and at least one plateau")
+        out["settling"] = {"band_c": band, "held_s": held, "plateaus": plateaus,
+                           "slope_c_per_min": slope, "window_s": window}
     if d.get("swing") is not None:
         swing = {k: float(d["swing"][k]) for k in ("band_c_per_min", "slack_c", "rise_c",
                                                     "fall_c")}

@@ -95,8 +95,12 @@ ramp drifts on to +1.0…+1.25 °C for ``polynomial`` where σ said 0.5; after 1
 how long the session's plateaus held the FPA still (its ``paces["still"]``,
 :func:`~thermocal.calibration.report.stillness_of`); a frame held still for longer
 (:meth:`CalibrationSigma.still_excess` > 1) is outside, and forced, its ``s`` becomes at least
-the report's largest rate-bin σ times that excess. A session that settled lists none: its
-frames are judged by their pace alone.
+the report's largest rate-bin σ times that excess. Below the threshold the report still states
+how far the error drifted over the plateaus' last 8 minutes (``paces["settling"]``), and a frame
+held still longer than they held the FPA, or for a time not known, takes that drift in
+quadrature (:meth:`CalibrationSigma.settling_drift`: `polynomial` on `tau2`, −0.025 °C/min at
+the ends of 19-min steps, read a camera held still for 1–2 h −0.08…−0.13 °C off where σ said
+0.03–0.05; 0.21 with it).
 """
 
 from __future__ import annotations
@@ -617,7 +621,7 @@ class CalibrationSigma:
         _, excess = self._sustained(rate_c_per_min, time_s)
         unseen |= self._held_too_long(excess)
         if fpa_c is not None:
-            _, excess, unknown = self._still(fpa_c, time_s, rate_c_per_min=rate_c_per_min)
+            _, excess, unknown, _ = self._still(fpa_c, time_s, rate_c_per_min=rate_c_per_min)
             unseen |= (excess > 1.0) | unknown
         return unseen
 
@@ -782,15 +786,18 @@ class CalibrationSigma:
                 "as long, a ramp or sawtooth at this rate; lin-lag follows the pace's history)")
 
     def _still(self, fpa_c: Any, time_s: Any, still_s: Any = None, since_s: Any = None,
-               rate_c_per_min: Any = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+               rate_c_per_min: Any = None
+               ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """How long frames had held their FPA still, s (NaN: not measured), its
-        :meth:`still_excess`, and whether that is not known (all ``(N,)``): the stillness given
+        :meth:`still_excess`, whether that is not known where it is refused, and whether it
+        is not known at all (all ``(N,)``): the stillness given
         (``still_s``, one or one per frame, taken from their recording; NaN: not known; with
         ``since_s``, each frame's time since its recording began, s: a stillness reaching back
         to it is a lower bound), or that of the frames of one recording at FPA temperatures
         ``fpa_c`` (°C, one per frame) and times ``time_s`` (s, in time order;
         :func:`~thermocal.calibration.dataset.recording_still_time`: none for an FPA given as
-        one value, nor without times); zeros where the report lists no stillness.
+        one value, nor without times); zeros where the report lists neither stillness nor
+        settling (the drift at its plateaus' ends, :meth:`settling_drift`).
 
         *Not known* (only where the report lists stillness — a session whose plateaus ended
         before the camera settled — and the excess is not already above 1): frames still since
@@ -798,6 +805,7 @@ class CalibrationSigma:
         (``rate_c_per_min``, °C/min, one or one per frame, where known) says the FPA was moving
         (:meth:`_moving`): a camera that may have been held still for hours."""
         still = (self.report.paces or {}).get("still")
+        judged = still or (self.report.paces or {}).get("settling")
         if still_s is not None:
             held = np.asarray(still_s, dtype=np.float64).reshape(-1)
             unknown = ~np.isfinite(held)
@@ -811,27 +819,50 @@ class CalibrationSigma:
             t = None if time_s is None else np.asarray(time_s, dtype=np.float64).reshape(-1)
             if t is not None and f.size == 1:
                 f = np.broadcast_to(f, t.shape)  # one value for all: not measured
-            found = (recording_still_time(f, t, band_c=still["band_c"], max_gap_s=PACE_LAG_S)
-                     if still and t is not None and f.shape == t.shape else None)
+            found = (recording_still_time(f, t, band_c=judged["band_c"], max_gap_s=PACE_LAG_S)
+                     if judged and t is not None and f.shape == t.shape else None)
             if found is None:
                 held = np.full(f.shape, np.nan)
                 unknown = np.ones(f.shape, dtype=bool)
             else:
                 held, unknown = found, found >= (t - t[0]) - SINCE_START_TOL_S
-        if rate_c_per_min is not None and still:  # one stillness for many rates, or the reverse
+        if rate_c_per_min is not None and judged:  # one stillness for many rates, or reverse
             rate = np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)
             shape = _common_shape(held, rate, "still_s", "rate_c_per_min")
             held = np.broadcast_to(held, shape)
             unknown = np.broadcast_to(unknown, shape) & ~self._moving(rate, shape)
         excess = self.still_excess(np.nan_to_num(held, nan=0.0))
-        return held, excess, unknown & bool(still) & (excess <= 1.0)
+        return held, excess, unknown & bool(still) & (excess <= 1.0), unknown & bool(judged)
+
+    def settling_drift(self, still_s: Any, unknown: Any = False) -> np.ndarray:
+        """How far the error may yet drift, °C ``(N,)``, in frames held still longer than the
+        session's plateaus did (``still_s``, s, NaN: not measured) or for a time ``unknown``
+        (bool): what it changed by over the plateaus' last minutes (the report's ``settling``:
+        ``|slope| × window``), whether or not that refuses them; 0 elsewhere and without it.
+
+        The slope at the plateaus' ends says the session never saw the camera settle; below
+        the refusal's threshold a camera held still longer is answered, and its σ takes that
+        drift in quadrature (`polynomial` on `tau2`, fitted on 19-min steps: −0.025 °C/min,
+        0.2 °C over 8 min; a camera held at 25 °C ambient for 1–2 h read −0.08…−0.13 °C off
+        where σ said 0.03–0.05, 35–42 % within 2σ). Linear beyond the window it would say
+        2.9 °C after 2 h, an exponential settling far less: one window's change is the least
+        the frames do not show."""
+        settle = (self.report.paces or {}).get("settling")
+        held = np.asarray(still_s, dtype=np.float64).reshape(-1)
+        if not settle:
+            return np.zeros(held.shape)
+        beyond = (np.nan_to_num(held, nan=0.0) > settle["held_s"]) | np.asarray(unknown,
+                                                                                  dtype=bool)
+        drift = abs(settle["slope_c_per_min"]) * settle["window_s"] / 60.0
+        return np.where(beyond, drift, 0.0)
 
     def _moving(self, rate_c_per_min: Any, shape: tuple[int, ...]) -> np.ndarray:
         """Whether each FPA rate (°C/min, one or one per frame; NaN: not known) says the FPA
         was moving, not held still: faster than the stillness band over the rate's smoothing
         window (:data:`~thermocal.calibration.dataset.RATE_SMOOTH_S`), ``shape`` bool."""
         rate = np.broadcast_to(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1), shape)
-        band = self.report.paces["still"]["band_c"]
+        paces = self.report.paces
+        band = (paces.get("still") or paces["settling"])["band_c"]
         with np.errstate(invalid="ignore"):
             return np.abs(rate) > band / (RATE_SMOOTH_S / 60.0)
 
@@ -926,9 +957,9 @@ class CalibrationSigma:
         elif self.report.paces.get("fpa_cells"):  # no rate: taken as steady, as applied
             level = np.maximum(level, self._pace_sigma(self._distance(np.zeros(n), np.zeros(n),
                                                                       fpa)))
-        _, excess, unknown = self._still(fpa, time_since_start_s if recording else None,
-                                         still_s, None if recording else time_since_start_s,
-                                         rate_c_per_min)
+        held, excess, unknown, not_known = self._still(
+            fpa, time_since_start_s if recording else None, still_s,
+            None if recording else time_since_start_s, rate_c_per_min)
         level = np.maximum(level, self._still_sigma(np.where(
             unknown, np.maximum(excess, UNKNOWN_STILL_EXCESS), excess)))
         if self._learns_online and not history_seen:
@@ -973,6 +1004,8 @@ class CalibrationSigma:
                 :, None, None]
         base = np.maximum(level[:, None, None] * shape,
                           alone[:, None, None] * np.maximum(shape, 1.0))
+        drift = self.settling_drift(held, not_known)  # (N,)
+        base = np.hypot(base, np.broadcast_to(drift, frames.shape[:1])[:, None, None])
         out = (base + _GAUSS * growth + unmeasured).astype(np.float32)
         return out if temps.ndim == 3 else out[0]
 
@@ -1156,8 +1189,8 @@ class CalibrationSigma:
                                f"{self.max_rate_c_per_min:.2f} °C/min of the "
                                f"{self.report.method} calibration's chamber session")
         if still_s is not None or (time_s is not None and fpa.size):
-            held, excess, unknown = self._still(fpa, time_s, still_s, time_since_start_s,
-                                                rate_c_per_min)
+            held, excess, unknown, _ = self._still(fpa, time_s, still_s, time_since_start_s,
+                                                   rate_c_per_min)
             for beyond, reason in ((excess > 1.0, self._still_reason),
                                    (unknown, self._unknown_still_reason)):
                 if np.any(beyond):
