@@ -843,8 +843,8 @@ class CalibrationSigma:
         The slope at the plateaus' ends says the session never saw the camera settle; below
         the refusal's threshold a camera held still longer is answered, and its σ takes that
         drift in quadrature (`polynomial` on `tau2`, fitted on 19-min steps: −0.025 °C/min,
-        0.2 °C over 8 min; a camera held at 25 °C ambient for 1–2 h read −0.08…−0.13 °C off
-        where σ said 0.03–0.05, 35–42 % within 2σ). Linear beyond the window it would say
+        0.2 °C over 8 min; a camera held at 25 and 40 °C ambient for 1–2 h read −0.08…−0.13 °C
+        off where σ said 0.03–0.05, 42–60 % within 2σ). Linear beyond the window it would say
         2.9 °C after 2 h, an exponential settling far less: one window's change is the least
         the frames do not show."""
         settle = (self.report.paces or {}).get("settling")
