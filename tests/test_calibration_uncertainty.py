@@ -858,6 +858,13 @@ def test_a_report_of_an_older_thermocal_says_what_it_lacks(fitted, tmp_path):
         "band_c_per_min": 0.1, "slack_c": 1.0, "rise_c": 5.0, "fall_c": 0.0}})
     assert CalibrationSigma(replace(swung, method="lin-lag",
                                     without_history=alone)).older_report() is None
+    still = {"band_c": 0.15, "held_s": 240.0, "plateaus": 6}  # plateaus, but not their drift
+    stilled = replace(swung, method="lin-lag", without_history=alone,
+                      paces=swung.paces | {"still": still})
+    assert "drifted at its plateaus' ends" in CalibrationSigma(stilled).older_report()
+    settled = replace(stilled, paces=stilled.paces | {"settling": still | {
+        "slope_c_per_min": 0.01, "window_s": 480.0}})
+    assert CalibrationSigma(settled).older_report() is None
     _, cal, report = fitted
     assert CalibrationSigma(report).older_report() is None
     with warnings.catch_warnings():
@@ -1578,3 +1585,57 @@ def test_a_camera_held_still_longer_than_the_plateaus_takes_their_last_drift():
         plain.sigma(temps[:1], [27.5], **burst)[0, 0, 0], rel=1e-6)
     assert model.sigma(temps[:1], [27.5], still_s=[np.nan], **burst)[0, 0, 0] == pytest.approx(
         np.hypot(plain.sigma(temps[:1], [27.5], **burst)[0, 0, 0], drift), rel=1e-6)
+
+
+def test_a_burst_takes_the_drift_by_its_recording_s_stillness():
+    """A burst of a recording (``thermocal flight``, ``estimate``) is judged still from its
+    recording, for a report that lists settling alone as for one that lists stillness: a burst
+    whose FPA had held still for a minute keeps σ; one held for ten, longer than the plateaus,
+    takes the drift (before, every steady burst took it: its stillness was not measured)."""
+    from thermocal.estimation.base import FpaPace
+    from thermocal.estimation.paces import pace_at, recording_paces
+
+    settling = {"band_c": 0.15, "held_s": 240.0, "plateaus": 6, "slope_c_per_min": -0.025,
+                "window_s": 480.0}
+    paces = {"lag_s": 480.0, "cell_c_per_min": 0.1, "cells": [[0, 0]], "settling": settling}
+    model = CalibrationSigma(_report(paces=paces))
+    plain = CalibrationSigma(_report(paces={k: v for k, v in paces.items() if k != "settling"}))
+    t = np.arange(0.0, 1800.0, 10.0)
+    fpa = np.where(t < 600.0, 20.0 + 0.75 * t / 60.0, 27.5)
+    series = recording_paces(fpa, t, paces)
+    assert series["fpa_still_s"] is not None
+    x = np.full((1, 1), 25.0)
+    for k, drifts in ((66, False), (120, True)):  # 60 s and 600 s after the FPA stopped
+        at = pace_at(series, t, k)
+        pace = FpaPace(at["fpa_rate_c_per_min"], at["fpa_lagged_rate_c_per_min"],
+                       at["fpa_still_s"])
+        got = model.burst_sigma(x, 27.5, pace)[0, 0]
+        ref = plain.burst_sigma(x, 27.5, pace)[0, 0]
+        assert got == pytest.approx(np.hypot(ref, 0.2) if drifts else ref, rel=1e-6)
+
+
+def test_a_curve_without_an_interior_fold_keeps_its_ends_and_damaged_folds_are_refused():
+    """Every interior FPA fold failed to refit: the FPA curve's ends (the fit's own error
+    there) still shape σ, centred on the set points' interior (before, the curve was dropped:
+    σ at an FPA end its fit erred 1 °C at fell to a third); a fold's NaN or negative error in
+    a report read back is refused (it would make σ NaN everywhere)."""
+    folds = [f for f in _report().folds if f["kind"] == "setpoint"] + [
+        {"kind": "fpa", "held_out": [20.0, 25.0], "extrapolation": True, "frames": 5,
+         "mae_c": 2.0, "own_mae_c": 0.9},
+        {"kind": "fpa", "held_out": [25.0, 30.0], "extrapolation": False, "frames": 5,
+         "mae_c": None, "error": "no settled frame"},
+        {"kind": "fpa", "held_out": [30.0, 35.0], "extrapolation": True, "frames": 5,
+         "mae_c": 0.4, "own_mae_c": 0.3}]
+    model = CalibrationSigma(_report(folds=folds))
+    s = model.sigma(np.full((2, 1, 1), 25.0), [22.5, 32.5])[:, 0, 0]
+    # the set points' interior mean is 0.3 °C: the cold end (0.9) triples σ, the warm end
+    # (0.3, at least its nearest interior point's: none) keeps it
+    np.testing.assert_allclose(s, G * 0.3 * np.array([0.9 / 0.3, 1.0]), rtol=1e-6)
+    d = _report(folds=folds).to_dict()
+    d["mae_by_fpa_c"][0]["own_mae_c"] = float("nan")
+    with pytest.raises(InvalidInputError, match="own_mae_c must be >= 0 and finite"):
+        CalibrationReport.from_dict(json.loads(json.dumps(d)))
+    d["mae_by_fpa_c"][0]["own_mae_c"] = 0.9
+    d["mae_by_scene_c"][1]["relative_mae"] = -1.0
+    with pytest.raises(InvalidInputError, match="relative_mae must be >= 0"):
+        CalibrationReport.from_dict(json.loads(json.dumps(d)))

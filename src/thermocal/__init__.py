@@ -6,8 +6,9 @@ import os
 # few channels at a coarse level through MKL, whose reductions split by thread count (on an
 # AVX-512 Xeon the shipped network's maps on 1 and on 2 threads differed by 1.5e-5 °C, so a
 # flight's pivots estimated at once were not the bytes of one at a time). MKL's conditional
-# numerical reproducibility, strict, makes them bitwise the same at no measured cost; it is read
-# when MKL starts, so before torch is imported (a value the user set is kept).
+# numerical reproducibility, strict, makes them bitwise the same at no measured cost. MKL reads
+# it at its first call: a program that runs a torch operation before importing thermocal keeps
+# MKL's default (set MKL_CBWR=AUTO,STRICT in its environment then); a value the user set is kept.
 os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
 
 from thermocal.errors import (  # noqa: E402

@@ -110,9 +110,10 @@ class CalibrationReport:
         frames alone whose refit is the fit itself on its frames (within 1e-4 °C: the left-out
         frames were not the fit's) has ``fit_unchanged``. Each scored fold also has
         ``relative_mae`` (and an end fold ``own_relative_mae``): the mean over its frames of
-        their error over the MAE of their rate bin (``by_rate``; for a memoryless method, the
-        larger of that and their ``by_change`` bin's), what σ's curves are drawn from: where a
-        fold errs more than its frames' paces explain.
+        their error over the level σ gives them (their rate bin's σ, ``by_rate``, the overall
+        σ outside every bin; for a memoryless method at least their ``by_change`` bin's above
+        steady), what σ's curves are drawn from: where a fold errs more than its frames' paces
+        explain.
     fpa_range_c, scene_range_c : (float, float)
         FPA temperatures and scene (radiance-equivalent) temperatures the session covers, °C.
     fpa_rate_c_per_min : (float, float)
@@ -152,11 +153,14 @@ class CalibrationReport:
         before it);
         and, where the session's plateaus ended before the camera settled
         (:func:`settling_warning`), ``still``: how long its plateaus held the FPA still
-        (:func:`stillness_of`); ``fpa_sensitivity_c_per_c``, the scene °C one FPA °C is worth
-        in the counts (:func:`fpa_sensitivity`; absent in a report made before it); for a
-        memoryless method ``sustained``, how long it held each pace (:func:`sustained_of`), for
-        one with memory ``swing``, how far its FPA ran one way without pause
-        (:func:`swing_of`). Empty for the others and in a report made before it.
+        (:func:`stillness_of`); wherever its plateaus could be judged, ``settling``: the same
+        and how fast the error still changed at their ends (:func:`settling_slope`,
+        ``slope_c_per_min``, over ``window_s``), what σ of a camera held still longer takes
+        (absent in a report made before it); ``fpa_sensitivity_c_per_c``, the scene °C one
+        FPA °C is worth in the counts (:func:`fpa_sensitivity`; absent in a report made before
+        it); for a memoryless method ``sustained``, how long it held each pace
+        (:func:`sustained_of`), for one with memory ``swing``, how far its FPA ran one way
+        without pause (:func:`swing_of`). Empty for the others and in a report made before it.
     by_time : list of dict
         For a method that learns as frames stream by (``wolf2016``'s LMS: it errs most at
         first; :attr:`~thermocal.calibration.registry.CalibrationInfo.learns_online`), the same
@@ -245,8 +249,8 @@ class CalibrationReport:
     def from_dict(cls, d: dict[str, Any]) -> CalibrationReport:
         """The report of :meth:`to_dict`; :class:`InvalidInputError` if it is not one."""
         try:
-            folds = [{"kind": "setpoint", **f} for f in d.get("mae_by_scene_c", [])] + [
-                {"kind": "fpa", **f} for f in d.get("mae_by_fpa_c", [])]
+            folds = _folds_from([{"kind": "setpoint", **f} for f in d.get("mae_by_scene_c", [])]
+                                + [{"kind": "fpa", **f} for f in d.get("mae_by_fpa_c", [])])
             mae = d["expected_mae_c"]
             return cls(
                 method=str(d["method"]),
@@ -827,9 +831,13 @@ def cross_validate(
                          "change_c_per_min", min_frames=MIN_BIN_FRAMES)
                  if errors and memoryless else [])
     if by_rate:  # each fold's error relative to its frames' level: where, not how fast
-        level = _bins_mae(np.abs(binned_rate), by_rate, rate_key)
+        # the level σ gives them (CalibrationSigma.rate_sigma, change_sigma): their rate bin's
+        # σ, the overall σ outside every bin, at least the σ of a change bin above steady
+        level = _bins_sigma_of(np.abs(binned_rate), by_rate, rate_key, sigma)
         if by_change:
-            level = np.fmax(level, _bins_mae(change, by_change, "change_c_per_min"))
+            level = np.fmax(level, _bins_sigma_of(
+                change, [b for b in by_change if b["change_c_per_min"][0] > 0],
+                "change_c_per_min", math.nan))
         for k, err, frames, own in scored_folds:
             ratio = _relative(err, level[frames])
             if ratio is not None:
@@ -1197,6 +1205,20 @@ def _longest_stay(paces: dict[str, Any]) -> float | None:
     return max(stays) if stays else None
 
 
+#: A fold's errors, each None (not refitted) or a finite value >= 0 (°C, or a ratio).
+_FOLD_ERRORS = ("mae_c", "own_mae_c", "relative_mae", "own_relative_mae")
+
+
+def _folds_from(folds: list[dict[str, Any]]) -> list[dict[str, Any]]:
+    """A report's folds read back, their errors checked (a NaN ratio would make σ NaN
+    everywhere)."""
+    for f in folds:
+        for key in _FOLD_ERRORS:
+            if f.get(key) is not None and not 0 <= float(f[key]) < math.inf:
+                raise ValueError(f"a fold's {key} must be >= 0 and finite, got {f[key]!r}")
+    return folds
+
+
 def _paces_from(d: dict[str, Any]) -> dict[str, Any]:
     """A report's ``fpa_paces`` read back, checked (``{}`` when absent)."""
     if not d:
@@ -1421,13 +1443,14 @@ def _binned(errors: np.ndarray, values: np.ndarray, edges: tuple[float, ...], ke
             for lo, hi, sel in spans]
 
 
-def _bins_mae(values: np.ndarray, bins: list[dict[str, Any]], key: str) -> np.ndarray:
-    """Each of ``values`` ``(M,)``'s MAE in ``bins`` (:func:`_binned`'s, ``key``), °C; NaN
-    outside every bin."""
-    out = np.full(values.shape, np.nan)
+def _bins_sigma_of(values: np.ndarray, bins: list[dict[str, Any]], key: str,
+                   outside: float | None) -> np.ndarray:
+    """Each of ``values`` ``(M,)``'s σ in ``bins`` (:func:`_binned`'s, ``key``), °C;
+    ``outside`` (None: NaN) outside every bin."""
+    out = np.full(values.shape, math.nan if outside is None else outside)
     for b in bins:
         lo, hi = b[key]
-        out[(values >= lo) & (values < (math.inf if hi is None else hi))] = b["mae_c"]
+        out[(values >= lo) & (values < (math.inf if hi is None else hi))] = b["sigma_c"]
     return out
 
 

@@ -321,7 +321,9 @@ class CalibrationSigma:
         """What the report lacks that one made now records (a file made by an older
         thermocal), in words, or None: the FPA paces its session held (frames are then not
         checked against them), or, for a memoryless method, σ by how far the pace is from
-        steady (:meth:`change_sigma`)."""
+        steady (:meth:`change_sigma`), σ of frames without their history, its session's runs,
+        its cold starts, or the drift at its plateaus' ends (``paces["settling"]``, where it
+        lists ``still``: a report with plateaus)."""
         info = self._method_info
         if not self.report.paces:
             return ("no FPA paces, so frames are not checked against the paces its session "
@@ -339,6 +341,9 @@ class CalibrationSigma:
                 self.report.without_history or {}).get("by_time"):
             return ("no σ of its estimate begun afresh, so σ of a recording whose FPA changes "
                     "soon after it began may be too small")
+        if "still" in self.report.paces and "settling" not in self.report.paces:
+            return ("no record of how far its error still drifted at its plateaus' ends, so σ "
+                    "of a camera held still longer than they lasted may be too small")
         return None
 
     @cached_property
@@ -376,6 +381,9 @@ class CalibrationSigma:
         (`lin-lag` on `tau2`: FPA folds 0.09–0.11 °C, set points 0.05–0.07): they tell where
         σ is larger, the rate bins how large."""
         (sx, sv, c_scene), (fx, fv, c_fpa), *_ = self._curves
+        # a curve without a scored interior fold (all refits failed, or two set points) keeps
+        # its ends, centred on the other curve's interior: how its ends compare with the rest
+        c_scene, c_fpa = c_scene or c_fpa, c_fpa or c_scene
         shape = np.ones(frames.shape)
         least = 1.0
         if sx.size and c_scene:
@@ -923,7 +931,9 @@ class CalibrationSigma:
         longer than the session held it (:meth:`sustained_excess`, from the recording or each
         frame's ``sustained_s``, s, its stay at its pace), :meth:`_sustained_sigma`; for a
         method with memory whose FPA ran further one way than the session's did (from the
-        recording or each frame's ``swing_c``, °C), :meth:`_swing_sigma`.
+        recording or each frame's ``swing_c``, °C), :meth:`_swing_sigma`; and a frame held
+        still longer than the session's plateaus, or for a time not known, takes in quadrature
+        :meth:`settling_drift` (from the recording or each frame's ``still_s``).
         ``history_seen`` False: the calibration was applied to these frames without their
         recording's FPA history (a burst: a model remembering the FPA's rates started steady
         at the burst), whatever

@@ -35,7 +35,8 @@ def recording_paces(fpa_c: Any, time_s: Any, paces: dict[str, Any],
     - ``fpa_lagged_rate_c_per_min``: that rate through the lag of the report's paces
       (``lag_s``), °C/min;
     - ``fpa_still_s``: how long the FPA had held still within the band of the report's
-      ``still``, s (:func:`~thermocal.calibration.dataset.recording_still_time`);
+      ``still`` (or ``settling``: a still camera's σ takes its session's last drift), s
+      (:func:`~thermocal.calibration.dataset.recording_still_time`);
     - ``fpa_lag_rates_c_per_min``: the rate through each of ``rate_lags_s``, °C/min
       ``(M, K)``, started steady at the recording's first frame (the history ``lin-lag``'s
       lag terms need; a burst alone would start them steady at itself);
@@ -63,7 +64,7 @@ def recording_paces(fpa_c: Any, time_s: Any, paces: dict[str, Any],
             [lagged_rate(rates, time_s, float(tau)) for tau in rate_lags_s], axis=1)
     if not paces:
         return out
-    still = paces.get("still")
+    still = paces.get("still") or paces.get("settling")  # either judges stillness by its band
     out["fpa_lagged_rate_c_per_min"] = lagged_rate(rates, time_s, float(paces["lag_s"]))
     if still:
         out["fpa_still_s"] = recording_still_time(fpa_c, time_s, band_c=still["band_c"],
