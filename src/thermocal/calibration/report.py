@@ -833,11 +833,11 @@ def cross_validate(
     if by_rate:  # each fold's error relative to its frames' level: where, not how fast
         # the level σ gives them (CalibrationSigma.rate_sigma, change_sigma): their rate bin's
         # σ, the overall σ outside every bin, at least the σ of a change bin above steady
-        level = _bins_sigma_of(np.abs(binned_rate), by_rate, rate_key, sigma)
+        level = bins_sigma(np.abs(binned_rate), by_rate, rate_key, outside=sigma)
         if by_change:
-            level = np.fmax(level, _bins_sigma_of(
+            level = np.fmax(level, bins_sigma(
                 change, [b for b in by_change if b["change_c_per_min"][0] > 0],
-                "change_c_per_min", math.nan))
+                "change_c_per_min", outside=math.nan))
         for k, err, frames, own in scored_folds:
             ratio = _relative(err, level[frames])
             if ratio is not None:
@@ -1443,11 +1443,12 @@ def _binned(errors: np.ndarray, values: np.ndarray, edges: tuple[float, ...], ke
             for lo, hi, sel in spans]
 
 
-def _bins_sigma_of(values: np.ndarray, bins: list[dict[str, Any]], key: str,
-                   outside: float | None) -> np.ndarray:
-    """Each of ``values`` ``(M,)``'s σ in ``bins`` (:func:`_binned`'s, ``key``), °C;
-    ``outside`` (None: NaN) outside every bin."""
-    out = np.full(values.shape, math.nan if outside is None else outside)
+def bins_sigma(values: np.ndarray, bins: list[dict[str, Any]], key: str,
+               outside: float = 0.0) -> np.ndarray:
+    """Each of ``values`` ``(N,)``'s σ in ``bins`` (a report's bins, :func:`_binned`'s:
+    ``key`` ``[low, high]``, high None for the last, and ``sigma_c``), °C; ``outside``
+    outside every bin."""
+    out = np.full(values.shape, outside, dtype=np.float64)
     for b in bins:
         lo, hi = b[key]
         out[(values >= lo) & (values < (math.inf if hi is None else hi))] = b["sigma_c"]

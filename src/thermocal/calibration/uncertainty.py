@@ -119,6 +119,7 @@ from thermocal.calibration.report import (
     PACE_LAG_S,
     SWING_BAND_C_PER_MIN,
     CalibrationReport,
+    bins_sigma,
     fpa_swings,
     pace_stays,
     rate_bin_range,
@@ -207,14 +208,14 @@ def _curve(folds: list[dict[str, Any]], where: Any, key: str = "mae_c"
     on. A report made before end folds scored the fit has interior points alone."""
     inner = sorted((where(f), f[key], f.get("frames") or 1) for f in folds
                    if not f["extrapolation"] and f.get(key) is not None)
-    pts = list(inner)
+    pts = [p[:2] for p in inner]
     for f in (f for f in folds if f["extrapolation"]):
         own = f.get(key) if f.get("fit_unchanged") else f.get(f"own_{key}")
         if own is None:
             continue
         x = where(f)
         near = min(inner, key=lambda p: abs(p[0] - x))[1] if inner else own
-        pts.append((x, max(own, near), f.get("frames") or 1))
+        pts.append((x, max(own, near)))
     pts.sort()
     x, v = (np.array([p[k] for p in pts], dtype=np.float64) for k in range(2))
     mean = (sum(p[1] * p[2] for p in inner) / sum(p[2] for p in inner)) if inner else None
@@ -227,16 +228,6 @@ def _growth(folds: list[dict[str, Any]], interior: float, distance: Any) -> floa
     rates = [max(0.0, f["mae_c"] - interior) / max(distance(f), 1e-6) for f in folds
              if f["extrapolation"] and f.get("mae_c") is not None]
     return max([MIN_GROWTH_PER_C, *rates])
-
-
-def _bins_sigma(values: np.ndarray, bins: list[dict[str, Any]], key: str) -> np.ndarray:
-    """Each of ``values`` ``(N,)``'s σ in ``bins`` (a report's bins: ``key`` ``[low, high]``,
-    high None for the last, and ``sigma_c``), °C; 0 outside every bin."""
-    out = np.zeros(values.shape)
-    for b in bins:
-        lo, hi = b[key]
-        out[(values >= lo) & (values < (math.inf if hi is None else hi))] = b["sigma_c"]
-    return out
 
 
 def _common_shape(a: np.ndarray, b: np.ndarray, name_a: str, name_b: str
@@ -252,19 +243,18 @@ def _common_shape(a: np.ndarray, b: np.ndarray, name_a: str, name_b: str
 
 def _rising_bins_sigma(values: np.ndarray, bins: list[dict[str, Any]], key: str
                        ) -> np.ndarray:
-    """:func:`_bins_sigma` of an error that grows with ``values``, read as the continuous
-    curve its bins sample: between the centres of a bin and of the next above it, never below
-    the line between their σ (the open last bin's centre half the width of the one below it
-    above its edge), where σ grows to the next bin by no more than the centres' ratio. A lag's
-    error grows with how far the pace changed, at most in proportion, and a bin's σ is its
-    frames' average, so near its upper edge a frame errs as the bin above (`lin` and
-    `lin-level` on `boson`: up to 1.07 × 2σ of the 0.5–1 °C/min bin at 0.85–0.88, where the
-    bin above said 40 % more). Where σ falls to the next bin, or jumps by more than
-    proportion, the bins part regimes, not a curve (a plateau's unsettled start from a steady
-    pace; `polynomial` on `boson`, 1.3 → 6.3 °C from 0.05–0.2 to 0.2–0.5 °C/min, its sawtooth's
-    fast paces in the second: read as a line, its median σ grew by half for no frame), and
-    stay as they are."""
-    out = _bins_sigma(values, bins, key)
+    """:func:`~thermocal.calibration.report.bins_sigma` of an error that grows with ``values``,
+    read as the continuous curve its bins sample: between the centres of a bin and of the next
+    above it, never below the line between their σ (the open last bin's centre half the width of
+    the one below it above its edge), where σ grows to the next bin by no more than the centres'
+    ratio. A lag's error grows with how far the pace changed, at most in proportion, and a bin's
+    σ is its frames' average, so near its upper edge a frame errs as the bin above (`lin` and
+    `lin-level` on `boson`: up to 1.07 × 2σ of the 0.5–1 °C/min bin at 0.85–0.88, where the bin
+    above said 40 % more). Where σ falls to the next bin, or jumps by more than proportion, the
+    bins part regimes, not a curve (a plateau's unsettled start from a steady pace; `polynomial`
+    on `boson`, 1.3 → 6.3 °C from 0.05–0.2 to 0.2–0.5 °C/min, its sawtooth's fast paces in the
+    second: read as a line, its median σ grew by half for no frame), and stay as they are."""
+    out = bins_sigma(values, bins, key)
     bins = sorted(bins, key=lambda b: float(b[key][0]))
 
     def centre(k: int) -> float:
@@ -448,7 +438,7 @@ class CalibrationSigma:
         :data:`~thermocal.calibration.report.MIN_BIN_FRAMES` frames (a report made before
         sparse bins were pooled), 0 elsewhere (no start-up seen)."""
         t = np.asarray(time_since_start_s, dtype=np.float64).reshape(-1)
-        return _bins_sigma(t, [b for b in self.report.by_time if b["frames"] >= MIN_BIN_FRAMES
+        return bins_sigma(t, [b for b in self.report.by_time if b["frames"] >= MIN_BIN_FRAMES
                                and b.get("sigma_c") is not None], "time_s")
 
     def change_sigma(self, change_c_per_min: Any) -> np.ndarray:
@@ -490,7 +480,7 @@ class CalibrationSigma:
         if not (self._learns_online and moved is not None):
             return faded
         if alone.get("by_time"):  # its cold starts, measured: their σ by time since
-            faded = np.maximum(faded, _bins_sigma(since, alone["by_time"], "time_s"))
+            faded = np.maximum(faded, bins_sigma(since, alone["by_time"], "time_s"))
         return np.where(np.broadcast_to(np.asarray(moved, dtype=bool).reshape(-1), (n,)),
                         faded, 0.0)
 
