@@ -493,6 +493,18 @@ def test_plateaus_are_found_in_a_logged_ambient_with_its_noise():
                         np.ones(t.size, bool)) == []
 
 
+def test_the_stillness_band_is_the_still_ones_else_the_settling_ones():
+    """One reading of which band judges a recording's stillness: ``still``'s (an unsettled
+    session), else ``settling``'s (every report that measured plateaus), else none."""
+    from thermocal.calibration.report import stillness_band
+
+    assert stillness_band({"still": {"band_c": 0.15}, "settling": {"band_c": 0.3}}) == 0.15
+    assert stillness_band({"settling": {"band_c": 0.3}}) == 0.3
+    assert stillness_band({"still": {}, "settling": {"band_c": 0.3}}) == 0.3
+    assert stillness_band({"sustained": {}}) is None
+    assert stillness_band({}) is None and stillness_band(None) is None
+
+
 def test_stillness_of_plateaus_that_never_held_the_fpa_still_is_nothing():
     """An FPA that never stays within the band from one frame to the next (2 °C/min through
     the ambient's plateaus): no frame is ever still, so there is no held time to judge by (and

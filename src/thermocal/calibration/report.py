@@ -1183,6 +1183,15 @@ def stillness_of(data: ChamberData, ends: list[np.ndarray]) -> dict[str, Any]:
             else {})
 
 
+def stillness_band(paces: dict[str, Any] | None) -> float | None:
+    """The band, °C, by which a recording's stillness is judged against a report's
+    :attr:`CalibrationReport.paces` (its ``still``, else its ``settling``: both hold the band
+    the session's plateaus were measured with); None where the report lists neither (a method
+    with memory whose session settled, an older report)."""
+    judged = (paces or {}).get("still") or (paces or {}).get("settling")
+    return judged["band_c"] if judged else None
+
+
 def _steady_paces(paces: dict[str, Any]) -> str:
     """The steady paces of :attr:`CalibrationReport.paces` (cells whose lagged rate is within a
     cell of the rate) as runs, ``"-0.10…+0.30, +1.40…+1.60"`` °C/min."""

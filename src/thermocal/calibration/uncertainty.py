@@ -126,6 +126,7 @@ from thermocal.calibration.report import (
     report_of,
     settling_alternative,
     settling_cause,
+    stillness_band,
 )
 from thermocal.errors import InvalidInputError
 
@@ -803,7 +804,7 @@ class CalibrationSigma:
         (``rate_c_per_min``, °C/min, one or one per frame, where known) says the FPA was moving
         (:meth:`_moving`): a camera that may have been held still for hours."""
         still = (self.report.paces or {}).get("still")
-        judged = still or (self.report.paces or {}).get("settling")
+        band = stillness_band(self.report.paces)
         if still_s is not None:
             held = np.asarray(still_s, dtype=np.float64).reshape(-1)
             unknown = ~np.isfinite(held)
@@ -817,20 +818,20 @@ class CalibrationSigma:
             t = None if time_s is None else np.asarray(time_s, dtype=np.float64).reshape(-1)
             if t is not None and f.size == 1:
                 f = np.broadcast_to(f, t.shape)  # one value for all: not measured
-            found = (recording_still_time(f, t, band_c=judged["band_c"], max_gap_s=PACE_LAG_S)
-                     if judged and t is not None and f.shape == t.shape else None)
+            found = (recording_still_time(f, t, band_c=band, max_gap_s=PACE_LAG_S)
+                     if band is not None and t is not None and f.shape == t.shape else None)
             if found is None:
                 held = np.full(f.shape, np.nan)
                 unknown = np.ones(f.shape, dtype=bool)
             else:
                 held, unknown = found, found >= (t - t[0]) - SINCE_START_TOL_S
-        if rate_c_per_min is not None and judged:  # one stillness for many rates, or reverse
+        if rate_c_per_min is not None and band is not None:  # one stillness, many rates, or reverse
             rate = np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1)
             shape = _common_shape(held, rate, "still_s", "rate_c_per_min")
             held = np.broadcast_to(held, shape)
             unknown = np.broadcast_to(unknown, shape) & ~self._moving(rate, shape)
         excess = self.still_excess(np.nan_to_num(held, nan=0.0))
-        return held, excess, unknown & bool(still) & (excess <= 1.0), unknown & bool(judged)
+        return held, excess, unknown & bool(still) & (excess <= 1.0), unknown & (band is not None)
 
     def settling_drift(self, still_s: Any, unknown: Any = False) -> np.ndarray:
         """How far the error may yet drift, °C ``(N,)``, in frames held still longer than the
@@ -859,8 +860,7 @@ class CalibrationSigma:
         was moving, not held still: faster than the stillness band over the rate's smoothing
         window (:data:`~thermocal.calibration.dataset.RATE_SMOOTH_S`), ``shape`` bool."""
         rate = np.broadcast_to(np.asarray(rate_c_per_min, dtype=np.float64).reshape(-1), shape)
-        paces = self.report.paces
-        band = (paces.get("still") or paces["settling"])["band_c"]
+        band = stillness_band(self.report.paces)
         with np.errstate(invalid="ignore"):
             return np.abs(rate) > band / (RATE_SMOOTH_S / 60.0)
 

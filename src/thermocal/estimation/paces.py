@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from thermocal.calibration.dataset import lagged_rate, recording_fpa_rates, recording_still_time
-from thermocal.calibration.report import PACE_LAG_S, fpa_swings, pace_stays
+from thermocal.calibration.report import PACE_LAG_S, fpa_swings, pace_stays, stillness_band
 
 __all__ = ["PACE_KEYS", "pace_at", "recording_paces"]
 
@@ -64,10 +64,10 @@ def recording_paces(fpa_c: Any, time_s: Any, paces: dict[str, Any],
             [lagged_rate(rates, time_s, float(tau)) for tau in rate_lags_s], axis=1)
     if not paces:
         return out
-    still = paces.get("still") or paces.get("settling")  # either judges stillness by its band
+    band = stillness_band(paces)
     out["fpa_lagged_rate_c_per_min"] = lagged_rate(rates, time_s, float(paces["lag_s"]))
-    if still:
-        out["fpa_still_s"] = recording_still_time(fpa_c, time_s, band_c=still["band_c"],
+    if band is not None:
+        out["fpa_still_s"] = recording_still_time(fpa_c, time_s, band_c=band,
                                                   max_gap_s=PACE_LAG_S)
     if paces.get("sustained"):
         out["fpa_sustained_s"] = pace_stays(
