@@ -92,6 +92,36 @@ def score(estimate, truth, camera, mask=None):
 # ---------------------------------------------------------------------------- datasets
 
 
+def test_a_grey_blackbody_is_seen_in_the_band_of_the_family_the_file_names():
+    """The reflected surround of a grey blackbody (emissivity 0.95) is weighted in the camera's
+    own band: a ``boson`` session's scene temperatures are those its simulator rendered (the
+    8–14 µm sloped band), not ``tau2``'s flat 7.5–13.5 µm, which differs by 0.01–0.03 °C
+    here; a file naming no family (or one unknown) takes ``tau2``'s band; a band given wins."""
+    from thermocal.camera.presets import preset_band
+    from thermocal.radiometry import TAU2
+
+    bb = np.array([-10.0, 10.0, 70.0, 90.0])
+    amb = np.array([10.0, 40.0, 10.0, 10.0])
+    boson = preset_band("boson")
+    assert boson is not TAU2 and preset_band("tau2") is TAU2
+    assert preset_band(None) is TAU2 and preset_band("flir-a35") is TAU2
+
+    def session(preset):
+        attrs = {"blackbody_emissivity": 0.95} | ({"preset": preset} if preset else {})
+        return ChamberSession(np.full((4, 2, 2), 8000, np.uint16), blackbody_c=bb,
+                              fpa_c=np.full(4, 30.0), time_s=np.arange(4.0), ambient_c=amb,
+                              attrs=attrs)
+
+    in_boson = radiance_temperature_c(bb, amb, 0.95, boson)
+    in_tau2 = radiance_temperature_c(bb, amb, 0.95, TAU2)
+    assert np.abs(in_boson - in_tau2).max() > 0.01  # the bands differ enough to tell
+    np.testing.assert_allclose(prepare_chamber(session("boson")).scene_c, in_boson, atol=1e-6)
+    for other in ("tau2", None, "unknown"):
+        np.testing.assert_allclose(prepare_chamber(session(other)).scene_c, in_tau2, atol=1e-6)
+    np.testing.assert_allclose(prepare_chamber(session("boson"), band=TAU2).scene_c, in_tau2,
+                               atol=1e-6)
+
+
 def test_fpa_rate_recovers_a_ramp_and_classifies():
     t = np.arange(0, 600, 2.0)
     fpa = 20 + 0.8 * t / 60  # 0.8 °C/min

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from thermocal._validate import SATURATED_FRACTION, clipped_mask, surely_unclipped
+from thermocal.camera.presets import preset_band
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import FitError, InvalidInputError
 from thermocal.io.chamber import ChamberSession, LazyFrames
@@ -360,7 +361,7 @@ def prepare_chamber(
     stable_c_per_min: float = 0.05,
     unstable_c_per_min: float = 0.5,
     emissivity: float | None = None,
-    band: BandRadiance = TAU2,
+    band: BandRadiance | None = None,
 ) -> ChamberData:
     """Prepare a chamber session (or file) for fitting; reads no frames.
 
@@ -376,6 +377,10 @@ def prepare_chamber(
         Thresholds of the stability classes, °C/min.
     emissivity : float, optional
         Blackbody emissivity; default the file's ``blackbody_emissivity`` (or 1).
+    band : BandRadiance, optional
+        The camera's spectral band, for a grey blackbody's reflected surround; default its
+        family's where the file names one (``attrs["preset"]``, as the simulator writes),
+        else ``tau2``'s (:func:`~thermocal.camera.presets.preset_band`).
     """
     if isinstance(session, ChamberData):
         return session
@@ -391,7 +396,9 @@ def prepare_chamber(
     usable = pos >= settle_frames
     return ChamberData(
         session=s,
-        scene_c=scene_temperature_c(s, emissivity=emissivity, band=band),
+        scene_c=scene_temperature_c(
+            s, emissivity=emissivity,
+            band=preset_band(s.attrs.get("preset")) if band is None else band),
         fpa_c=fpa,
         time_s=t,
         fpa_rate_c_per_min=rate,

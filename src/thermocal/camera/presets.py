@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import zlib
 from dataclasses import asdict, dataclass
+from typing import Any
 
 import numpy as np
 from scipy.ndimage import map_coordinates
@@ -42,7 +43,7 @@ from scipy.ndimage import map_coordinates
 from thermocal.camera.model import CameraModel
 from thermocal.camera.thermal import ThermalParams
 from thermocal.errors import InvalidInputError
-from thermocal.radiometry import band_table
+from thermocal.radiometry import TAU2, BandRadiance, band_table
 
 #: Forms of the parts that differ between families (the first of each is ``tau2``'s).
 FPN_FORMS = ("column", "row-field")
@@ -181,6 +182,14 @@ BOSON = CameraPreset(
 )
 
 PRESETS: dict[str, CameraPreset] = {"tau2": CameraPreset(), "boson": BOSON}
+
+
+def preset_band(name: Any) -> BandRadiance:
+    """The spectral band of the family ``name`` (a key of :data:`PRESETS`) as its shared
+    radiance table; the ``tau2`` band (flat 7.5–13.5 µm) for any other name or none: what a
+    chamber session of an unnamed camera is prepared with."""
+    p = PRESETS.get(name) if isinstance(name, str) else None
+    return band_table(tuple(p.band_m), tuple(p.spectral_response)) if p else TAU2
 
 
 def _smooth_field(rng: np.random.Generator, shape: tuple[int, int]) -> np.ndarray:
