@@ -97,10 +97,16 @@ def test_per_frame_estimator_sees_no_registration(flight):
     rec = Recorder(per_frame=True)
     est = estimate(flight.frames, rec, fpa_c=30.0, pivot=1)
     assert [s[0] for s in rec.seen] == ["check", "calibrate", "outside"]
-    assert np.array_equal(rec.seen[1][1], flight.frames)  # raw, not filled: nothing moves
-    # … its domain checked on the burst as it lies (its raw pivot: is it the calibration's
+    seen, clipped = rec.seen[1][1], flight.frames[1] >= 16383
+    assert clipped.sum() == 3  # the unit's three hot pixels, at the top count
+    # raw, not registered, its pivot's clipped counts filled from their neighbours (a
+    # saturated pixel says nothing of the scene), the other frames as they were
+    assert np.array_equal(np.delete(seen, 1, axis=0), np.delete(flight.frames, 1, axis=0))
+    assert np.array_equal(seen[1][~clipped], flight.frames[1][~clipped])
+    assert np.all(seen[1][clipped] < 16383) and flight.frames[1][clipped].min() == 16383
+    # … its domain checked on the burst as it lies (its pivot: is it the calibration's
     # camera?), not registered
-    assert rec.seen[2][3] is rec.burst and np.array_equal(rec.burst.frames, flight.frames)
+    assert rec.seen[2][3] is rec.burst and np.array_equal(rec.burst.frames, seen)
     assert np.array_equal(rec.burst.homographies,
                           np.repeat(np.eye(3)[None], len(flight.frames), axis=0))
     assert rec.seen[2][1] == (1, *flight.frames.shape[1:])  # … on the pivot alone
@@ -110,7 +116,10 @@ def test_per_frame_estimator_sees_no_registration(flight):
     warm = Recorder(per_frame=True)
     estimate(flight.frames, warm, fpa_c=ramp, pivot=len(ramp) - 1)
     assert warm.seen[2][2] == pytest.approx(47.0) and warm.burst.fpa_c == pytest.approx(47.0)
-    assert np.array_equal(est.temperature_c, rec.calibrate(flight.frames, None, None)[1])
+    assert np.array_equal(est.temperature_c, rec.calibrate(seen, None, None)[1])
+    kept = Recorder(per_frame=True)  # without filling: the raw burst
+    estimate(flight.frames, kept, fpa_c=30.0, pivot=1, fill_defects=False)
+    assert np.array_equal(kept.seen[1][1], flight.frames)
     assert np.all(est.coverage == 1) and np.array_equal(est.homographies[1], np.eye(3))
 
 
@@ -157,10 +166,13 @@ def test_calibration_estimators(flight, small_camera):
     for est in (OzMean(cal), PivotCalibration(cal)):
         assert isinstance(est, Estimator)
     pivot_only = estimate(flight.frames, PivotCalibration(cal), fpa_c=flight.fpa_c)
-    assert np.array_equal(pivot_only.temperature_c,
-                          cal.apply(flight.frames, fpa_c=flight.fpa_c)[2])
-    mean = estimate(flight.frames, OzMean(cal), homographies=flight.homographies)
+    applied = cal.apply(flight.frames, fpa_c=flight.fpa_c)[2]
+    clipped = flight.frames[2] >= 16383  # the unit's hot pixels: filled, the rest as applied
+    assert np.array_equal(pivot_only.temperature_c[~clipped], applied[~clipped])
     truth = flight.truth_c[flight.pivot]
+    assert np.abs(applied - truth)[clipped].min() > 20.0  # a saturated count read as is
+    assert np.abs(pivot_only.temperature_c - truth)[clipped].max() < 5.0
+    mean = estimate(flight.frames, OzMean(cal), homographies=flight.homographies)
     inner = mean.coverage == 5
     assert np.median(np.abs(mean.temperature_c - truth)[inner]) < 1.0
     small = make_camera("tau2", unit=0, size=(32, 24))

@@ -687,6 +687,33 @@ def test_method_camera_is_held_to_the_measuring_range(shared_data, tmp_path, cap
     assert VendorCalibration([planck], [(5.0, 0.05)]).outside(temps[None], None) == ()
 
 
+def test_method_camera_forced_beyond_the_measuring_range(tmp_path, capsys):
+    """A scene beyond the range its file states is refused, the remedy naming --force; forced,
+    it is written with σ the stated accuracy's plus the distance beyond the range (--force had
+    been refused for ``--method camera``: "no domain to force")."""
+    import tifffile
+    from cli_run import run
+
+    frame = (9000 + np.random.default_rng(0).integers(0, 50, (32, 48))).astype(np.uint16)
+    records = [fff_record(frame, planck=FlirPlanck(16000.0, 0.02, 1430.0, 1.0, -300,
+                                                   emissivity=0.9, distance_m=10.0),
+                          time_epoch_s=1.7e9 + 0.033 * k, model="Synthetic Tau2",
+                          range_c=(-25.0, 20.0)) for k in range(3)]
+    (tmp_path / "f.seq").write_bytes(b"".join(records))
+    out, sig = tmp_path / "t.tiff", tmp_path / "s.tiff"
+    args = ["estimate", tmp_path / "f.seq", "--method", "camera", "--out", out, "--sigma-out",
+            sig]
+    code, _, err = run(args, capsys)
+    assert code == 2 and "beyond the camera's measuring range -25…20 °C" in err, err
+    assert "--force gives them with σ grown" in err and not out.exists() and not sig.exists()
+    code, _, err = run([*args, "--force"], capsys)
+    assert code == 0, err
+    temps, sigma = tifffile.imread(out), tifffile.imread(sig)
+    assert temps.min() > 40.0
+    np.testing.assert_allclose(sigma, np.maximum(5.0, 0.05 * temps) / 2 + (temps - 20.0),
+                               rtol=1e-5)
+
+
 def test_method_camera_refuses_a_recording_without_constants(tmp_path, capsys):
     from cli_run import run
 
@@ -710,6 +737,38 @@ def test_method_camera_refuses_a_frame_of_many_counts_without_a_temperature(tmp_
     assert code == 2 and "96 pixel(s) (6.2 %) of a frame" in err, err
     assert "constants that are not this camera's" in err and "mask" not in err
     assert not (tmp_path / "t.tiff").exists()
+
+
+@pytest.mark.parametrize(("model", "filled"), [("Synthetic Tau2", True),
+                                              ("FLIR T1030sc", False)])
+def test_method_camera_fills_a_saturated_cores_clipped_counts(tmp_path, capsys, model, filled):
+    """A radiometric core's counts are 14-bit: a pixel at 16,383 saturated and says nothing of
+    the scene (it read 125 °C with σ 3 where the scene was 32-39 °C: a helper's audit), so
+    it is filled from its neighbours, with a warning, as a dead pixel at 0 is; a FLIR camera's
+    16-bit counts reach 16,383 in a warm scene, where the count is a temperature."""
+    import tifffile
+    from cli_run import run
+
+    from thermocal.io.fff import flir_bit_depth
+
+    frame = np.full((32, 48), 9000, np.uint16)
+    frame[10:12, 20:23] = 16383
+    frame[5, 5] = 0
+    (tmp_path / "f.seq").write_bytes(b"".join(_fff(frame, ms=33 * k, model=model)
+                                             for k in range(3)))
+    meta = open_recording(tmp_path / "f.seq").read_all().extra["frame_metadata"][0]
+    assert flir_bit_depth(meta) == (14 if filled else 16)
+    out = tmp_path / "t.tiff"
+    code, _, err = run(["estimate", tmp_path / "f.seq", "--method", "camera", "--out", out],
+                       capsys)
+    if not filled:  # 0 has no temperature; 16,383 is a warm pixel of a 16-bit camera
+        assert code == 0 and "1 pixel(s) of a frame saturated or dead" in err, err
+        temps = tifffile.imread(out)
+        assert temps[10, 20] > temps[0, 0] + 20 and temps[5, 5] == pytest.approx(temps[0, 0])
+        return
+    assert code == 0 and "7 pixel(s) of a frame saturated or dead" in err, err
+    temps = tifffile.imread(out)
+    np.testing.assert_allclose(temps, temps[0, 0], atol=1e-4)
 
 
 def test_flight_runs_on_a_seq(tmp_path):

@@ -245,6 +245,8 @@ def test_a_simulated_flir_file_states_its_own_units_constants(tmp_path, capsys, 
     # the file names its family's core (a boson's said Tau2: a helper's audit)
     family = "Tau2" if preset == "tau2" else "Boson"
     assert meta["camera_model"] == f"thermocal simulated {family}-class"
+    # and states a measuring range, as an XT-R's files do (none: no scene was ever outside)
+    assert meta["temperature_range_c"] == [-25.0, 135.0]
     code, _, err = run(["estimate", tmp_path / "f" / "frames.seq", "--method", "camera",
                         "--out", tmp_path / "t.tiff", "--sigma-out", tmp_path / "s.tiff"],
                        capsys)

@@ -216,6 +216,12 @@ def estimate(
     if estimator.per_frame:  # the pivot frame alone: its calibration, not registered
         if fpa is not None and np.size(fpa_c) == arr.shape[0] > 1:  # its own FPA, not the mean
             fpa = float(np.asarray(fpa_c, dtype=np.float64).reshape(-1)[p])
+        if fill_defects and not registered:  # its clipped counts, as a burst's (a frame
+            # alone shows no stuck pixel): a saturated pixel read 80 °C with σ 1 over 17 °C
+            pivot_frame = fill_stuck_pixels(arr[p : p + 1], top=2**bit_depth - 1)[0]
+            if not np.array_equal(pivot_frame, arr[p : p + 1]):
+                arr = arr.copy()
+                arr[p] = pivot_frame[0]
         valid = np.zeros(arr.shape, dtype=bool)
         valid[p] = True
         hs = np.repeat(np.eye(3)[None], arr.shape[0], axis=0)

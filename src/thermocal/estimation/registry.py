@@ -142,18 +142,18 @@ def check_method_options(name: str, *, backend: str = "torch", threads: int | No
     ``--backend`` or ``--threads`` or ``--model`` for a method that runs no network,
     ``--calibration`` for one that takes none, ``--family`` (other than the default) for one
     that does not start from a family's average unit or is given a calibration to start from,
-    ``--fpa-c`` or ``--force`` for the camera's own constants (they convert counts without the
-    FPA, and have no domain); ``--threads`` beyond
+    ``--fpa-c`` for the camera's own constants (they convert counts without the FPA);
+    ``--threads`` beyond
     :data:`~thermocal.cores.MAX_PER_CORE` per core."""
     needs = ESTIMATORS[name].needs
     if threads is not None:
         from thermocal.cores import check_per_core
 
         check_per_core(threads, "--threads")
-    if needs == "recording" and (fpa_c is not None or force):
+    if needs == "recording" and fpa_c is not None:
         raise InvalidInputError(
             f"--method {name} converts counts with the file's own constants, which take no FPA "
-            "temperature and have no domain to force: leave --fpa-c and --force out")
+            "temperature: leave --fpa-c out")
     if needs != "model" and (backend != "torch" or threads is not None):
         raise InvalidInputError(
             f"--backend and --threads choose how a network runs; --method {name} runs none")

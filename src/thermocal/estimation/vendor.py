@@ -11,7 +11,7 @@ Its uncertainty is the vendor's stated accuracy, taken as 2σ (a data sheet's "�
 bounds most readings, not one in three): ±2 °C or 2 % of the reading, whichever is larger, for
 FLIR's own cameras (T, A, E series); ±5 °C or 5 % for radiometric Tau2 cores, as in the DJI
 Zenmuse XT, XT2 and XT-R and FLIR's Duo Pro R and Vue Pro R (their data sheets, high-gain
-mode). The camera is told by the names its file gives (:data:`TAU2_CAMERAS`).
+mode). The camera is told by the names its file gives (:data:`~thermocal.io.fff.CORE_CAMERAS`).
 """
 
 from __future__ import annotations
@@ -24,32 +24,30 @@ import numpy as np
 from thermocal.calibration.base import ThermocalWarning, fill_bad_pixels
 from thermocal.errors import InvalidInputError
 from thermocal.estimation.base import PreparedBurst
+from thermocal.io.fff import CORE_CAMERAS, TAU2_CAMERAS, flir_bit_depth, names_core
 from thermocal.io.recording import Recording
 from thermocal.radiometry import FlirPlanck
 
 __all__ = ["CORE_CAMERAS", "MAX_UNDEFINED_FRACTION", "TAU2_CAMERAS", "VendorCalibration",
            "vendor_accuracy"]
 
-#: Parts of a file's make and model (upper case, found anywhere in them) that name a
-#: radiometric Tau2 camera: DJI's Zenmuse XT series (EXIF make "DJI", model "FLIR"), FLIR's
-#: Duo Pro R and Vue Pro R, a bare Tau2 core. Not "XT" alone: FLIR's E8-XT is a handheld of
-#: ±2 °C.
-TAU2_CAMERAS = ("DJI", "ZENMUSE", "TAU", "DUO PRO", "VUE PRO")
-
-#: The same for every radiometric core of ±5 °C or 5 %: the Tau2 cameras and a Boson core
-#: (the simulator's second family writes "thermocal simulated Boson-class core").
-CORE_CAMERAS = (*TAU2_CAMERAS, "BOSON")
-
 #: Pixels of a frame whose counts its constants give no temperature (below the count of a
 #: blackbody at 0 K: dead pixels) filled from their neighbours, at most this fraction of them.
 MAX_UNDEFINED_FRACTION = 0.001
 
 
-def _converted(planck: FlirPlanck, frame: np.ndarray) -> np.ndarray:
-    """One frame ``(H, W)`` through ``planck``, °C float32 (see ``VendorCalibration.calibrate``)."""
+def _converted(planck: FlirPlanck, frame: np.ndarray, top: int) -> np.ndarray:
+    """One frame ``(H, W)`` through ``planck``, °C float32 (see ``VendorCalibration.calibrate``);
+    ``top``: the sensor's largest count (``2**bit_depth − 1``), where it saturates (65,535
+    where the frame's counts exceed it: not the sensor its file names)."""
     raw = frame.astype(np.float64)
-    undefined = ~((raw > planck.raw_min) & (raw < planck.raw_max))
-    if not undefined.any():
+    if raw.size and raw.max() > top:  # counts beyond the named sensor's: a 16-bit one
+        top = 2**16 - 1
+    clipped = (raw <= 0) | (raw >= top)  # a clipped count says nothing of the scene: a
+    # saturated Tau2 pixel (16,383) read 125 °C with σ 3 where the scene was 32-39 °C
+    undefined = ~((raw > planck.raw_min) & (raw < planck.raw_max)) & ~clipped
+    bad = clipped | undefined
+    if not bad.any():
         return np.asarray(planck.raw_to_temperature_c(raw), np.float32)
     if undefined.mean() > MAX_UNDEFINED_FRACTION:
         raise InvalidInputError(
@@ -57,21 +55,21 @@ def _converted(planck: FlirPlanck, frame: np.ndarray) -> np.ndarray:
             "counts its file's Planck constants give no temperature (more than "
             f"{100 * MAX_UNDEFINED_FRACTION:g} % are not dead pixels): a damaged frame, or "
             "constants that are not this camera's")
-    warnings.warn(f"{int(undefined.sum())} pixel(s) of a frame with counts the file's "
-                  "constants give no temperature (dead or saturated pixels): filled from their "
-                  "neighbours", ThermocalWarning, stacklevel=2)
-    raw[undefined] = np.median(raw[~undefined])
+    if bad.all():
+        raise InvalidInputError(f"every pixel of a frame is at 0 or at the sensor's top count "
+                                f"{top}: a saturated or dead frame")
+    warnings.warn(f"{int(bad.sum())} pixel(s) of a frame saturated or dead (counts at 0 or at "
+                  f"the sensor's top, {top}) or with counts the file's constants give no "
+                  "temperature: filled from their neighbours", ThermocalWarning, stacklevel=2)
+    raw[bad] = np.median(raw[~bad])
     temps = np.asarray(planck.raw_to_temperature_c(raw), np.float32)[None]
-    return fill_bad_pixels(temps, undefined)[0]
+    return fill_bad_pixels(temps, bad)[0]
 
 
 def vendor_accuracy(metadata: dict[str, Any]) -> tuple[float, float]:
     """The stated accuracy of the camera a frame's metadata names: ``(°C, fraction of the
     reading)``, whichever is larger bounds the error (see the module docstring)."""
-    names = " ".join(str(metadata.get(k, "")) for k in ("make", "model", "camera_model"))
-    if any(tag in names.upper() for tag in CORE_CAMERAS):
-        return 5.0, 0.05
-    return 2.0, 0.02
+    return (5.0, 0.05) if names_core(metadata) else (2.0, 0.02)
 
 
 class VendorCalibration:
@@ -87,6 +85,10 @@ class VendorCalibration:
         Each frame's measuring range, °C, as its file states it (``temperature_range_c``; None:
         not stated): the stated accuracy holds within it. A burst whose scene (its 1st–99th
         percentile) lies beyond it is outside; beyond it σ grows by the distance.
+    tops : list of int, optional
+        Each frame's largest count, where its sensor saturates (``2**bit_depth − 1``,
+        :func:`~thermocal.io.fff.flir_bit_depth`; default 65,535): counts there, or at 0, are
+        filled from their neighbours.
     """
 
     name = "camera"
@@ -94,15 +96,18 @@ class VendorCalibration:
     needs_fpa = False
     per_frame = True
     accepts_registered = True
-    remedy = ("the file's own calibration does not cover these counts: calibrate the camera "
-              "(`thermocal calibrate`)")
+    remedy = ("the file's own calibration does not vouch for these temperatures: calibrate the "
+              "camera over them (`thermocal calibrate`); --force gives them with σ grown by "
+              "their distance beyond the range")
     fpa_paces: dict = {}  # the file's constants: no chamber session's paces
 
     def __init__(self, plancks: list[FlirPlanck], accuracy: list[tuple[float, float]],
-                 ranges: list[tuple[float, float] | None] | None = None) -> None:
+                 ranges: list[tuple[float, float] | None] | None = None,
+                 tops: list[int] | None = None) -> None:
         self.plancks = plancks
         self.accuracy = accuracy
         self.ranges = list(ranges) if ranges is not None else [None] * len(plancks)
+        self.tops = list(tops) if tops is not None else [2**16 - 1] * len(plancks)
 
     @classmethod
     def from_recording(cls, recording: Recording, path: Any = "the recording"
@@ -129,12 +134,13 @@ class VendorCalibration:
         # the reader states a range only where it is plausible (io.fff._measuring_range)
         return cls([planck_from_metadata(m) for m in metas], [vendor_accuracy(m) for m in metas],
                    [tuple(m["temperature_range_c"]) if m.get("temperature_range_c") else None
-                    for m in metas])
+                    for m in metas],
+                   [2 ** flir_bit_depth(m) - 1 for m in metas])
 
     def for_frames(self, start: int, n: int) -> VendorCalibration:
         """The same for frames ``start … start + n − 1`` of the recording (a flight's group)."""
         return VendorCalibration(self.plancks[start : start + n], self.accuracy[start : start + n],
-                                 self.ranges[start : start + n])
+                                 self.ranges[start : start + n], self.tops[start : start + n])
 
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
         if frames.shape[0] != len(self.plancks):
@@ -148,7 +154,8 @@ class VendorCalibration:
         """Each frame through its constants; a few pixels whose counts the constants give no
         temperature (dead pixels, at most :data:`MAX_UNDEFINED_FRACTION` of a frame) are
         filled from their neighbours with a warning; more are refused by the formula."""
-        return np.stack([_converted(p, f) for p, f in zip(self.plancks, frames, strict=True)])
+        return np.stack([_converted(p, f, top)
+                         for p, f, top in zip(self.plancks, frames, self.tops, strict=True)])
 
     def outside(self, calibrated: np.ndarray, fpa_c: float | None, *,
                 pace: Any = None, burst: PreparedBurst | None = None) -> tuple[str, ...]:

@@ -47,9 +47,13 @@ from thermocal.radiometry import FlirPlanck
 # byte-order rule are shared with the scene loader rather than written twice.
 
 __all__ = [
+    "CORE_CAMERAS",
     "FFF_MAGICS",
+    "TAU2_CAMERAS",
     "FffFrame",
     "error_reason",
+    "names_core",
+    "flir_bit_depth",
     "fff_frame_shape",
     "fff_raw_codec",
     "fff_raw_image",
@@ -59,6 +63,32 @@ __all__ = [
     "planck_from_metadata",
     "read_fff_series_frame",
 ]
+
+#: Parts of a file's make and model (upper case, found anywhere in them) that name a
+#: radiometric Tau2 camera: DJI's Zenmuse XT series (EXIF make "DJI", model "FLIR"), FLIR's
+#: Duo Pro R and Vue Pro R, a bare Tau2 core. Not "XT" alone: FLIR's E8-XT is a handheld.
+TAU2_CAMERAS = ("DJI", "ZENMUSE", "TAU", "DUO PRO", "VUE PRO")
+
+#: The same for every radiometric core (±5 °C or 5 %, 14-bit counts): the Tau2 cameras and a
+#: Boson core (the simulator's second family writes "thermocal simulated Boson-class core").
+CORE_CAMERAS = (*TAU2_CAMERAS, "BOSON")
+
+
+def names_core(metadata: dict[str, Any]) -> bool:
+    """Whether a FLIR file's metadata (its ``make``, ``model``, ``camera_model``) name a
+    radiometric core camera (:data:`CORE_CAMERAS`) rather than one of FLIR's own cameras."""
+    names = " ".join(str(metadata.get(k, "")) for k in ("make", "model", "camera_model"))
+    return any(tag in names.upper() for tag in CORE_CAMERAS)
+
+
+def flir_bit_depth(metadata: dict[str, Any]) -> int:
+    """The bit depth of a FLIR file's sensor, whose top count is its saturation: 14 for a
+    radiometric core (Tau2, Boson: their data sheets' 14-bit output, in the file's 16-bit
+    container), 16 for FLIR's own cameras (a T1030sc's counts reach 16,319). The recording
+    keeps its container's 16 bits (a damaged frame's counts beyond 14 bits do not refuse the
+    rest); ``--method camera`` fills the counts at this top."""
+    return 14 if names_core(metadata) else 16
+
 
 #: The signatures an FFF record starts with.
 FFF_MAGICS: tuple[bytes, ...] = (b"FFF\x00", b"AFF\x00")

@@ -64,6 +64,7 @@ from thermocal.io.recording import Recording, RecordingWriter
 from thermocal.radiometry import FlirPlanck
 
 __all__ = [
+    "SIMULATED_RANGE_C",
     "DEFAULT_PLANCK",
     "DEFAULT_START_EPOCH_S",
     "FILE_LIKE_SUFFIXES",
@@ -144,6 +145,12 @@ _DUALTAU_FPA_EVERY_S = 30.0  # and reads the FPA temperature every 30 s
 _MODEL = "thermocal simulated Tau2-class core"
 
 
+#: The measuring range a simulated file states (exiftool's CameraTemperatureRangeMin/Max), °C:
+#: the high-gain range of a radiometric Tau2 camera, which the DJI Zenmuse XT-R's files state;
+#: ``--method camera`` vouches for its stated accuracy within it alone.
+SIMULATED_RANGE_C = (-25.0, 135.0)
+
+
 def simulated_model(preset: str) -> str:
     """The camera model a simulated camera of family ``preset`` writes in its files
     (``"thermocal simulated Boson-class core"`` for ``boson``)."""
@@ -221,7 +228,8 @@ def fff_record(raw: np.ndarray, *, planck: FlirPlanck = DEFAULT_PLANCK,
                gps: tuple[float, float, float] | None = None, track_deg: float = 0.0,
                order: str = ">", codec: str = "plain", creator: str = "thermocal",
                model: str = _MODEL, field_of_view_deg: float = 45.0,
-               utc_offset_min: int = 0) -> bytes:
+               utc_offset_min: int = 0,
+               range_c: tuple[float, float] | None = None) -> bytes:
     """One FLIR FFF record: header, directory, raw-data, camera-info and (optional) GPS records.
 
     Parameters
@@ -248,6 +256,8 @@ def fff_record(raw: np.ndarray, *, planck: FlirPlanck = DEFAULT_PLANCK,
         Horizontal field of view, degrees.
     utc_offset_min : int
         The camera's time zone, minutes east of UTC (the record's local time).
+    range_c : (float, float) or None
+        The camera's measuring range, °C (None: stated as zeros, none).
 
     Returns
     -------
@@ -267,7 +277,8 @@ def fff_record(raw: np.ndarray, *, planck: FlirPlanck = DEFAULT_PLANCK,
     raw_rec += _encode_raw(frame, codec, order)
     records = [(_RAW_DATA, 2 if codec == "tiff" else 1, bytes(raw_rec)),
                (_CAMERA_INFO, 1, _camera_info(planck, time_epoch_s, frame_rate_hz, order,
-                                              model, field_of_view_deg, utc_offset_min))]
+                                              model, field_of_view_deg, utc_offset_min,
+                                              range_c))]
     if gps is not None:
         records.append((_GPS_INFO, 1, _gps_record(gps, track_deg, order)))
     head = bytearray(64)
@@ -310,7 +321,8 @@ def _encode_raw(frame: np.ndarray, codec: str, order: str) -> bytes:
 
 
 def _camera_info(planck: FlirPlanck, time_epoch_s: float, frame_rate_hz: float, order: str,
-                 model: str, fov_deg: float, utc_offset_min: int = 0) -> bytes:
+                 model: str, fov_deg: float, utc_offset_min: int = 0,
+                 range_c: tuple[float, float] | None = None) -> bytes:
     """The camera-info record at exiftool's FLIR::CameraInfo offsets (temperatures in K)."""
     cam = bytearray(_CAMERA_INFO_BYTES)
     struct.pack_into(order + "H", cam, 0, 2)
@@ -323,6 +335,8 @@ def _camera_info(planck: FlirPlanck, time_epoch_s: float, frame_rate_hz: float, 
                      (0x80, p.x), (0x1B4, fov_deg), (0x30C, p.r2)):
         struct.pack_into(order + "f", cam, off, val)
     struct.pack_into(order + "i", cam, 0x308, int(round(p.o)))
+    if range_c is not None:  # CameraTemperatureRangeMax at 0x90, Min at 0x94
+        struct.pack_into(order + "ff", cam, 0x90, range_c[1] + k0, range_c[0] + k0)
     text = model.encode("latin-1")[:31]
     cam[0xD4 : 0xD4 + len(text)] = text
     ms_total = int(round(time_epoch_s * 1000.0))
@@ -527,7 +541,7 @@ def _write_flir(out: Path, fmt: str, chunks: Iterable[Recording], ctx: _Frames,
                     chunk.frames[k], planck=ctx.planck, time_epoch_s=ctx.start + times[k],
                     frame_rate_hz=ctx.fps, gps=None if dji else position, track_deg=track,
                     order=byte_order, codec=codec, creator="ATAU_RBFO" if dji else "thermocal",
-                    model=ctx.model)
+                    model=ctx.model, range_c=SIMULATED_RANGE_C)
                 if fmt in ("seq", "csq"):
                     series.write(record)
                 else:
