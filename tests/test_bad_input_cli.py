@@ -96,6 +96,9 @@ def inputs(tmp_path_factory) -> dict[str, Path]:
     frames[3] = 0
     tifffile.imwrite(root / "deadframe.tiff", frames, photometric="minisblack")
     shutil.copy(root / "rec.json", root / "deadframe.json")
+    frames[3] = 5000  # a blank frame: constant, not zero
+    tifffile.imwrite(root / "blankframe.tiff", frames, photometric="minisblack")
+    shutil.copy(root / "rec.json", root / "blankframe.json")
     # a chamber file whose FPA series is in the wrong unit (1/100 °C)
     shutil.copy(chamber, root / "fpa_centi.h5")
     with h5py.File(root / "fpa_centi.h5", "a") as f:
@@ -103,6 +106,9 @@ def inputs(tmp_path_factory) -> dict[str, Path]:
     (root / "weights.pt").write_bytes(b"not really weights")
     (root / "empty.pt").write_bytes(b"")
     (root / "notes.txt").write_text("a text file, not weights\n")
+    (root / "notes.md").write_text("# my notes, not a benchmark report\n")
+    (root / "notes.tiff").write_text("a text file under a map's name\n")
+    tifffile.imwrite(root / "camera_frame.tiff", frames[0], photometric="minisblack")  # raw
     # a session held at one ambient (no FPA span)
     main_ok(["simulate", "chamber", root / "constant.h5", "--size", "40x24",
              "--frames-per-point", "2", "--ambient-profile", "constant", "--ambient-c", "25:25"])
@@ -618,7 +624,38 @@ CASES = [
     ("bench-one-file-for-both-outputs",
      ["bench", "--quick", "--json", "{tmp}/b.md", "--markdown", "{tmp}/b.md"],
      "is the --json file"),
-    ("demo-out-empty", ["demo", "--out", ""], "--out: an empty path"),
+    ("demo-out-empty", ["demo", "--out", ""], "--out: an empty value (an unset shell"),
+    ("correct-blank-frame-forced",  # blamed on the scene range; forced, written at -60 °C
+     ["correct", "{root}/blankframe.tiff", "--calibration", "{root}/cal.h5", "--out",
+      "{tmp}/t.tiff", "--force"], "blankframe.tiff: frames: frame 3 is constant"),
+    ("simulate-chamber-visits-one-set-point",
+     ["simulate", "chamber", "{tmp}/c.h5", "--size", SIZE, "--frames-per-point", "1000"],
+     "--frames-per-point 1000: the session's 840 frames visit 1 of its 7 set points"),
+    # an output over a file of another kind (a helper's audit: each replaced it, exit 0)
+    ("correct-over-another-recording",
+     ["correct", "{root}/rec.tiff", "--calibration", "{root}/cal.h5", "--out",
+      "{root}/other.tiff"], "exists and holds raw counts, a recording's frames (its sidecar"),
+    ("nuc-over-a-camera-frame",
+     ["nuc", "{root}/rec.tiff", "--method", "admire", "--out", "{root}/camera_frame.tiff"],
+     "camera_frame.tiff: exists and holds raw counts, which writing it would lose"),
+    ("estimate-sigma-over-a-recording",
+     ["estimate", "{root}/rec.tiff", "--method", "calibration", "--calibration",
+      "{root}/cal.h5", "--out", "{tmp}/t.tiff", "--sigma-out", "{root}/other.tiff"],
+     "other.tiff: exists and holds raw counts, a recording's frames"),
+    ("correct-over-a-text-file",
+     ["correct", "{root}/rec.tiff", "--calibration", "{root}/cal.h5", "--out",
+      "{root}/notes.tiff"], "exists and holds a file that is not a TIFF"),
+    ("bench-json-over-a-chamber", ["bench", "--json", "{root}/chamber.h5"],
+     "must end in .json"),
+    ("bench-json-over-a-sidecar", ["bench", "--json", "{root}/rec.json"],
+     "exists and is not a benchmark JSON"),
+    ("bench-markdown-over-notes", ["bench", "--markdown", "{root}/notes.md"],
+     "exists and is not a benchmark report"),
+    ("flight-out-empty", ["flight", "{root}/rec.tiff", "--out", ""], "--out: an empty value"),
+    ("campaign-out-empty-equals", ["campaign", "{root}/rec.tiff", "--out="],
+     "--out: an empty value"),
+    ("correct-empty-recording", ["correct", "", "--calibration", "{root}/cal.h5", "--out",
+                                 "{tmp}/t.tiff"], "argument 2: an empty value"),
     ("simulate-chamber-blackbody-beyond-the-simulator",
      ["simulate", "chamber", "{tmp}/c.h5", "--size", SIZE, "--blackbody-c", "10:10000:10"],
      "blackbody set points: 10…10000 °C go beyond the -123.15…626.85 °C the camera simulator"),
@@ -713,7 +750,7 @@ CASES = [
       "--out", "{tmp}/out"], "kpn_n7.pt: unreadable calibration file"),
     ("flight-calibration-a-chamber-file-into-new-folders",
      ["flight", "{root}/rec.tiff", "--method", "mean", "--calibration", "{root}/chamber.h5",
-      "--out", "{tmp}/new/out"], "chamber.h5: not a thermocal calibration file"),
+      "--out", "{tmp}/new/out"], "chamber.h5: a chamber session, not a calibration"),
     ("flight-fpa-nan",
      ["flight", "{root}/rec.tiff", "--method", "calibration", "--calibration",
       "{root}/cal.h5", "--fpa-c", "nan", "--out", "{tmp}/out"],
@@ -723,10 +760,10 @@ CASES = [
       "{root}/cal.h5", "--out", "{root}/notes.txt"], "notes.txt: exists and is a file"),
     ("correct-calibration-a-chamber-file",
      ["correct", "{root}/rec.tiff", "--calibration", "{root}/chamber.h5", "--out",
-      "{tmp}/t.tiff"], "chamber.h5: not a thermocal calibration file"),
+      "{tmp}/t.tiff"], "chamber.h5: a chamber session, not a calibration: fit one from it"),
     ("calibrate-chamber-a-calibration-file",
      ["calibrate", "{root}/cal.h5", "--out", "{tmp}/c.h5"],
-     "cal.h5: attribute 'format' is 'thermocal-calibration', expected 'thermocal-chamber'"),
+     "cal.h5: a calibration, not a chamber session: give the chamber session"),
     ("nuc-out-a-directory",
      ["nuc", "{root}/rec.tiff", "--method", "admire", "--out", "{root}/flight"],
      "flight' is a directory"),
@@ -776,7 +813,7 @@ CASES = [
      "fpa_c: inf °C is not a plausible FPA temperature"),
     ("train-chamber-a-calibration-file",
      ["train", "--chamber", "{root}/cal.h5", "--out", "{tmp}/w.pt"],
-     "cal.h5: attribute 'format' is 'thermocal-calibration', expected 'thermocal-chamber'"),
+     "cal.h5: a calibration, not a chamber session: give the chamber session"),
     ("train-chamber-a-directory",
      ["train", "--chamber", "{root}/flight", "--out", "{tmp}/w.pt"], "flight' is a directory"),
     ("train-init-a-calibration-file",
@@ -827,6 +864,49 @@ def test_bad_input_is_one_line_and_exit_2_and_changes_nothing(inputs, tmp_path, 
     assert_refused(code, out, err, message)
     assert snapshot(root) == before  # no input changed, nothing written beside them
     assert sorted(p.name for p in tmp_path.iterdir()) == ["link.tiff"]  # nothing created
+
+
+@pytest.mark.parametrize("command", [
+    ["correct", "{fifo}", "--calibration", "{cal}", "--out", "{tmp}/t.tiff"],
+    ["flight", "{fifo}", "--out", "{tmp}/o"],
+    ["estimate", "{rec}", "--method", "calibration", "--calibration", "{fifo}", "--out",
+     "{tmp}/t.tiff"],
+    ["flight", "{rec}", "--method", "selfcal", "--reference={fifo}", "--out", "{tmp}/o"],
+])
+def test_a_fifo_is_refused_not_waited_on(inputs, tmp_path, capsys, command):
+    """A FIFO named like a recording blocked a reading command for good (a helper's audit):
+    refused in one line before anything opens it, nothing written."""
+    import os
+
+    fifo = tmp_path / "pipe.tiff"
+    os.mkfifo(fifo)
+    args = [a.format(fifo=fifo, cal=inputs["cal"], rec=inputs["rec"], tmp=tmp_path)
+            for a in command]
+    code, out, err = run(args, capsys)
+    assert_refused(code, out, err, f"{fifo}: not a file or a folder (a pipe, a device)")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["pipe.tiff"]
+
+
+def test_a_flight_into_a_folder_of_the_users_files_is_refused(inputs, tmp_path, capsys):
+    """A flight into a folder holding a report, summary or log it did not write replaced them,
+    exit 0 (a helper's audit): refused, naming them, nothing written; a folder of other files
+    is used."""
+    out = tmp_path / "u"
+    out.mkdir()
+    (out / "report.html").write_text("<html>mine</html>")
+    (out / "log.csv").write_text("a,b\n")
+    args = ["flight", inputs["rec"], "--method", "calibration", "--calibration", inputs["cal"],
+            "--frames", "1", "--stride", "3", "--preview-every", "0", "--out", out]
+    code, stdout, err = run(args, capsys)
+    assert_refused(code, stdout, err, "holds report.html, log.csv, which thermocal flight did "
+                                      "not write and would replace")
+    assert sorted(p.name for p in out.iterdir()) == ["log.csv", "report.html"]
+    assert (out / "report.html").read_text() == "<html>mine</html>"
+    (out / "report.html").unlink()
+    (out / "log.csv").rename(out / "notes.csv")
+    code, _, err = run(args, capsys)
+    assert code == 0, err
+    assert (out / "notes.csv").read_text() == "a,b\n" and (out / "report.html").is_file()
 
 
 def test_a_flight_of_another_unit_makes_no_map_and_says_why(inputs, tmp_path, capsys):
@@ -1041,6 +1121,14 @@ def test_a_flight_without_uncertainty_says_so(inputs, tmp_path, capsys):
     (line,) = [w for w in err.splitlines() if "no uncertainty" in w]
     assert line.startswith("thermocal: warning: the maps have no uncertainty (no σ files)")
     assert "calibrate again" in line and not list((tmp_path / "o" / "temps").glob("*_sigma*"))
+    import json
+
+    import tifffile
+
+    for path in (tmp_path / "o" / "temps").glob("frame_*.tiff"):  # and each map says so
+        with tifffile.TiffFile(path) as tif:
+            about = json.loads(tif.pages[0].description)
+        assert about["sigma"] == "none" and about["method"] == "calibration"
 
 
 def test_a_campaign_without_uncertainty_says_so(inputs, tmp_path, capsys):

@@ -515,7 +515,8 @@ def test_commands_reject_bad_input(fit_run, tmp_path, capsys):
     cal = tmp_path / "cal.h5"
     assert run_cli(["calibrate", str(chamber), "--method", "two-point", "--out", str(cal)],
                    capsys)[0] == 0
-    tifffile.imwrite(tmp_path / "small.tiff", np.full((2, 24, 32), 5000, np.uint16))
+    small = np.random.default_rng(0).integers(4000, 6000, (2, 24, 32)).astype(np.uint16)
+    tifffile.imwrite(tmp_path / "small.tiff", small)
     (tmp_path / "small.json").write_text(json.dumps({"fpa_c": [25.0, 25.0]}))
     code, _, err = run_cli(["correct", str(tmp_path / "small.tiff"), "--calibration", str(cal),
                             "--out", str(tmp_path / "t.tiff")], capsys)

@@ -677,6 +677,12 @@ def test_correct_refuses_a_pace_its_calibration_never_held(fitted, tmp_path, cap
     assert code == 0, err
     still = tifffile.imread(tmp_path / "s2.tiff")
     assert np.median(forced[-10:]) > 2.0 * np.median(still[-10:])
+    for path, other in (("t2.tiff", {"sigma": "s2.tiff"}), ("s2.tiff", {"temperature": "t2.tiff"})):
+        with tifffile.TiffFile(tmp_path / path) as tif:  # each says what it is, and whence
+            about = json.loads(tif.pages[0].description)
+        assert about | {"quantity": "", "shape": 0} == {
+            "quantity": "", "shape": 0, "unit": "degC", "method": cal.method,
+            "calibration": "cal.h5", "source": "still.tiff", **other}
 
 
 def test_flight_refuses_the_groups_at_paces_its_calibration_never_held(fitted, tmp_path):

@@ -126,6 +126,41 @@ def test_rjpeg_series_gps_time_attitude_round_trip(tmp_path, capsys):
             assert gps["GPSMapDatum"] == "WGS84"
 
 
+def _about(path: Path) -> dict:
+    """A map's ImageDescription (JSON)."""
+    with tifffile.TiffFile(path) as tif:
+        return json.loads(tif.pages[0].description)
+
+
+def test_estimate_keeps_the_pivots_gps_and_says_what_each_map_is(tmp_path, capsys):
+    """``thermocal estimate`` keeps its pivot frame's GPS, time, make and model, as a flight's
+    maps do (it wrote none: a helper's audit); each map says what it holds, its unit, the
+    method and source, and names the other (a σ map could not be told from a temperature
+    map)."""
+    rec = _series(tmp_path / "flight", GPS)
+    out, sig = tmp_path / "t.tiff", tmp_path / "s.tiff"
+    code, _, err = run(["estimate", rec, "--method", "camera", "--pivot", 1, "--out", out,
+                        "--sigma-out", sig], capsys)
+    assert code == 0, err
+    for path in (out, sig):
+        _check_gps(path, *GPS[1])
+        assert str(_exifread(path)["Image Model"]) == "Synthetic Tau2"
+    base = {"method": "camera", "source": "flight", "frame": 1, "unit": "degC"}
+    assert _about(out) == {"shape": [6, 8], "quantity": "temperature", **base,
+                           "sigma": "s.tiff"}
+    assert _about(sig) == {"shape": [6, 8], **base, "temperature": "t.tiff",
+                           "quantity": "standard uncertainty (1 sigma) of the temperature map "
+                                       "beside it"}
+    # a flight's maps say the same, each naming the other
+    code, err = _flight(rec, tmp_path / "out", capsys)
+    assert code == 0, err
+    temps = tmp_path / "out" / "temps"
+    assert _about(temps / "frame_000002.tiff")["sigma"] == "frame_000002_sigma.tiff"
+    assert _about(temps / "frame_000002_sigma.tiff") | {"shape": 0} == {
+        "shape": 0, "quantity": "standard uncertainty (1 sigma) of the temperature map beside "
+        "it", "unit": "degC", "method": "camera", "frame": 2, "temperature": "frame_000002.tiff"}
+
+
 def _dump(path: Path) -> dict[str, str]:
     out: dict[str, str] = {}
     for line in path.read_text(encoding="utf-8", errors="replace").splitlines():

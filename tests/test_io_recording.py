@@ -217,6 +217,20 @@ def test_sidecar_not_json(tmp_path, rec):
         read_recording(tmp_path / "r.tiff")
 
 
+def test_sidecar_with_a_byte_order_mark_reads_and_a_key_twice_is_refused(tmp_path, rec):
+    """A sidecar saved with a UTF-8 byte-order mark (a Windows editor) reads as without it (it
+    said "decode using utf-8-sig"); a key given twice is refused, naming it (JSON took the last
+    silently: which FPA did the user mean?)."""
+    write_recording(tmp_path / "r.tiff", rec)
+    side = sidecar_path(tmp_path / "r.tiff")
+    text = side.read_text(encoding="utf-8")
+    side.write_bytes(b"\xef\xbb\xbf" + text.encode("utf-8"))
+    np.testing.assert_array_equal(read_recording(tmp_path / "r.tiff").fpa_c, rec.fpa_c)
+    side.write_text(text.replace("{", '{"fpa_c": [1, 2], ', 1), encoding="utf-8")
+    with pytest.raises(FileFormatError, match="the key 'fpa_c' is given twice"):
+        read_recording(tmp_path / "r.tiff")
+
+
 def test_sidecar_bit_depth_allows_wider_counts(tmp_path, frames):
     wide = frames.copy()
     wide[0, 0, 0] = 60000

@@ -188,6 +188,16 @@ def test_rerun_replaces_the_mosaic(scene, tmp_path):
     build_mosaic(tmp_path, clip_sigma=2.0)
     saved = json.loads((tmp_path / "mosaic" / "mosaic.json").read_text())
     assert saved["options"]["clip_sigma"] == 2.0
+    import tifffile
+
+    for name, unit in (("temperature", "degC"), ("views", "count"), ("spread", "degC")):
+        with tifffile.TiffFile(tmp_path / "mosaic" / f"{name}.tiff") as tif:  # each says what
+            about = json.loads(tif.pages[0].description)  # it holds, in which unit
+        assert about["unit"] == unit and about["quantity"]
+    has_sigma = (tmp_path / "mosaic" / "sigma.tiff").exists()
+    with tifffile.TiffFile(tmp_path / "mosaic" / "temperature.tiff") as tif:
+        assert json.loads(tif.pages[0].description)["sigma"] == (
+            "sigma.tiff" if has_sigma else "none")
     assert [p.name for p in tmp_path.iterdir() if p.name.startswith(".")] == []
 
 

@@ -71,6 +71,28 @@ def test_rjpeg_emissivity_override(shared_data):
     assert float(black.max()) == pytest.approx(33.8, abs=0.1)
 
 
+def test_a_dji_tau2_rjpeg_flyr_cannot_read_loads_as_the_flir_formula_by_hand(shared_data):
+    """flyr fails on a DJI Zenmuse XT-R's R-JPEG (a Tau2 core; "corrupt FLIR radiometric data
+    (KeyError: 1)", a helper's audit): the scene loads through thermocal's own reader, equal to
+    the FLIR formula with exiftool's constants on its raw counts; an emissivity given is used."""
+    import flyr
+
+    from thermocal.io import open_recording
+
+    path = shared_data / "recordings" / "dji_xtr_tau2.jpg"
+    if not path.is_file():
+        pytest.skip(f"{path} not found")
+    with pytest.raises(Exception):  # noqa: B017, PT011 - flyr's own error, whichever it is
+        flyr.unpack(str(path))
+    planck = FlirPlanck.from_exiftool_text(path.with_suffix(".txt"))
+    raw = open_recording(path).read_all().frames[0].astype(np.float64)
+    temp = load_scene(path)
+    assert temp.dtype == np.float32 and temp.shape == raw.shape
+    np.testing.assert_allclose(temp, planck.raw_to_temperature_c(raw), atol=2e-3)
+    lower = load_scene(path, emissivity=0.95)  # the file says 0.70: warm objects read cooler
+    assert float(np.median(temp - lower)) > 1.0
+
+
 def test_flirpy_tiff(shared_data):
     temp = load_scene(shared_data / "flirpy" / "example_radiometric.tiff")
     assert temp.dtype == np.float32 and temp.shape == (512, 640)

@@ -66,13 +66,19 @@ def run_benchmarks(names: tuple[str, ...], *, quick: bool) -> dict:
     return out
 
 
+#: The Markdown report's first line (``--markdown`` replaces only a file that starts so), and
+#: the keys of its JSON (``--json`` likewise).
+MARKDOWN_TITLE = "# thermocal benchmarks"
+_JSON_KEYS = frozenset({"machine", "quick", "benchmarks"})
+
+
 def markdown_report(runs: dict, *, quick: bool, host: str, only: tuple[str, ...] = ()) -> str:
     """The Markdown report: a header with the machine and the command that reruns it (``only``:
     the suites ``--only`` chose), then each benchmark's own tables."""
     command = " ".join(["thermocal bench", *(["--quick"] if quick else []),
                         *(f"--only {name}" for name in only)])
     lines = [
-        f"# thermocal benchmarks{' (--quick)' if quick else ''}",
+        f"{MARKDOWN_TITLE}{' (--quick)' if quick else ''}",
         "",
         f"- machine: {host}",
         f"- date: {datetime.now(UTC).strftime('%Y-%m-%d %H:%M UTC')}",
@@ -100,13 +106,19 @@ def markdown_report(runs: dict, *, quick: bool, host: str, only: tuple[str, ...]
 def bench(quick: bool, json_out: Path | None, md_out: Path | None, only: tuple[str, ...]) -> None:
     """Run the calibration, registration, NUC, network, unit-spread and simulator benchmarks."""
     from thermocal.io.atomic import atomic_path, write_json_atomic
+    from thermocal.io.replaces import check_json_replaces_only, check_text_replaces_only
 
     host = machine()
-    for path in (json_out, md_out):  # before hours of benchmarks, not after
-        if path is not None:
-            check_output_file(path)
+    # before hours of benchmarks, not after; replacing only an earlier report of its kind
     if json_out is not None and md_out is not None:
         check_outputs_differ(md_out, json_out, ("--markdown", "--json"))
+    if json_out is not None:
+        check_output_file(json_out, (".json",))
+        check_json_replaces_only(json_out, _JSON_KEYS, kind="benchmark JSON", what="--json")
+    if md_out is not None:
+        check_output_file(md_out, (".md", ".markdown"))
+        check_text_replaces_only(md_out, MARKDOWN_TITLE, kind="benchmark report",
+                                 what="--markdown")
     only = tuple(dict.fromkeys(only))  # once each
     runs = run_benchmarks(only or BENCHMARKS, quick=quick)
     report = markdown_report(runs, quick=quick, host=host, only=only)

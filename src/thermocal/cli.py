@@ -435,10 +435,35 @@ def main(argv: list[str] | None = None) -> None:
             signal.signal(signal.SIGTERM, terminate)
 
 
+def _check_not_special(arg: str) -> None:
+    """Refuse an argument naming a FIFO, a device or a socket: reading one blocks until
+    something writes to it (a FIFO named ``p.tiff`` hung ``correct``, ``flight`` and
+    ``campaign`` for good, and was called missing by others: a helper's audit)."""
+    import stat
+
+    try:
+        mode = os.stat(arg).st_mode
+    except (OSError, ValueError):  # not a path, or none there
+        return
+    if not (stat.S_ISREG(mode) or stat.S_ISDIR(mode)):
+        raise InvalidInputError(f"{arg}: not a file or a folder (a pipe, a device): give a "
+                                "file")
+
+
 def _invoke(args: list[str]) -> None:
     """Run the command line ``args`` (click's ``main`` without its handling of Ctrl-C, which
     writes an empty line before it aborts: :func:`main` says ``thermocal: interrupted`` alone);
-    ``--help`` and ``--version`` exit here."""
+    ``--help`` and ``--version`` exit here. An empty value is refused first: an unset shell
+    variable (``--out "$OUT"``) is the current folder to pathlib (a flight wrote its outputs
+    there, over a report.html of the user's: a helper's audit)."""
+    for k, arg in enumerate(args):
+        option = (arg[:-1] if arg.startswith("--") and arg.endswith("=")
+                  else args[k - 1] if arg == "" and k and args[k - 1].startswith("-") else None)
+        if arg == "" or option is not None:
+            raise InvalidInputError(f"{option or f'argument {k + 1}'}: an empty value (an unset "
+                                    "shell variable?); give it a value")
+        _check_not_special(arg.split("=", 1)[1] if arg.startswith("--") and "=" in arg
+                           else arg)
     try:
         with cli.make_context("thermocal", args) as ctx:
             cli.invoke(ctx)

@@ -209,6 +209,7 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
     method (the file records which). Frames outside the FPA and scene ranges of the
     calibration's chamber session are refused unless --force. FRAMES: a file or a folder in any
     format `thermocal info` reads; damaged frames are left out with a warning naming them."""
+    from thermocal.burst import check_burst
     from thermocal.calibration.base import ThermocalWarning, calibration_sigma_extra
     from thermocal.calibration.dataset import recording_fpa_rates
     from thermocal.calibration.imprint import OTHER_CAMERA_SIGMA_C, imprint_reason
@@ -223,13 +224,16 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
     from thermocal.errors import OutsideDomainError
     from thermocal.io.open import check_outside_recording, read_any_recording
     from thermocal.io.recording import write_sigma_tiff, write_temperature_tiff
+    from thermocal.io.replaces import check_map_replaces_only
 
     check_output_file(out, TIFF_SUFFIXES)
     check_not_input(out, frames, calibration_path)
+    check_map_replaces_only(out)
     check_outside_recording(frames, (out, "--out"), (sigma_out, "--sigma-out"))
     if sigma_out is not None:
         check_output_file(sigma_out, TIFF_SUFFIXES)
         check_not_input(sigma_out, frames, calibration_path, what="--sigma-out")
+        check_map_replaces_only(sigma_out, what="--sigma-out")
         check_outputs_differ(sigma_out, out, ("--sigma-out", "--out"))
     if fpa_c is not None:
         check_fpa_c(fpa_c, "--fpa-c")
@@ -248,6 +252,11 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
         raise OutsideDomainError(
             f"{calibration_path}: {no_sigma_reason(cal)}; {NO_REPORT_REMEDY}")
     rec = read_any_recording(frames, fpa_c=fpa_c)
+    try:  # a dead or blank frame, or one mostly saturated, is no scene: refused as by nuc and
+        # estimate (correct blamed a blank frame on the scene range; forced, wrote -60 °C)
+        check_burst(rec.frames, bit_depth=rec.bit_depth)
+    except InvalidInputError as exc:
+        raise InvalidInputError(f"{frames}: {exc}") from None
     if sigma_out is not None and rec.fpa_c is None:
         raise InvalidInputError(f"{frames}: no FPA temperature, which σ depends on: give --fpa-c "
                                 "or a sidecar with fpa_c")
@@ -278,6 +287,8 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
     elif model is None:
         click.echo(f"thermocal: warning: {calibration_path}: {no_sigma_reason(cal)}; corrected "
                    "all the same (--force), without an uncertainty", err=True)
+    about = {"method": cal.method, "calibration": Path(calibration_path).name,
+             "source": Path(frames).name}
     if sigma_out is not None:  # σ first: a failure leaves neither file
         since = None if rec.time_s is None else np.asarray(rec.time_s) - rec.time_s[0]
         sigma = model.sigma(temps, rec.fpa_c, rate_c_per_min=rates, time_since_start_s=since)
@@ -290,9 +301,10 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
             sigma = np.hypot(sigma, added).astype(np.float32)
         if foreign:  # forced through another camera's calibration
             sigma = np.hypot(sigma, np.float32(OTHER_CAMERA_SIGMA_C)).astype(np.float32)
-        write_sigma_tiff(sigma_out, sigma)
+        write_sigma_tiff(sigma_out, sigma, about=about | {"temperature": Path(out).name})
     try:
-        write_temperature_tiff(out, temps)
+        write_temperature_tiff(out, temps, about=about | {
+            "sigma": "none" if sigma_out is None else Path(sigma_out).name})
     except Exception:
         if sigma_out is not None:
             Path(sigma_out).unlink(missing_ok=True)

@@ -235,6 +235,10 @@ def load_calibration(path: str | Path, *, method: str | None = None) -> StoredCa
             fmt = _attr(f, "format", p)
             if isinstance(fmt, bytes):
                 fmt = fmt.decode()
+            if fmt == "thermocal-chamber" or ("frames" in f and "blackbody_c" in f):
+                raise FileFormatError(f"{p}: a chamber session, not a calibration: fit one "
+                                      f"from it first (`thermocal calibrate {p.name} --out "
+                                      "CAL.h5`)")
             if not isinstance(fmt, str) or fmt != FORMAT:
                 raise FileFormatError(f"{p}: not a thermocal calibration file")
             raw_version = _attr(f, "version", p)

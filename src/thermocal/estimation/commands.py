@@ -71,16 +71,20 @@ def estimate_file(
     A recording longer than a network's bursts gives it the frames around ``pivot``
     (:func:`~thermocal.burst.burst_window`); ``pivot`` indexes the recording.
     """
+    from thermocal.io.geotag import map_tags
     from thermocal.io.open import check_outside_recording, read_any_recording
     from thermocal.io.recording import write_sigma_tiff, write_temperature_tiff
+    from thermocal.io.replaces import check_map_replaces_only
     from thermocal.nn.backends import one_burst_backend
 
     out = check_output_file(out, TIFF_SUFFIXES)
     check_not_input(out, frames_path, calibration, model_path)
+    check_map_replaces_only(out)
     check_outside_recording(frames_path, (out, "--out"), (sigma_out, "--sigma-out"))
     if sigma_out is not None:
         sigma_out = check_output_file(sigma_out, TIFF_SUFFIXES)
         check_not_input(sigma_out, frames_path, calibration, model_path, what="--sigma-out")
+        check_map_replaces_only(sigma_out, what="--sigma-out")
         check_outputs_differ(sigma_out, out, ("--sigma-out", "--out"))
     info = ESTIMATORS.get(method)
     if info is not None and info.needs == "model":  # a network on one burst
@@ -123,10 +127,18 @@ def estimate_file(
         click.echo(f"thermocal: warning: {frames_path} lies outside what {method} was "
                    f"trained or fitted on ({'; '.join(result.outside)}); estimated all the same "
                    "(--force)", err=True)
+    # the pivot frame's GPS, time, make and model, as a flight's maps keep them
+    metas = (rec.extra or {}).get("frame_metadata") or []
+    at = (window.start or 0) + result.pivot  # the pivot among the frames read
+    positions = (rec.extra or {}).get("frame_positions") or range(rec.n_frames)
+    tags = map_tags(metas[at]) if len(metas) == rec.n_frames else None
+    about = {"method": method, "source": Path(frames_path).name, "frame": int(positions[at])}
     if sigma_out is not None:  # σ first: a failure leaves neither file
-        write_sigma_tiff(sigma_out, result.sigma_c)
+        write_sigma_tiff(sigma_out, result.sigma_c, tags=tags,
+                         about=about | {"temperature": Path(out).name})
     try:
-        write_temperature_tiff(out, result.temperature_c)
+        write_temperature_tiff(out, result.temperature_c, tags=tags, about=about | {
+            "sigma": "none" if sigma_out is None else Path(sigma_out).name})
     except Exception:
         if sigma_out is not None:
             Path(sigma_out).unlink(missing_ok=True)

@@ -796,6 +796,10 @@ def chamber_problems(path: str | os.PathLike[str]) -> list[str]:
 def _file_problems(f: h5py.File, problems: list[str]) -> None:
     """Add the problems of the open chamber file ``f`` to ``problems``."""
     attrs = f.attrs
+    if "format" in attrs and _attr_to_python(attrs["format"]) == "thermocal-calibration":
+        problems.append("a calibration, not a chamber session: give the chamber session "
+                        "(frames of a blackbody), which `thermocal calibrate` fits one from")
+        return  # the one problem: its other attributes are a calibration's
     if "format" not in attrs:
         problems.append("attribute 'format' is missing (not a thermocal chamber file?)")
     elif _attr_to_python(attrs["format"]) != CHAMBER_FORMAT:

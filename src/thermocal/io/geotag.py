@@ -310,8 +310,9 @@ class MapTags:
     exif: tuple[_Entry, ...]
     gps: tuple[_Entry, ...]
 
-    def encode(self, image: np.ndarray) -> bytes:
-        """The bytes of a classic little-endian TIFF of ``image`` (2-D) carrying these tags."""
+    def encode(self, image: np.ndarray, *, metadata: dict[str, Any] | None = None) -> bytes:
+        """The bytes of a classic little-endian TIFF of ``image`` (2-D) carrying these tags
+        (and ``metadata`` in its ImageDescription, as :func:`tifffile.imwrite` writes it)."""
         import tifffile
 
         if image.ndim != 2:
@@ -323,7 +324,8 @@ class MapTags:
             if self.gps:
                 pointers.append(("GPSTag", _LONG, 1, gps_at, True))
             tifffile.imwrite(buf, image, photometric="minisblack", byteorder="<", bigtiff=False,
-                             extratags=[*self.extratags, *pointers])
+                             extratags=[*self.extratags, *pointers],
+                             metadata={} if metadata is None else metadata)
             return buf.getvalue()
 
         end = len(tiff(0, 0))

@@ -487,9 +487,16 @@ def _read_sidecar(json_path: Path) -> dict[str, Any] | None:
     """Parse a sidecar, or None if there is none."""
     if not json_path.exists():
         return None
-    try:
-        obj = json.loads(json_path.read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+    def unique(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
+        keys = [k for k, _ in pairs]
+        twice = sorted({k for k in keys if keys.count(k) > 1})
+        if twice:  # JSON takes the last silently: which did the user mean?
+            raise ValueError(f"the key {twice[0]!r} is given twice")
+        return dict(pairs)
+
+    try:  # utf-8-sig: a sidecar saved with a byte-order mark (Windows editors) reads too
+        obj = json.loads(json_path.read_text(encoding="utf-8-sig"), object_pairs_hook=unique)
+    except (OSError, UnicodeDecodeError, ValueError) as exc:
         raise FileFormatError(f"{json_path}: not valid JSON ({exc})") from None
     if not isinstance(obj, dict):
         raise FileFormatError(f"{json_path}: expected a JSON object, got {type(obj).__name__}")
@@ -614,8 +621,8 @@ def read_recording_header(
         raise _open_error(tiff_path, exc) from None
     if info.dtype != np.uint16:
         raise FileFormatError(
-            f"{tiff_path}: expected uint16 raw counts, got {info.dtype} "
-            "(a temperature TIFF? read it with read_temperature_tiff)"
+            f"{tiff_path}: expected uint16 raw counts, got {info.dtype} (a temperature map? "
+            "give the camera's raw frames)"
         )
     n = info.n
     series: dict[str, np.ndarray | None] = dict.fromkeys(SERIES_KEYS)
@@ -725,8 +732,28 @@ def _iter_stack(
 # --------------------------------------------------------------------------------------------
 
 
+#: What a map's TIFF says of itself, in its ImageDescription (JSON, as tifffile writes it with
+#: the shape): the quantity and its unit (ASCII, as TIFF requires), and what the caller adds.
+TEMPERATURE_ABOUT = {"quantity": "temperature", "unit": "degC"}
+SIGMA_ABOUT = {"quantity": "standard uncertainty (1 sigma) of the temperature map beside it",
+               "unit": "degC"}
+
+
+def map_about(base: dict[str, Any], about: dict[str, Any] | None) -> dict[str, Any]:
+    """A map's ImageDescription fields: ``base`` (:data:`TEMPERATURE_ABOUT`,
+    :data:`SIGMA_ABOUT`) and ``about`` (the method, the source, its σ map's name …: JSON
+    values, ASCII text)."""
+    out = {**base, **(about or {})}
+    try:
+        json.dumps(out, allow_nan=False).encode("ascii")
+    except (TypeError, ValueError) as exc:
+        raise InvalidInputError(f"a map's description must be ASCII JSON: {exc}") from None
+    return out
+
+
 def write_temperature_tiff(path: str | os.PathLike[str], temps_c: Any, *,
-                           tags: MapTags | None = None) -> Path:
+                           tags: MapTags | None = None,
+                           about: dict[str, Any] | None = None) -> Path:
     """Write temperatures in °C as a float32 TIFF, atomically.
 
     Parameters
@@ -737,6 +764,8 @@ def write_temperature_tiff(path: str | os.PathLike[str], temps_c: Any, *,
         Temperatures, °C.
     tags : thermocal.io.geotag.MapTags, optional
         Georeferencing of an (H, W) map (:func:`thermocal.io.geotag.map_tags`).
+    about : dict, optional
+        More for its ImageDescription beside :data:`TEMPERATURE_ABOUT` (:func:`map_about`).
 
     Returns
     -------
@@ -757,21 +786,24 @@ def write_temperature_tiff(path: str | os.PathLike[str], temps_c: Any, *,
         f32 = arr.astype(np.float32)
     if not np.all(np.isfinite(f32)):
         raise InvalidInputError("temps_c: values too large for float32")
-    _write_float_tiff(out, f32, tags)
+    _write_float_tiff(out, f32, tags, map_about(TEMPERATURE_ABOUT, about))
     return out
 
 
-def _write_float_tiff(out: Path, arr: np.ndarray, tags: MapTags | None) -> None:
-    """``arr`` (float32) as a TIFF at ``out``, atomically, with ``tags`` when given."""
+def _write_float_tiff(out: Path, arr: np.ndarray, tags: MapTags | None,
+                      about: dict[str, Any]) -> None:
+    """``arr`` (float32) as a TIFF at ``out``, atomically, with ``tags`` when given and
+    ``about`` in its ImageDescription."""
     with atomic_path(out) as tmp:
         if tags is None:
-            tifffile.imwrite(tmp, arr, photometric="minisblack", bigtiff=arr.nbytes > 2**31)
+            tifffile.imwrite(tmp, arr, photometric="minisblack", bigtiff=arr.nbytes > 2**31,
+                             metadata=about)
         else:
-            tmp.write_bytes(tags.encode(arr))
+            tmp.write_bytes(tags.encode(arr, metadata=about))
 
 
 def write_sigma_tiff(path: str | os.PathLike[str], sigma_c: Any, *,
-                     tags: MapTags | None = None) -> Path:
+                     tags: MapTags | None = None, about: dict[str, Any] | None = None) -> Path:
     """Write standard uncertainties (1σ, °C, >= 0) as a float32 TIFF, atomically.
 
     Parameters
@@ -782,6 +814,8 @@ def write_sigma_tiff(path: str | os.PathLike[str], sigma_c: Any, *,
         1σ of the temperatures beside it, °C.
     tags : thermocal.io.geotag.MapTags, optional
         Georeferencing of an (H, W) map (:func:`thermocal.io.geotag.map_tags`).
+    about : dict, optional
+        More for its ImageDescription beside :data:`SIGMA_ABOUT` (:func:`map_about`).
 
     Raises
     ------
@@ -792,7 +826,7 @@ def write_sigma_tiff(path: str | os.PathLike[str], sigma_c: Any, *,
     arr = as_float_array(sigma_c, "sigma_c", ndim=(2, 3)).astype(np.float32)
     if 0 in arr.shape or not np.all(np.isfinite(arr)) or float(arr.min()) < 0:
         raise InvalidInputError("sigma_c: need a non-empty map of finite σ >= 0 °C")
-    _write_float_tiff(out, arr, tags)
+    _write_float_tiff(out, arr, tags, map_about(SIGMA_ABOUT, about))
     return out
 
 

@@ -10,8 +10,9 @@ from pathlib import Path
 
 from thermocal.errors import InvalidInputError
 
-__all__ = ["HDF5_MAGIC", "check_json_replaces_only", "check_replaces_only", "hdf5_kind",
-           "json_object_with"]
+__all__ = ["HDF5_MAGIC", "check_json_replaces_only", "check_map_replaces_only",
+           "check_replaces_only", "check_text_replaces_only", "hdf5_kind", "json_object_with",
+           "map_kind"]
 
 #: The first bytes of every HDF5 file (its superblock signature).
 HDF5_MAGIC = b"\x89HDF\r\n\x1a\n"
@@ -103,3 +104,76 @@ def json_object_with(path: str | os.PathLike[str], keys: frozenset[str] | set[st
     except (OSError, ValueError):
         return False
     return isinstance(held, dict) and keys <= held.keys()
+
+
+def map_kind(path: str | os.PathLike[str]) -> str:
+    """What an existing TIFF holds, in words: ``"a map"`` (floating-point pixels described by a
+    JSON object, as this project's temperature, σ and NUC maps are: tifffile writes one), ``"raw
+    counts"`` (integer pixels: a recording or a camera's frame), ``"a TIFF of another tool"``
+    (floats without such a description), ``"a file that is not a TIFF"``."""
+    import json
+
+    import tifffile
+
+    try:
+        with tifffile.TiffFile(path) as tif:
+            page = tif.pages.first
+            kind, text = page.dtype.kind if page.dtype is not None else "", page.description
+    except Exception:  # tifffile raises many types on what is not a TIFF
+        return "a file that is not a TIFF"
+    if kind in "ui":
+        return "raw counts"
+    try:
+        described = isinstance(json.loads(text), dict)
+    except ValueError:
+        described = False
+    return "a map" if kind == "f" and described else "a TIFF of another tool"
+
+
+def check_map_replaces_only(path: str | os.PathLike[str], *, what: str = "--out") -> None:
+    """Refuse an output map ``path`` that exists and holds anything but an earlier map
+    (:func:`map_kind`), or that is a recording's frames (a sidecar ``.json`` beside it): raw
+    counts, a real camera's frame or another tool's image would be lost (``correct --out
+    rec.tiff`` replaced a recording's frames with temperatures, exit 0: a helper's audit).
+
+    Raises
+    ------
+    InvalidInputError
+    """
+    p = Path(path)
+    if not os.path.lexists(p):
+        return
+    if not p.is_file():
+        raise InvalidInputError(f"{what} {p}: exists and is not a regular file: choose another "
+                                f"{what}")
+    found = map_kind(p)
+    if p.with_suffix(".json").is_file():
+        found = f"{found}, a recording's frames (its sidecar {p.with_suffix('.json').name})"
+    elif found == "a map":
+        return
+    raise InvalidInputError(f"{what} {p}: exists and holds {found}, which writing it would "
+                            f"lose: choose another {what}")
+
+
+def check_text_replaces_only(path: str | os.PathLike[str], prefix: str, *, kind: str,
+                             what: str) -> None:
+    """Refuse an output ``path`` that exists and is not a text file whose first line starts
+    with ``prefix`` (an earlier ``kind``, e.g. a benchmark report, which it may replace).
+
+    Raises
+    ------
+    InvalidInputError
+    """
+    p = Path(path)
+    if not os.path.lexists(p):
+        return
+    ours = False
+    if p.is_file():  # not a FIFO, which would block the read
+        try:
+            with open(p, encoding="utf-8") as fh:
+                ours = fh.readline().startswith(prefix)
+        except (OSError, ValueError):
+            pass
+    if not ours:
+        raise InvalidInputError(f"{what} {p}: exists and is not a {kind}, which writing it "
+                                f"would lose: choose another {what}")

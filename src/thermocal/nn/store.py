@@ -211,8 +211,10 @@ def load_model(path: str | os.PathLike[str]) -> tuple[KPN, Normalisation, dict[s
         if len(text) > 80:
             text = text[:80].rsplit(" ", 1)[0] + " …"
         detail = type(exc).__name__ + (f": {text}" if text else "")
+        hint = ("; an exported graph is run by `--backend onnxruntime|openvino` with --model "
+                "the .pt weights it came from" if p.suffix.lower() in (".onnx", ".xml") else "")
         raise FileFormatError(f"{p}: not a thermocal weights file (PyTorch cannot read it: "
-                              f"{detail})") from None
+                              f"{detail}){hint}") from None
     if not isinstance(payload, dict) or payload.get("format") != FORMAT:
         raise FileFormatError(f"{p}: not a thermocal weights file (no '{FORMAT}' header)")
     version = payload.get("version")

@@ -27,11 +27,13 @@ def nuc(frames: Path, method: str, out: Path) -> None:
     folder in any format `thermocal info` reads; damaged frames are left out with a warning."""
     from thermocal.burst import check_burst
     from thermocal.io.open import check_outside_recording, read_any_recording
+    from thermocal.io.replaces import check_map_replaces_only
     from thermocal.nuc import correct_nonuniformity
     from thermocal.nuc._common import write_counts_tiff
 
     check_output_file(out, TIFF_SUFFIXES)
     check_not_input(out, frames)
+    check_map_replaces_only(out)
     check_outside_recording(frames, (out, "--out"))
     rec = read_any_recording(frames)
     try:

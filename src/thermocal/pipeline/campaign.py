@@ -424,6 +424,7 @@ def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
     """
     from thermocal.cores import available_cores, check_per_core
     from thermocal.io.atomic import ensure_output_dir, write_json_atomic
+    from thermocal.io.replaces import check_json_replaces_only
 
     cores = available_cores()
     n_workers = cores if workers is None else workers
@@ -432,6 +433,8 @@ def run_campaign(tasks: list[CampaignTask], out: str | os.PathLike[str], *,
     if scheduler is None:  # processes of this machine's LocalCluster
         check_per_core(n_workers, "--workers")
     check_not_a_recording_folder(Path(out))
+    check_json_replaces_only(Path(out) / "campaign.json", frozenset({"recordings", "failed"}),
+                             kind="campaign summary", what="--out")
     networks = sorted({t.options.method for t in tasks if _runs_network(t)})
     if networks and scheduler is None:  # this machine's workers: before any starts, not in each
         from thermocal.optional import require

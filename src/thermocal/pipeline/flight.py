@@ -867,8 +867,8 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
         entry["error"] = str(exc)
         return _Pivot(entry, {"estimate": time.perf_counter() - t})
     estimated = time.perf_counter()
-    _write_pivot(out, pivot, temp, sigma, _preview_title(options, pivot), tags=geo[0],
-                 previews=preview)
+    _write_pivot(out, pivot, temp, sigma, _preview_title(options, pivot), method=options.method,
+                 tags=geo[0], previews=preview)
     if geo[1] is not None:
         entry["warnings"].append(f"no GeoTIFF tags: {geo[1]}")
     if geo[2] is not None:  # what the GeoTIFF tags were computed with
@@ -905,20 +905,23 @@ def _check_group(group: np.ndarray, first: int, bit_depth: int = 14) -> None:
 
 
 def _write_pivot(out: Path, pivot: int, temp: np.ndarray, sigma: np.ndarray | None,
-                 preview_title: str, *, tags: geotag.MapTags | None = None,
+                 preview_title: str, *, method: str, tags: geotag.MapTags | None = None,
                  previews: TemperaturePreviews | None = None) -> None:
     """A pivot's preview (by ``previews``, when given), its σ map when it has one, then its
-    temperature TIFF
-    (both maps with the georeferencing ``tags`` when given); each written atomically, so that
+    temperature TIFF (both maps with the georeferencing ``tags`` when given, and the ``method``
+    and each other's names in their descriptions); each written atomically, so that
     the finished ones stand when the disk fills. The map comes last (before the log line that
     its caller writes): a pivot interrupted before its log line is redone whole."""
     name = f"frame_{pivot:06d}"
     try:
         if previews is not None:
             previews.save(out / "previews" / f"{name}.png", temp, title=preview_title)
+        about = {"method": method, "frame": pivot}
         if sigma is not None:
-            write_sigma_tiff(out / "temps" / f"{name}_sigma.tiff", sigma, tags=tags)
-        write_temperature_tiff(out / "temps" / f"{name}.tiff", temp, tags=tags)
+            write_sigma_tiff(out / "temps" / f"{name}_sigma.tiff", sigma, tags=tags,
+                             about=about | {"temperature": f"{name}.tiff"})
+        write_temperature_tiff(out / "temps" / f"{name}.tiff", temp, tags=tags, about=about | {
+            "sigma": "none" if sigma is None else f"{name}_sigma.tiff"})
     except OSError as exc:
         where = f"{exc.filename}: " if exc.filename else ""
         raise OutputError(

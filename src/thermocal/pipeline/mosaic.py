@@ -601,6 +601,17 @@ def _summary(out: Path, used: list[_Map], left_out: list[dict[str, Any]], offset
     }
 
 
+#: What each layer's TIFF says of itself (its ImageDescription, as the maps' do:
+#: :data:`~thermocal.io.recording.TEMPERATURE_ABOUT`).
+_ABOUT: dict[str, dict[str, str]] = {
+    "temperature": {"quantity": "temperature, median-clipped mean of the maps' views",
+                    "unit": "degC", "sigma": "sigma.tiff"},
+    "views": {"quantity": "number of maps seeing each pixel", "unit": "count"},
+    "spread": {"quantity": "standard deviation between the maps' views", "unit": "degC"},
+    "sigma": {"quantity": "standard uncertainty (1 sigma) of temperature.tiff", "unit": "degC"},
+}
+
+
 def _write_outputs(target: Path, layers: _Layers, summary: dict[str, Any],
                    started: float) -> None:
     """Write every output into a temporary folder beside ``target`` and rename it into place
@@ -623,7 +634,8 @@ def _write_outputs(target: Path, layers: _Layers, summary: dict[str, Any],
         for name, arr in arrays.items():
             if arr is not None:
                 tifffile.imwrite(staging / f"{name}.tiff", arr, photometric="minisblack",
-                                 bigtiff=arr.nbytes > 2**31)
+                                 bigtiff=arr.nbytes > 2**31, metadata=_ABOUT[name] | (
+                                     {"sigma": "none"} if layers.sigma is None else {}))
         step = max(1, -(-max(layers.temperature.shape) // _PREVIEW_PX))
         shown = layers.temperature[::step, ::step]  # a preview: every step-th pixel
         fig = temperature_figure(np.nan_to_num(shown, nan=float(np.nanmedian(shown))),

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import hashlib
 import json
+import os
 from pathlib import Path
 from typing import Any
 
@@ -73,6 +74,22 @@ def check_not_a_recording_folder(out: Path) -> None:
             "output folder of its own (e.g. a new folder beside it)")
 
 
+#: What a flight writes at the top of its folder beside its maps: in a folder that holds no
+#: run of its own (no :data:`RUN_FILE`), one of these is the user's, which a run would replace
+#: (a flight into a folder replaced the user's report.html, exit 0: a helper's audit).
+FLIGHT_TOP_OUTPUTS = ("report.html", "summary.json", "log.csv", "mosaic")
+
+
+def check_no_foreign_outputs(out: Path, names: tuple[str, ...], command: str) -> None:
+    """Refuse an output folder ``out`` holding any of ``names`` (what ``command`` would write
+    there) that no run of its own wrote."""
+    found = [n for n in names if os.path.lexists(out / n)]
+    if found:
+        raise InvalidInputError(
+            f"{out}: holds {', '.join(found)}, which thermocal {command} did not write and "
+            "would replace; give an output folder of its own (e.g. a new folder)")
+
+
 def check_run_record(out: Path, record: dict[str, Any]) -> None:
     """Refuse to resume ``out`` when its ``run.json`` says its maps came from another run than
     ``record``, or when it has a run's log but no record (an older thermocal); refuse an
@@ -87,6 +104,7 @@ def check_run_record(out: Path, record: dict[str, Any]) -> None:
             raise InvalidInputError(
                 f"{out}: holds maps of a run whose recording and options were not recorded; "
                 f"resuming could mix two runs' maps: {remedy}")
+        check_no_foreign_outputs(out, FLIGHT_TOP_OUTPUTS, "flight")
         return
     try:
         old = json.loads(path.read_text(encoding="utf-8"))

@@ -28,9 +28,9 @@ import numpy as np
 
 from thermocal.constants import ZERO_CELSIUS_K
 from thermocal.errors import FileFormatError, InvalidInputError
-from thermocal.io.fff import FFF_MAGICS, parse_fff_record
+from thermocal.io.fff import FFF_MAGICS, fff_raw_image, parse_fff_record
 from thermocal.io.recording import quiet_tifffile
-from thermocal.io.rjpeg import scan_jpeg
+from thermocal.io.rjpeg import rjpeg_metadata, scan_jpeg
 from thermocal.radiometry import FlirPlanck
 
 __all__ = [
@@ -264,10 +264,21 @@ def _load_rjpeg(data: bytes, p: Path, emissivity: float | None) -> np.ndarray:
         with np.errstate(all="ignore"):
             celsius = np.asarray(thermogram.celsius, dtype=np.float64)
     except Exception as exc:  # flyr raises ValueError, KeyError, struct.error, PIL errors, ...
-        raise FileFormatError(
-            f"{p}: corrupt FLIR radiometric data ({type(exc).__name__}: {exc})"
-        ) from None
-    return celsius
+        flyr_error = f"{type(exc).__name__}: {exc}"
+    else:
+        return celsius
+    # flyr cannot read a DJI Zenmuse XT/XT-R's R-JPEG (a Tau2 core: its record in one APP1
+    # segment, the raw image a TIFF); thermocal's own reader can, as `thermocal info` does
+    try:
+        record, _, planck, _ = rjpeg_metadata(data, str(p))
+        if emissivity is not None:
+            planck = replace(planck, emissivity=emissivity)
+        raw = fff_raw_image(record, str(p)).astype(np.float64)
+        with np.errstate(all="ignore"):
+            return np.asarray(planck.raw_to_temperature_c(raw), dtype=np.float64)
+    except (FileFormatError, InvalidInputError) as exc:
+        raise FileFormatError(f"{p}: corrupt FLIR radiometric data (flyr: {flyr_error}; "
+                              f"thermocal's reader: {exc})") from None
 
 
 def _load_tiff(data: bytes, p: Path, kelvin_per_count: float) -> np.ndarray:

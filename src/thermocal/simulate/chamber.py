@@ -119,8 +119,9 @@ def check_chamber_run(
     """Check, before any work, that ``plan`` can be simulated for frames of ``frame_shape``
     ``(H, W)``: its blackbody set points lie within the simulator's radiance tables, the FPA
     temperatures its ambient range gives are plausible
-    (:data:`thermocal._validate.FPA_RANGE_C`) and the session is a sane amount of data that
-    fits the memory and ``folder``'s free disk (:func:`thermocal._validate.check_data_size`).
+    (:data:`thermocal._validate.FPA_RANGE_C`), its frames visit every set point, and the session
+    is a sane amount of data that fits the memory and ``folder``'s free disk
+    (:func:`thermocal._validate.check_data_size`).
 
     Raises
     ------
@@ -144,6 +145,12 @@ def check_chamber_run(
                 f"outside what a microbolometer core reports ({lo + 0.5:g}…{hi - 0.5:g} °C)"
             )
     n = plan.n_frames
+    visits = -(-n // plan.frames_per_point)
+    if visits < len(points):  # it exited 0 having visited the first alone (a helper's audit)
+        raise InvalidInputError(
+            f"--frames-per-point {plan.frames_per_point}: the session's {n} frames visit "
+            f"{visits} of its {len(points)} set points; give at most "
+            f"{max(n // len(points), 1)} frames per point, or a longer --duration-min")
     chunk = frames_per_chunk(frame_shape, CHUNK_FRAMES)
     check_data_size(n, frame_shape, "the chamber session", folder=folder,
                     memory_bytes=working_memory(frame_shape, n, chunk))

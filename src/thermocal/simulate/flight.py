@@ -348,7 +348,8 @@ def write_flight(out_dir: str | Path, flight: Flight, *, extra: dict | None = No
         extra=json.loads(json.dumps(meta)),
     )
     write_recording(out / "frames.tiff", rec)
-    write_temperature_tiff(out / "truth.tiff", flight.truth_c)
+    write_temperature_tiff(out / "truth.tiff", flight.truth_c,
+                           about={"quantity": "true scene temperature of each frame (simulated)"})
     with atomic_path(out / "homographies.npy") as tmp:
         np.save(tmp, flight.homographies)
 
