@@ -909,6 +909,39 @@ def test_a_flight_into_a_folder_of_the_users_files_is_refused(inputs, tmp_path, 
     assert (out / "notes.csv").read_text() == "a,b\n" and (out / "report.html").is_file()
 
 
+def test_a_typed_fpa_sigma_grows_the_sigma_of_flight_and_correct(inputs, tmp_path, capsys):
+    """--fpa-sigma-c in a flight and in correct: σ takes in how far a °C of the typed FPA
+    moves each map (the calibration's own sensitivity), the temperatures unchanged; a flight's
+    run record holds it (a rerun with another is refused as another run's); without it, a
+    warning that σ takes --fpa-c as exact."""
+    import tifffile
+
+    cal, rec = inputs["cal"], inputs["rec"]
+    flight = ["flight", rec, "--method", "calibration", "--calibration", cal, "--fpa-c", "30",
+              "--frames", "1", "--stride", "3", "--preview-every", "0"]
+    code, _, err = run([*flight, "--out", tmp_path / "a"], capsys)
+    assert code == 0 and "σ takes --fpa-c 30 as exact" in err, err
+    code, _, err = run([*flight, "--fpa-sigma-c", "2", "--out", tmp_path / "b"], capsys)
+    assert code == 0 and "as exact" not in err, err
+    for name in ("frame_000000", "frame_000003"):
+        a, b = (tmp_path / x / "temps" for x in "ab")
+        np.testing.assert_array_equal(tifffile.imread(a / f"{name}.tiff"),
+                                      tifffile.imread(b / f"{name}.tiff"))
+        exact, grown = (tifffile.imread(d / f"{name}_sigma.tiff") for d in (a, b))
+        assert np.all(grown >= exact) and np.median(grown - exact) > 0.05
+    code, _, err = run([*flight, "--fpa-sigma-c", "3", "--out", tmp_path / "b"], capsys)
+    assert code == 2 and "--fpa-sigma-c 2.0 → 3.0" in err, err
+    correct = ["correct", rec, "--calibration", cal, "--fpa-c", "30"]
+    for extra, out in (([], "c"), (["--fpa-sigma-c", "2"], "d")):
+        code, _, err = run([*correct, *extra, "--out", tmp_path / f"{out}.tiff", "--sigma-out",
+                            tmp_path / f"{out}_s.tiff"], capsys)
+        assert code == 0, err
+    np.testing.assert_array_equal(tifffile.imread(tmp_path / "c.tiff"),
+                                  tifffile.imread(tmp_path / "d.tiff"))
+    exact, grown = (tifffile.imread(tmp_path / f"{x}_s.tiff") for x in "cd")
+    assert np.all(grown >= exact) and np.median(grown - exact) > 0.05
+
+
 def test_a_flight_of_another_unit_makes_no_map_and_says_why(inputs, tmp_path, capsys):
     """`thermocal flight` of another unit's recording through this unit's calibration: every
     group refused as another camera's; exit 2, one line naming it, the log kept (where each

@@ -11,6 +11,8 @@ import tifffile
 from cli_run import run
 
 from thermocal.errors import FileFormatError, InvalidInputError
+from thermocal.estimation.pipeline import estimate
+from thermocal.io.recording import Recording, write_recording
 from thermocal.nn.uncertainty import (
     MAX_CONTRAST_PER_C,
     OUTSIDE_SIGMA_C,
@@ -218,6 +220,49 @@ def test_estimate_writes_sigma_and_inflates_it_outside(tmp_path, capsys):
     code, _, err = run(["estimate", tmp_path / "tau2.tiff", "--out", tmp_path / "x.tiff",
                         "--sigma-out", tmp_path / "tau2.tiff"], capsys)
     assert code == 2 and "input" in err and not (tmp_path / "x.tiff").exists()
+
+
+def test_a_typed_fpa_temperatures_uncertainty_enters_sigma(tmp_path, capsys):
+    """An FPA temperature typed 15 °C off (a FLIR file carries none) moved the shipped
+    network's temperatures 7.7 °C where σ said 0.84, silent (a helper's audit): σ takes it as
+    exact unless --fpa-sigma-c says how well it is known, and says so; given, σ takes in how
+    far a °C of it moves each pixel (0.48-0.58 °C per °C on this unit), and covers the error;
+    --fpa-sigma-c without --fpa-c, or out of range, is refused."""
+    from thermocal.camera.presets import make_camera
+    from thermocal.estimation.pipeline import fpa_sensitivity
+    from thermocal.estimation.registry import make_estimator
+    from thermocal.scenes.procedural import procedural_scene
+    from thermocal.simulate.flight import simulate_flight
+
+    scene = procedural_scene((256, 256), rng=np.random.default_rng(2), kind="mixed")
+    fl = simulate_flight(scene, make_camera("tau2", unit=31, size=(160, 120)), n_frames=7,
+                         motion="walk", fpa_c=45.0, seed=2)
+    path, _ = write_recording(tmp_path / "r.tiff", Recording(fl.frames, fpa_c=fl.fpa_c))
+    truth = fl.truth_c[fl.pivot]
+    base = ["estimate", path, "--fpa-c", "30", "--force", "--out", tmp_path / "t.tiff",
+            "--sigma-out", tmp_path / "s.tiff"]
+    code, _, err = run(base, capsys)
+    assert code == 0 and "σ takes --fpa-c 30 as exact" in err, err
+    temps = tifffile.imread(tmp_path / "t.tiff")
+    error, exact = np.abs(temps - truth), tifffile.imread(tmp_path / "s.tiff")
+    assert np.median(error) > 5.0 and np.mean(error <= 2 * exact) < 0.2  # the audit's silence
+    code, _, err = run([*base, "--fpa-sigma-c", "15"], capsys)
+    assert code == 0 and "as exact" not in err, err
+    sigma = tifffile.imread(tmp_path / "s.tiff")
+    np.testing.assert_array_equal(tifffile.imread(tmp_path / "t.tiff"), temps)  # σ alone
+    assert np.mean(error <= 2 * sigma) > 0.95 and np.median(sigma) < 12.0
+    est = make_estimator("kpn")
+    result = estimate(fl.frames, est, fpa_c=30.0, force=True)
+    moved = fpa_sensitivity(fl.frames, est, result, fpa_c=30.0)
+    assert 0.4 < float(np.median(moved)) < 0.7
+    np.testing.assert_allclose(sigma, np.hypot(result.sigma_c, 15.0 * moved), rtol=1e-4)
+    for extra, message in ((["--fpa-sigma-c", "-1"], "--fpa-sigma-c must be 0-20 °C"),
+                           (["--fpa-sigma-c", "nan"], "--fpa-sigma-c must be 0-20 °C")):
+        code, _, err = run([*base, *extra], capsys)
+        assert code == 2 and message in err, err
+    code, _, err = run(["estimate", path, "--fpa-sigma-c", "2", "--out", tmp_path / "u.tiff"],
+                       capsys)
+    assert code == 2 and "give --fpa-c too" in err and not (tmp_path / "u.tiff").exists()
 
 
 def test_forced_beyond_the_training_scenes_sigma_grows_by_the_distance(tmp_path, capsys):

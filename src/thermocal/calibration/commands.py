@@ -30,6 +30,7 @@ from thermocal.errors import (
     ResolutionMismatchError,
     ThermocalError,
 )
+from thermocal.estimation.pipeline import FPA_SIGMA_HELP
 
 _CALIBRATION_SUFFIXES = HDF5_SUFFIXES
 _REPORT_SUFFIXES = (".json",)
@@ -194,6 +195,7 @@ def _frames_text(method: str, counts: dict) -> tuple[str, str]:
               required=True, help="Calibration file made by `thermocal calibrate`.")
 @click.option("--fpa-c", type=float, default=None,
               help="FPA temperature for every frame, °C (default: the sidecar's fpa_c).")
+@click.option("--fpa-sigma-c", type=float, default=None, help=FPA_SIGMA_HELP)
 @click.option("--out", type=click.Path(dir_okay=False, path_type=Path), required=True,
               help="Temperature TIFF to write (float32 °C, (N, H, W)).")
 @click.option("--sigma-out", type=click.Path(dir_okay=False, path_type=Path), default=None,
@@ -203,8 +205,8 @@ def _frames_text(method: str, counts: dict) -> tuple[str, str]:
               help="Correct frames outside the calibration's FPA or scene range instead of "
               "refusing them; their σ grows with the distance outside. A calibration without a "
               "cross-validation report is then used, without an uncertainty.")
-def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path,
-            sigma_out: Path | None, force: bool) -> None:
+def correct(frames: Path, calibration_path: Path, fpa_c: float | None,
+            fpa_sigma_c: float | None, out: Path, sigma_out: Path | None, force: bool) -> None:
     """Turn a recording's raw frames into temperatures (°C) with a calibration file of any
     method (the file records which). Frames outside the FPA and scene ranges of the
     calibration's chamber session are refused unless --force. FRAMES: a file or a folder in any
@@ -222,10 +224,13 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
         older_report_warning,
     )
     from thermocal.errors import OutsideDomainError
+    from thermocal.estimation.commands import warn_typed_fpa
+    from thermocal.estimation.pipeline import FPA_STEP_C, check_fpa_sigma
     from thermocal.io.open import check_outside_recording, read_any_recording
     from thermocal.io.recording import write_sigma_tiff, write_temperature_tiff
     from thermocal.io.replaces import check_map_replaces_only
 
+    check_fpa_sigma(fpa_c, fpa_sigma_c)
     check_output_file(out, TIFF_SUFFIXES)
     check_not_input(out, frames, calibration_path)
     check_map_replaces_only(out)
@@ -301,6 +306,12 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
             sigma = np.hypot(sigma, added).astype(np.float32)
         if foreign:  # forced through another camera's calibration
             sigma = np.hypot(sigma, np.float32(OTHER_CAMERA_SIGMA_C)).astype(np.float32)
+        if fpa_sigma_c:  # a typed FPA temperature's uncertainty: how far a °C of it moves them
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", ThermocalWarning)
+                moved = cal.apply(rec.frames, fpa_c=rec.fpa_c + FPA_STEP_C, time_s=rec.time_s)
+            sensitivity = np.abs(moved.astype(np.float64) - temps) / FPA_STEP_C
+            sigma = np.hypot(sigma, sensitivity * fpa_sigma_c).astype(np.float32)
         write_sigma_tiff(sigma_out, sigma, about=about | {"temperature": Path(out).name})
     try:
         write_temperature_tiff(out, temps, about=about | {
@@ -309,6 +320,8 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None, out: Path
         if sigma_out is not None:
             Path(sigma_out).unlink(missing_ok=True)
         raise
+    if sigma_out is not None:
+        warn_typed_fpa("calibration", fpa_c, fpa_sigma_c)
     click.echo(f"wrote {temps.shape[0]} temperature frame(s) to {out}"
                + (f" and their σ to {sigma_out}" if sigma_out is not None else ""))
 

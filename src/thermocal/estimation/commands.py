@@ -15,8 +15,8 @@ from thermocal._validate import (
     check_outputs_differ,
 )
 from thermocal.errors import InvalidInputError
+from thermocal.estimation.pipeline import FPA_SIGMA_HELP, check_fpa_sigma, refuse_unchecked
 from thermocal.estimation.pipeline import estimate as run_pipeline
-from thermocal.estimation.pipeline import refuse_unchecked
 from thermocal.estimation.registry import (
     ESTIMATORS,
     check_method_options,
@@ -48,6 +48,7 @@ def estimate_file(
     out: str | os.PathLike[str],
     *,
     fpa_c: float | None = None,
+    fpa_sigma_c: float | None = None,
     method: str = "kpn",
     model_path: str | os.PathLike[str] | None = None,
     pivot: int | None = None,
@@ -69,7 +70,9 @@ def estimate_file(
     ``threads``: what runs a network (:func:`~thermocal.estimation.registry.make_estimator`;
     ``auto`` is PyTorch for one burst, :func:`~thermocal.nn.backends.one_burst_backend`).
     A recording longer than a network's bursts gives it the frames around ``pivot``
-    (:func:`~thermocal.burst.burst_window`); ``pivot`` indexes the recording.
+    (:func:`~thermocal.burst.burst_window`); ``pivot`` indexes the recording. ``fpa_sigma_c``:
+    the standard uncertainty of a typed ``fpa_c``, °C, which σ takes in
+    (:func:`~thermocal.estimation.pipeline.estimate`).
     """
     from thermocal.io.geotag import map_tags
     from thermocal.io.open import check_outside_recording, read_any_recording
@@ -77,6 +80,7 @@ def estimate_file(
     from thermocal.io.replaces import check_map_replaces_only
     from thermocal.nn.backends import one_burst_backend
 
+    check_fpa_sigma(fpa_c, fpa_sigma_c)
     out = check_output_file(out, TIFF_SUFFIXES)
     check_not_input(out, frames_path, calibration, model_path)
     check_map_replaces_only(out)
@@ -116,7 +120,7 @@ def estimate_file(
     try:
         result = run_pipeline(rec.frames[window], estimator, fpa_c=fpa_series, time_s=times,
                               pivot=pivot, registered=registered, force=force,
-                              bit_depth=rec.bit_depth,
+                              bit_depth=rec.bit_depth, fpa_sigma_c=fpa_sigma_c or 0.0,
                               **_pivot_pace(rec, estimator, window, pivot))
     except InvalidInputError as exc:  # a burst's fault: name the file it came from
         text = str(exc)
@@ -160,6 +164,18 @@ NO_SIGMA_REMEDY = {
 }
 
 
+def warn_typed_fpa(method: str, fpa_c: float | None, fpa_sigma_c: float | None) -> None:
+    """Say, once, that σ takes a typed ``--fpa-c`` as exact unless ``--fpa-sigma-c`` says how
+    well it is known (the shipped network moves about 0.5 °C per °C of it: a helper's audit
+    found 7.7 °C of error where σ said 0.84, from an FPA typed 15 °C off)."""
+    check_fpa_sigma(fpa_c, fpa_sigma_c)
+    if fpa_c is not None and fpa_sigma_c is None and ESTIMATORS[method].needs != "recording":
+        click.echo(f"thermocal: warning: σ takes --fpa-c {fpa_c:g} as exact; if it is not the "
+                   "camera's own reading, give --fpa-sigma-c (its uncertainty, °C): the "
+                   "temperatures move with it (the shipped network's about 0.5 °C per °C)",
+                   err=True)
+
+
 @click.command("estimate")
 @click.argument("frames", type=click.Path(path_type=Path))
 @click.option(
@@ -172,6 +188,7 @@ NO_SIGMA_REMEDY = {
 @click.option(
     "--fpa-c", type=float, default=None, help="FPA temperature, °C (overrides the sidecar's fpa_c)."
 )
+@click.option("--fpa-sigma-c", type=float, default=None, help=FPA_SIGMA_HELP)
 @click.option("--method", type=click.Choice(list(ESTIMATORS)), default="kpn", show_default=True,
               help=method_help())
 @click.option(
@@ -208,6 +225,7 @@ def estimate(
     frames: Path,
     out: Path,
     fpa_c: float | None,
+    fpa_sigma_c: float | None,
     method: str,
     model_path: Path | None,
     pivot: int | None,
@@ -225,10 +243,12 @@ def estimate(
     --radial uses where on the sensor each pixel lies. FRAMES: a file or a folder in any format
     `thermocal info` reads (the project's TIFF + JSON, FLIR FFF/SEQ/CSQ, R-JPEGs, DualTauUAV);
     damaged frames are left out with a warning naming them."""
+    check_fpa_sigma(fpa_c, fpa_sigma_c)
     estimate_file(
         frames,
         out,
         fpa_c=fpa_c,
+        fpa_sigma_c=fpa_sigma_c,
         method=method,
         model_path=model_path,
         pivot=pivot,
@@ -239,6 +259,8 @@ def estimate(
         backend=backend,
         threads=threads,
     )
+    if sigma_out is not None:
+        warn_typed_fpa(method, fpa_c, fpa_sigma_c)
     click.echo(f"wrote {out}" + (f" and its σ to {sigma_out}" if sigma_out is not None else ""),
                err=True)
 

@@ -7,7 +7,8 @@ from pathlib import Path
 
 import click
 
-from thermocal.estimation.commands import backend_options
+from thermocal.estimation.commands import backend_options, warn_typed_fpa
+from thermocal.estimation.pipeline import FPA_SIGMA_HELP
 from thermocal.estimation.registry import ESTIMATORS, method_help
 from thermocal.nn.variants import sigma_warning
 from thermocal.progress import progress_bar
@@ -30,6 +31,7 @@ def flight_options(command):
         click.option("--fpa-c", type=float, default=None,
                      help="FPA temperature, °C, for every frame (overrides a sidecar's; FLIR "
                      "files carry none)."),
+        click.option("--fpa-sigma-c", type=float, default=None, help=FPA_SIGMA_HELP),
         click.option("--frames", "n_frames", type=int, default=7, show_default=True,
                      help="Frames per group (the network's N)."),
         click.option("--stride", type=int, default=7, show_default=True,
@@ -74,6 +76,7 @@ def flight_options(command):
               "the unit's level.")
 def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
            model: str | None, n_frames: int, stride: int, fpa_c: float | None,
+           fpa_sigma_c: float | None,
            preview_every: int, force: bool, geotiff: bool, with_mosaic: bool,
            hfov_deg: float | None, family: str, reference: str | None, backend: str,
            threads: int | None) -> None:
@@ -89,7 +92,8 @@ def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
     check_not_input(out_dir, recording, calibration, model, reference)
     check_outside_recording(recording, (out_dir, "--out"))
     options = FlightOptions(method=method, calibration=calibration, model=model, frames=n_frames,
-                            stride=stride, fpa_c=fpa_c, preview_every=preview_every,
+                            stride=stride, fpa_c=fpa_c, fpa_sigma_c=fpa_sigma_c,
+                            preview_every=preview_every,
                             force=force, geotiff=geotiff, hfov_deg=hfov_deg, family=family,
                             references=reference, backend=backend, threads=threads)
     total = recording_length(recording)
@@ -110,6 +114,8 @@ def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
         )
     if summary.get("sigma_c") is None:  # never silently: maps without their uncertainty
         _warn_no_sigma(method)
+    else:
+        warn_typed_fpa(method, fpa_c, fpa_sigma_c)
     click.echo(
         f"{summary['processed']} temperature maps written to {out_dir}/temps "
         f"({summary['skipped_already_done']} already done, {summary['failed']} failed) "
@@ -130,8 +136,9 @@ def flight(recording: Path, out_dir: Path, method: str, calibration: str | None,
 @flight_options
 def campaign(inputs: tuple[Path, ...], out_dir: Path, scheduler: str | None,
              workers: int | None, method: str, calibration: str | None, model: str | None,
-             fpa_c: float | None, n_frames: int, stride: int, preview_every: int,
-             force: bool, family: str, backend: str, threads: int | None) -> None:
+             fpa_c: float | None, fpa_sigma_c: float | None, n_frames: int, stride: int,
+             preview_every: int, force: bool, family: str, backend: str,
+             threads: int | None) -> None:
     """Process many RECORDINGS as `thermocal flight` runs, each a task on a Dask cluster (a
     LocalCluster of this machine by default, or --scheduler): OUT/<name> per recording, the
     same bytes as `thermocal flight`; a failed recording is reported in OUT/campaign.json and
@@ -146,7 +153,7 @@ def campaign(inputs: tuple[Path, ...], out_dir: Path, scheduler: str | None,
                                 "cluster's own workers run the tasks: leave --workers out")
     check_not_input(out_dir, *inputs, calibration, model)
     options = FlightOptions(method=method, calibration=calibration, model=model,
-                            frames=n_frames, stride=stride, fpa_c=fpa_c,
+                            frames=n_frames, stride=stride, fpa_c=fpa_c, fpa_sigma_c=fpa_sigma_c,
                             preview_every=preview_every, force=force, family=family,
                             backend=backend, threads=threads)
     tasks = campaign_tasks(list(inputs), out_dir, options)
@@ -165,6 +172,8 @@ def campaign(inputs: tuple[Path, ...], out_dir: Path, scheduler: str | None,
     said = sigma_warning(method)
     if said and len(no_sigma) < sum(r["ok"] for r in summary["recordings"]):
         click.echo(f"thermocal: warning: {said}", err=True)  # said on the workers, not here
+    if len(no_sigma) < sum(r["ok"] for r in summary["recordings"]):
+        warn_typed_fpa(method, fpa_c, fpa_sigma_c)
     _echo_workers_warnings(summary["recordings"], said=said)
     if summary["failed"]:
         total = len(summary["recordings"])

@@ -91,7 +91,7 @@ from thermocal.cores import available_cores
 from thermocal.errors import InvalidInputError, OutputError, RegistrationError
 from thermocal.estimation.base import Estimator
 from thermocal.estimation.paces import pace_at, recording_paces
-from thermocal.estimation.pipeline import estimate, refuse_unchecked
+from thermocal.estimation.pipeline import check_fpa_sigma, estimate, refuse_unchecked
 from thermocal.estimation.registry import (
     ESTIMATORS,
     check_method_options,
@@ -137,6 +137,8 @@ class FlightOptions:
     frames: int = 7
     stride: int = 7
     fpa_c: float | None = None
+    #: The standard uncertainty of ``fpa_c``, °C, which σ takes in (None: exact).
+    fpa_sigma_c: float | None = None
     preview_every: int = 1
     force: bool = False
     geotiff: bool = False
@@ -162,6 +164,7 @@ class FlightOptions:
             raise InvalidInputError("--frames and --stride must be >= 1")
         if self.fpa_c is not None:  # before anything is read or written (a campaign's too)
             check_fpa_c(self.fpa_c, "--fpa-c")
+        check_fpa_sigma(self.fpa_c, self.fpa_sigma_c)
         check_method_options(self.method, backend=self.backend, threads=self.threads,
                              calibration=self.calibration, model=self.model,
                              family=self.family, fpa_c=self.fpa_c, force=self.force)
@@ -855,7 +858,8 @@ def _process_pivot(run: _Batch, pivot: int, series: dict[str, Any], estimator: E
                 fpa_c=None if fpa is None else fpa[first : first + n],
                 time_s=None if time_s is None else time_s[first : first + n],
                 pivot=n // 2, homographies=homographies, force=options.force,
-                bit_depth=bit_depth, **pace_at(series, time_s, pivot))
+                bit_depth=bit_depth, fpa_sigma_c=options.fpa_sigma_c or 0.0,
+                **pace_at(series, time_s, pivot))
             temp, sigma = result.temperature_c, result.sigma_c
         entry["warnings"] = sorted({str(w.message) for w in caught})
         if fallback is not None:

@@ -30,8 +30,8 @@ RUN_FILE = "run.json"
 #: JSON sidecar); an output folder writes none of them at its top.
 RECORDING_SUFFIXES = (".tif", ".tiff", ".seq", ".csq", ".fff", ".jpg", ".jpeg", ".npz")
 #: :class:`~thermocal.pipeline.flight.FlightOptions` fields that change the maps' numbers.
-MAP_OPTIONS = ("method", "frames", "stride", "fpa_c", "force", "geotiff", "hfov_deg", "family",
-               "backend")
+MAP_OPTIONS = ("method", "frames", "stride", "fpa_c", "fpa_sigma_c", "force", "geotiff",
+               "hfov_deg", "family", "backend")
 #: Fields naming files whose content changes the maps.
 FILE_OPTIONS = ("calibration", "model", "references")
 _EDGE_BYTES = 1 << 20  # how much of each end of a recording file the digest reads
