@@ -628,6 +628,15 @@ CASES = [
     ("correct-blank-frame-forced",  # blamed on the scene range; forced, written at -60 °C
      ["correct", "{root}/blankframe.tiff", "--calibration", "{root}/cal.h5", "--out",
       "{tmp}/t.tiff", "--force"], "blankframe.tiff: frames: frame 3 is constant"),
+    ("estimate-camera-registered",  # accepted, and without any effect
+     ["estimate", "{root}/rec.tiff", "--method", "camera", "--registered", "--out",
+      "{tmp}/t.tiff"], "--registered: --method camera maps the pivot frame alone"),
+    ("estimate-fpa-sigma-without-fpa",
+     ["estimate", "{root}/rec.tiff", "--fpa-sigma-c", "2", "--out", "{tmp}/t.tiff"],
+     "--fpa-sigma-c is the uncertainty of --fpa-c: give --fpa-c too"),
+    ("flight-fpa-sigma-negative",
+     ["flight", "{root}/rec.tiff", "--fpa-c", "30", "--fpa-sigma-c", "-1", "--out",
+      "{tmp}/o"], "--fpa-sigma-c must be 0-20 °C, got -1"),
     ("simulate-chamber-visits-one-set-point",
      ["simulate", "chamber", "{tmp}/c.h5", "--size", SIZE, "--frames-per-point", "1000"],
      "--frames-per-point 1000: the session's 840 frames visit 1 of its 7 set points"),

@@ -5,6 +5,8 @@ estimator (thermocal.estimation.selfcal), ground references (thermocal.pipeline.
 from __future__ import annotations
 
 import json
+import math
+import shutil
 
 import cv2
 import numpy as np
@@ -232,6 +234,12 @@ def test_flight_selfcal_removes_the_units_pattern(flown, capsys, tmp_path):
     out = tmp_path / "out"
     code, text, err = run(["flight", rec, "--out", out, "--method", "selfcal",
                            "--preview-every", "0"], capsys)
+    # 96×72 frames: smaller than any its calibration-free σ was measured on
+    assert code == 2 and "frames of 96x72, smaller than the 320x256" in err, err
+    assert "--force estimates anyway with σ grown by 0.5 °C" in err
+    shutil.rmtree(out)
+    code, text, err = run(["flight", rec, "--out", out, "--method", "selfcal", "--force",
+                           "--preview-every", "0"], capsys)
     assert code == 0, err
     maps, sigma, truth, good = _scores(out, rec.parent / "truth.tiff")
     # the same pass through the family's average unit alone (the start model), pivot by pivot
@@ -250,8 +258,8 @@ def test_flight_selfcal_removes_the_units_pattern(flown, capsys, tmp_path):
         start, truth, valid=v)
     assert metrics.column_bands(maps, truth, valid=v) < 0.3 * metrics.column_bands(
         start, truth, valid=v)
-    # every map has its σ, never below the level no motion reveals
-    assert sigma.shape == maps.shape and float(sigma.min()) >= 0.42
+    # every map has its σ, never below the level no motion reveals and the size's growth
+    assert sigma.shape == maps.shape and float(sigma.min()) >= math.hypot(0.42, 0.5)
     summary = json.loads((out / "summary.json").read_text())
     seg = summary["selfcal"]["segments"]
     assert len(seg) == 1 and seg[0]["frames"] == [0, 69] and seg[0]["motion_px"][0] > 48
@@ -278,7 +286,7 @@ def test_flight_selfcal_with_a_reference_fixes_the_level(flown, capsys, tmp_path
             extra = ["--reference", ref]
         outs[name] = tmp_path / name
         code, _, err = run(["flight", rec, "--out", outs[name], "--method", "selfcal",
-                            "--preview-every", "0", *extra], capsys)
+                            "--force", "--preview-every", "0", *extra], capsys)  # 96×72
         assert code == 0, err
     free, fixed, warmer = (_scores(outs[n], rec.parent / "truth.tiff")
                            for n in ("free", "ref", "warmer"))
@@ -377,6 +385,10 @@ def test_a_pass_of_another_family_is_refused_and_forced_with_sigma_grown(capsys,
     assert not list((tmp_path / "a").glob("temps/frame_*.tiff"))
     code, _, err = run(["flight", rec, "--out", tmp_path / "b", "--method", "selfcal",
                         "--family", "boson", "--preview-every", "0"], capsys)
+    assert code == 2 and "frames of 160x128, smaller than the 320x256" in err, err
+    shutil.rmtree(tmp_path / "b")
+    code, _, err = run(["flight", rec, "--out", tmp_path / "b", "--method", "selfcal",
+                        "--family", "boson", "--force", "--preview-every", "0"], capsys)
     assert code == 0, err
     truth = tifffile.imread(rec / "truth.tiff")
     maps = sorted((tmp_path / "b" / "temps").glob("frame_??????.tiff"))

@@ -81,6 +81,10 @@ def estimate_file(
     from thermocal.nn.backends import one_burst_backend
 
     check_fpa_sigma(fpa_c, fpa_sigma_c)
+    if registered and method in ESTIMATORS and ESTIMATORS[method].needs == "recording":
+        raise InvalidInputError(f"--registered: --method {method} maps the pivot frame alone, "
+                                "through its own constants, which no registration touches: "
+                                "leave it out")
     out = check_output_file(out, TIFF_SUFFIXES)
     check_not_input(out, frames_path, calibration, model_path)
     check_map_replaces_only(out)

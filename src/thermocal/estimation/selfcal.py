@@ -44,7 +44,8 @@ from thermocal.estimation.pass_pattern import (
 )
 from thermocal.radiometry import TAU2, BandRadiance
 
-__all__ = ["LEVEL_UNITS", "OTHER_FAMILY_SIGMA_C", "SelfCalibration", "family_level_sigma",
+__all__ = ["LEVEL_UNITS", "MIN_FREE_SHAPE", "OTHER_FAMILY_SIGMA_C", "SMALL_FRAME_SIGMA_C",
+           "SelfCalibration", "family_level_sigma",
            "start_band", "unseen_line_sigma"]
 
 #: The camera units whose spread about their family's average unit is the level's σ
@@ -57,6 +58,18 @@ LEVEL_SHAPE = (128, 160)
 
 REMEDY = ("selfcal fits a whole pass: run `thermocal flight --method selfcal` on a recording of "
           "at least 30 frames that moves across the scene")
+
+#: The smallest frames, ``(H, W)``, whose calibration-free σ was measured (the pass benchmark,
+#: ``benchmarks/passes.py``, at 336×256; 320×256 likewise). On smaller ones the pattern fit errs
+#: more than its σ says: at 160×120 a helper's audit found 0.58–0.61 °C of error beyond the
+#: unit's level (0.34 at 320×256 and 336×256, 0.39 at 640×512, same scene and units), 82–84 %
+#: of the pixels within 2σ. Such a pass is outside, unless the start is the unit's own
+#: calibration.
+MIN_FREE_SHAPE = (256, 320)
+
+#: σ added in quadrature to a pass of smaller frames forced through, °C: the error it showed
+#: beyond what the measured sizes showed, √(0.6² − 0.34²).
+SMALL_FRAME_SIGMA_C = 0.5
 
 #: σ added in quadrature to a pass forced through another family's average unit, °C: a
 #: calibration of one family errs 12–17 °C on the other (``benchmarks/physics.py``, the
@@ -225,6 +238,9 @@ class SelfCalibration:
             return (f"give --family of the camera's family ({', '.join(PRESETS)}), or start "
                     "from its own calibration (--calibration); --force estimates anyway with "
                     f"σ grown by {OTHER_FAMILY_SIGMA_C:g} °C")
+        if self.calibration is None:  # outside by its frames' size alone
+            return ("start from the camera's own calibration (--calibration); --force "
+                    f"estimates anyway with σ grown by {SMALL_FRAME_SIGMA_C:g} °C")
         if self.unchecked():
             from thermocal.calibration.uncertainty import NO_REPORT_REMEDY
 
@@ -375,13 +391,26 @@ class SelfCalibration:
                 pace: Any = None, burst: PreparedBurst | None = None) -> tuple[str, ...]:
         """The start calibration's ranges (FPA, scene; its FPA rates and paces where ``pace``
         is known); the family's average unit has none."""
-        family = (self.not_of_family,) if self.not_of_family else ()
+        small = self._small_frames(calibrated.shape[-2:])
+        family = ((self.not_of_family,) if self.not_of_family else ()) + ((small,) if small
+                                                                          else ())
         model = self.sigma_model
         if model is None:
             return family
         since = None if burst is None else burst.time_since_start_s
         return family + tuple(model.outside_burst(calibrated, fpa_c, pace,
                                                   time_since_start_s=since))
+
+    def _small_frames(self, shape: tuple[int, ...]) -> str | None:
+        """Why frames of ``shape`` ``(H, W)`` are outside a calibration-free start's measured
+        σ (:data:`MIN_FREE_SHAPE`), or None."""
+        h, w = (int(v) for v in shape)
+        if (self.calibration is not None or self.sigma_model is not None
+                or (h >= MIN_FREE_SHAPE[0] and w >= MIN_FREE_SHAPE[1])):
+            return None
+        return (f"frames of {w}x{h}, smaller than the {MIN_FREE_SHAPE[1]}x{MIN_FREE_SHAPE[0]} "
+                "on which a calibration-free selfcal's σ was measured (at 160x120 it erred "
+                "0.6 °C beyond the unit's level, 82-84 % of pixels within 2σ)")
 
     def estimate(self, burst: PreparedBurst) -> np.ndarray:
         """Oz et al. eq. 9 on the corrected frames: the registered mean."""
@@ -438,5 +467,7 @@ class SelfCalibration:
         pattern = self.pattern.offset_se / np.maximum(dl_dt, 1e-9)
         spread, n = view_spread(burst.warped, burst.valid)
         other = OTHER_FAMILY_SIGMA_C if outside and self.not_of_family else 0.0
-        return np.sqrt(level**2 + unseen**2 + pattern**2 + spread**2 / n + other**2).astype(
-            np.float32)
+        small = (SMALL_FRAME_SIGMA_C if outside and self._small_frames(temperature_c.shape)
+                 else 0.0)
+        return np.sqrt(level**2 + unseen**2 + pattern**2 + spread**2 / n + other**2
+                       + small**2).astype(np.float32)

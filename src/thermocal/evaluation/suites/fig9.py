@@ -110,8 +110,10 @@ def run_pass(unit: int, scene: str, work: Path, *, n_frames: int, per_pass: int,
     if "selfcal" in methods:
         out = folder / "selfcal"
         t = time.perf_counter()
+        # forced: its σ was measured on larger frames than 160×128 (σ grown; not scored here)
         summary = process_flight(recording, out, FlightOptions(method="selfcal", frames=N,
-                                                               stride=stride, preview_every=0))
+                                                               stride=stride, preview_every=0,
+                                                               force=True))
         selfcal_s = (time.perf_counter() - t) / max(summary["processed"], 1)
         for p in pivots:
             selfcal_maps[p] = tifffile.imread(out / "temps" / f"frame_{p:06d}.tiff")
