@@ -258,6 +258,20 @@ def test_a_simulated_flir_file_states_its_own_units_constants(tmp_path, capsys, 
     assert np.mean(np.abs(err_c) <= 2 * sigma) > 0.85
 
 
+@pytest.mark.parametrize("fmt", ["seq", "dualtau"])
+def test_a_simulated_flights_folder_opens_as_its_recording(tmp_path, capsys, fmt):
+    """``simulate flight OUT --format seq|dualtau`` then ``info OUT``: the folder's recording
+    (OUT/frames.seq, the OUT/frames folder) is read, as OUT is for the TIFF format (it said
+    "files of mixed formats" or "open each file on its own": a helper's audit)."""
+    from cli_run import run
+
+    out = tmp_path / "f"
+    assert run(["simulate", "flight", out, "--frames", "3", "--size", "32x24", "--format",
+                fmt], capsys)[0] == 0
+    code, text, err = run(["info", out], capsys)
+    assert code == 0 and f"{fmt}, 3 frame(s) of 32x24" in text, err
+
+
 def test_unit_planck_inverts_the_units_median_response():
     from thermocal.camera.model import expected_counts
     from thermocal.camera.presets import make_camera

@@ -678,6 +678,11 @@ def _kind(p: Path, head: bytes) -> str:
 
 
 def _open_folder(folder: Path) -> RecordingSource:
+    # `thermocal simulate flight OUT --format seq|csq|fff|rjpeg|dji-rjpeg|dualtau`'s folder:
+    # its recording is OUT/frames(.seq, .csq, a folder), beside the truth and flight.json
+    made = [f for f in folder.glob("frames*") if f.stem == "frames" and f.suffix != ".json"]
+    if (folder / "flight.json").is_file() and len(made) == 1 and made[0].suffix != ".tiff":
+        return open_recording(made[0])
     files = sorted(f for f in folder.iterdir()
                    if f.is_file() and not f.name.startswith(".") and f.suffix.lower() not in _NOTES)
     if not files:
