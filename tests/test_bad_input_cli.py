@@ -634,6 +634,12 @@ CASES = [
     ("estimate-fpa-sigma-without-fpa",
      ["estimate", "{root}/rec.tiff", "--fpa-sigma-c", "2", "--out", "{tmp}/t.tiff"],
      "--fpa-sigma-c is the uncertainty of --fpa-c: give --fpa-c too"),
+    ("estimate-fpa-sigma-without-sigma-out",  # a second pass for nothing
+     ["estimate", "{root}/rec.tiff", "--fpa-c", "30", "--fpa-sigma-c", "2", "--out",
+      "{tmp}/t.tiff"], "--fpa-sigma-c grows σ: give --sigma-out too"),
+    ("correct-fpa-sigma-without-sigma-out",
+     ["correct", "{root}/rec.tiff", "--calibration", "{root}/cal.h5", "--fpa-c", "30",
+      "--fpa-sigma-c", "2", "--out", "{tmp}/t.tiff"], "--fpa-sigma-c grows σ: give --sigma-out"),
     ("flight-fpa-sigma-negative",
      ["flight", "{root}/rec.tiff", "--fpa-c", "30", "--fpa-sigma-c", "-1", "--out",
       "{tmp}/o"], "--fpa-sigma-c must be 0-20 °C, got -1"),
@@ -894,6 +900,29 @@ def test_a_fifo_is_refused_not_waited_on(inputs, tmp_path, capsys, command):
     code, out, err = run(args, capsys)
     assert_refused(code, out, err, f"{fifo}: not a file or a folder (a pipe, a device)")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["pipe.tiff"]
+
+
+def test_a_sidecar_that_is_a_fifo_is_refused_not_waited_on(inputs, tmp_path, capsys):
+    """A recording whose sidecar is a FIFO hung every command that read it (a review)."""
+    import os
+
+    shutil.copy(inputs["rec"], tmp_path / "r.tiff")
+    os.mkfifo(tmp_path / "r.json")
+    code, out, err = run(["info", tmp_path / "r.tiff"], capsys)
+    assert_refused(code, out, err, "r.json: not a file (a pipe, a device)")
+
+
+def test_an_empty_placeholder_or_a_dangling_link_is_an_output_to_write(inputs, tmp_path,
+                                                                       capsys):
+    """An empty file at --out (mktemp's placeholder) or a link to nothing holds nothing to
+    lose: written (a review: both were refused as files of another kind)."""
+    (tmp_path / "empty.tiff").write_bytes(b"")
+    (tmp_path / "dangling.tiff").symlink_to(tmp_path / "nowhere.tiff")
+    for name in ("empty.tiff", "dangling.tiff"):
+        code, _, err = run(["correct", inputs["rec"], "--calibration", inputs["cal"], "--out",
+                            tmp_path / name], capsys)
+        assert code == 0, err
+        assert (tmp_path / name).stat().st_size > 0
 
 
 def test_a_flight_into_a_folder_of_the_users_files_is_refused(inputs, tmp_path, capsys):

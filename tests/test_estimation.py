@@ -117,6 +117,11 @@ def test_per_frame_estimator_sees_no_registration(flight):
     estimate(flight.frames, warm, fpa_c=ramp, pivot=len(ramp) - 1)
     assert warm.seen[2][2] == pytest.approx(47.0) and warm.burst.fpa_c == pytest.approx(47.0)
     assert np.array_equal(est.temperature_c, rec.calibrate(seen, None, None)[1])
+    block = flight.frames.copy()  # a saturated object, not a defect: left for the domain
+    block[1, 30:34, 10:14] = 16383  # check, which sees the top count's temperature
+    seen_block = Recorder(per_frame=True)
+    estimate(block, seen_block, fpa_c=30.0, pivot=1)
+    assert np.all(seen_block.seen[1][1][1, 30:34, 10:14] == 16383)
     kept = Recorder(per_frame=True)  # without filling: the raw burst
     estimate(flight.frames, kept, fpa_c=30.0, pivot=1, fill_defects=False)
     assert np.array_equal(kept.seen[1][1], flight.frames)

@@ -741,34 +741,53 @@ def test_method_camera_refuses_a_frame_of_many_counts_without_a_temperature(tmp_
 
 @pytest.mark.parametrize(("model", "filled"), [("Synthetic Tau2", True),
                                               ("FLIR T1030sc", False)])
-def test_method_camera_fills_a_saturated_cores_clipped_counts(tmp_path, capsys, model, filled):
-    """A radiometric core's counts are 14-bit: a pixel at 16,383 saturated and says nothing of
-    the scene (it read 125 °C with σ 3 where the scene was 32-39 °C: a helper's audit), so
-    it is filled from its neighbours, with a warning, as a dead pixel at 0 is; a FLIR camera's
-    16-bit counts reach 16,383 in a warm scene, where the count is a temperature."""
+def test_method_camera_fills_a_saturated_cores_defects_and_refuses_its_saturated_objects(
+        tmp_path, capsys, model, filled):
+    """A radiometric core's counts are 14-bit: a pixel alone at 16,383 is a saturated defect
+    that says nothing of the scene (it read 125 °C with σ 3 where the scene was 32-39 °C: a
+    helper's audit), filled from its neighbours with a warning, as a dead one at 0 is; a group
+    of them is a scene beyond the sensor's range, a lower bound: outside, refused, and forced,
+    its σ grows by SATURATED_SIGMA_C (filled, it had read as its surroundings: a review). A
+    FLIR camera's 16-bit counts reach 16,383 in a warm scene, where the count is a
+    temperature."""
     import tifffile
     from cli_run import run
 
+    from thermocal.estimation.vendor import SATURATED_SIGMA_C
     from thermocal.io.fff import flir_bit_depth
 
-    frame = np.full((32, 48), 9000, np.uint16)
-    frame[10:12, 20:23] = 16383
+    frame = (9000 + np.random.default_rng(0).integers(0, 40, (32, 48))).astype(np.uint16)
+    frame[10, 20] = frame[25, 40] = 16383
     frame[5, 5] = 0
-    (tmp_path / "f.seq").write_bytes(b"".join(_fff(frame, ms=33 * k, model=model)
-                                             for k in range(3)))
-    meta = open_recording(tmp_path / "f.seq").read_all().extra["frame_metadata"][0]
+
+    def write(name, fr):
+        (tmp_path / name).write_bytes(b"".join(_fff(fr, ms=33 * k, model=model)
+                                               for k in range(3)))
+        return tmp_path / name
+
+    meta = open_recording(write("f.seq", frame)).read_all().extra["frame_metadata"][0]
     assert flir_bit_depth(meta) == (14 if filled else 16)
-    out = tmp_path / "t.tiff"
-    code, _, err = run(["estimate", tmp_path / "f.seq", "--method", "camera", "--out", out],
-                       capsys)
-    if not filled:  # 0 has no temperature; 16,383 is a warm pixel of a 16-bit camera
-        assert code == 0 and "1 pixel(s) of a frame saturated or dead" in err, err
-        temps = tifffile.imread(out)
-        assert temps[10, 20] > temps[0, 0] + 20 and temps[5, 5] == pytest.approx(temps[0, 0])
-        return
-    assert code == 0 and "7 pixel(s) of a frame saturated or dead" in err, err
+    out, sig = tmp_path / "t.tiff", tmp_path / "s.tiff"
+    code, _, err = run(["estimate", tmp_path / "f.seq", "--method", "camera", "--out", out,
+                        "--sigma-out", sig], capsys)
+    assert code == 0, err
     temps = tifffile.imread(out)
-    np.testing.assert_allclose(temps, temps[0, 0], atol=1e-4)
+    if not filled:  # 0 has no temperature; 16,383 is a warm pixel of a 16-bit camera
+        assert "1 pixel(s) of a frame dead or saturated alone" in err, err
+        assert temps[10, 20] > np.median(temps) + 20
+        return
+    assert "3 pixel(s) of a frame dead or saturated alone" in err, err
+    assert abs(temps[10, 20] - np.median(temps)) < 0.5 and abs(temps[5, 5] - np.median(temps)) < 0.5
+    frame[20:24, 10:14] = 16383  # a saturated object: 16 touching pixels
+    write("g.seq", frame)
+    args = ["estimate", tmp_path / "g.seq", "--method", "camera", "--out", tmp_path / "u.tiff",
+            "--sigma-out", tmp_path / "v.tiff"]
+    code, _, err = run(args, capsys)
+    assert code == 2 and "16 pixel(s) saturated in groups" in err and "--force" in err, err
+    code, _, err = run([*args, "--force"], capsys)
+    assert code == 0, err
+    sigma = tifffile.imread(tmp_path / "v.tiff")
+    assert sigma[20:24, 10:14].min() >= SATURATED_SIGMA_C and np.median(sigma) < 10
 
 
 def test_flight_runs_on_a_seq(tmp_path):

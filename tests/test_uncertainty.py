@@ -228,8 +228,9 @@ def test_a_typed_fpa_temperatures_uncertainty_enters_sigma(tmp_path, capsys):
     exact unless --fpa-sigma-c says how well it is known, and says so; given, σ takes in how
     far a °C of it moves each pixel (0.48-0.58 °C per °C on this unit), and covers the error;
     --fpa-sigma-c without --fpa-c, or out of range, is refused."""
+    from thermocal._validate import FPA_RANGE_C
     from thermocal.camera.presets import make_camera
-    from thermocal.estimation.pipeline import fpa_sensitivity
+    from thermocal.estimation.pipeline import fpa_sensitivity, fpa_step
     from thermocal.estimation.registry import make_estimator
     from thermocal.scenes.procedural import procedural_scene
     from thermocal.simulate.flight import simulate_flight
@@ -255,13 +256,14 @@ def test_a_typed_fpa_temperatures_uncertainty_enters_sigma(tmp_path, capsys):
     result = estimate(fl.frames, est, fpa_c=30.0, force=True)
     moved = fpa_sensitivity(fl.frames, est, result, fpa_c=30.0)
     assert 0.4 < float(np.median(moved)) < 0.7
+    assert fpa_step(30.0) == 1.0 and fpa_step(FPA_RANGE_C[1] - 0.5) == -1.0  # stays inside
     np.testing.assert_allclose(sigma, np.hypot(result.sigma_c, 15.0 * moved), rtol=1e-4)
     for extra, message in ((["--fpa-sigma-c", "-1"], "--fpa-sigma-c must be 0-20 °C"),
                            (["--fpa-sigma-c", "nan"], "--fpa-sigma-c must be 0-20 °C")):
         code, _, err = run([*base, *extra], capsys)
         assert code == 2 and message in err, err
-    code, _, err = run(["estimate", path, "--fpa-sigma-c", "2", "--out", tmp_path / "u.tiff"],
-                       capsys)
+    code, _, err = run(["estimate", path, "--fpa-sigma-c", "2", "--out", tmp_path / "u.tiff",
+                        "--sigma-out", tmp_path / "us.tiff"], capsys)
     assert code == 2 and "give --fpa-c too" in err and not (tmp_path / "u.tiff").exists()
 
 

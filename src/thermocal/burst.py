@@ -28,6 +28,8 @@ from thermocal.registration.burst import register_burst
 from thermocal.registration.warp import as_homographies
 
 __all__ = [
+    "MAX_FILLED_CLIP_PX",
+    "clipped_parts",
     "FROZEN_FALSE_ALARMS",
     "FROZEN_MIN_FRAMES",
     "MIN_OVERLAP",
@@ -214,6 +216,30 @@ def frozen_pixels(low: np.ndarray, high: np.ndarray, n_frames: int) -> np.ndarra
     if span.size * same ** (n_frames - 1) / math.sqrt(n_frames) > FROZEN_FALSE_ALARMS:
         return np.zeros(span.shape, dtype=bool)
     return span == 0
+
+
+#: The largest group of touching clipped pixels (8-connected) a frame alone fills from its
+#: neighbours, px: a hot or dead pixel, or two. A larger one is a scene beyond the sensor's range
+#: (a saturated object), whose count says only that it is hotter than the top's temperature:
+#: filled, it had read as its surroundings with the calibration's σ (a review).
+MAX_FILLED_CLIP_PX = 2
+
+
+def clipped_parts(frame: Any, top: int) -> tuple[np.ndarray, np.ndarray]:
+    """A frame's ``(H, W)`` counts at 0 or at ``top`` (``2**bit_depth − 1``) as two masks:
+    ``(isolated, clusters)``, groups of at most :data:`MAX_FILLED_CLIP_PX` touching pixels (8
+    neighbours: defects, filled from their neighbours) and larger ones (a saturated scene: a
+    lower bound, left for the domain check)."""
+    from scipy.ndimage import label
+
+    arr = np.asarray(frame)
+    clipped = (arr <= 0) | (arr >= top)
+    if not clipped.any():
+        return clipped, np.zeros_like(clipped)
+    labels, n = label(clipped, structure=np.ones((3, 3), dtype=bool))
+    sizes = np.bincount(labels.ravel(), minlength=n + 1)
+    isolated = clipped & (sizes[labels] <= MAX_FILLED_CLIP_PX)
+    return isolated, clipped & ~isolated
 
 
 def fill_stuck_pixels(frames: Any, homographies: Any = None, *, top: int | None = None

@@ -225,12 +225,12 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None,
     )
     from thermocal.errors import OutsideDomainError
     from thermocal.estimation.commands import warn_typed_fpa
-    from thermocal.estimation.pipeline import FPA_STEP_C, check_fpa_sigma
+    from thermocal.estimation.pipeline import FPA_STEP_C, check_fpa_sigma, fpa_step
     from thermocal.io.open import check_outside_recording, read_any_recording
     from thermocal.io.recording import write_sigma_tiff, write_temperature_tiff
     from thermocal.io.replaces import check_map_replaces_only
 
-    check_fpa_sigma(fpa_c, fpa_sigma_c)
+    check_fpa_sigma(fpa_c, fpa_sigma_c, sigma_out)
     check_output_file(out, TIFF_SUFFIXES)
     check_not_input(out, frames, calibration_path)
     check_map_replaces_only(out)
@@ -309,7 +309,8 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None,
         if fpa_sigma_c:  # a typed FPA temperature's uncertainty: how far a °C of it moves them
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore", ThermocalWarning)
-                moved = cal.apply(rec.frames, fpa_c=rec.fpa_c + FPA_STEP_C, time_s=rec.time_s)
+                moved = cal.apply(rec.frames, fpa_c=rec.fpa_c + fpa_step(rec.fpa_c),
+                                  time_s=rec.time_s)
             sensitivity = np.abs(moved.astype(np.float64) - temps) / FPA_STEP_C
             sigma = np.hypot(sigma, sensitivity * fpa_sigma_c).astype(np.float32)
         write_sigma_tiff(sigma_out, sigma, about=about | {"temperature": Path(out).name})

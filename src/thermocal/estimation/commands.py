@@ -80,7 +80,7 @@ def estimate_file(
     from thermocal.io.replaces import check_map_replaces_only
     from thermocal.nn.backends import one_burst_backend
 
-    check_fpa_sigma(fpa_c, fpa_sigma_c)
+    check_fpa_sigma(fpa_c, fpa_sigma_c, sigma_out)
     if registered and method in ESTIMATORS and ESTIMATORS[method].needs == "recording":
         raise InvalidInputError(f"--registered: --method {method} maps the pivot frame alone, "
                                 "through its own constants, which no registration touches: "
@@ -247,7 +247,7 @@ def estimate(
     --radial uses where on the sensor each pixel lies. FRAMES: a file or a folder in any format
     `thermocal info` reads (the project's TIFF + JSON, FLIR FFF/SEQ/CSQ, R-JPEGs, DualTauUAV);
     damaged frames are left out with a warning naming them."""
-    check_fpa_sigma(fpa_c, fpa_sigma_c)
+    check_fpa_sigma(fpa_c, fpa_sigma_c, sigma_out)
     estimate_file(
         frames,
         out,

@@ -23,14 +23,17 @@ from typing import Any
 
 import numpy as np
 
+from thermocal._validate import FPA_RANGE_C
 from thermocal.burst import (
     check_burst,
     check_overlap,
+    clipped_parts,
     fill_stuck_pixels,
     find_homographies,
     fpa_value,
     pivot_index,
 )
+from thermocal.calibration.base import fill_bad_pixels
 from thermocal.errors import InvalidInputError, OutsideDomainError
 from thermocal.estimation.base import Estimate, Estimator, FpaPace, PreparedBurst, fpa_pace
 from thermocal.registration.warp import warp_to_pivot
@@ -232,14 +235,18 @@ FPA_SIGMA_HELP = ("Standard uncertainty of --fpa-c, °C (a value typed, not the 
 FPA_STEP_C = 1.0
 
 
-def check_fpa_sigma(fpa_c: float | None, fpa_sigma_c: float | None) -> None:
-    """Refuse ``--fpa-sigma-c`` without the ``--fpa-c`` it qualifies, or out of range."""
+def check_fpa_sigma(fpa_c: float | None, fpa_sigma_c: float | None,
+                    sigma_out: Any = True) -> None:
+    """Refuse ``--fpa-sigma-c`` without the ``--fpa-c`` it qualifies, without a σ to write
+    (``sigma_out`` None: it would cost a second pass for nothing), or out of range."""
     if fpa_sigma_c is None:
         return
     if fpa_c is None:
         raise InvalidInputError("--fpa-sigma-c is the uncertainty of --fpa-c: give --fpa-c too "
                                 "(an FPA temperature the recording holds is the camera's own "
                                 "reading, whose uncertainty σ holds already)")
+    if sigma_out is None:
+        raise InvalidInputError("--fpa-sigma-c grows σ: give --sigma-out too, or leave it out")
     if not 0.0 <= fpa_sigma_c <= MAX_FPA_SIGMA_C:  # NaN too
         raise InvalidInputError(f"--fpa-sigma-c must be 0-{MAX_FPA_SIGMA_C:g} °C, got "
                                 f"{fpa_sigma_c:g}")
@@ -254,11 +261,19 @@ def fpa_sensitivity(frames: Any, estimator: Estimator, result: Estimate, *, fpa_
     160×120: a typed FPA 15 °C off read 7.7 °C off where σ had said 0.84)."""
     if not kwargs.get("registered"):
         kwargs = kwargs | {"homographies": result.homographies}
-    shifted = np.asarray(fpa_c, dtype=np.float64) + FPA_STEP_C
+    fpa = np.asarray(fpa_c, dtype=np.float64)
+    step = fpa_step(fpa)
     with caught_warnings():  # its warnings are the first run's, or of its forcing: not told
-        moved = _estimate(frames, estimator, fpa_c=shifted, **(kwargs | {"force": True}))
+        moved = _estimate(frames, estimator, fpa_c=fpa + step, **(kwargs | {"force": True}))
     return np.abs(moved.temperature_c.astype(np.float64)
                   - result.temperature_c.astype(np.float64)) / FPA_STEP_C
+
+
+def fpa_step(fpa_c: Any) -> float:
+    """The FPA step of :func:`fpa_sensitivity`, °C: :data:`FPA_STEP_C` up, or down where up
+    would leave the plausible FPA range (:data:`~thermocal._validate.FPA_RANGE_C`)."""
+    top = float(np.max(np.asarray(fpa_c, dtype=np.float64)))
+    return -FPA_STEP_C if top + FPA_STEP_C > FPA_RANGE_C[1] else FPA_STEP_C
 
 
 def _estimate(frames: Any, estimator: Estimator, *, fpa_c: Any, time_s: Any = None,
@@ -290,12 +305,14 @@ def _estimate(frames: Any, estimator: Estimator, *, fpa_c: Any, time_s: Any = No
     if estimator.per_frame:  # the pivot frame alone: its calibration, not registered
         if fpa is not None and np.size(fpa_c) == arr.shape[0] > 1:  # its own FPA, not the mean
             fpa = float(np.asarray(fpa_c, dtype=np.float64).reshape(-1)[p])
-        if fill_defects and not registered:  # its clipped counts, as a burst's (a frame
-            # alone shows no stuck pixel): a saturated pixel read 80 °C with σ 1 over 17 °C
-            pivot_frame = fill_stuck_pixels(arr[p : p + 1], top=2**bit_depth - 1)[0]
-            if not np.array_equal(pivot_frame, arr[p : p + 1]):
+        if fill_defects and not registered:  # its clipped defects, as a burst's (a frame
+            # alone shows no stuck pixel): a saturated pixel read 80 °C with σ 1 over 17 °C;
+            # a saturated object (a larger group) is left for the domain check
+            isolated, _ = clipped_parts(arr[p], 2**bit_depth - 1)
+            if isolated.any():
                 arr = arr.copy()
-                arr[p] = pivot_frame[0]
+                filled = fill_bad_pixels(arr[p : p + 1].astype(np.float32), isolated)[0]
+                arr[p][isolated] = np.rint(filled[isolated]).astype(arr.dtype)
         valid = np.zeros(arr.shape, dtype=bool)
         valid[p] = True
         hs = np.repeat(np.eye(3)[None], arr.shape[0], axis=0)

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from thermocal.burst import clipped_parts
 from thermocal.calibration.base import ThermocalWarning, fill_bad_pixels
 from thermocal.errors import InvalidInputError
 from thermocal.estimation.base import PreparedBurst
@@ -28,12 +29,23 @@ from thermocal.io.fff import CORE_CAMERAS, TAU2_CAMERAS, flir_bit_depth, names_c
 from thermocal.io.recording import Recording
 from thermocal.radiometry import FlirPlanck
 
-__all__ = ["CORE_CAMERAS", "MAX_UNDEFINED_FRACTION", "TAU2_CAMERAS", "VendorCalibration",
-           "vendor_accuracy"]
+__all__ = ["CORE_CAMERAS", "MAX_UNDEFINED_FRACTION", "SATURATED_SIGMA_C", "TAU2_CAMERAS",
+           "VendorCalibration", "vendor_accuracy"]
 
 #: Pixels of a frame whose counts its constants give no temperature (below the count of a
 #: blackbody at 0 K: dead pixels) filled from their neighbours, at most this fraction of them.
 MAX_UNDEFINED_FRACTION = 0.001
+
+
+#: σ of a saturated pixel forced through (°C): its count says only that it is hotter than the
+#: top count's temperature, by an amount no file states; the width of a Tau2's high-gain range.
+SATURATED_SIGMA_C = 160.0
+
+
+def _sensor_top(frame: np.ndarray, top: int) -> int:
+    """The sensor's top count for ``frame``: ``top`` (its file's names), or 65,535 where the
+    frame's counts exceed it (not the sensor its file names)."""
+    return 2**16 - 1 if frame.size and int(frame.max()) > top else top
 
 
 def _converted(planck: FlirPlanck, frame: np.ndarray, top: int) -> np.ndarray:
@@ -41,29 +53,40 @@ def _converted(planck: FlirPlanck, frame: np.ndarray, top: int) -> np.ndarray:
     ``top``: the sensor's largest count (``2**bit_depth − 1``), where it saturates (65,535
     where the frame's counts exceed it: not the sensor its file names)."""
     raw = frame.astype(np.float64)
-    if raw.size and raw.max() > top:  # counts beyond the named sensor's: a 16-bit one
-        top = 2**16 - 1
-    clipped = (raw <= 0) | (raw >= top)  # a clipped count says nothing of the scene: a
-    # saturated Tau2 pixel (16,383) read 125 °C with σ 3 where the scene was 32-39 °C
-    undefined = ~((raw > planck.raw_min) & (raw < planck.raw_max)) & ~clipped
-    bad = clipped | undefined
-    if not bad.any():
-        return np.asarray(planck.raw_to_temperature_c(raw), np.float32)
+    # a clipped defect says nothing of the scene (a saturated Tau2 pixel, 16,383, read 125 °C
+    # with σ 3 where the scene was 32-39 °C): filled; a saturated object (a larger group) is
+    # converted as it is, a lower bound, and outside (:meth:`VendorCalibration.outside`)
+    isolated, clusters = clipped_parts(frame, _sensor_top(frame, top))
+    undefined = ~((raw > planck.raw_min) & (raw < planck.raw_max)) & ~isolated & ~clusters
     if undefined.mean() > MAX_UNDEFINED_FRACTION:
         raise InvalidInputError(
             f"{int(undefined.sum())} pixel(s) ({100 * undefined.mean():.2g} %) of a frame have "
             "counts its file's Planck constants give no temperature (more than "
             f"{100 * MAX_UNDEFINED_FRACTION:g} % are not dead pixels): a damaged frame, or "
             "constants that are not this camera's")
+    bad = isolated | undefined
+    unconvertible = clusters & ~((raw > planck.raw_min) & (raw < planck.raw_max))
+    if unconvertible.any():  # a dead area at 0, or a top beyond what the constants reach
+        raise InvalidInputError(
+            f"{int(unconvertible.sum())} clipped pixel(s) of a frame, in groups, have counts its "
+            "file's constants give no temperature: a dead or blinded area of the sensor")
+    if not bad.any():
+        return np.asarray(planck.raw_to_temperature_c(raw), np.float32)
     if bad.all():
-        raise InvalidInputError(f"every pixel of a frame is at 0 or at the sensor's top count "
-                                f"{top}: a saturated or dead frame")
-    warnings.warn(f"{int(bad.sum())} pixel(s) of a frame saturated or dead (counts at 0 or at "
-                  f"the sensor's top, {top}) or with counts the file's constants give no "
+        raise InvalidInputError("every pixel of a frame is dead or saturated")
+    warnings.warn(f"{int(bad.sum())} pixel(s) of a frame dead or saturated alone (counts at 0 "
+                  "or at the sensor's top) or with counts the file's constants give no "
                   "temperature: filled from their neighbours", ThermocalWarning, stacklevel=2)
     raw[bad] = np.median(raw[~bad])
     temps = np.asarray(planck.raw_to_temperature_c(raw), np.float32)[None]
     return fill_bad_pixels(temps, bad)[0]
+
+
+def _saturated(frames: np.ndarray, k: int, top: int) -> np.ndarray:
+    """The saturated objects (clipped groups larger than a defect) of frame ``k`` of raw
+    ``frames`` ``(N, H, W)``, ``(H, W)`` bool."""
+    frame = np.asarray(frames[k])
+    return clipped_parts(frame, _sensor_top(frame, top))[1]
 
 
 def vendor_accuracy(metadata: dict[str, Any]) -> tuple[float, float]:
@@ -164,18 +187,23 @@ class VendorCalibration:
         a helper's audit); counts the formula cannot convert are refused by it
         (:meth:`~thermocal.radiometry.FlirPlanck.raw_to_temperature_c`)."""
         k = 0 if burst is None else burst.pivot
+        saturated = (np.zeros(0, bool) if burst is None
+                     else _saturated(burst.frames, k, self.tops[k]))
+        why = (f"{int(saturated.sum())} pixel(s) saturated in groups (a scene beyond the "
+               "sensor's range: their count says only that they are hotter than its top)",
+               ) if saturated.any() else ()
         stated = self.ranges[k]
         frames = np.asarray(calibrated)
         frame = frames[k if frames.shape[0] > 1 else 0] if frames.ndim == 3 else frames  # the
         # pipeline gives a per-frame estimator's pivot alone
         if stated is None or not np.size(frame):
-            return ()
+            return why
         p1, p99 = (float(v) for v in np.percentile(frame, [1, 99]))
         if stated[0] <= p1 and p99 <= stated[1]:
-            return ()
-        return (f"the scene reads {p1:.1f}…{p99:.1f} °C, beyond the camera's measuring range "
-                f"{stated[0]:g}…{stated[1]:g} °C (its file's), where its stated accuracy "
-                "holds",)
+            return why
+        return why + (f"the scene reads {p1:.1f}…{p99:.1f} °C, beyond the camera's measuring "
+                      f"range {stated[0]:g}…{stated[1]:g} °C (its file's), where its stated "
+                      "accuracy holds",)
 
     def estimate(self, burst: PreparedBurst) -> np.ndarray:
         return np.asarray(burst.warped[burst.pivot], dtype=np.float32)
@@ -198,4 +226,7 @@ class VendorCalibration:
                     f"{stated[0]:g}…{stated[1]:g} °C: their σ grows by the distance",
                     ThermocalWarning, stacklevel=2)
             sigma += beyond
+        if outside:  # forced: a saturated object's pixels are only a lower bound
+            saturated = _saturated(burst.frames, burst.pivot, self.tops[burst.pivot])
+            sigma[saturated] = np.hypot(sigma[saturated], SATURATED_SIGMA_C)
         return sigma.astype(np.float32)

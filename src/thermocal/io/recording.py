@@ -487,6 +487,9 @@ def _read_sidecar(json_path: Path) -> dict[str, Any] | None:
     """Parse a sidecar, or None if there is none."""
     if not json_path.exists():
         return None
+    if not json_path.is_file():  # a FIFO would block the read for good
+        raise FileFormatError(f"{json_path}: not a file (a pipe, a device): a sidecar is a "
+                              "JSON file")
     def unique(pairs: list[tuple[str, Any]]) -> dict[str, Any]:
         keys = [k for k, _ in pairs]
         twice = sorted({k for k in keys if keys.count(k) > 1})

@@ -141,11 +141,13 @@ def check_map_replaces_only(path: str | os.PathLike[str], *, what: str = "--out"
     InvalidInputError
     """
     p = Path(path)
-    if not os.path.lexists(p):
+    if not p.exists():  # nothing there, or a link to nothing: nothing to lose
         return
     if not p.is_file():
         raise InvalidInputError(f"{what} {p}: exists and is not a regular file: choose another "
                                 f"{what}")
+    if p.stat().st_size == 0:  # an empty placeholder (mktemp's): nothing to lose
+        return
     found = map_kind(p)
     if p.with_suffix(".json").is_file():
         found = f"{found}, a recording's frames (its sidecar {p.with_suffix('.json').name})"
