@@ -259,6 +259,9 @@ def test_clipped_pixels_are_filled_even_when_the_scene_holds_still():
     assert 5000 <= out[0, 5, 7] <= 5100 and 5000 <= out[2, 30, 40] <= 5100
     assert out[0, 20, 20] == 9000 and burst[0, 5, 7] == 16383  # the input untouched
     assert not fill_stuck_pixels(burst, still)[1].any()  # without top: motion decides
+    burst[:, 30:34, 10:14] = 16383  # a saturated object (16 touching pixels): kept
+    out, bad = fill_stuck_pixels(burst, still, top=16383)
+    assert bad.sum() == 2 and np.all(out[:, 30:34, 10:14] == 16383)
 
 
 def test_frozen_pixels_are_filled_when_the_camera_holds_still(camera, scene):

@@ -248,9 +248,10 @@ def fill_stuck_pixels(frames: Any, homographies: Any = None, *, top: int | None 
     :func:`frozen_pixels` replaced by the median of their good 3×3 neighbours (rounded for
     integer frames), and their mask ``(H, W)``. Every other pixel and the dtype are kept. Given
     ``top`` (the largest count, ``2**bit_depth − 1``), integer pixels at 0 or at ``top`` in any
-    frame are filled too, whether or not the scene moved: a clipped count says nothing of the
+    frame are filled too, whether or not the scene moved, where they form groups of at most
+    :data:`MAX_FILLED_CLIP_PX` (:func:`clipped_parts`): a clipped defect says nothing of the
     scene (a saturated pixel of a hovering burst read 80 °C where the scene was 17 °C, with
-    σ 1 °C)."""
+    σ 1 °C); a larger group is a saturated object, left as it is."""
     arr = np.asarray(frames)
     out = arr.copy()
     bad = stuck_pixels(arr, homographies)
@@ -258,7 +259,10 @@ def fill_stuck_pixels(frames: Any, homographies: Any = None, *, top: int | None 
         low, high = arr.min(axis=0), arr.max(axis=0)
         bad |= frozen_pixels(low, high, arr.shape[0])
         if top is not None and np.issubdtype(arr.dtype, np.integer):
-            bad |= (low <= 0) | (high >= top)
+            # defects: a pixel or two; a larger group is a saturated object, kept for the
+            # domain check (filled, it read as its surroundings: a review)
+            clip = np.where((low <= 0) | (high >= top), top, 1).astype(arr.dtype)
+            bad |= clipped_parts(clip, top)[0]
     if bad.any():
         filled = fill_bad_pixels(arr.astype(np.float32), bad)[:, bad]
         if np.issubdtype(arr.dtype, np.integer):
