@@ -260,8 +260,11 @@ def correct(frames: Path, calibration_path: Path, fpa_c: float | None,
     try:  # a dead or blank frame, or one mostly saturated, is no scene: refused as by nuc and
         # estimate (correct blamed a blank frame on the scene range; forced, wrote -60 °C)
         check_burst(rec.frames, bit_depth=rec.bit_depth)
-    except InvalidInputError as exc:
-        raise InvalidInputError(f"{frames}: {exc}") from None
+    except InvalidInputError as exc:  # correct maps every frame or none: a flight, each alone
+        raise InvalidInputError(
+            f"{frames}: {exc}; to map the other frames, `thermocal flight {frames} "
+            f"--method calibration --calibration {calibration_path} --frames 1 --stride 1 "
+            "--out DIR` maps each frame alone") from None
     if sigma_out is not None and rec.fpa_c is None:
         raise InvalidInputError(f"{frames}: no FPA temperature, which σ depends on: give --fpa-c "
                                 "or a sidecar with fpa_c")
