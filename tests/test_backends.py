@@ -240,3 +240,15 @@ def test_mkl_gives_the_same_numbers_on_any_thread_count():
                            "print(os.environ['MKL_CBWR'])"], env=env | {"MKL_CBWR": "AVX2"},
                           capture_output=True, text=True, check=True).stdout.split()
     assert kept == ["AVX2"]
+
+
+def test_the_theoretical_peak_counts_an_intel_cores_512_bit_fma_units():
+    """On an AVX-512 Xeon the network ran at 113-156 % of the AVX2 figure, which is then no
+    peak: an Intel core with avx512f counts 32 float32 multiply-adds per cycle; an AMD one
+    (Zen 4 runs AVX-512 on 256-bit units) and any without, 16."""
+    from thermocal.evaluation.suites.backends import FMA_PER_CYCLE, fma_per_cycle
+
+    intel = "vendor_id\t: GenuineIntel\nflags\t\t: fpu sse avx2 fma avx512f avx512dq\n"
+    assert fma_per_cycle(intel) == 2 * FMA_PER_CYCLE == 32
+    assert fma_per_cycle(intel.replace(" avx512f avx512dq", "")) == FMA_PER_CYCLE
+    assert fma_per_cycle(intel.replace("GenuineIntel", "AuthenticAMD")) == FMA_PER_CYCLE
