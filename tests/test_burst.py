@@ -230,6 +230,7 @@ def test_burst_window_refuses_a_pivot_outside_the_recording():
 def test_clipped_parts_tell_defects_from_saturated_objects():
     """A pixel or two at 0 or at the top, touching (8 neighbours), are defects; a larger group
     is a saturated object."""
+    from thermocal._validate import clipped_mask
     from thermocal.burst import MAX_FILLED_CLIP_PX, clipped_parts
 
     frame = np.full((20, 20), 5000, np.uint16)
@@ -237,7 +238,7 @@ def test_clipped_parts_tell_defects_from_saturated_objects():
     frame[5, 5] = frame[6, 6] = 16383  # two, diagonal: one group of two
     frame[10, 10] = 0
     frame[14:17, 14:17] = 16383  # nine
-    isolated, clusters = clipped_parts(frame, 16383)
+    isolated, clusters = clipped_parts(clipped_mask(frame, 14))
     assert MAX_FILLED_CLIP_PX == 2 and isolated.sum() == 4 and clusters.sum() == 9
     assert isolated[2, 2] and isolated[5, 5] and isolated[10, 10] and clusters[15, 15]
     assert not (isolated & clusters).any()

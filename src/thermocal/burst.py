@@ -28,10 +28,9 @@ from thermocal.registration.burst import register_burst
 from thermocal.registration.warp import as_homographies
 
 __all__ = [
-    "MAX_FILLED_CLIP_PX",
-    "clipped_parts",
     "FROZEN_FALSE_ALARMS",
     "FROZEN_MIN_FRAMES",
+    "MAX_FILLED_CLIP_PX",
     "MIN_OVERLAP",
     "SATURATED_FRACTION",
     "burst_window",
@@ -225,15 +224,14 @@ def frozen_pixels(low: np.ndarray, high: np.ndarray, n_frames: int) -> np.ndarra
 MAX_FILLED_CLIP_PX = 2
 
 
-def clipped_parts(frame: Any, top: int) -> tuple[np.ndarray, np.ndarray]:
-    """A frame's ``(H, W)`` counts at 0 or at ``top`` (``2**bit_depth − 1``) as two masks:
-    ``(isolated, clusters)``, groups of at most :data:`MAX_FILLED_CLIP_PX` touching pixels (8
-    neighbours: defects, filled from their neighbours) and larger ones (a saturated scene: a
-    lower bound, left for the domain check)."""
+def clipped_parts(clipped: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A frame's clipped pixels ``(H, W)`` bool (:func:`~thermocal._validate.clipped_mask`) as
+    two masks: ``(isolated, clusters)``, groups of at most :data:`MAX_FILLED_CLIP_PX` touching
+    pixels (8 neighbours: defects, filled from their neighbours) and larger ones (a saturated
+    scene: a lower bound, left for the domain check)."""
     from scipy.ndimage import label
 
-    arr = np.asarray(frame)
-    clipped = (arr <= 0) | (arr >= top)
+    clipped = np.asarray(clipped, dtype=bool)
     if not clipped.any():
         return clipped, np.zeros_like(clipped)
     labels, n = label(clipped, structure=np.ones((3, 3), dtype=bool))
@@ -261,8 +259,7 @@ def fill_stuck_pixels(frames: Any, homographies: Any = None, *, top: int | None 
         if top is not None and np.issubdtype(arr.dtype, np.integer):
             # defects: a pixel or two; a larger group is a saturated object, kept for the
             # domain check (filled, it read as its surroundings: a review)
-            clip = np.where((low <= 0) | (high >= top), top, 1).astype(arr.dtype)
-            bad |= clipped_parts(clip, top)[0]
+            bad |= clipped_parts((low <= 0) | (high >= top))[0]
     if bad.any():
         filled = fill_bad_pixels(arr.astype(np.float32), bad)[:, bad]
         if np.issubdtype(arr.dtype, np.integer):

@@ -171,8 +171,8 @@ NO_SIGMA_REMEDY = {
 def warn_typed_fpa(method: str, fpa_c: float | None, fpa_sigma_c: float | None) -> None:
     """Say, once, that σ takes a typed ``--fpa-c`` as exact unless ``--fpa-sigma-c`` says how
     well it is known (the shipped network moves about 0.5 °C per °C of it: a helper's audit
-    found 7.7 °C of error where σ said 0.84, from an FPA typed 15 °C off)."""
-    check_fpa_sigma(fpa_c, fpa_sigma_c)
+    found 7.7 °C of error where σ said 0.84, from an FPA typed 15 °C off); the options were
+    checked before the run (:func:`~thermocal.estimation.pipeline.check_fpa_sigma`)."""
     if fpa_c is not None and fpa_sigma_c is None and ESTIMATORS[method].needs != "recording":
         click.echo(f"thermocal: warning: σ takes --fpa-c {fpa_c:g} as exact; if it is not the "
                    "camera's own reading, give --fpa-sigma-c (its uncertainty, °C): the "
@@ -247,7 +247,6 @@ def estimate(
     --radial uses where on the sensor each pixel lies. FRAMES: a file or a folder in any format
     `thermocal info` reads (the project's TIFF + JSON, FLIR FFF/SEQ/CSQ, R-JPEGs, DualTauUAV);
     damaged frames are left out with a warning naming them."""
-    check_fpa_sigma(fpa_c, fpa_sigma_c, sigma_out)
     estimate_file(
         frames,
         out,

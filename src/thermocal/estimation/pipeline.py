@@ -27,13 +27,11 @@ from thermocal._validate import FPA_RANGE_C
 from thermocal.burst import (
     check_burst,
     check_overlap,
-    clipped_parts,
     fill_stuck_pixels,
     find_homographies,
     fpa_value,
     pivot_index,
 )
-from thermocal.calibration.base import fill_bad_pixels
 from thermocal.errors import InvalidInputError, OutsideDomainError
 from thermocal.estimation.base import Estimate, Estimator, FpaPace, PreparedBurst, fpa_pace
 from thermocal.registration.warp import warp_to_pivot
@@ -308,11 +306,10 @@ def _estimate(frames: Any, estimator: Estimator, *, fpa_c: Any, time_s: Any = No
         if fill_defects and not registered:  # its clipped defects, as a burst's (a frame
             # alone shows no stuck pixel): a saturated pixel read 80 °C with σ 1 over 17 °C;
             # a saturated object (a larger group) is left for the domain check
-            isolated, _ = clipped_parts(arr[p], 2**bit_depth - 1)
+            pivot_frame, isolated = fill_stuck_pixels(arr[p : p + 1], top=2**bit_depth - 1)
             if isolated.any():
                 arr = arr.copy()
-                filled = fill_bad_pixels(arr[p : p + 1].astype(np.float32), isolated)[0]
-                arr[p][isolated] = np.rint(filled[isolated]).astype(arr.dtype)
+                arr[p] = pivot_frame[0]
         valid = np.zeros(arr.shape, dtype=bool)
         valid[p] = True
         hs = np.repeat(np.eye(3)[None], arr.shape[0], axis=0)

@@ -21,6 +21,7 @@ from typing import Any
 
 import numpy as np
 
+from thermocal._validate import clipped_mask
 from thermocal.burst import clipped_parts
 from thermocal.calibration.base import ThermocalWarning, fill_bad_pixels
 from thermocal.errors import InvalidInputError
@@ -42,21 +43,23 @@ MAX_UNDEFINED_FRACTION = 0.001
 SATURATED_SIGMA_C = 160.0
 
 
-def _sensor_top(frame: np.ndarray, top: int) -> int:
-    """The sensor's top count for ``frame``: ``top`` (its file's names), or 65,535 where the
-    frame's counts exceed it (not the sensor its file names)."""
-    return 2**16 - 1 if frame.size and int(frame.max()) > top else top
+def _clipped_parts(frame: np.ndarray, bit_depth: int) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`~thermocal.burst.clipped_parts` of a frame ``(H, W)`` of a sensor of
+    ``bit_depth`` (its file's names), 16 where the frame's counts exceed it (not the sensor its
+    file names)."""
+    if frame.size and int(frame.max()) > 2**bit_depth - 1:
+        bit_depth = 16
+    return clipped_parts(clipped_mask(frame, bit_depth))
 
 
-def _converted(planck: FlirPlanck, frame: np.ndarray, top: int) -> np.ndarray:
+def _converted(planck: FlirPlanck, frame: np.ndarray, bit_depth: int) -> np.ndarray:
     """One frame ``(H, W)`` through ``planck``, °C float32 (see ``VendorCalibration.calibrate``);
-    ``top``: the sensor's largest count (``2**bit_depth − 1``), where it saturates (65,535
-    where the frame's counts exceed it: not the sensor its file names)."""
+    ``bit_depth``: its sensor's, whose top count is where it saturates."""
     raw = frame.astype(np.float64)
     # a clipped defect says nothing of the scene (a saturated Tau2 pixel, 16,383, read 125 °C
     # with σ 3 where the scene was 32-39 °C): filled; a saturated object (a larger group) is
     # converted as it is, a lower bound, and outside (:meth:`VendorCalibration.outside`)
-    isolated, clusters = clipped_parts(frame, _sensor_top(frame, top))
+    isolated, clusters = _clipped_parts(frame, bit_depth)
     undefined = ~((raw > planck.raw_min) & (raw < planck.raw_max)) & ~isolated & ~clusters
     if undefined.mean() > MAX_UNDEFINED_FRACTION:
         raise InvalidInputError(
@@ -82,11 +85,10 @@ def _converted(planck: FlirPlanck, frame: np.ndarray, top: int) -> np.ndarray:
     return fill_bad_pixels(temps, bad)[0]
 
 
-def _saturated(frames: np.ndarray, k: int, top: int) -> np.ndarray:
+def _saturated(frames: np.ndarray, k: int, bit_depth: int) -> np.ndarray:
     """The saturated objects (clipped groups larger than a defect) of frame ``k`` of raw
     ``frames`` ``(N, H, W)``, ``(H, W)`` bool."""
-    frame = np.asarray(frames[k])
-    return clipped_parts(frame, _sensor_top(frame, top))[1]
+    return _clipped_parts(np.asarray(frames[k]), bit_depth)[1]
 
 
 def vendor_accuracy(metadata: dict[str, Any]) -> tuple[float, float]:
@@ -108,10 +110,10 @@ class VendorCalibration:
         Each frame's measuring range, °C, as its file states it (``temperature_range_c``; None:
         not stated): the stated accuracy holds within it. A burst whose scene (its 1st–99th
         percentile) lies beyond it is outside; beyond it σ grows by the distance.
-    tops : list of int, optional
-        Each frame's largest count, where its sensor saturates (``2**bit_depth − 1``,
-        :func:`~thermocal.io.fff.flir_bit_depth`; default 65,535): counts there, or at 0, are
-        filled from their neighbours.
+    bit_depths : list of int, optional
+        Each frame's sensor bit depth (:func:`~thermocal.io.fff.flir_bit_depth`; default 16),
+        whose top count is where it saturates: a pixel or two there, or at 0, are filled from
+        their neighbours; a larger group is a saturated object, outside.
     """
 
     name = "camera"
@@ -126,11 +128,11 @@ class VendorCalibration:
 
     def __init__(self, plancks: list[FlirPlanck], accuracy: list[tuple[float, float]],
                  ranges: list[tuple[float, float] | None] | None = None,
-                 tops: list[int] | None = None) -> None:
+                 bit_depths: list[int] | None = None) -> None:
         self.plancks = plancks
         self.accuracy = accuracy
         self.ranges = list(ranges) if ranges is not None else [None] * len(plancks)
-        self.tops = list(tops) if tops is not None else [2**16 - 1] * len(plancks)
+        self.bit_depths = list(bit_depths) if bit_depths is not None else [16] * len(plancks)
 
     @classmethod
     def from_recording(cls, recording: Recording, path: Any = "the recording"
@@ -158,12 +160,13 @@ class VendorCalibration:
         return cls([planck_from_metadata(m) for m in metas], [vendor_accuracy(m) for m in metas],
                    [tuple(m["temperature_range_c"]) if m.get("temperature_range_c") else None
                     for m in metas],
-                   [2 ** flir_bit_depth(m) - 1 for m in metas])
+                   [flir_bit_depth(m) for m in metas])
 
     def for_frames(self, start: int, n: int) -> VendorCalibration:
         """The same for frames ``start … start + n − 1`` of the recording (a flight's group)."""
         return VendorCalibration(self.plancks[start : start + n], self.accuracy[start : start + n],
-                                 self.ranges[start : start + n], self.tops[start : start + n])
+                                 self.ranges[start : start + n],
+                                 self.bit_depths[start : start + n])
 
     def check(self, frames: np.ndarray, *, registered: bool, homographies: Any) -> None:
         if frames.shape[0] != len(self.plancks):
@@ -175,10 +178,12 @@ class VendorCalibration:
     def calibrate(self, frames: np.ndarray, fpa_c: Any, time_s: Any, *,
                   pace: Any = None) -> np.ndarray:
         """Each frame through its constants; a few pixels whose counts the constants give no
-        temperature (dead pixels, at most :data:`MAX_UNDEFINED_FRACTION` of a frame) are
-        filled from their neighbours with a warning; more are refused by the formula."""
-        return np.stack([_converted(p, f, top)
-                         for p, f, top in zip(self.plancks, frames, self.tops, strict=True)])
+        temperature (dead pixels, at most :data:`MAX_UNDEFINED_FRACTION` of a frame), and
+        clipped ones alone or in pairs, are filled from their neighbours with a warning; more
+        are refused by the formula; larger clipped groups are converted as they are (a lower
+        bound: :meth:`outside`)."""
+        return np.stack([_converted(p, f, bits) for p, f, bits
+                         in zip(self.plancks, frames, self.bit_depths, strict=True)])
 
     def outside(self, calibrated: np.ndarray, fpa_c: float | None, *,
                 pace: Any = None, burst: PreparedBurst | None = None) -> tuple[str, ...]:
@@ -188,7 +193,7 @@ class VendorCalibration:
         (:meth:`~thermocal.radiometry.FlirPlanck.raw_to_temperature_c`)."""
         k = 0 if burst is None else burst.pivot
         saturated = (np.zeros(0, bool) if burst is None
-                     else _saturated(burst.frames, k, self.tops[k]))
+                     else _saturated(burst.frames, k, self.bit_depths[k]))
         why = (f"{int(saturated.sum())} pixel(s) saturated in groups (a scene beyond the "
                "sensor's range: their count says only that they are hotter than its top)",
                ) if saturated.any() else ()
@@ -227,6 +232,6 @@ class VendorCalibration:
                     ThermocalWarning, stacklevel=2)
             sigma += beyond
         if outside:  # forced: a saturated object's pixels are only a lower bound
-            saturated = _saturated(burst.frames, burst.pivot, self.tops[burst.pivot])
+            saturated = _saturated(burst.frames, burst.pivot, self.bit_depths[burst.pivot])
             sigma[saturated] = np.hypot(sigma[saturated], SATURATED_SIGMA_C)
         return sigma.astype(np.float32)
